@@ -1,0 +1,45 @@
+#pragma once
+// Reading and writing images through OpenImageIO (PNG, JPEG, TIFF, EXR, ... in; any format
+// OIIO writes, by file extension, out). Images in memory are cv::Mat in RGB(A) order.
+//
+// Writes are atomic: the image goes to a hidden temporary file in the destination folder
+// and is renamed over the final name only when complete, so an interrupted run never leaves
+// a half-written image under a final name.
+#include <filesystem>
+#include <string>
+
+#include <opencv2/core.hpp>
+
+namespace raindrop {
+
+struct ImageHeader {
+  int width = 0, height = 0, channels = 0;
+  int bits = 0;        // bits per channel of the stored data (8, 16, 32, ...)
+  bool is_float = false;
+  std::string format;  // OIIO format name, e.g. "png"
+};
+
+// Throws raindrop::Error naming the file for a missing, empty, unreadable or non-image file.
+ImageHeader read_header(const std::filesystem::path& path);
+
+// The frame as 8-bit RGB (CV_8UC3). Strict mode accepts only 8-bit, 3-channel images and
+// says why otherwise; with `convert`, 16-bit/float inputs are rounded to 8 bits, grey is
+// replicated to RGB and alpha is dropped (colour kept as stored, not premultiplied).
+// Images smaller than `min_size` on a side are refused. Truncated files are errors.
+cv::Mat read_rgb8(const std::filesystem::path& path, bool convert, int min_size = 16);
+
+// The image with its own channels (1-4) and depth: CV_8U or CV_16U (float inputs become
+// CV_16U). For raindrop-remove, which keeps size, channels and bit depth.
+cv::Mat read_image_native(const std::filesystem::path& path, int min_size = 1);
+
+// Writes CV_8U/CV_16U images with 1, 3 or 4 channels (RGB order) atomically; the format
+// comes from the extension. Throws raindrop::Error on failure, leaving no file behind.
+void write_image_atomic(const cv::Mat& image, const std::filesystem::path& path);
+
+// Creates the folder if needed and proves it is writable; throws a one-line Error if not.
+void ensure_writable_dir(const std::filesystem::path& dir);
+
+// Writes text atomically (temporary file + rename).
+void write_text_atomic(const std::string& text, const std::filesystem::path& path);
+
+}  // namespace raindrop

@@ -1,0 +1,27 @@
+#pragma once
+// One concrete scene drawn from a SceneConfig: glass pose, background distance, blur size and
+// the drops, placed on the part of the glass the camera sees.
+#include <vector>
+
+#include "raindrop/camera.h"
+#include "raindrop/drop.h"
+#include "raindrop/glass.h"
+#include "raindrop/rng.h"
+#include "raindrop/scene_config.h"
+
+namespace raindrop {
+
+struct SceneSample {
+  GlassPlane glass;
+  double background_distance_cm = 1000;  // T: the background plane is z = T
+  double blur_diameter_px = 0;           // at the output resolution; 0 = no blur
+  std::vector<DropShape> drops;
+  int drops_requested = 0;               // may exceed drops.size() if the glass was too full
+};
+
+// Drop centres are uniform per unit area of glass over the region seen through the frame
+// (plus a margin, so drops may be cut by the frame edge); footprints do not overlap unless
+// the config allows it. Deterministic in the Rng state.
+SceneSample sample_scene(const SceneConfig& config, const Camera& camera, Rng& rng);
+
+}  // namespace raindrop

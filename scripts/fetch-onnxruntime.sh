@@ -1,0 +1,48 @@
+#!/usr/bin/env bash
+# Obtain ONNX Runtime for Debian 12 into DEST (default: build/_deps/onnxruntime):
+#   DEST/lib/libonnxruntime.so.<ver>  (+ libonnxruntime.so symlink)  from the PyPI wheel
+#   DEST/include/onnxruntime/*.h                                    from trixie's -dev package
+# Versions and checksums are pinned in deps/onnxruntime.env. Idempotent: does nothing when
+# DEST/.complete matches the pins. Nothing is installed system-wide.
+set -euo pipefail
+here="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
+# shellcheck source=../deps/onnxruntime.env
+source "$here/deps/onnxruntime.env"
+dest="${1:-$here/build/_deps/onnxruntime}"
+stamp="$ORT_LIB_VERSION/$ORT_HEADERS_DEB_VERSION"
+if [[ -f "$dest/.complete" && "$(cat "$dest/.complete")" == "$stamp" ]]; then
+  exit 0
+fi
+work="$(mktemp -d)"
+trap 'rm -rf "$work"' EXIT
+echo "fetch-onnxruntime: library $ORT_LIB_VERSION (PyPI wheel), headers $ORT_HEADERS_DEB_VERSION (Debian trixie)" >&2
+
+# 1. The library, from the wheel. --python-version/--platform make pip pick exactly the pinned file.
+python3 -m pip download -q --no-deps --only-binary=:all: --python-version 3.11 \
+  --platform manylinux_2_28_x86_64 "onnxruntime==$ORT_LIB_VERSION" -d "$work/wheel" >&2
+echo "$ORT_WHEEL_SHA256  $work/wheel/$ORT_WHEEL" | sha256sum --check --quiet -
+
+# 2. The headers, from trixie, with a private source list, state and cache (the system's apt
+#    configuration is not touched).
+apt_opts=(-o "Dir::Etc::sourcelist=$work/apt/sources.list" -o "Dir::Etc::sourceparts=-"
+          -o "Dir::State::Lists=$work/apt/lists" -o "Dir::Cache=$work/apt/cache"
+          -o "Debug::NoLocking=1" -o "APT::Sandbox::User=root")
+mkdir -p "$work/apt/lists/partial" "$work/apt/cache/archives/partial"
+echo "deb http://deb.debian.org/debian trixie main" > "$work/apt/sources.list"
+apt-get "${apt_opts[@]}" -qq update >&2
+(cd "$work" && apt-get "${apt_opts[@]}" -qq download "libonnxruntime-dev=$ORT_HEADERS_DEB_VERSION" >&2)
+echo "$ORT_HEADERS_DEB_SHA256  $work/$ORT_HEADERS_DEB" | sha256sum --check --quiet -
+
+rm -rf "$dest" && mkdir -p "$dest/lib" "$dest/include"
+python3 - "$work/wheel/$ORT_WHEEL" "$dest/lib" "$ORT_LIB_VERSION" <<'PY'
+import sys, zipfile, os
+whl, out, ver = sys.argv[1:]
+name = f"onnxruntime/capi/libonnxruntime.so.{ver}"
+with zipfile.ZipFile(whl) as z, open(os.path.join(out, os.path.basename(name)), "wb") as f:
+    f.write(z.read(name))
+PY
+ln -sf "libonnxruntime.so.$ORT_LIB_VERSION" "$dest/lib/libonnxruntime.so"
+dpkg -x "$work/$ORT_HEADERS_DEB" "$work/deb"
+cp -r "$work/deb/usr/include/onnxruntime" "$dest/include/"
+echo "$stamp" > "$dest/.complete"
+echo "fetch-onnxruntime: ready in $dest" >&2

@@ -1,0 +1,37 @@
+#!/usr/bin/env bash
+# Set-up on a fresh Debian 12 (bookworm): system packages, ONNX Runtime (pinned, fetched into
+# the build tree by CMake: deps/onnxruntime.env), a Release build, then the demo render
+# (backgrounds drawn by the program, no data set needed) with its contact sheet.
+#
+#   scripts/setup.sh            install + build + demo
+#   scripts/setup.sh --no-demo  install + build only (used by scripts/test.sh)
+#
+# PyTorch is not part of this: tools/ has its own opt-in step, scripts/setup-tools.sh.
+set -euo pipefail
+cd "$(dirname "${BASH_SOURCE[0]}")/.."
+
+run_demo=1
+[[ "${1:-}" == "--no-demo" ]] && run_demo=0
+
+packages=(build-essential cmake ninja-build pkg-config ca-certificates dpkg
+          libopencv-dev libembree-dev libopenimageio-dev libglm-dev libtbb-dev
+          nlohmann-json3-dev libcli11-dev libgtest-dev
+          python3 python3-pip python3-venv)
+missing=()
+for p in "${packages[@]}"; do
+  dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")
+done
+if ((${#missing[@]})); then
+  echo "setup: installing ${missing[*]}" >&2
+  sudo_cmd=()
+  [[ $(id -u) -ne 0 ]] && sudo_cmd=(sudo)
+  "${sudo_cmd[@]}" apt-get update -qq
+  DEBIAN_FRONTEND=noninteractive "${sudo_cmd[@]}" apt-get install -y -qq --no-install-recommends "${missing[@]}" >&2
+fi
+
+cmake -S . -B build -G Ninja -DCMAKE_BUILD_TYPE=Release ${RAINDROP_CMAKE_ARGS:-} >&2
+cmake --build build --parallel "$(nproc)" >&2
+
+if ((run_demo)); then
+  ./build/raindrop-render --demo --out out/demo --variants 2
+fi

@@ -1,0 +1,178 @@
+#include "raindrop/image_io.h"
+
+#include <atomic>
+#include <cstdio>
+#include <fstream>
+#include <memory>
+#include <system_error>
+
+#include <unistd.h>
+
+#include <OpenImageIO/imageio.h>
+
+#include "raindrop/error.h"
+
+namespace raindrop {
+namespace fs = std::filesystem;
+namespace {
+
+std::string quoted(const fs::path& p) { return "'" + p.string() + "'"; }
+
+// First line of an OIIO error message (they can be multi-line).
+std::string first_line(std::string s) {
+  const auto nl = s.find('\n');
+  if (nl != std::string::npos) s.resize(nl);
+  return s.empty() ? "unknown error" : s;
+}
+
+std::unique_ptr<OIIO::ImageInput> open_input(const fs::path& path, OIIO::ImageSpec* spec) {
+  std::error_code ec;
+  if (!fs::exists(path, ec)) throw Error(quoted(path) + ": no such file");
+  if (fs::is_directory(path, ec)) throw Error(quoted(path) + ": is a folder, not an image");
+  if (fs::file_size(path, ec) == 0) throw Error(quoted(path) + ": file is empty");
+  // Keep colour values as stored when there is alpha (PNG is unassociated).
+  OIIO::ImageSpec config;
+  config.attribute("oiio:UnassociatedAlpha", 1);
+  auto in = OIIO::ImageInput::open(path.string(), &config);
+  if (!in) throw Error(quoted(path) + ": not a readable image (" + first_line(OIIO::geterror()) + ")");
+  *spec = in->spec();
+  if (spec->width <= 0 || spec->height <= 0 || spec->nchannels <= 0)
+    throw Error(quoted(path) + ": image has no pixels");
+  // A declared size beyond 2^28 pixels (16384 x 16384) is refused before allocating.
+  if (static_cast<double>(spec->width) * spec->height > (1 << 28))
+    throw Error(quoted(path) + ": declared size " + std::to_string(spec->width) + "x" +
+                std::to_string(spec->height) + " exceeds the 268 megapixel limit");
+  return in;
+}
+
+std::string temp_name_for(const fs::path& path) {
+  static std::atomic<unsigned> counter{0};
+  return "." + path.filename().string() + ".tmp-" + std::to_string(::getpid()) + "-" +
+         std::to_string(counter++);
+}
+
+}  // namespace
+
+ImageHeader read_header(const fs::path& path) {
+  OIIO::ImageSpec spec;
+  auto in = open_input(path, &spec);
+  ImageHeader h;
+  h.width = spec.width;
+  h.height = spec.height;
+  h.channels = spec.nchannels;
+  h.bits = static_cast<int>(spec.format.size() * 8);
+  h.is_float = spec.format.basetype == OIIO::TypeDesc::FLOAT || spec.format.basetype == OIIO::TypeDesc::HALF ||
+               spec.format.basetype == OIIO::TypeDesc::DOUBLE;
+  h.format = in->format_name();
+  in->close();
+  return h;
+}
+
+cv::Mat read_rgb8(const fs::path& path, bool convert, int min_size) {
+  OIIO::ImageSpec spec;
+  auto in = open_input(path, &spec);
+  const int w = spec.width, h = spec.height, nc = spec.nchannels;
+  if (w < min_size || h < min_size)
+    throw Error(quoted(path) + ": image is " + std::to_string(w) + "x" + std::to_string(h) +
+                ", smaller than the " + std::to_string(min_size) + "x" + std::to_string(min_size) + " minimum");
+  if (!convert) {
+    if (spec.format != OIIO::TypeDesc::UINT8)
+      throw Error(quoted(path) + ": " + std::to_string(spec.format.size() * 8) +
+                  "-bit image; only 8-bit RGB is rendered as is (pass --convert to round it to 8 bits)");
+    if (nc != 3)
+      throw Error(quoted(path) + ": " + std::to_string(nc) + "-channel image (" +
+                  (nc == 1 ? "grey" : nc == 4 ? "RGBA" : nc == 2 ? "grey+alpha" : "unusual") +
+                  "); only RGB is rendered as is (pass --convert to make it RGB)");
+  }
+  if (nc < 1 || nc > 4) throw Error(quoted(path) + ": " + std::to_string(nc) + " channels are not supported");
+  cv::Mat raw(h, w, CV_8UC(nc));
+  // OIIO converts 16-bit and float data to 8 bits with rounding and clamping.
+  if (!in->read_image(0, 0, 0, nc, OIIO::TypeDesc::UINT8, raw.data))
+    throw Error(quoted(path) + ": cannot decode (" + first_line(in->geterror()) + ")");
+  in->close();
+  if (nc == 3) return raw;
+  cv::Mat rgb(h, w, CV_8UC3);
+  const int from_to_grey[] = {0, 0, 0, 1, 0, 2};
+  const int from_to_rgb[] = {0, 0, 1, 1, 2, 2};
+  cv::mixChannels(&raw, 1, &rgb, 1, nc <= 2 ? from_to_grey : from_to_rgb, 3);
+  return rgb;
+}
+
+cv::Mat read_image_native(const fs::path& path, int min_size) {
+  OIIO::ImageSpec spec;
+  auto in = open_input(path, &spec);
+  const int w = spec.width, h = spec.height, nc = spec.nchannels;
+  if (w < min_size || h < min_size)
+    throw Error(quoted(path) + ": image is " + std::to_string(w) + "x" + std::to_string(h) +
+                ", smaller than the " + std::to_string(min_size) + "x" + std::to_string(min_size) + " minimum");
+  if (nc < 1 || nc > 4) throw Error(quoted(path) + ": " + std::to_string(nc) + " channels are not supported");
+  const bool eight = spec.format == OIIO::TypeDesc::UINT8 || spec.format == OIIO::TypeDesc::INT8;
+  cv::Mat img(h, w, eight ? CV_8UC(nc) : CV_16UC(nc));
+  if (!in->read_image(0, 0, 0, nc, eight ? OIIO::TypeDesc::UINT8 : OIIO::TypeDesc::UINT16, img.data))
+    throw Error(quoted(path) + ": cannot decode (" + first_line(in->geterror()) + ")");
+  in->close();
+  return img;
+}
+
+void write_image_atomic(const cv::Mat& image, const fs::path& path) {
+  CV_Assert(image.depth() == CV_8U || image.depth() == CV_16U);
+  const fs::path dir = path.has_parent_path() ? path.parent_path() : fs::path(".");
+  const fs::path tmp = dir / temp_name_for(path);
+  // The plugin is chosen from the final name's extension, then opened on the temporary name.
+  auto out = OIIO::ImageOutput::create(path.string());
+  if (!out) throw Error(quoted(path) + ": cannot write this format (" + first_line(OIIO::geterror()) + ")");
+  const cv::Mat data = image.isContinuous() ? image : image.clone();
+  OIIO::ImageSpec spec(data.cols, data.rows, data.channels(),
+                       data.depth() == CV_8U ? OIIO::TypeDesc::UINT8 : OIIO::TypeDesc::UINT16);
+  if (data.channels() == 4) spec.alpha_channel = 3;
+  if (data.channels() == 4 || data.channels() == 2) spec.attribute("oiio:UnassociatedAlpha", 1);
+  bool ok = out->open(tmp.string(), spec) &&
+            out->write_image(data.depth() == CV_8U ? OIIO::TypeDesc::UINT8 : OIIO::TypeDesc::UINT16, data.data);
+  ok = out->close() && ok;
+  std::error_code ec;
+  if (!ok) {
+    const std::string why = first_line(out->geterror());
+    fs::remove(tmp, ec);
+    throw Error(quoted(path) + ": cannot write (" + why + ")");
+  }
+  fs::rename(tmp, path, ec);
+  if (ec) {
+    fs::remove(tmp, ec);
+    throw Error(quoted(path) + ": cannot move the finished file into place (" + ec.message() + ")");
+  }
+}
+
+void ensure_writable_dir(const fs::path& dir) {
+  std::error_code ec;
+  fs::create_directories(dir, ec);
+  if (ec || !fs::is_directory(dir)) throw Error("output folder " + quoted(dir) + " cannot be created (" + (ec ? ec.message() : "not a folder") + ")");
+  const fs::path probe = dir / temp_name_for(dir / "probe");
+  {
+    std::ofstream f(probe);
+    if (!f || !(f << "ok") || !f.flush()) {
+      fs::remove(probe, ec);
+      throw Error("output folder " + quoted(dir) + " is not writable");
+    }
+  }
+  fs::remove(probe, ec);
+}
+
+void write_text_atomic(const std::string& text, const fs::path& path) {
+  const fs::path dir = path.has_parent_path() ? path.parent_path() : fs::path(".");
+  const fs::path tmp = dir / temp_name_for(path);
+  std::error_code ec;
+  {
+    std::ofstream f(tmp, std::ios::binary);
+    if (!f || !(f << text) || !f.flush()) {
+      fs::remove(tmp, ec);
+      throw Error(quoted(path) + ": cannot write");
+    }
+  }
+  fs::rename(tmp, path, ec);
+  if (ec) {
+    fs::remove(tmp, ec);
+    throw Error(quoted(path) + ": cannot move the finished file into place (" + ec.message() + ")");
+  }
+}
+
+}  // namespace raindrop

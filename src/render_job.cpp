@@ -1,0 +1,245 @@
+#include "raindrop/render_job.h"
+
+#include <algorithm>
+#include <atomic>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <map>
+#include <mutex>
+
+#include <nlohmann/json.hpp>
+#include <tbb/global_control.h>
+#include <tbb/parallel_for.h>
+#include <tbb/task_arena.h>
+
+#include "raindrop/error.h"
+#include "raindrop/framing.h"
+#include "raindrop/image_io.h"
+#include "raindrop/manifest.h"
+#include "raindrop/progress.h"
+#include "raindrop/rng.h"
+#include "raindrop/scene.h"
+
+#ifndef RAINDROP_VERSION
+#define RAINDROP_VERSION "0.0.0"
+#endif
+
+namespace raindrop {
+namespace fs = std::filesystem;
+using json = nlohmann::json;
+
+namespace {
+
+constexpr double kDeg = 180.0 / M_PI;
+
+std::string hex64(std::uint64_t v) {
+  char buf[17];
+  std::snprintf(buf, sizeof buf, "%016llx", static_cast<unsigned long long>(v));
+  return buf;
+}
+
+// Everything that changes the bytes of a sample.
+std::string job_fingerprint(const RenderOptions& o) {
+  std::string key = renderer_version() + "\n" + scene_to_json(o.scene) + "\n" + std::to_string(o.seed) + "\n" +
+                    (o.size ? std::to_string(o.size->width) + "x" + std::to_string(o.size->height) : "native") +
+                    "\n" + (o.convert ? "convert" : "strict");
+  return hex64(hash_string(key));
+}
+
+void remove_stale_temporaries(const fs::path& dir) {
+  std::error_code ec;
+  for (auto it = fs::directory_iterator(dir, ec); !ec && it != fs::directory_iterator(); it.increment(ec)) {
+    const std::string name = it->path().filename().string();
+    if (!name.empty() && name[0] == '.' && name.find(".tmp-") != std::string::npos) fs::remove(it->path(), ec);
+  }
+}
+
+json drop_record(const DropShape& d, bool gravity) {
+  json j = {{"center_cm", {d.center.x, d.center.y}},
+            {"footprint_radius_cm", d.footprint_radius},
+            {"sphere_radius_cm", d.sphere_radius()},
+            {"contact_angle_deg", d.contact_angle * kDeg},
+            {"height_cm", d.height()}};
+  if (gravity) {
+    j["elongation"] = d.elongation;
+    j["flattening"] = d.flattening;
+  }
+  return j;
+}
+
+json sample_record(const std::string& id, const InputImage& input, int variant, std::uint64_t seed,
+                   const Frame& frame, const SceneConfig& config, const SceneSample& scene,
+                   const RenderedFrame& rendered, const std::string& job) {
+  json drops = json::array();
+  for (const auto& d : scene.drops) drops.push_back(drop_record(d, config.gravity.enabled));
+  const double px = static_cast<double>(rendered.stats.drop_pixels);
+  return json{{"id", id},
+              {"rainy", "rainy/" + id + ".png"},
+              {"clean", "clean/" + id + ".png"},
+              {"mask", "mask/" + id + ".png"},
+              {"width", frame.clean.cols},
+              {"height", frame.clean.rows},
+              {"source", input.path.string()},
+              {"split", input.split},
+              {"variant", variant},
+              {"seed", seed},
+              {"camera", {{"fx", frame.camera.fx}, {"fy", frame.camera.fy}, {"cx", frame.camera.cx},
+                          {"cy", frame.camera.cy}, {"origin", frame.camera_origin}}},
+              {"scene", {{"preset", config.name},
+                         {"glass_distance_cm", scene.glass.distance},
+                         {"background_distance_cm", scene.background_distance_cm},
+                         {"tilt_deg", scene.glass.tilt * kDeg},
+                         {"blur_diameter_px", scene.blur_diameter_px},
+                         {"refractive_index", config.refractive_index},
+                         {"drops_requested", scene.drops_requested},
+                         {"geometry", config.geometry.describe()},
+                         {"samples_per_pixel", config.samples_per_pixel},
+                         {"border", to_string(config.border)}}},
+              {"effects", config.effect_names()},
+              {"drops", drops},
+              {"coverage", rendered.coverage()},
+              {"dark_band_fraction", px > 0 ? rendered.stats.dark_band_pixels / px : 0.0},
+              {"off_frame_fraction", px > 0 ? rendered.stats.off_frame_pixels / px : 0.0},
+              {"renderer", "raindrop-render " + renderer_version()},
+              {"job", job}};
+}
+
+std::string variant_id(const std::string& input_id, int variant) {
+  char buf[16];
+  std::snprintf(buf, sizeof buf, "_v%02d", variant);
+  return input_id + buf;
+}
+
+}  // namespace
+
+std::string renderer_version() { return RAINDROP_VERSION; }
+
+std::uint64_t sample_seed(std::uint64_t run_seed, const std::string& input_id, int variant) {
+  return mix64(mix64(run_seed) ^ hash_string(input_id) ^ mix64(0x5eed0000ULL + static_cast<std::uint64_t>(variant)));
+}
+
+RenderSummary render_dataset(const std::vector<InputImage>& inputs, const RenderOptions& o) {
+  const auto start = std::chrono::steady_clock::now();
+  if (o.variants < 1) throw Error("--variants must be at least 1");
+  check_unique_ids(inputs);
+  for (const char* sub : {"", "rainy", "clean", "mask"}) {
+    ensure_writable_dir(o.out_dir / sub);
+    remove_stale_temporaries(o.out_dir / sub);
+  }
+  const fs::path manifest_path = o.out_dir / "manifest.jsonl";
+  const std::string job = job_fingerprint(o);
+  const auto existing = read_manifest(manifest_path);
+  std::map<std::string, ManifestEntry> kept;
+  for (const auto& [id, entry] : existing) {
+    if (entry.job != job)
+      throw Error("'" + o.out_dir.string() + "' holds samples rendered with other settings (scene, seed, size, "
+                  "--convert or renderer version); render into a new folder or delete that one");
+    bool complete = true;
+    for (const auto& f : entry.files) complete = complete && fs::exists(o.out_dir / f);
+    if (complete) kept[id] = entry;
+  }
+
+  struct Task {
+    const InputImage* input;
+    std::vector<int> variants;
+  };
+  std::vector<Task> tasks;
+  RenderSummary summary;
+  for (const auto& in : inputs) {
+    Task t{&in, {}};
+    for (int v = 0; v < o.variants; ++v) {
+      if (kept.count(variant_id(in.id, v))) {
+        ++summary.skipped;
+      } else {
+        t.variants.push_back(v);
+      }
+    }
+    if (!t.variants.empty()) tasks.push_back(std::move(t));
+  }
+
+  const int threads = o.threads > 0 ? o.threads : static_cast<int>(std::thread::hardware_concurrency());
+  // Embree and TBB size their pools from this; the arena bounds our own parallelism.
+  tbb::global_control limit(tbb::global_control::max_allowed_parallelism, static_cast<size_t>(threads));
+  tbb::task_arena arena(threads);
+
+  // Check every input's header before writing anything, so that a bad file in a large run is
+  // reported at once rather than hours in.
+  if (!o.keep_going) {
+    std::vector<std::string> header_errors(tasks.size());
+    arena.execute([&] {
+      tbb::parallel_for(size_t{0}, tasks.size(), [&](size_t i) {
+        try {
+          const ImageHeader h = read_header(tasks[i].input->path);
+          (void)h;
+        } catch (const Error& e) {
+          header_errors[i] = e.what();
+        }
+      });
+    });
+    for (const auto& e : header_errors) {
+      if (!e.empty()) throw Error(e);
+    }
+  }
+
+  std::int64_t todo = 0;
+  for (const auto& t : tasks) todo += static_cast<std::int64_t>(t.variants.size());
+  Progress progress(todo, "render", o.progress);
+  ManifestWriter manifest(manifest_path);
+  std::atomic<bool> stop{false};
+  std::mutex summary_mutex;
+
+  arena.execute([&] {
+    tbb::parallel_for(
+        tbb::blocked_range<size_t>(0, tasks.size(), 1),
+        [&](const tbb::blocked_range<size_t>& range) {
+          for (size_t i = range.begin(); i < range.end(); ++i) {
+            const Task& task = tasks[i];
+            if (stop) return;
+            size_t finished = 0;
+            try {
+              const cv::Mat rgb = read_rgb8(task.input->path, o.convert);
+              const Frame frame = make_frame(rgb, task.input->calibration, o.size);
+              for (int v : task.variants) {
+                if (stop) return;
+                const std::string id = variant_id(task.input->id, v);
+                const std::uint64_t seed = sample_seed(o.seed, task.input->id, v);
+                Rng rng(seed);
+                const SceneSample scene = sample_scene(o.scene, frame.camera, rng);
+                const RenderedFrame rendered = render_frame(frame.clean, frame.camera, o.scene, scene);
+                write_image_atomic(rendered.rainy, o.out_dir / "rainy" / (id + ".png"));
+                write_image_atomic(frame.clean, o.out_dir / "clean" / (id + ".png"));
+                write_image_atomic(rendered.mask, o.out_dir / "mask" / (id + ".png"));
+                manifest.append(id, sample_record(id, *task.input, v, seed, frame, o.scene, scene, rendered, job).dump());
+                ++finished;
+                {
+                  std::lock_guard<std::mutex> lock(summary_mutex);
+                  ++summary.rendered;
+                  summary.coverage_sum += rendered.coverage();
+                  summary.drops_sum += static_cast<std::int64_t>(scene.drops.size());
+                  if (o.contact_sheet_rows > 0) {
+                    summary.samples.push_back({id, frame.clean, rendered.rainy, rendered.mask});
+                    std::sort(summary.samples.begin(), summary.samples.end(),
+                              [](const SampleView& a, const SampleView& b) { return a.id < b.id; });
+                    if (static_cast<int>(summary.samples.size()) > o.contact_sheet_rows) summary.samples.pop_back();
+                  }
+                }
+                progress.advance();
+              }
+            } catch (const std::exception& e) {
+              std::lock_guard<std::mutex> lock(summary_mutex);
+              summary.failed += static_cast<std::int64_t>(task.variants.size() - finished);
+              summary.errors.push_back(e.what());
+              if (!o.keep_going) stop = true;
+            }
+          }
+        },
+        tbb::simple_partitioner());
+  });
+  progress.finish();
+  manifest.finalize(kept);
+  summary.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  return summary;
+}
+
+}  // namespace raindrop
