@@ -38,6 +38,18 @@ std::vector<KernelRow> disk_rows(double diameter, bool antialiased, bool split_r
   const double r = 0.5 * diameter;
   const int R = static_cast<int>(std::ceil(r + 0.5));
   std::vector<KernelRow> rows;
+  if (r <= 0.5) {
+    // The disk lies inside the centre pixel: the exact kernel is the identity (a midpoint
+    // rule would miss a tiny disk entirely and leave no weight at all).
+    KernelRow row;
+    if (split_runs) {
+      row.run_lo = row.run_hi = 0;
+    } else {
+      row.taps.push_back({0, 1.0f});
+    }
+    rows.push_back(row);
+    return rows;
+  }
   for (int dy = -R; dy <= R; ++dy) {
     KernelRow row;
     row.dy = dy;
@@ -122,7 +134,7 @@ void blur_rows(const Source& src, const cv::Mat& label, cv::Mat& color, const cv
             weight += w;
           }
         }
-        dst[i] = sum * (1.0f / weight);
+        dst[i] = weight > 0 ? sum * (1.0f / weight) : src.rgb.at<cv::Vec3f>(y - src.y0, x - src.x0);
       }
     }
   });

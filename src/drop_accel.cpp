@@ -151,11 +151,17 @@ DropAccel::DropAccel(const std::vector<Drop>& drops, const GeometryOptions& opti
           add(ring_vertex(r, s), ring_vertex(r + 1, s + 1), ring_vertex(r, s + 1), DropSurface::Cap);
         }
       }
-      // Base: fan from the footprint centre over the rim ring.
+      // Base: fan from the footprint centre over its own copy of the rim ring. The copy
+      // carries the flat base's normal; sharing the cap's rim vertices would blend the cap's
+      // rim normals into the base under smooth shading.
       const unsigned centre = static_cast<unsigned>(verts.size());
       verts.push_back(glm::vec3(0.5 * (drop.cap_point(tau, 0) + drop.cap_point(tau, M_PI))));
       impl_->vertex_normal.push_back(glm::vec3(drop.base_normal()));
-      for (int s = 0; s < segs; ++s) add(centre, ring_vertex(rings, s + 1), ring_vertex(rings, s), DropSurface::Base);
+      for (int s = 0; s < segs; ++s) {
+        verts.push_back(verts[ring_vertex(rings, s)]);
+        impl_->vertex_normal.push_back(glm::vec3(drop.base_normal()));
+      }
+      for (int s = 0; s < segs; ++s) add(centre, centre + 1 + (s + 1) % segs, centre + 1 + s, DropSurface::Base);
     }
     RTCGeometry geom = rtcNewGeometry(device, RTC_GEOMETRY_TYPE_TRIANGLE);
     auto* vb = static_cast<float*>(rtcSetNewGeometryBuffer(geom, RTC_BUFFER_TYPE_VERTEX, 0,

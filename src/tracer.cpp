@@ -15,28 +15,19 @@
 namespace raindrop {
 namespace {
 
-// A path through the water for one refractive index.
-struct Path {
-  bool hit = false;         // met a drop at all (the pixel is in the mask)
-  int first_drop = -1;
-  bool dark = false;        // ended in total internal reflection painted black
-  bool escaped_in = false;  // left the water back towards the camera / car interior
-  double transmittance = 1; // product of Fresnel transmittances (1 without Fresnel)
-  glm::dvec3 origin{0}, dir{0};  // the ray leaving the last surface
-};
-
 constexpr int kMaxEvents = 16;  // surface crossings/reflections followed before giving up
 
 template <bool kFresnel>
-Path trace_path(const glm::dvec3& dir0, double n_water, TirMode tir, const DropAccel& accel,
-                const GlassPlane& glass) {
-  Path path;
-  glm::dvec3 o(0.0), d = glm::normalize(dir0);
+DropPath trace_path(const glm::dvec3& origin, const glm::dvec3& dir0, double n_water, TirMode tir,
+                    const DropAccel& accel, const GlassPlane& glass) {
+  DropPath path;
+  glm::dvec3 o = origin, d = glm::normalize(dir0);
   DropHit current;
   bool on_surface = false, inside = false;
   for (int event = 0; event < kMaxEvents; ++event) {
     const auto hit = accel.intersect(o, d, on_surface ? &current : nullptr);
     if (!hit) break;
+    ++path.events;
     if (!path.hit) {
       path.hit = true;
       path.first_drop = hit->drop;
@@ -74,8 +65,9 @@ Path trace_path(const glm::dvec3& dir0, double n_water, TirMode tir, const DropA
   return path;
 }
 
-// Background point seen along the ray leaving the drop, as continuous image coordinates.
-glm::dvec2 background_pixel(const Path& p, const Camera& camera, double background_z) {
+}  // namespace
+
+glm::dvec2 background_pixel(const DropPath& p, const Camera& camera, double background_z) {
   // Rays that never reach the background plane (d.z ~ 0 or below, e.g. straight up into the
   // sky) are followed to a point at infinity along a slightly forward-tilted direction; the
   // border mode then decides what is seen there.
@@ -86,6 +78,14 @@ glm::dvec2 background_pixel(const Path& p, const Camera& camera, double backgrou
   }
   return {camera.fx * p.dir.x / dz + camera.cx, camera.fy * p.dir.y / dz + camera.cy};
 }
+
+DropPath trace_through_drops(const glm::dvec3& origin, const glm::dvec3& dir, double n_water, TirMode tir,
+                             bool fresnel, const DropAccel& accel, const GlassPlane& glass) {
+  return fresnel ? trace_path<true>(origin, dir, n_water, tir, accel, glass)
+                 : trace_path<false>(origin, dir, n_water, tir, accel, glass);
+}
+
+namespace {
 
 struct Sample {
   bool hit = false;
@@ -112,7 +112,7 @@ class Kernel {
     const glm::dvec3 dir = camera_.ray_direction(px, py);
     Sample s;
     if constexpr (!kDispersion) {
-      const Path p = trace_path<kFresnel>(dir, n_rgb_.y, tir_, accel_, scene_.glass);
+      const DropPath p = trace_path<kFresnel>(glm::dvec3(0.0), dir, n_rgb_.y, tir_, accel_, scene_.glass);
       s.hit = p.hit;
       if (!s.hit) return s;
       s.drop = p.first_drop;
@@ -122,7 +122,7 @@ class Kernel {
       // One path per colour channel: the green path decides hit and drop (all three meet the
       // same first surface, whose position does not depend on the index).
       for (int c = 0; c < 3; ++c) {
-        const Path p = trace_path<kFresnel>(dir, n_rgb_[c], tir_, accel_, scene_.glass);
+        const DropPath p = trace_path<kFresnel>(glm::dvec3(0.0), dir, n_rgb_[c], tir_, accel_, scene_.glass);
         if (!p.hit) return s;  // same first hit for every channel
         bool off = false;
         s.rgb[c] = shade(p, &off)[c];
@@ -140,7 +140,7 @@ class Kernel {
   glm::dvec3 clean_pixel(int x, int y) const { return bg_.pixel(x, y); }
 
  private:
-  glm::dvec3 shade(const Path& p, bool* off_frame) const {
+  glm::dvec3 shade(const DropPath& p, bool* off_frame) const {
     if (p.dark) return glm::dvec3(0.0);
     glm::dvec3 seen;
     if (p.escaped_in) {

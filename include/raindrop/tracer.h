@@ -13,6 +13,9 @@
 // without them runs code that does not contain them.
 #include <cstdint>
 
+#include <glm/vec2.hpp>
+#include <glm/vec3.hpp>
+
 #include <opencv2/core.hpp>
 
 #include "raindrop/camera.h"
@@ -35,6 +38,25 @@ struct TraceResult {
   cv::Mat color;  // CV_32FC3 RGB in [0, 1]: the traced colour where label >= 0
   TraceStats stats;
 };
+
+// The path of one ray through the drops.
+struct DropPath {
+  bool hit = false;         // met a drop at all (a camera ray: the pixel is in the mask)
+  int first_drop = -1;
+  bool dark = false;        // ended in total internal reflection painted black, or trapped
+  bool escaped_in = false;  // left the water heading back through the glass (car interior)
+  double transmittance = 1; // product of Fresnel transmittances (1 without Fresnel)
+  int events = 0;           // surface crossings and reflections
+  glm::dvec3 origin{0}, dir{0};  // the ray leaving the last surface (unit direction)
+};
+
+// Follows origin + t * dir (t > 0) through the drops with refractive index n_water.
+DropPath trace_through_drops(const glm::dvec3& origin, const glm::dvec3& dir, double n_water, TirMode tir,
+                             bool fresnel, const DropAccel& accel, const GlassPlane& glass);
+
+// Continuous image coordinates of the background point seen along a path's exit ray (the
+// background plane is z = background_z); rays that never reach it are followed to infinity.
+glm::dvec2 background_pixel(const DropPath& path, const Camera& camera, double background_z);
 
 // `clean` is the frame (CV_8UC3, RGB); `accel` holds the scene's drops.
 TraceResult trace_drops(const cv::Mat& clean, const Camera& camera, const SceneConfig& config,
