@@ -68,31 +68,39 @@ std::vector<KernelRow> disk_rows(double diameter, bool antialiased, bool split_r
   return rows;
 }
 
-// Rows [y0, y1] x cols [x0, x1] of the source the blur reads: the traced colour inside
-// drops, the clean pixel outside.
+// Four floats (RGB and a pad) as one SIMD register: GCC/Clang vector extension.
+typedef float f4 __attribute__((vector_size(16)));
+
+// The window of the frame the blur reads: the traced colour inside drops, the clean pixel
+// outside, and per-row prefix sums of it (prefix[y][x] = sum of rgb[y][0..x-1]).
 struct Source {
   int x0, y0, w, h;
-  cv::Mat rgb;     // CV_32FC3, h x w
-  cv::Mat prefix;  // CV_32FC3, h x (w + 1): prefix[y][x] = sum of rgb[y][0..x-1]
+  std::vector<f4> rgb;     // h x w
+  std::vector<f4> prefix;  // h x (w + 1)
+  const f4* rgb_row(int y) const { return rgb.data() + static_cast<size_t>(y - y0) * w - x0; }
+  // prefix_row(y)[x] = sum of rgb over columns x0 .. x-1 (valid for x0 <= x <= x0 + w).
+  const f4* prefix_row(int y) const { return prefix.data() + static_cast<size_t>(y - y0) * (w + 1) - x0; }
 };
 
 Source make_source(const cv::Mat& clean, const cv::Mat& label, const cv::Mat& color,
                    const cv::Rect& box, bool prefix) {
-  Source s{box.x, box.y, box.width, box.height, cv::Mat(box.height, box.width, CV_32FC3), {}};
-  if (prefix) s.prefix = cv::Mat(box.height, box.width + 1, CV_32FC3);
+  Source s{box.x, box.y, box.width, box.height, std::vector<f4>(static_cast<size_t>(box.width) * box.height), {}};
+  if (prefix) s.prefix.resize(static_cast<size_t>(box.width + 1) * box.height);
   tbb::parallel_for(tbb::blocked_range<int>(0, box.height, 16), [&](const tbb::blocked_range<int>& r) {
     for (int j = r.begin(); j < r.end(); ++j) {
       const int y = box.y + j;
       const auto* c8 = clean.ptr<cv::Vec3b>(y) + box.x;
       const int* lab = label.ptr<int>(y) + box.x;
       const auto* col = color.ptr<cv::Vec3f>(y) + box.x;
-      auto* dst = s.rgb.ptr<cv::Vec3f>(j);
+      f4* dst = s.rgb.data() + static_cast<size_t>(j) * box.width;
+      constexpr float k = 1.0f / 255.0f;
       for (int i = 0; i < box.width; ++i) {
-        dst[i] = lab[i] >= 0 ? col[i] : cv::Vec3f(c8[i][0], c8[i][1], c8[i][2]) * (1.0f / 255.0f);
+        dst[i] = lab[i] >= 0 ? f4{col[i][0], col[i][1], col[i][2], 0.f}
+                             : f4{c8[i][0] * k, c8[i][1] * k, c8[i][2] * k, 0.f};
       }
       if (prefix) {
-        auto* p = s.prefix.ptr<cv::Vec3f>(j);
-        p[0] = cv::Vec3f(0, 0, 0);
+        f4* p = s.prefix.data() + static_cast<size_t>(j) * (box.width + 1);
+        p[0] = f4{0, 0, 0, 0};
         for (int i = 0; i < box.width; ++i) p[i + 1] = p[i] + dst[i];
       }
     }
@@ -100,53 +108,88 @@ Source make_source(const cv::Mat& clean, const cv::Mat& label, const cv::Mat& co
   return s;
 }
 
+// Writes `out` (one f4 per mask_box pixel, drop pixels only) back into `color`.
+void store(const std::vector<f4>& out, const cv::Mat& label, cv::Mat& color, const cv::Rect& mask_box) {
+  for (int j = 0; j < mask_box.height; ++j) {
+    const int y = mask_box.y + j;
+    const int* lab = label.ptr<int>(y) + mask_box.x;
+    const f4* o = out.data() + static_cast<size_t>(j) * mask_box.width;
+    auto* c = color.ptr<cv::Vec3f>(y) + mask_box.x;
+    for (int i = 0; i < mask_box.width; ++i) {
+      if (lab[i] >= 0) c[i] = cv::Vec3f(o[i][0], o[i][1], o[i][2]);
+    }
+  }
+}
+
 void blur_rows(const Source& src, const cv::Mat& label, cv::Mat& color, const cv::Rect& mask_box,
                const std::vector<KernelRow>& kernel) {
   const int W = label.cols, H = label.rows;
-  cv::Mat out(mask_box.height, mask_box.width, CV_32FC3);
+  int reach_x = 0, reach_y = 0;
+  float total = 0;
+  for (const KernelRow& row : kernel) {
+    reach_y = std::max(reach_y, std::abs(row.dy));
+    if (row.run_lo <= row.run_hi) {
+      reach_x = std::max({reach_x, std::abs(row.run_lo), std::abs(row.run_hi)});
+      total += static_cast<float>(row.run_hi - row.run_lo + 1);
+    }
+    for (const auto& [dx, w] : row.taps) {
+      reach_x = std::max(reach_x, std::abs(dx));
+      total += w;
+    }
+  }
+  const float inv_total = 1.0f / total;
+  std::vector<f4> out(static_cast<size_t>(mask_box.width) * mask_box.height);
   tbb::parallel_for(tbb::blocked_range<int>(0, mask_box.height, 4), [&](const tbb::blocked_range<int>& r) {
+    std::vector<const f4*> prefix_rows(kernel.size()), rgb_rows(kernel.size());
     for (int j = r.begin(); j < r.end(); ++j) {
       const int y = mask_box.y + j;
       const int* lab = label.ptr<int>(y);
-      auto* dst = out.ptr<cv::Vec3f>(j);
+      f4* dst = out.data() + static_cast<size_t>(j) * mask_box.width;
+      const bool rows_inside = y - reach_y >= 0 && y + reach_y < H;
+      for (size_t k = 0; k < kernel.size(); ++k) {
+        const int yy = y + kernel[k].dy;
+        const bool valid = yy >= 0 && yy < H;
+        prefix_rows[k] = valid && !src.prefix.empty() ? src.prefix_row(yy) : nullptr;
+        rgb_rows[k] = valid ? src.rgb_row(yy) : nullptr;
+      }
       for (int i = 0; i < mask_box.width; ++i) {
         const int x = mask_box.x + i;
         if (lab[x] < 0) continue;
-        cv::Vec3f sum(0, 0, 0);
+        f4 sum{0, 0, 0, 0};
+        if (rows_inside && x - reach_x >= 0 && x + reach_x < W) {
+          // Fast path, away from the frame border: no clipping, constant weight.
+          for (size_t k = 0; k < kernel.size(); ++k) {
+            const KernelRow& row = kernel[k];
+            if (row.run_lo <= row.run_hi) sum += prefix_rows[k][x + row.run_hi + 1] - prefix_rows[k][x + row.run_lo];
+            for (const auto& [dx, w] : row.taps) sum += w * rgb_rows[k][x + dx];
+          }
+          dst[i] = sum * inv_total;
+          continue;
+        }
+        // Near the border: taps outside the frame are dropped and the rest renormalised.
         float weight = 0;
-        for (const KernelRow& row : kernel) {
-          const int yy = y + row.dy;
-          if (yy < 0 || yy >= H) continue;  // outside the frame: renormalised below
-          const int sy = yy - src.y0;
+        for (size_t k = 0; k < kernel.size(); ++k) {
+          if (!rgb_rows[k]) continue;
+          const KernelRow& row = kernel[k];
           if (row.run_lo <= row.run_hi) {
             const int lo = std::max(x + row.run_lo, 0), hi = std::min(x + row.run_hi, W - 1);
             if (lo <= hi) {
-              const auto* p = src.prefix.ptr<cv::Vec3f>(sy);
-              sum += p[hi - src.x0 + 1] - p[lo - src.x0];
+              sum += prefix_rows[k][hi + 1] - prefix_rows[k][lo];
               weight += static_cast<float>(hi - lo + 1);
             }
           }
-          const auto* s = src.rgb.ptr<cv::Vec3f>(sy);
           for (const auto& [dx, w] : row.taps) {
             const int xx = x + dx;
             if (xx < 0 || xx >= W) continue;
-            sum += w * s[xx - src.x0];
+            sum += w * rgb_rows[k][xx];
             weight += w;
           }
         }
-        dst[i] = weight > 0 ? sum * (1.0f / weight) : src.rgb.at<cv::Vec3f>(y - src.y0, x - src.x0);
+        dst[i] = weight > 0 ? sum * (1.0f / weight) : src.rgb_row(y)[x];
       }
     }
   });
-  for (int j = 0; j < mask_box.height; ++j) {
-    const int y = mask_box.y + j;
-    const int* lab = label.ptr<int>(y);
-    const auto* o = out.ptr<cv::Vec3f>(j);
-    auto* c = color.ptr<cv::Vec3f>(y);
-    for (int i = 0; i < mask_box.width; ++i) {
-      if (lab[mask_box.x + i] >= 0) c[mask_box.x + i] = o[i];
-    }
-  }
+  store(out, label, color, mask_box);
 }
 
 void blur_gaussian(const Source& src, const cv::Mat& label, cv::Mat& color, const cv::Rect& mask_box,
@@ -155,57 +198,46 @@ void blur_gaussian(const Source& src, const cv::Mat& label, cv::Mat& color, cons
   const int R = static_cast<int>(std::ceil(3 * sigma));
   std::vector<float> g(2 * R + 1);
   for (int i = -R; i <= R; ++i) g[i + R] = static_cast<float>(std::exp(-0.5 * i * i / (sigma * sigma)));
-  const int W = label.cols;
-  // Horizontal pass over every source row, vertical pass at mask pixels only.
-  cv::Mat horiz(src.h, src.w, CV_32FC3), hweight(src.h, src.w, CV_32F);
+  // Horizontal pass over every source row (its weight in the pad lane, for renormalising at
+  // the frame border), vertical pass at drop pixels only.
+  std::vector<f4> horiz(static_cast<size_t>(src.w) * src.h);
   tbb::parallel_for(tbb::blocked_range<int>(0, src.h, 8), [&](const tbb::blocked_range<int>& r) {
     for (int j = r.begin(); j < r.end(); ++j) {
-      const auto* s = src.rgb.ptr<cv::Vec3f>(j);
-      auto* h = horiz.ptr<cv::Vec3f>(j);
-      auto* hw = hweight.ptr<float>(j);
+      const f4* s = src.rgb.data() + static_cast<size_t>(j) * src.w;
+      f4* h = horiz.data() + static_cast<size_t>(j) * src.w;
       for (int i = 0; i < src.w; ++i) {
-        const int x = src.x0 + i;
-        cv::Vec3f sum(0, 0, 0);
-        float wsum = 0;
-        for (int k = -R; k <= R; ++k) {
-          const int xx = x + k;
-          if (xx < 0 || xx >= W || xx < src.x0 || xx >= src.x0 + src.w) continue;
-          sum += g[k + R] * s[xx - src.x0];
-          wsum += g[k + R];
+        f4 sum{0, 0, 0, 0};
+        for (int k = std::max(-R, -i); k <= std::min(R, src.w - 1 - i); ++k) {
+          sum += g[k + R] * s[i + k];
+          sum[3] += g[k + R];
         }
         h[i] = sum;
-        hw[i] = wsum;
       }
     }
   });
-  cv::Mat out(mask_box.height, mask_box.width, CV_32FC3);
+  std::vector<f4> out(static_cast<size_t>(mask_box.width) * mask_box.height);
   tbb::parallel_for(tbb::blocked_range<int>(0, mask_box.height, 4), [&](const tbb::blocked_range<int>& r) {
     for (int j = r.begin(); j < r.end(); ++j) {
       const int y = mask_box.y + j;
       const int* lab = label.ptr<int>(y);
-      auto* dst = out.ptr<cv::Vec3f>(j);
+      f4* dst = out.data() + static_cast<size_t>(j) * mask_box.width;
       for (int i = 0; i < mask_box.width; ++i) {
         const int x = mask_box.x + i;
         if (lab[x] < 0) continue;
-        cv::Vec3f sum(0, 0, 0);
+        f4 sum{0, 0, 0, 0};
         float wsum = 0;
         for (int k = -R; k <= R; ++k) {
           const int sy = y + k - src.y0;
           if (sy < 0 || sy >= src.h) continue;
-          sum += g[k + R] * horiz.at<cv::Vec3f>(sy, x - src.x0);
-          wsum += g[k + R] * hweight.at<float>(sy, x - src.x0);
+          const f4 h = horiz[static_cast<size_t>(sy) * src.w + (x - src.x0)];
+          sum += g[k + R] * h;
+          wsum += g[k + R] * h[3];
         }
         dst[i] = sum * (1.0f / wsum);
       }
     }
   });
-  for (int j = 0; j < mask_box.height; ++j) {
-    const int y = mask_box.y + j;
-    const int* lab = label.ptr<int>(y);
-    for (int i = 0; i < mask_box.width; ++i) {
-      if (lab[mask_box.x + i] >= 0) color.at<cv::Vec3f>(y, mask_box.x + i) = out.at<cv::Vec3f>(j, i);
-    }
-  }
+  store(out, label, color, mask_box);
 }
 
 int kernel_reach(double diameter, BlurMethod method) {

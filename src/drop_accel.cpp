@@ -30,6 +30,7 @@ struct ExactContext {
   RTCIntersectContext base;
   const std::vector<Drop>* drops;
   glm::dvec3 origin, dir;
+  double t_min;  // the query's lower bound in double (Embree's is a float)
   const DropHit* from;
   DropHit best;  // the last accepted hit is the nearest
 };
@@ -57,7 +58,7 @@ void exact_intersect(const RTCIntersectFunctionNArguments* args) {
   const unsigned prim = args->primID;
   std::optional<DropSurface> start;
   if (ctx->from && ctx->from->drop == static_cast<int>(prim)) start = ctx->from->surface;
-  const auto hit = (*ctx->drops)[prim].intersect(ctx->origin, ctx->dir, 0.0,
+  const auto hit = (*ctx->drops)[prim].intersect(ctx->origin, ctx->dir, ctx->t_min,
                                                  static_cast<double>(rayhit->ray.tfar), start);
   if (!hit) return;
   rayhit->ray.tfar = static_cast<float>(hit->t);
@@ -107,6 +108,7 @@ struct DropAccel::Impl {
 
 DropAccel::DropAccel(const std::vector<Drop>& drops, const GeometryOptions& options)
     : drops_(drops), options_(options), impl_(std::make_unique<Impl>()) {
+  for (const Drop& d : drops_) max_height_ = std::max(max_height_, d.shape().height());
   RTCDevice device = shared_device();
   impl_->scene = rtcNewScene(device);
   rtcSetSceneFlags(impl_->scene, RTC_SCENE_FLAG_ROBUST);
@@ -187,7 +189,7 @@ DropAccel::DropAccel(const std::vector<Drop>& drops, const GeometryOptions& opti
 DropAccel::~DropAccel() = default;
 
 std::optional<DropHit> DropAccel::intersect(const glm::dvec3& origin, const glm::dvec3& dir,
-                                            const DropHit* from) const {
+                                            const DropHit* from, double t_min, double t_max) const {
   RTCRayHit rh;
   rh.ray.org_x = static_cast<float>(origin.x);
   rh.ray.org_y = static_cast<float>(origin.y);
@@ -196,7 +198,10 @@ std::optional<DropHit> DropAccel::intersect(const glm::dvec3& origin, const glm:
   rh.ray.dir_y = static_cast<float>(dir.y);
   rh.ray.dir_z = static_cast<float>(dir.z);
   rh.ray.time = 0.f;
-  rh.ray.tfar = std::numeric_limits<float>::infinity();
+  // Float bounds widened by a few ulps so the float traversal never clips the double query.
+  const float inf = std::numeric_limits<float>::infinity();
+  rh.ray.tfar = std::isfinite(t_max) ? std::nextafter(std::nextafter(static_cast<float>(t_max), inf), inf) : inf;
+  const float tnear = std::nextafter(std::nextafter(static_cast<float>(t_min), 0.f), 0.f);
   rh.ray.mask = 0xFFFFFFFFu;
   rh.ray.id = 0;
   rh.ray.flags = 0;
@@ -210,7 +215,8 @@ std::optional<DropHit> DropAccel::intersect(const glm::dvec3& origin, const glm:
     ctx.origin = origin;
     ctx.dir = dir;
     ctx.from = from;
-    rh.ray.tnear = 0.f;
+    ctx.t_min = t_min;
+    rh.ray.tnear = std::max(tnear, 0.f);
     rtcIntersect1(impl_->scene, &ctx.base, &rh);
     if (rh.hit.geomID == RTC_INVALID_GEOMETRY_ID) return std::nullopt;
     return ctx.best;
@@ -221,7 +227,7 @@ std::optional<DropHit> DropAccel::intersect(const glm::dvec3& origin, const glm:
   // above float rounding at these distances.
   RTCIntersectContext ctx;
   rtcInitIntersectContext(&ctx);
-  rh.ray.tnear = from ? static_cast<float>(1e-4 / glm::length(dir)) : 0.f;
+  rh.ray.tnear = std::max(std::max(tnear, 0.f), from ? static_cast<float>(1e-4 / glm::length(dir)) : 0.f);
   rtcIntersect1(impl_->scene, &ctx, &rh);
   if (rh.hit.geomID == RTC_INVALID_GEOMETRY_ID) return std::nullopt;
   const unsigned tri = rh.hit.primID;

@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <atomic>
 #include <cmath>
+#include <limits>
 #include <vector>
 
 #include <glm/geometric.hpp>
@@ -24,8 +25,23 @@ DropPath trace_path(const glm::dvec3& origin, const glm::dvec3& dir0, double n_w
   glm::dvec3 o = origin, d = glm::normalize(dir0);
   DropHit current;
   bool on_surface = false, inside = false;
+  const glm::dvec3 normal = glass.normal();
+  // All drops lie in the slab between the glass plane and the tallest cap: each query is
+  // limited to the part of the ray inside that slab (padded), so Embree can prune early.
+  const double slab_top = accel.max_height() * (1 + 1e-9) + 1e-9;
   for (int event = 0; event < kMaxEvents; ++event) {
-    const auto hit = accel.intersect(o, d, on_surface ? &current : nullptr);
+    const double h0 = glass.height(o), dn = glm::dot(d, normal);
+    double t_min = 0, t_max = std::numeric_limits<double>::infinity();
+    if (std::abs(dn) > 1e-12) {
+      const double t_bottom = -h0 / dn, t_top = (slab_top - h0) / dn;
+      const double pad = 1e-6 * (std::abs(t_bottom) + std::abs(t_top)) + 1e-7;
+      t_min = std::max(0.0, std::min(t_bottom, t_top) - pad);
+      t_max = std::max(t_bottom, t_top) + pad;
+      if (t_max <= t_min) break;  // the slab is behind the ray
+    } else if (h0 < -1e-9 || h0 > slab_top) {
+      break;  // parallel to the glass and outside the slab: no drop can be met
+    }
+    const auto hit = accel.intersect(o, d, on_surface ? &current : nullptr, t_min, t_max);
     if (!hit) break;
     ++path.events;
     if (!path.hit) {
@@ -166,48 +182,115 @@ class Kernel {
   glm::dvec3 n_rgb_;
 };
 
-// Per image row, the merged x-intervals covered by some drop's screen-space bounds.
+// Andrew's monotone chain, in double precision (counter-clockwise, no repeated point).
+void convex_hull(std::vector<glm::dvec2> points, std::vector<glm::dvec2>* hull) {
+  std::sort(points.begin(), points.end(), [](const glm::dvec2& a, const glm::dvec2& b) {
+    return a.x < b.x || (a.x == b.x && a.y < b.y);
+  });
+  auto cross = [](const glm::dvec2& o, const glm::dvec2& a, const glm::dvec2& b) {
+    return (a.x - o.x) * (b.y - o.y) - (a.y - o.y) * (b.x - o.x);
+  };
+  hull->assign(2 * points.size(), glm::dvec2(0));
+  size_t k = 0;
+  for (size_t i = 0; i < points.size(); ++i) {
+    while (k >= 2 && cross((*hull)[k - 2], (*hull)[k - 1], points[i]) <= 0) --k;
+    (*hull)[k++] = points[i];
+  }
+  for (size_t i = points.size() - 1, t = k + 1; i-- > 0;) {
+    while (k >= t && cross((*hull)[k - 2], (*hull)[k - 1], points[i]) <= 0) --k;
+    (*hull)[k++] = points[i];
+  }
+  hull->resize(k > 1 ? k - 1 : k);
+}
+
+// Per image row, the merged x-intervals that can show a drop. A drop's cap is convex, so
+// its image is the convex hull of its projected surface; the hull of a dense sample of rim
+// and cap points, padded by more than the sampling error, bounds it conservatively. Rays
+// outside these intervals cannot meet a drop and are not traced.
 std::vector<std::vector<std::pair<int, int>>> candidate_spans(const Camera& camera,
                                                               const DropAccel& accel) {
   std::vector<std::vector<std::pair<int, int>>> rows(camera.height);
-  for (const Drop& drop : accel.drops()) {
-    glm::dvec3 lo, hi;
-    drop.bounds(&lo, &hi);
-    if (hi.z <= 1e-9) continue;  // entirely behind the camera
-    // Corners of the box; a corner behind the camera makes the projection unbounded, so the
-    // whole frame width/height is taken on that side.
-    double x0 = 1e300, x1 = -1e300, y0 = 1e300, y1 = -1e300;
-    bool behind = false;
-    for (int i = 0; i < 8; ++i) {
-      const glm::dvec3 p{(i & 1) ? hi.x : lo.x, (i & 2) ? hi.y : lo.y, (i & 4) ? hi.z : lo.z};
-      if (p.z <= 1e-9) {
-        behind = true;
-        continue;
-      }
-      const glm::dvec2 q = camera.project(p);
-      x0 = std::min(x0, q.x);
-      x1 = std::max(x1, q.x);
-      y0 = std::min(y0, q.y);
-      y1 = std::max(y1, q.y);
-    }
-    if (behind) {
-      x0 = y0 = -1e300;
-      x1 = y1 = 1e300;
-    }
+  auto add_rows = [&](double y0, double y1, double x0, double x1) {
     const int ix0 = static_cast<int>(std::max(0.0, std::floor(x0)));
     const int ix1 = static_cast<int>(std::min(camera.width - 1.0, std::ceil(x1)));
     const int iy0 = static_cast<int>(std::max(0.0, std::floor(y0)));
     const int iy1 = static_cast<int>(std::min(camera.height - 1.0, std::ceil(y1)));
     for (int y = iy0; y <= iy1 && ix0 <= ix1; ++y) rows[y].push_back({ix0, ix1});
+  };
+  constexpr int kAzimuths = 48, kRings = 4;
+  std::vector<glm::dvec2> points, hull;
+  for (const Drop& drop : accel.drops()) {
+    points.clear();
+    bool behind = false;
+    const double tau = drop.shape().contact_angle;
+    for (int r = 0; r <= kRings && !behind; ++r) {
+      for (int a = 0; a < (r == 0 ? 1 : kAzimuths); ++a) {
+        const glm::dvec3 p = drop.cap_point(tau * r / kRings, 2 * M_PI * a / kAzimuths);
+        if (p.z <= 1e-9) {
+          behind = true;
+          break;
+        }
+        points.push_back(camera.project(p));
+      }
+    }
+    if (behind || points.size() < 3) {  // reaches behind the camera: trace the whole frame
+      add_rows(0, camera.height - 1, 0, camera.width - 1);
+      continue;
+    }
+    convex_hull(points, &hull);
+    double x0 = 1e300, x1 = -1e300, y0 = 1e300, y1 = -1e300;
+    for (const auto& p : hull) {
+      x0 = std::min(x0, p.x), x1 = std::max(x1, p.x), y0 = std::min(y0, p.y), y1 = std::max(y1, p.y);
+    }
+    if (!(x1 >= -camera.width && x0 <= 2.0 * camera.width && y1 >= -camera.height && y0 <= 2.0 * camera.height))
+      continue;  // far outside the frame
+    // Padding: the sampled hull lies inside the true one by at most the sagitta of the
+    // largest sampling step (< 1% of the size here), plus a pixel for rasterisation.
+    const double pad = 1.0 + 0.01 * std::max(x1 - x0, y1 - y0);
+    if (x1 - x0 > 4.0 * camera.width || y1 - y0 > 4.0 * camera.height) {  // huge: bounds will do
+      add_rows(y0 - pad, y1 + pad, x0 - pad, x1 + pad);
+      continue;
+    }
+    // For each row, the x-extent of the hull within the band [y - pad, y + pad], padded.
+    const int iy0 = static_cast<int>(std::max(0.0, std::floor(y0 - pad)));
+    const int iy1 = static_cast<int>(std::min(camera.height - 1.0, std::ceil(y1 + pad)));
+    if (iy0 > iy1) continue;
+    std::vector<double> lo(iy1 - iy0 + 1, 1e300), hi(iy1 - iy0 + 1, -1e300);
+    for (size_t i = 0; i < hull.size(); ++i) {
+      const glm::dvec2 a = hull[i], b = hull[(i + 1) % hull.size()];
+      const int ra = std::max(iy0, static_cast<int>(std::floor(std::min(a.y, b.y) - pad)));
+      const int rb = std::min(iy1, static_cast<int>(std::ceil(std::max(a.y, b.y) + pad)));
+      for (int y = ra; y <= rb; ++y) {
+        // Part of the edge inside the band, by its parameter range.
+        double s0 = 0, s1 = 1;
+        const double dy = b.y - a.y;
+        if (std::abs(dy) > 1e-12) {
+          double u0 = (y - pad - a.y) / dy, u1 = (y + pad - a.y) / dy;
+          if (u0 > u1) std::swap(u0, u1);
+          s0 = std::max(s0, u0);
+          s1 = std::min(s1, u1);
+        } else if (std::abs(a.y - y) > pad) {
+          continue;
+        }
+        if (s0 > s1) continue;
+        const double xa = a.x + s0 * (b.x - a.x), xb = a.x + s1 * (b.x - a.x);
+        lo[y - iy0] = std::min({lo[y - iy0], xa, xb});
+        hi[y - iy0] = std::max({hi[y - iy0], xa, xb});
+      }
+    }
+    for (int y = iy0; y <= iy1; ++y) {
+      if (lo[y - iy0] > hi[y - iy0]) continue;
+      add_rows(y, y, lo[y - iy0] - pad, hi[y - iy0] + pad);
+    }
   }
   for (auto& spans : rows) {
     std::sort(spans.begin(), spans.end());
     std::vector<std::pair<int, int>> merged;
-    for (const auto& s : spans) {
-      if (!merged.empty() && s.first <= merged.back().second + 1) {
-        merged.back().second = std::max(merged.back().second, s.second);
+    for (const auto& sp : spans) {
+      if (!merged.empty() && sp.first <= merged.back().second + 1) {
+        merged.back().second = std::max(merged.back().second, sp.second);
       } else {
-        merged.push_back(s);
+        merged.push_back(sp);
       }
     }
     spans = std::move(merged);

@@ -6,6 +6,7 @@
 //  - mesh:   each cap tessellated into triangles (`segments` around, segments/4 rings from
 //            the apex to the rim) plus a triangle fan for the base; normals either flat
 //            (the triangle's) or smooth (vertex normals of the true surface, interpolated).
+#include <limits>
 #include <memory>
 #include <optional>
 #include <string>
@@ -40,10 +41,14 @@ class DropAccel {
   DropAccel(const DropAccel&) = delete;
   DropAccel& operator=(const DropAccel&) = delete;
 
-  // First drop surface met by origin + t * dir, t > 0. `from` is the hit the ray starts at,
-  // if any, so that the ray does not find its own starting point again.
+  // First drop surface met by origin + t * dir with t in (t_min, t_max). `from` is the hit
+  // the ray starts at, if any, so that the ray does not find its own starting point again.
   std::optional<DropHit> intersect(const glm::dvec3& origin, const glm::dvec3& dir,
-                                   const DropHit* from = nullptr) const;
+                                   const DropHit* from = nullptr, double t_min = 0.0,
+                                   double t_max = std::numeric_limits<double>::infinity()) const;
+
+  // Every drop lies between the glass plane and this height above it (cm).
+  double max_height() const { return max_height_; }
 
   const std::vector<Drop>& drops() const { return drops_; }
   const GeometryOptions& options() const { return options_; }
@@ -52,6 +57,7 @@ class DropAccel {
   struct Impl;
   std::vector<Drop> drops_;
   GeometryOptions options_;
+  double max_height_ = 0;
   std::unique_ptr<Impl> impl_;
 };
 
