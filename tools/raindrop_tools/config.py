@@ -1,0 +1,312 @@
+"""Run configuration: one YAML file holds everything a training run needs.
+
+The YAML maps onto the nested dataclasses below. Unknown keys are errors (a typo must not
+silently fall back to a default), missing keys take the defaults shown here, which are the
+paper's configuration. ``resolve_config`` returns the fully populated configuration, which
+the trainer writes into the run folder as ``config.yaml``.
+
+This module does not import torch: the network *configuration* lives here, the network
+*definitions* in ``networks.py``.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import os
+import typing
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import yaml
+
+
+class ConfigError(ValueError):
+    """A configuration file or override that cannot be used."""
+
+
+# --------------------------------------------------------------------------- networks
+
+
+@dataclass(frozen=True)
+class HalfResConfig:
+    """RDN / 3RN: conv1 (3x3, in->width), conv2 (3x3 stride 2, width->width), conv3 (1x1,
+    width->expanded), `blocks` bottleneck residual blocks at half resolution (1x1
+    expanded->width, 3x3 width->width, 1x1 width->expanded), conv4 (transposed 4x4 stride 2,
+    expanded->width), conv5 (3x3, width->out)."""
+
+    width: int = 64
+    expanded: int = 256
+    blocks: int = 6
+    # output = image + net(input); only meaningful for 3RN (RDN outputs a mask).
+    global_residual: bool = False
+
+
+@dataclass(frozen=True)
+class RefineConfig:
+    """RFN: conv (3x3, 3->width), `blocks` basic residual blocks (two 3x3 width->width),
+    conv (3x3, width->3)."""
+
+    width: int = 64
+    blocks: int = 2
+    global_residual: bool = False
+
+
+@dataclass(frozen=True)
+class NetworkConfig:
+    rdn: HalfResConfig = field(default_factory=lambda: HalfResConfig(blocks=6))
+    rrn: HalfResConfig = field(default_factory=lambda: HalfResConfig(blocks=8))
+    rfn: RefineConfig = field(default_factory=RefineConfig)
+
+
+# --------------------------------------------------------------------------- run
+
+
+@dataclass(frozen=True)
+class DataConfig:
+    # Rendered data set folder (CONTRACTS.md section 1). Relative paths are resolved against
+    # the current working directory when the configuration is loaded.
+    train: str = "data/train"
+    # Manifest "split" values to train on; null uses every sample.
+    splits: list[str] | None = None
+    crop: int = 100
+    flip: bool = True
+    # Keep decoded uint8 images in RAM (preloaded before the loader workers fork).
+    cache: bool = False
+    # Refuse to cache when the decoded set would exceed this many GiB (then read from disk).
+    cache_max_gib: float = 8.0
+    # "full": decode every image once and check sizes, mask values and rainy == clean
+    # outside the mask; "header": only PNG headers (sizes); both check the manifest itself.
+    validate: str = "full"
+    # rainy == clean wherever mask == 0 (CONTRACTS.md section 1); checked when validate=full.
+    check_outside_mask: bool = True
+    workers: int = 0
+
+
+@dataclass(frozen=True)
+class TrainConfig:
+    batch_size: int = 32
+    stage1_steps: int = 50000
+    stage2_steps: int = 50000
+    lr: float = 1.0e-3
+    lr_end: float = 1.0e-4
+    # The learning rate decays linearly from lr to lr_end between these fractions of a
+    # stage's steps (the paper: from epoch 20 to epoch 40 of 50).
+    decay_start: float = 0.4
+    decay_end: float = 0.8
+    betas: list[float] = field(default_factory=lambda: [0.9, 0.999])
+    checkpoint_every: int = 1000
+    # Checkpoints kept per stage (the last step of stage 1 is always kept: stage 2 starts
+    # from it).
+    keep_checkpoints: int = 3
+    log_every: int = 50
+
+
+@dataclass(frozen=True)
+class LossConfig:
+    # 3RN: L1 weighted by this inside the ground-truth mask, 1 outside.
+    rrn_mask_weight: float = 20.0
+    # RFN: alpha (1 - SSIM) + (1 - alpha) L1.
+    rfn_ssim_weight: float = 0.3
+    # SSIM window of pytorch_msssim (Gaussian, sigma 1.5).
+    ssim_window: int = 11
+
+
+@dataclass(frozen=True)
+class PipelineConfig:
+    # M0 = RDN probability > threshold (strictly greater); the paper leaves it open, the
+    # authors' released code used 0.3.
+    threshold: float = 0.3
+    # Elliptical dilation size k (k x k, OpenCV MORPH_ELLIPSE); 1 = none. Released code: 3.
+    dilation: int = 3
+
+
+@dataclass(frozen=True)
+class RunConfig:
+    name: str = "paper"
+    seed: int = 1234
+    data: DataConfig = field(default_factory=DataConfig)
+    network: NetworkConfig = field(default_factory=NetworkConfig)
+    train: TrainConfig = field(default_factory=TrainConfig)
+    loss: LossConfig = field(default_factory=LossConfig)
+    pipeline: PipelineConfig = field(default_factory=PipelineConfig)
+
+
+# --------------------------------------------------------------------------- (de)serialisation
+
+
+def _coerce(value: Any, tp: Any, where: str) -> Any:
+    """Convert a YAML value to the annotated type, or raise ConfigError naming the key."""
+    origin = typing.get_origin(tp)
+    args = typing.get_args(tp)
+    if origin in (typing.Union, getattr(__import__("types"), "UnionType", None)):
+        if value is None and type(None) in args:
+            return None
+        inner = [a for a in args if a is not type(None)]
+        return _coerce(value, inner[0], where)
+    if dataclasses.is_dataclass(tp):
+        if not isinstance(value, dict):
+            raise ConfigError(f"{where}: expected a mapping, got {value!r}")
+        return _from_dict(tp, value, where)
+    if origin is list:
+        if not isinstance(value, (list, tuple)):
+            raise ConfigError(f"{where}: expected a list, got {value!r}")
+        return [_coerce(v, args[0], f"{where}[{i}]") for i, v in enumerate(value)]
+    if tp is bool:
+        if isinstance(value, bool):
+            return value
+        raise ConfigError(f"{where}: expected true/false, got {value!r}")
+    if tp is int:
+        if isinstance(value, bool) or not isinstance(value, (int, str)):
+            raise ConfigError(f"{where}: expected an integer, got {value!r}")
+        try:
+            return int(value)
+        except ValueError:
+            raise ConfigError(f"{where}: expected an integer, got {value!r}") from None
+    if tp is float:
+        # PyYAML reads "1e-3" (no dot) as a string: accept numeric strings.
+        if isinstance(value, bool):
+            raise ConfigError(f"{where}: expected a number, got {value!r}")
+        try:
+            return float(value)
+        except (TypeError, ValueError):
+            raise ConfigError(f"{where}: expected a number, got {value!r}") from None
+    if tp is str:
+        if not isinstance(value, str):
+            raise ConfigError(f"{where}: expected a string, got {value!r}")
+        return value
+    return value
+
+
+def _from_dict(cls: type, data: dict, where: str = "") -> Any:
+    hints = typing.get_type_hints(cls)
+    names = {f.name for f in dataclasses.fields(cls)}
+    unknown = sorted(set(data) - names)
+    if unknown:
+        prefix = f"{where}." if where else ""
+        raise ConfigError(
+            f"unknown configuration key(s) {', '.join(prefix + k for k in unknown)}; "
+            f"known under {where or 'the top level'}: {', '.join(sorted(names))}"
+        )
+    kwargs = {}
+    for f in dataclasses.fields(cls):
+        if f.name not in data:
+            continue
+        key = f"{where}.{f.name}" if where else f.name
+        value = data[f.name]
+        if dataclasses.is_dataclass(hints[f.name]) and isinstance(value, dict):
+            # A partial mapping for a nested dataclass starts from the field's default (e.g.
+            # network.rrn keeps blocks=8 when only its width is given).
+            default = f.default_factory() if f.default_factory is not dataclasses.MISSING else f.default
+            value = {**to_dict(default), **value}
+        kwargs[f.name] = _coerce(value, hints[f.name], key)
+    return cls(**kwargs)
+
+
+def to_dict(cfg: Any) -> dict:
+    return dataclasses.asdict(cfg)
+
+
+def validate_config(cfg: RunConfig) -> None:
+    """Range checks that the type system does not express."""
+    problems = []
+    if not cfg.name or any(c in cfg.name for c in "/\\ "):
+        problems.append(f"name must be a file-name-safe word, got {cfg.name!r}")
+    for net in ("rdn", "rrn"):
+        c = getattr(cfg.network, net)
+        if c.width < 1 or c.expanded < 1 or c.blocks < 0:
+            problems.append(f"network.{net}: width/expanded must be >= 1 and blocks >= 0")
+    if cfg.network.rdn.global_residual:
+        problems.append("network.rdn.global_residual: RDN predicts a mask, it has no residual")
+    if cfg.network.rfn.width < 1 or cfg.network.rfn.blocks < 0:
+        problems.append("network.rfn: width must be >= 1 and blocks >= 0")
+    if cfg.data.crop < 1:
+        problems.append("data.crop must be >= 1")
+    if cfg.data.validate not in ("full", "header"):
+        problems.append("data.validate must be 'full' or 'header'")
+    if cfg.data.workers < 0:
+        problems.append("data.workers must be >= 0")
+    t = cfg.train
+    if t.batch_size < 1 or t.stage1_steps < 1 or t.stage2_steps < 1:
+        problems.append("train.batch_size, stage1_steps and stage2_steps must be >= 1")
+    if not 0.0 <= t.decay_start <= t.decay_end <= 1.0:
+        problems.append("train: need 0 <= decay_start <= decay_end <= 1")
+    if t.lr <= 0 or t.lr_end <= 0:
+        problems.append("train.lr and train.lr_end must be > 0")
+    if len(t.betas) != 2:
+        problems.append("train.betas must have two values")
+    if t.checkpoint_every < 1 or t.keep_checkpoints < 1 or t.log_every < 1:
+        problems.append("train.checkpoint_every, keep_checkpoints and log_every must be >= 1")
+    if not 0.0 <= cfg.loss.rfn_ssim_weight <= 1.0:
+        problems.append("loss.rfn_ssim_weight must be in [0, 1]")
+    if cfg.loss.ssim_window < 1 or cfg.loss.ssim_window % 2 == 0:
+        problems.append("loss.ssim_window must be odd")
+    if cfg.loss.ssim_window > cfg.data.crop:
+        problems.append("loss.ssim_window must not exceed data.crop")
+    if not 0.0 <= cfg.pipeline.threshold < 1.0:
+        problems.append("pipeline.threshold must be in [0, 1)")
+    if cfg.pipeline.dilation < 1:
+        problems.append("pipeline.dilation must be >= 1")
+    if problems:
+        raise ConfigError("invalid configuration:\n  " + "\n  ".join(problems))
+
+
+def _set_dotted(data: dict, dotted: str, value: Any) -> None:
+    keys = dotted.split(".")
+    node = data
+    for k in keys[:-1]:
+        node = node.setdefault(k, {})
+        if not isinstance(node, dict):
+            raise ConfigError(f"override {dotted}: {k} is not a mapping")
+    node[keys[-1]] = value
+
+
+def parse_overrides(items: list[str] | None) -> list[tuple[str, Any]]:
+    """``key.sub=value`` strings (values parsed as YAML) to (key, value) pairs."""
+    out = []
+    for item in items or []:
+        if "=" not in item:
+            raise ConfigError(f"override {item!r}: expected key=value")
+        key, raw = item.split("=", 1)
+        out.append((key.strip(), yaml.safe_load(raw)))
+    return out
+
+
+def config_from_dict(data: dict, overrides: list[tuple[str, Any]] | None = None) -> RunConfig:
+    data = yaml.safe_load(yaml.safe_dump(data or {}))  # deep copy, plain types
+    for key, value in overrides or []:
+        _set_dotted(data, key, value)
+    cfg = _from_dict(RunConfig, data)
+    validate_config(cfg)
+    return cfg
+
+
+def load_config(
+    path: str | os.PathLike, overrides: list[tuple[str, Any]] | None = None, resolve_paths: bool = True
+) -> RunConfig:
+    path = Path(path)
+    try:
+        data = yaml.safe_load(path.read_text()) or {}
+    except OSError as e:
+        raise ConfigError(f"cannot read configuration {path}: {e}") from None
+    except yaml.YAMLError as e:
+        raise ConfigError(f"{path}: not valid YAML: {e}") from None
+    if not isinstance(data, dict):
+        raise ConfigError(f"{path}: expected a mapping at the top level")
+    try:
+        cfg = config_from_dict(data, overrides)
+    except ConfigError as e:
+        raise ConfigError(f"{path}: {e}") from None
+    return resolve_data_paths(cfg) if resolve_paths else cfg
+
+
+def resolve_data_paths(cfg: RunConfig, base: Path | None = None) -> RunConfig:
+    base = Path.cwd() if base is None else base
+    train = Path(cfg.data.train).expanduser()
+    if not train.is_absolute():
+        train = (base / train).resolve()
+    return dataclasses.replace(cfg, data=dataclasses.replace(cfg.data, train=str(train)))
+
+
+def dump_config(cfg: RunConfig) -> str:
+    return yaml.safe_dump(to_dict(cfg), sort_keys=False)

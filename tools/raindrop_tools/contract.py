@@ -1,0 +1,21 @@
+"""Names fixed by docs/CONTRACTS.md section 2 (the ONNX graphs), shared by the exporter and
+the reference pipeline. No torch here."""
+
+from __future__ import annotations
+
+NETWORKS = ("rdn", "rrn", "rfn")
+FILES = {"rdn": "rdn.onnx", "rrn": "rrn.onnx", "rfn": "rfn.onnx"}
+INPUTS = {"rdn": ("image",), "rrn": ("image", "edge"), "rfn": ("blend",)}
+INPUT_CHANNELS = {"image": 3, "edge": 1, "blend": 3}
+OUTPUTS = {"rdn": "mask_prob", "rrn": "reconstruction", "rfn": "restored"}
+OUTPUT_CHANNELS = {"rdn": 1, "rrn": 3, "rfn": 3}
+
+META_PAD_MULTIPLE = "raindrop.pad_multiple"
+META_CONFIG = "raindrop.config"
+META_NETWORK = "raindrop.network"
+META_THRESHOLD = "raindrop.threshold"
+META_DILATION = "raindrop.dilation"
+META_KEYS = (META_PAD_MULTIPLE, META_CONFIG, META_NETWORK, META_THRESHOLD, META_DILATION)
+
+# The small JSON the exporter writes next to the graphs (not part of the contract).
+EXPORT_INFO = "export.json"

@@ -1,0 +1,378 @@
+"""Reading a rendered data set (CONTRACTS.md section 1) for training and evaluation.
+
+* ``read_manifest`` parses and checks ``manifest.jsonl``;
+* ``check_files`` checks the images behind it (presence, sizes, mask values, ...);
+* ``RaindropDataset`` serves random crops with the edge map of the full image;
+* ``StepBatchSampler`` draws the crops of every training step as a pure function of
+  (seed, stage, step), so a resumed run sees exactly the batches it would have seen.
+
+Both checks refuse an inconsistent data set with a ``DatasetError`` that lists every problem
+found, each naming the manifest line or the file. numpy + OpenCV only: the samples are numpy
+arrays, which torch's DataLoader collates into tensors.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Callable, Iterator
+
+import numpy as np
+
+from .edge import edge_map_window
+from .imageio import ImageError, png_header, read_mask_strict, read_rgb_strict, to_float
+
+MANIFEST = "manifest.jsonl"
+# Keys the tools use; the contract lists more, and readers must ignore unknown keys.
+REQUIRED_KEYS: dict[str, type] = {
+    "id": str,
+    "rainy": str,
+    "clean": str,
+    "mask": str,
+    "width": int,
+    "height": int,
+}
+MAX_LISTED_PROBLEMS = 20
+
+
+class DatasetError(ValueError):
+    """A data set that does not follow CONTRACTS.md section 1."""
+
+
+@dataclass(frozen=True)
+class Sample:
+    id: str
+    rainy: Path
+    clean: Path
+    mask: Path
+    width: int
+    height: int
+    split: str | None
+    line: int  # 1-based line in manifest.jsonl
+
+
+def _raise(problems: list[str], what: str) -> None:
+    shown = problems[:MAX_LISTED_PROBLEMS]
+    more = len(problems) - len(shown)
+    tail = f"\n  ... and {more} more" if more > 0 else ""
+    raise DatasetError(f"{what}: {len(problems)} problem(s):\n  " + "\n  ".join(shown) + tail)
+
+
+def read_manifest(root: str | os.PathLike, splits: list[str] | None = None) -> list[Sample]:
+    """Parse ``root/manifest.jsonl``; keep the samples whose ``split`` is in ``splits`` (all
+    when None). Refuses unparsable lines, missing or mistyped keys, unsafe paths and
+    duplicate ids."""
+    root = Path(root)
+    manifest = root / MANIFEST
+    if not manifest.is_file():
+        raise DatasetError(f"{root}: not a rendered data set (no {MANIFEST})")
+    problems: list[str] = []
+    samples: list[Sample] = []
+    seen: dict[str, int] = {}
+    with open(manifest, encoding="utf-8") as f:
+        lines = f.read().split("\n")
+    for lineno, text in enumerate(lines, start=1):
+        if not text.strip():
+            continue  # blank lines (the trailing newline) carry nothing
+        where = f"{manifest}:{lineno}"
+        try:
+            obj = json.loads(text)
+        except json.JSONDecodeError as e:
+            problems.append(f"{where}: not valid JSON ({e.msg} at column {e.colno})")
+            continue
+        if not isinstance(obj, dict):
+            problems.append(f"{where}: expected a JSON object, got {type(obj).__name__}")
+            continue
+        missing = [k for k in REQUIRED_KEYS if k not in obj]
+        if missing:
+            problems.append(f"{where}: missing key(s) {', '.join(missing)}")
+            continue
+        bad = [
+            f"{k} (expected {t.__name__}, got {type(obj[k]).__name__})"
+            for k, t in REQUIRED_KEYS.items()
+            if not isinstance(obj[k], t) or (t is int and isinstance(obj[k], bool))
+        ]
+        if bad:
+            problems.append(f"{where}: wrong type for {', '.join(bad)}")
+            continue
+        sid = obj["id"]
+        if not sid or any(c in sid for c in "/\\\0") or sid in (".", ".."):
+            problems.append(f"{where}: id {sid!r} is not file-name safe")
+            continue
+        if obj["width"] < 1 or obj["height"] < 1:
+            problems.append(f"{where}: sample {sid!r}: width and height must be >= 1")
+            continue
+        paths = {}
+        for key in ("rainy", "clean", "mask"):
+            rel = Path(obj[key])
+            if rel.is_absolute() or ".." in rel.parts:
+                problems.append(
+                    f"{where}: sample {sid!r}: {key} path {obj[key]!r} must be relative to the data set folder"
+                )
+            else:
+                paths[key] = root / rel
+        if len(paths) != 3:
+            continue
+        if sid in seen:
+            problems.append(f"{where}: duplicate id {sid!r} (first on line {seen[sid]})")
+            continue
+        seen[sid] = lineno
+        split = obj.get("split")
+        if splits is not None and split is None:
+            problems.append(f"{where}: sample {sid!r} has no 'split' key, but splits {splits} were requested")
+            continue
+        if splits is None or split in splits:
+            samples.append(
+                Sample(sid, paths["rainy"], paths["clean"], paths["mask"], obj["width"], obj["height"], split, lineno)
+            )
+    if problems:
+        _raise(problems, f"{manifest}")
+    if not samples:
+        which = f" with split in {splits}" if splits is not None else ""
+        raise DatasetError(f"{manifest}: no samples{which}")
+    return samples
+
+
+def _decode(sample: Sample) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    return read_rgb_strict(sample.rainy), read_rgb_strict(sample.clean), read_mask_strict(sample.mask)
+
+
+def check_files(
+    samples: list[Sample],
+    min_size: int = 1,
+    level: str = "full",
+    check_outside_mask: bool = True,
+    keep: Callable[[int, tuple], None] | None = None,
+    manifest: str = MANIFEST,
+) -> None:
+    """Check the images of ``samples``: files present, all three of the size the manifest
+    gives, at least ``min_size`` in both dimensions (the crop), and with ``level="full"``
+    (decodes everything once): 8-bit RGB / single-channel masks, masks only 0 or 255, and
+    rainy == clean where the mask is 0. ``keep(i, (rainy, clean, mask))`` receives the
+    decoded images (for caching). Raises DatasetError listing every problem."""
+    if level not in ("full", "header"):
+        raise ValueError(f"level must be 'full' or 'header', got {level!r}")
+    problems: list[str] = []
+    for i, s in enumerate(samples):
+        where = f"{manifest}:{s.line} (sample {s.id!r})"
+        missing = [str(p) for p in (s.rainy, s.clean, s.mask) if not p.is_file()]
+        if missing:
+            problems.append(f"{where}: missing file(s) {', '.join(missing)}")
+            continue
+        if s.width < min_size or s.height < min_size:
+            problems.append(f"{where}: image {s.width}x{s.height} (WxH) is smaller than the {min_size}x{min_size} crop")
+            continue
+        try:
+            if level == "header":
+                sizes = {}
+                for key, p in (("rainy", s.rainy), ("clean", s.clean), ("mask", s.mask)):
+                    try:
+                        w, h, _, _ = png_header(p)
+                    except ImageError:  # not a PNG: decode to learn the size
+                        img = read_mask_strict(p) if key == "mask" else read_rgb_strict(p)
+                        h, w = img.shape[:2]
+                    sizes[key] = (w, h)
+                images = None
+            else:
+                images = _decode(s)
+                sizes = {k: (im.shape[1], im.shape[0]) for k, im in zip(("rainy", "clean", "mask"), images)}
+        except (ImageError, OSError) as e:
+            problems.append(f"{where}: {e}")
+            continue
+        wrong = [f"{k} {w}x{h}" for k, (w, h) in sizes.items() if (w, h) != (s.width, s.height)]
+        if wrong:
+            problems.append(f"{where}: size mismatch: manifest says {s.width}x{s.height} (WxH), got {', '.join(wrong)}")
+            continue
+        if images is not None:
+            rainy, clean, mask = images
+            values = np.unique(mask)
+            stray = values[(values != 0) & (values != 255)]
+            if stray.size:
+                problems.append(
+                    f"{where}: mask {s.mask} is not binary (values other than 0 and 255: "
+                    f"{', '.join(str(int(v)) for v in stray[:5])}{'...' if stray.size > 5 else ''})"
+                )
+                continue
+            if check_outside_mask:
+                outside = (rainy != clean).any(axis=2) & (mask == 0)
+                n = int(outside.sum())
+                if n:
+                    problems.append(
+                        f"{where}: rainy and clean differ at {n} pixel(s) outside the mask "
+                        "(CONTRACTS.md: rainy == clean wherever mask == 0)"
+                    )
+                    continue
+            if keep is not None:
+                keep(i, images)
+    if problems:
+        _raise(problems, "data set refused")
+
+
+class RaindropDataset:
+    """Random crops (and horizontal flips) of a rendered data set.
+
+    An item is a dict of numpy arrays: ``rainy`` and ``clean`` (3xhxw float32 in [0, 1]),
+    ``mask`` (1xhxw float32, 0 or 1), ``edge`` (1xhxw float32: the edge map of the FULL rainy
+    image, cropped, see ``edge.edge_map_window``) and ``id`` (str).
+
+    Index it with a key ``(sample index, y0, x0, flip)`` (what ``StepBatchSampler`` yields)
+    for reproducible crops, or with a plain sample index for a fresh random crop.
+    """
+
+    def __init__(
+        self,
+        root: str | os.PathLike,
+        crop: int = 100,
+        flip: bool = True,
+        splits: list[str] | None = None,
+        cache: bool = False,
+        cache_max_gib: float = 8.0,
+        validate: str = "full",
+        check_outside_mask: bool = True,
+        log: Callable[[str], None] = print,
+    ):
+        self.root = Path(root)
+        self.crop = int(crop)
+        self.flip = bool(flip)
+        self.samples = read_manifest(self.root, splits)
+        self._cache: dict[int, tuple[np.ndarray, np.ndarray, np.ndarray]] | None = None
+        if cache:
+            need = sum(s.width * s.height * 7 for s in self.samples) / 2**30
+            if need > cache_max_gib:
+                log(f"data: not caching: the decoded set needs {need:.1f} GiB > cache_max_gib {cache_max_gib}")
+            else:
+                self._cache = {}
+        keep = self._cache.__setitem__ if self._cache is not None else None
+        if self._cache is not None and validate == "header":
+            # Caching decodes everything anyway: validate fully at no extra cost.
+            validate = "full"
+        check_files(
+            self.samples,
+            min_size=self.crop,
+            level=validate,
+            check_outside_mask=check_outside_mask,
+            keep=keep,
+            manifest=str(self.root / MANIFEST),
+        )
+        self._rng = np.random.default_rng()
+
+    def __len__(self) -> int:
+        return len(self.samples)
+
+    @property
+    def sizes(self) -> list[tuple[int, int]]:
+        """(height, width) of every sample."""
+        return [(s.height, s.width) for s in self.samples]
+
+    def load(self, i: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Decoded (rainy, clean, mask) uint8 images of sample ``i``."""
+        if self._cache is not None and i in self._cache:
+            return self._cache[i]
+        return _decode(self.samples[i])
+
+    def random_key(self, i: int, rng: np.random.Generator) -> tuple[int, int, int, bool]:
+        s = self.samples[i]
+        y0 = int(rng.integers(0, s.height - self.crop + 1))
+        x0 = int(rng.integers(0, s.width - self.crop + 1))
+        flip = bool(rng.integers(0, 2)) if self.flip else False
+        return (i, y0, x0, flip)
+
+    def __getitem__(self, key) -> dict:
+        if isinstance(key, (int, np.integer)):
+            key = self.random_key(int(key), self._rng)
+        i, y0, x0, flip = key
+        rainy, clean, mask = self.load(i)
+        c = self.crop
+        rainy_f = to_float(rainy)
+        edge = edge_map_window(rainy_f, y0, x0, c, c)
+        r = rainy_f[y0 : y0 + c, x0 : x0 + c]
+        g = to_float(clean[y0 : y0 + c, x0 : x0 + c])
+        m = (mask[y0 : y0 + c, x0 : x0 + c] > 127).astype(np.float32)
+        if flip:
+            r, g, m, edge = r[:, ::-1], g[:, ::-1], m[:, ::-1], edge[:, ::-1]
+        return {
+            "id": self.samples[i].id,
+            "rainy": np.ascontiguousarray(r.transpose(2, 0, 1)),
+            "clean": np.ascontiguousarray(g.transpose(2, 0, 1)),
+            "mask": np.ascontiguousarray(m[None]),
+            "edge": np.ascontiguousarray(edge[None]),
+        }
+
+
+class StepBatchSampler:
+    """Yields, for each step in [start_step, total_steps), the list of dataset keys of that
+    step's batch. Samples are drawn without replacement within an epoch (a permutation seeded
+    by (seed, stage, epoch)); crop positions and flips are seeded by (seed, stage, step). The
+    batches are therefore a pure function of the step: resuming needs no sampler state, and
+    the loader may use any number of worker processes."""
+
+    def __init__(
+        self,
+        sizes: list[tuple[int, int]],
+        crop: int,
+        batch_size: int,
+        seed: int,
+        stage: int,
+        total_steps: int,
+        start_step: int = 0,
+        flip: bool = True,
+    ):
+        if not sizes:
+            raise ValueError("no samples")
+        self.sizes = sizes
+        self.crop = crop
+        self.batch_size = batch_size
+        self.seed = seed
+        self.stage = stage
+        self.total_steps = total_steps
+        self.start_step = start_step
+        self.flip = flip
+        self._perm: dict[int, np.ndarray] = {}
+
+    def _permutation(self, epoch: int) -> np.ndarray:
+        if epoch not in self._perm:
+            if len(self._perm) > 4:
+                self._perm.clear()
+            rng = np.random.default_rng([self.seed, self.stage, epoch, 0])
+            self._perm[epoch] = rng.permutation(len(self.sizes))
+        return self._perm[epoch]
+
+    def keys_for_step(self, step: int) -> list[tuple[int, int, int, bool]]:
+        n = len(self.sizes)
+        rng = np.random.default_rng([self.seed, self.stage, step, 1])
+        keys = []
+        for b in range(self.batch_size):
+            pos = step * self.batch_size + b
+            i = int(self._permutation(pos // n)[pos % n])
+            h, w = self.sizes[i]
+            y0 = int(rng.integers(0, h - self.crop + 1))
+            x0 = int(rng.integers(0, w - self.crop + 1))
+            flip = bool(rng.integers(0, 2)) if self.flip else False
+            keys.append((i, y0, x0, flip))
+        return keys
+
+    def __iter__(self) -> Iterator[list[tuple[int, int, int, bool]]]:
+        for step in range(self.start_step, self.total_steps):
+            yield self.keys_for_step(step)
+
+    def __len__(self) -> int:
+        return max(0, self.total_steps - self.start_step)
+
+
+def epochs(total_steps: int, batch_size: int, n_samples: int) -> float:
+    """How many passes over the data set ``total_steps`` batches make."""
+    return total_steps * batch_size / max(1, n_samples)
+
+
+__all__ = [
+    "DatasetError",
+    "MANIFEST",
+    "RaindropDataset",
+    "Sample",
+    "StepBatchSampler",
+    "check_files",
+    "epochs",
+    "read_manifest",
+]

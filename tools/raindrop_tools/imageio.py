@@ -1,0 +1,101 @@
+"""Image reading/writing and the two value conversions every part shares.
+
+Images are 8-bit sRGB-encoded values; all arithmetic is on those values scaled to [0, 1]
+(CONTRACTS.md section 1). ``to_float`` and ``to_uint8`` are the only places where that
+scaling happens, so training, the reference pipeline and evaluation agree bit for bit.
+numpy + OpenCV only (no torch).
+"""
+
+from __future__ import annotations
+
+import os
+import struct
+from pathlib import Path
+
+import cv2
+import numpy as np
+
+_PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
+
+
+class ImageError(ValueError):
+    """An image that cannot be read or does not have the expected format."""
+
+
+def to_float(img_u8: np.ndarray) -> np.ndarray:
+    """uint8 -> float32 in [0, 1]: ``x / 255`` computed in float32 (correctly rounded)."""
+    if img_u8.dtype != np.uint8:
+        raise TypeError(f"expected uint8, got {img_u8.dtype}")
+    return img_u8.astype(np.float32) / np.float32(255.0)
+
+
+def to_uint8(img: np.ndarray) -> np.ndarray:
+    """float in [0, 1] (any range; clamped) -> uint8: ``floor(clamp(x, 0, 1) * 255 + 0.5)`` in
+    float32, i.e. round half up. C++ must do the same: ``(uint8_t)std::floor(v * 255.f + 0.5f)``
+    after clamping."""
+    x = np.clip(np.asarray(img, dtype=np.float32), np.float32(0.0), np.float32(1.0))
+    return np.floor(x * np.float32(255.0) + np.float32(0.5)).astype(np.uint8)
+
+
+def read_rgb(path: str | os.PathLike) -> np.ndarray:
+    """Any image OpenCV reads -> HxWx3 uint8 RGB. Grey images are replicated, an alpha channel
+    is dropped, 16-bit images are reduced to 8 bits (OpenCV's IMREAD_COLOR conversion)."""
+    img = cv2.imread(str(path), cv2.IMREAD_COLOR)
+    if img is None:
+        raise ImageError(f"{path}: cannot read image (missing or not an image)")
+    return cv2.cvtColor(img, cv2.COLOR_BGR2RGB)
+
+
+def read_rgb_strict(path: str | os.PathLike) -> np.ndarray:
+    """Data-set image: must be 8-bit, 3 channels (RGB). -> HxWx3 uint8 RGB."""
+    img = cv2.imread(str(path), cv2.IMREAD_UNCHANGED)
+    if img is None:
+        raise ImageError(f"{path}: cannot read image (missing or not an image)")
+    if img.dtype != np.uint8 or img.ndim != 3 or img.shape[2] != 3:
+        raise ImageError(f"{path}: expected 8-bit RGB, got dtype {img.dtype} shape {img.shape}")
+    return cv2.cvtColor(img, cv2.COLOR_BGR2RGB)
+
+
+def read_mask_strict(path: str | os.PathLike) -> np.ndarray:
+    """Data-set mask: must be 8-bit single channel. -> HxW uint8 (values not checked here)."""
+    img = cv2.imread(str(path), cv2.IMREAD_UNCHANGED)
+    if img is None:
+        raise ImageError(f"{path}: cannot read image (missing or not an image)")
+    if img.dtype != np.uint8 or img.ndim != 2:
+        raise ImageError(f"{path}: expected an 8-bit single-channel mask, got dtype {img.dtype} shape {img.shape}")
+    return img
+
+
+def read_mask(path: str | os.PathLike) -> np.ndarray:
+    """Lenient mask reader (e.g. a mask a user passes): any image -> HxW uint8 grey."""
+    img = cv2.imread(str(path), cv2.IMREAD_GRAYSCALE)
+    if img is None:
+        raise ImageError(f"{path}: cannot read image (missing or not an image)")
+    return img
+
+
+def write_rgb(path: str | os.PathLike, rgb_u8: np.ndarray) -> None:
+    if rgb_u8.dtype != np.uint8 or rgb_u8.ndim != 3 or rgb_u8.shape[2] != 3:
+        raise ImageError(f"write_rgb: expected HxWx3 uint8, got {rgb_u8.dtype} {rgb_u8.shape}")
+    Path(path).parent.mkdir(parents=True, exist_ok=True)
+    if not cv2.imwrite(str(path), cv2.cvtColor(rgb_u8, cv2.COLOR_RGB2BGR)):
+        raise ImageError(f"{path}: cannot write image")
+
+
+def write_grey(path: str | os.PathLike, grey_u8: np.ndarray) -> None:
+    if grey_u8.dtype != np.uint8 or grey_u8.ndim != 2:
+        raise ImageError(f"write_grey: expected HxW uint8, got {grey_u8.dtype} {grey_u8.shape}")
+    Path(path).parent.mkdir(parents=True, exist_ok=True)
+    if not cv2.imwrite(str(path), grey_u8):
+        raise ImageError(f"{path}: cannot write image")
+
+
+def png_header(path: str | os.PathLike) -> tuple[int, int, int, int]:
+    """(width, height, bit depth, colour type) from a PNG's IHDR chunk without decoding.
+    Colour types: 0 grey, 2 RGB, 3 palette, 4 grey+alpha, 6 RGBA."""
+    with open(path, "rb") as f:
+        head = f.read(33)
+    if len(head) < 33 or head[:8] != _PNG_SIGNATURE or head[12:16] != b"IHDR":
+        raise ImageError(f"{path}: not a PNG file")
+    width, height, depth, colour = struct.unpack(">IIBB", head[16:26])
+    return width, height, depth, colour

@@ -1,0 +1,464 @@
+"""Two-stage training (paper section 4.4).
+
+Stage 1 trains RDN and 3RN side by side on the same batches, each with its own Adam
+optimizer and learning-rate schedule. Stage 2 trains RFN alone on the blend
+``B = M * clamp(3RN(R, E), 0, 1) + (1 - M) * R`` with ``M = dilate(sigmoid(RDN(R)) >
+threshold)``, RDN and 3RN frozen in eval mode.
+
+    python -m raindrop_tools.train --config tools/configs/compact.yaml --out tools/runs/compact
+    python -m raindrop_tools.train --out tools/runs/compact --resume          # continue
+    python -m raindrop_tools.train --config C --stage 1 ... ; ... --stage 2   # one at a time
+
+The run folder holds ``config.yaml`` (the resolved configuration: one run, one config),
+``run.json`` (seed, devices, versions, command lines), ``log.jsonl`` (losses and learning
+rates) and ``checkpoints/``. A non-finite loss or gradient stops the run with an error naming
+the network, the step and the sample ids of the batch; no checkpoint is written for it.
+"""
+
+from __future__ import annotations
+
+import argparse
+import datetime as _dt
+import json
+import os
+import platform
+import signal
+import sys
+import time
+from pathlib import Path
+
+import torch
+import yaml
+from torch.utils.data import DataLoader
+from tqdm import tqdm
+
+from . import checkpoint as ckpt
+from . import losses
+from .config import ConfigError, RunConfig, config_from_dict, dump_config, load_config, parse_overrides, to_dict
+from .data import DatasetError, RaindropDataset, StepBatchSampler, epochs
+from .morphology import Dilation
+from .networks import build_networks
+from .schedule import lr_factor
+
+CONFIG_FILE = "config.yaml"
+RUN_FILE = "run.json"
+LOG_FILE = "log.jsonl"
+
+
+class TrainingError(RuntimeError):
+    """A run that cannot start or continue (bad run folder, missing stage 1, ...)."""
+
+
+class NonFiniteLossError(TrainingError):
+    """A loss or gradient became NaN or Inf."""
+
+
+def choose_device(name: str = "auto") -> torch.device:
+    if name == "auto":
+        return torch.device("cuda" if torch.cuda.is_available() else "cpu")
+    if name == "cuda" and not torch.cuda.is_available():
+        raise TrainingError("--device cuda: no CUDA device is available")
+    if name not in ("cpu", "cuda"):
+        raise TrainingError(f"--device must be auto, cpu or cuda, got {name!r}")
+    return torch.device(name)
+
+
+def default_run_dir(name: str) -> Path:
+    """tools/runs/<name> in a source checkout (git-ignored), else ./runs/<name>."""
+    tools = Path(__file__).resolve().parents[1]
+    if (tools / "pyproject.toml").is_file():
+        return tools / "runs" / name
+    return Path.cwd() / "runs" / name
+
+
+def _write_json_atomic(path: Path, obj) -> None:
+    tmp = path.with_name(path.name + ".tmp")
+    tmp.write_text(json.dumps(obj, indent=2) + "\n")
+    os.replace(tmp, path)
+
+
+def prepare_run_dir(run_dir: Path, cfg: RunConfig | None) -> RunConfig:
+    """Create the run folder with ``cfg``, or reopen it: a run folder holds one configuration,
+    so a ``cfg`` that differs from the one recorded there is refused."""
+    run_dir = Path(run_dir)
+    cfg_file = run_dir / CONFIG_FILE
+    if cfg_file.is_file():
+        recorded = config_from_dict(yaml.safe_load(cfg_file.read_text()))
+        if cfg is not None and to_dict(cfg) != to_dict(recorded):
+            a, b = to_dict(recorded), to_dict(cfg)
+            diffs = _diff(a, b)
+            raise TrainingError(
+                f"{cfg_file} records a different configuration than the one given "
+                f"({'; '.join(diffs[:5])}); use a new --out, or omit --config to use the recorded one"
+            )
+        return recorded
+    if cfg is None:
+        raise TrainingError(f"{run_dir}: no {CONFIG_FILE} there; give --config to start a run")
+    run_dir.mkdir(parents=True, exist_ok=True)
+    cfg_file.write_text(dump_config(cfg))
+    return cfg
+
+
+def _diff(a, b, prefix: str = "") -> list[str]:
+    out = []
+    if isinstance(a, dict) and isinstance(b, dict):
+        for k in sorted(set(a) | set(b)):
+            out += _diff(a.get(k), b.get(k), f"{prefix}{k}.")
+    elif a != b:
+        out.append(f"{prefix[:-1]}: {a!r} -> {b!r}")
+    return out
+
+
+def _record_invocation(run_dir: Path, cfg: RunConfig, device: torch.device, argv: list[str] | None) -> None:
+    path = run_dir / RUN_FILE
+    info = json.loads(path.read_text()) if path.is_file() else {"config": cfg.name, "seed": cfg.seed, "invocations": []}
+    info["invocations"].append(
+        {
+            "started": _dt.datetime.now(_dt.timezone.utc).isoformat(timespec="seconds"),
+            "argv": list(sys.argv if argv is None else ["python -m raindrop_tools.train", *argv]),
+            "device": str(device),
+            "device_name": (
+                torch.cuda.get_device_name(device)
+                if device.type == "cuda"
+                else (platform.processor() or platform.machine())
+            ),
+            "torch_threads": torch.get_num_threads(),
+            "torch": torch.__version__,
+            "python": platform.python_version(),
+            "host": platform.node(),
+        }
+    )
+    _write_json_atomic(path, info)
+
+
+class Trainer:
+    """Runs the stages of one run folder. ``max_steps`` bounds the optimizer steps of this
+    invocation (a checkpoint is written when it stops early; continue with resume)."""
+
+    def __init__(
+        self,
+        cfg: RunConfig,
+        run_dir: Path,
+        device: torch.device,
+        progress: bool = True,
+        max_steps: int | None = None,
+        log=None,
+    ):
+        self.cfg = cfg
+        self.run_dir = Path(run_dir)
+        self.device = device
+        self.progress = progress
+        self.steps_left = max_steps
+        self.log = log or (lambda msg: tqdm.write(msg, file=sys.stderr))
+        self.stop_requested = False
+        self._dataset: RaindropDataset | None = None
+        # All three networks are built from the seed in a fixed order every time, so RFN's
+        # initial weights do not depend on which invocation starts stage 2.
+        torch.manual_seed(cfg.seed)
+        self.nets = {k: v.to(device) for k, v in build_networks(cfg.network).items()}
+
+    # ------------------------------------------------------------------ plumbing
+
+    @property
+    def dataset(self) -> RaindropDataset:
+        if self._dataset is None:
+            d = self.cfg.data
+            self.log(f"data: reading {d.train}")
+            self._dataset = RaindropDataset(
+                d.train,
+                crop=d.crop,
+                flip=d.flip,
+                splits=d.splits,
+                cache=d.cache,
+                cache_max_gib=d.cache_max_gib,
+                validate=d.validate,
+                check_outside_mask=d.check_outside_mask,
+                log=self.log,
+            )
+        return self._dataset
+
+    def _loader(self, stage: int, total: int, start: int) -> DataLoader:
+        ds = self.dataset
+        t = self.cfg.train
+        sampler = StepBatchSampler(ds.sizes, ds.crop, t.batch_size, self.cfg.seed, stage, total, start, flip=ds.flip)
+        self.log(
+            f"stage {stage}: {len(ds)} samples, batch {t.batch_size}, steps {start}->{total} "
+            f"of {total} ({epochs(total, t.batch_size, len(ds)):.2f} epochs), device {self.device}"
+        )
+        return DataLoader(
+            ds,
+            batch_sampler=sampler,
+            num_workers=self.cfg.data.workers,
+            pin_memory=self.device.type == "cuda",
+        )
+
+    def _optimizer(self, net: torch.nn.Module, total: int):
+        t = self.cfg.train
+        opt = torch.optim.Adam(net.parameters(), lr=t.lr, betas=tuple(t.betas))
+        sched = torch.optim.lr_scheduler.LambdaLR(
+            opt, lambda s: lr_factor(s, total, t.lr, t.lr_end, t.decay_start, t.decay_end)
+        )
+        return opt, sched
+
+    def _to_device(self, batch: dict) -> dict:
+        nb = self.device.type == "cuda"
+        return {k: (v.to(self.device, non_blocking=nb) if torch.is_tensor(v) else v) for k, v in batch.items()}
+
+    def _check(self, what: str, value: torch.Tensor, stage: int, step: int, total: int, ids) -> None:
+        if not torch.isfinite(value).all():
+            last = ckpt.latest_checkpoint(self.run_dir)
+            raise NonFiniteLossError(
+                f"{what} is {value.item()} at stage {stage} step {step} of {total}; "
+                f"batch sample ids: {', '.join(map(str, ids))}. No checkpoint was written for this "
+                f"step (latest: {last.path.name if last else 'none'})."
+            )
+
+    def _step(self, name: str, net, opt, sched, loss, stage, step, total, ids) -> None:
+        self._check(f"{name} loss", loss.detach(), stage, step, total, ids)
+        opt.zero_grad(set_to_none=True)
+        loss.backward()
+        grad_norm = torch.nn.utils.clip_grad_norm_(net.parameters(), float("inf"))
+        self._check(f"{name} gradient norm", grad_norm.detach(), stage, step, total, ids)
+        opt.step()
+        sched.step()
+
+    def _save(self, stage: int, step: int, total: int, opts: dict, scheds: dict) -> Path:
+        path = ckpt.checkpoint_path(self.run_dir, stage, step)
+        ckpt.save_atomic(
+            {
+                "format": 1,
+                "stage": stage,
+                "step": step,
+                "total_steps": total,
+                "complete": step == total,
+                "config": to_dict(self.cfg),
+                "models": {k: v.state_dict() for k, v in self.nets.items()},
+                "optimizers": {k: v.state_dict() for k, v in opts.items()},
+                "schedulers": {k: v.state_dict() for k, v in scheds.items()},
+            },
+            path,
+        )
+        protect = {ckpt.checkpoint_path(self.run_dir, 1, self.cfg.train.stage1_steps)}
+        ckpt.prune(self.run_dir, stage, self.cfg.train.keep_checkpoints, protect)
+        return path
+
+    def _log_line(self, record: dict) -> None:
+        with open(self.run_dir / LOG_FILE, "a") as f:
+            f.write(json.dumps(record) + "\n")
+
+    def _load_models(self, state: dict) -> None:
+        for k, net in self.nets.items():
+            net.load_state_dict(state["models"][k])
+
+    def _budget_exhausted(self) -> bool:
+        return self.stop_requested or (self.steps_left is not None and self.steps_left <= 0)
+
+    # ------------------------------------------------------------------ stages
+
+    def stage1_complete(self) -> bool:
+        return ckpt.checkpoint_path(self.run_dir, 1, self.cfg.train.stage1_steps).is_file() or bool(
+            ckpt.list_checkpoints(self.run_dir, 2)
+        )
+
+    def run_stage(self, stage: int, resume: bool) -> str:
+        """Run (or continue) one stage. Returns "done", "skipped" or "stopped"."""
+        total = self.cfg.train.stage1_steps if stage == 1 else self.cfg.train.stage2_steps
+        names = ["rdn", "rrn"] if stage == 1 else ["rfn"]
+        latest = ckpt.latest_checkpoint(self.run_dir)
+        start = 0
+        state = None
+        if stage == 1:
+            if self.stage1_complete():
+                if not resume:
+                    raise TrainingError(f"{self.run_dir}: stage 1 is already done; use --resume or a new --out")
+                self.log("stage 1: already complete")
+                return "skipped"
+            if latest is not None:
+                if not resume:
+                    raise TrainingError(
+                        f"{self.run_dir} already has checkpoints ({latest.path.name}); "
+                        "pass --resume to continue it, or use a new --out"
+                    )
+                state = ckpt.load_checkpoint(latest.path, self.device)
+        else:
+            s2 = ckpt.latest_checkpoint(self.run_dir, 2)
+            if s2 is not None:
+                if not resume:
+                    raise TrainingError(
+                        f"{self.run_dir} already has stage-2 checkpoints ({s2.path.name}); "
+                        "pass --resume to continue it, or use a new --out"
+                    )
+                state = ckpt.load_checkpoint(s2.path, self.device)
+            else:
+                s1 = ckpt.checkpoint_path(self.run_dir, 1, self.cfg.train.stage1_steps)
+                if not s1.is_file():
+                    raise TrainingError(
+                        f"{self.run_dir}: stage 2 needs the end of stage 1 ({s1.name}); run --stage 1 first"
+                    )
+                self._load_models(ckpt.load_checkpoint(s1, self.device))
+        opts, scheds = {}, {}
+        for n in names:
+            opts[n], scheds[n] = self._optimizer(self.nets[n], total)
+        if state is not None:
+            self._load_models(state)
+            for n in names:
+                opts[n].load_state_dict(state["optimizers"][n])
+                scheds[n].load_state_dict(state["schedulers"][n])
+            start = state["step"]
+            self.log(f"stage {stage}: resuming at step {start} of {total}")
+        if start >= total:
+            return "skipped"
+        if self._budget_exhausted():
+            return "stopped"
+        for n, net in self.nets.items():
+            net.train(n in names)
+            net.requires_grad_(n in names)
+        dilation = Dilation(self.cfg.pipeline.dilation).to(self.device)
+        thr = self.cfg.pipeline.threshold
+        L = self.cfg.loss
+        every = self.cfg.train.checkpoint_every
+        loader = self._loader(stage, total, start)
+        bar = tqdm(total=total, initial=start, desc=f"stage {stage}", disable=not self.progress, dynamic_ncols=True)
+        t0 = time.time()
+        step = start
+        saved_at = None
+        try:
+            for batch in loader:
+                ids = batch["id"]
+                b = self._to_device(batch)
+                step += 1
+                record = {"stage": stage, "step": step}
+                if stage == 1:
+                    rdn, rrn = self.nets["rdn"], self.nets["rrn"]
+                    record["lr"] = scheds["rdn"].get_last_lr()[0]
+                    loss = losses.detection_loss(rdn(b["rainy"]), b["mask"])
+                    self._step("rdn", rdn, opts["rdn"], scheds["rdn"], loss, stage, step, total, ids)
+                    record["loss_rdn"] = loss.item()
+                    loss = losses.reconstruction_loss(
+                        rrn(b["rainy"], b["edge"]), b["clean"], b["mask"], L.rrn_mask_weight
+                    )
+                    self._step("rrn", rrn, opts["rrn"], scheds["rrn"], loss, stage, step, total, ids)
+                    record["loss_rrn"] = loss.item()
+                else:
+                    rfn = self.nets["rfn"]
+                    record["lr"] = scheds["rfn"].get_last_lr()[0]
+                    with torch.no_grad():
+                        r = b["rainy"]
+                        m = dilation((self.nets["rdn"].probability(r) > thr).float())
+                        ihat = self.nets["rrn"](r, b["edge"]).clamp(0.0, 1.0)
+                        blend = m * ihat + (1.0 - m) * r
+                    loss = losses.refine_loss(rfn(blend), b["clean"], L.rfn_ssim_weight, L.ssim_window)
+                    self._step("rfn", rfn, opts["rfn"], scheds["rfn"], loss, stage, step, total, ids)
+                    record["loss_rfn"] = loss.item()
+                if self.steps_left is not None:
+                    self.steps_left -= 1
+                bar.update(1)
+                if step % self.cfg.train.log_every == 0 or step == total:
+                    record["elapsed_s"] = round(time.time() - t0, 3)
+                    self._log_line(record)
+                    bar.set_postfix({k[5:]: f"{v:.4f}" for k, v in record.items() if k.startswith("loss_")})
+                stopping = self._budget_exhausted()
+                if step % every == 0 or step == total or stopping:
+                    self._save(stage, step, total, opts, scheds)
+                    saved_at = step
+                if stopping:
+                    break
+        finally:
+            bar.close()
+        if step < total:
+            why = "interrupted" if self.stop_requested else "step budget of this invocation used"
+            self.log(f"stage {stage}: {why}; checkpoint at step {saved_at}; continue with --resume")
+            return "stopped"
+        self.log(f"stage {stage}: done ({total} steps, {time.time() - t0:.1f} s in this invocation)")
+        return "done"
+
+    def run(self, stages: list[int], resume: bool) -> str:
+        ckpt.remove_stale_temporaries(self.run_dir)
+        result = "done"
+        for s in stages:
+            result = self.run_stage(s, resume)
+            if result == "stopped":
+                return result
+            resume = True  # stage 2 after stage 1 in the same invocation
+        return result
+
+
+def _install_signal_handlers(trainer: Trainer) -> dict:
+    """SIGINT/SIGTERM: finish the current step, write a checkpoint, stop. A second signal
+    aborts at once. Returns the previous handlers (to restore)."""
+
+    def handler(signum, frame):
+        if trainer.stop_requested:
+            raise KeyboardInterrupt
+        trainer.stop_requested = True
+        trainer.log(f"signal {signum}: stopping after this step (a checkpoint is written); send again to abort")
+
+    previous = {}
+    for sig in (signal.SIGINT, signal.SIGTERM):
+        previous[sig] = signal.getsignal(sig)
+        signal.signal(sig, handler)
+    return previous
+
+
+def build_arg_parser() -> argparse.ArgumentParser:
+    ap = argparse.ArgumentParser(
+        prog="python -m raindrop_tools.train", description="Two-stage training of RDN, 3RN and RFN."
+    )
+    ap.add_argument(
+        "--config", help="run configuration (YAML); optional with --resume or for --stage 2 of an existing run"
+    )
+    ap.add_argument("--stage", choices=["1", "2", "all"], default="all")
+    ap.add_argument("--device", choices=["auto", "cpu", "cuda"], default="auto")
+    ap.add_argument("--resume", action="store_true", help="continue from the run's latest checkpoint")
+    ap.add_argument("--out", help="run folder (default: tools/runs/<config name>)")
+    ap.add_argument("--data", help="shortcut for --set data.train=DIR")
+    ap.add_argument(
+        "--set", action="append", metavar="KEY=VALUE", help="override a config key, e.g. train.stage1_steps=2000"
+    )
+    ap.add_argument(
+        "--max-steps", type=int, help="stop (with a checkpoint) after this many optimizer steps in this invocation"
+    )
+    ap.add_argument("--threads", type=int, help="torch CPU threads (default: torch's choice)")
+    ap.add_argument("--no-progress", action="store_true", help="no progress bar")
+    return ap
+
+
+def main(argv: list[str] | None = None) -> int:
+    args = build_arg_parser().parse_args(argv)
+    if args.threads:
+        torch.set_num_threads(args.threads)
+    try:
+        overrides = parse_overrides(args.set)
+        if args.data:
+            overrides.append(("data.train", args.data))
+        cfg = load_config(args.config, overrides) if args.config else None
+        if args.out:
+            run_dir = Path(args.out)
+        elif cfg is not None:
+            run_dir = default_run_dir(cfg.name)
+        else:
+            raise TrainingError("give --config, or --out of an existing run")
+        if cfg is None and overrides:
+            raise TrainingError("--set/--data need --config (a run folder keeps its configuration)")
+        cfg = prepare_run_dir(run_dir, cfg)
+        device = choose_device(args.device)
+        if device.type == "cuda":
+            torch.backends.cudnn.benchmark = True
+        _record_invocation(run_dir, cfg, device, argv)
+        trainer = Trainer(cfg, run_dir, device, progress=not args.no_progress, max_steps=args.max_steps)
+        stages = [1, 2] if args.stage == "all" else [int(args.stage)]
+        previous = _install_signal_handlers(trainer)
+        try:
+            result = trainer.run(stages, resume=args.resume)
+        finally:
+            for sig, h in previous.items():
+                signal.signal(sig, h)
+    except (ConfigError, DatasetError, TrainingError) as e:
+        print(f"error: {e}", file=sys.stderr)
+        return 2
+    print(f"{result}: run folder {run_dir}")
+    return 0 if result != "stopped" or not trainer.stop_requested else 130
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,50 @@
+"""Shared fixtures. Keeps every test on one CPU thread (the machine is shared)."""
+
+from __future__ import annotations
+
+import os
+
+os.environ.setdefault("OMP_NUM_THREADS", "1")
+os.environ.setdefault("MKL_NUM_THREADS", "1")
+
+import pytest  # noqa: E402
+
+from helpers import write_dataset  # noqa: E402
+
+try:  # torch is optional: the `-m "not torch"` selection runs without it
+    import torch
+except ImportError:  # pragma: no cover
+    torch = None
+
+if torch is not None:
+    torch.set_num_threads(1)
+
+
+@pytest.fixture(scope="session")
+def tiny_dataset(tmp_path_factory):
+    """6 samples of 48x64 in the CONTRACTS.md format (read-only: copy before altering)."""
+    return write_dataset(tmp_path_factory.mktemp("tiny-dataset"), n=6, h=48, w=64, seed=1)
+
+
+@pytest.fixture(scope="session")
+def smoke_run(tmp_path_factory, tiny_dataset):
+    """A finished smoke training run (both stages) and its export. Read-only for tests."""
+    if torch is None:
+        pytest.skip("needs torch")
+    from helpers import CONFIGS
+    from raindrop_tools import export, train
+
+    base = tmp_path_factory.mktemp("smoke-run")
+    run_dir, models = base / "run", base / "models"
+    args = [
+        "--config",
+        str(CONFIGS / "smoke.yaml"),
+        "--data",
+        str(tiny_dataset),
+        "--out",
+        str(run_dir),
+        "--no-progress",
+    ]
+    assert train.main(args) == 0
+    assert export.main(["--run", str(run_dir), "--out", str(models)]) == 0
+    return {"run": run_dir, "models": models, "data": tiny_dataset}

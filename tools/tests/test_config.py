@@ -1,0 +1,75 @@
+import pytest
+
+from helpers import CONFIGS
+from raindrop_tools.config import ConfigError, RunConfig, config_from_dict, dump_config, load_config, parse_overrides
+from raindrop_tools.schedule import lr_at
+
+
+@pytest.mark.parametrize("name", ["paper", "compact", "smoke"])
+def test_shipped_configs_load(name):
+    cfg = load_config(CONFIGS / f"{name}.yaml")
+    assert cfg.name == name
+    assert cfg.data.crop >= cfg.loss.ssim_window
+    # the dump round-trips
+    import yaml
+
+    assert config_from_dict(yaml.safe_load(dump_config(cfg))) == cfg
+
+
+def test_paper_config_is_the_paper():
+    cfg = load_config(CONFIGS / "paper.yaml")
+    assert cfg == RunConfig(name="paper", data=cfg.data)  # the defaults are the paper's
+    n = cfg.network
+    assert (n.rdn.width, n.rdn.expanded, n.rdn.blocks) == (64, 256, 6)
+    assert (n.rrn.width, n.rrn.expanded, n.rrn.blocks, n.rrn.global_residual) == (64, 256, 8, False)
+    assert (n.rfn.width, n.rfn.blocks) == (64, 2)
+    t = cfg.train
+    assert (t.batch_size, t.lr, t.lr_end, t.decay_start, t.decay_end) == (32, 1e-3, 1e-4, 0.4, 0.8)
+    assert cfg.data.crop == 100 and cfg.data.flip
+
+
+def test_unknown_key_is_an_error():
+    with pytest.raises(ConfigError, match="train.batchsize"):
+        config_from_dict({"train": {"batchsize": 3}})
+
+
+def test_types_are_checked_and_coerced():
+    cfg = config_from_dict({"train": {"lr": "1e-3", "lr_end": 1e-4}})  # YAML reads 1e-3 as a string
+    assert cfg.train.lr == 1e-3
+    with pytest.raises(ConfigError, match="train.batch_size"):
+        config_from_dict({"train": {"batch_size": "many"}})
+    with pytest.raises(ConfigError, match="data.flip"):
+        config_from_dict({"data": {"flip": "yes"}})
+
+
+def test_partial_nested_mapping_keeps_defaults():
+    cfg = config_from_dict({"network": {"rrn": {"width": 16}}})
+    assert cfg.network.rrn.width == 16 and cfg.network.rrn.blocks == 8 and cfg.network.rdn.blocks == 6
+
+
+def test_overrides_and_range_checks():
+    cfg = config_from_dict({}, parse_overrides(["train.stage1_steps=7", "pipeline.dilation=5"]))
+    assert cfg.train.stage1_steps == 7 and cfg.pipeline.dilation == 5
+    with pytest.raises(ConfigError, match="decay_start"):
+        config_from_dict({"train": {"decay_start": 0.9, "decay_end": 0.5}})
+    with pytest.raises(ConfigError, match="global_residual"):
+        config_from_dict({"network": {"rdn": {"global_residual": True}}})
+    with pytest.raises(ConfigError):
+        parse_overrides(["no-equals-sign"])
+
+
+def test_relative_data_path_resolves_against_cwd(tmp_path, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    cfg = load_config(CONFIGS / "smoke.yaml")
+    assert cfg.data.train == str(tmp_path / "data" / "smoke")
+
+
+def test_lr_schedule():
+    args = dict(total=100, lr=1e-3, lr_end=1e-4, decay_start=0.4, decay_end=0.8)
+    assert lr_at(0, **args) == 1e-3
+    assert lr_at(40, **args) == 1e-3
+    assert lr_at(60, **args) == pytest.approx(5.5e-4)
+    assert lr_at(80, **args) == pytest.approx(1e-4)
+    assert lr_at(99, **args) == pytest.approx(1e-4)
+    values = [lr_at(s, **args) for s in range(100)]
+    assert all(a >= b for a, b in zip(values, values[1:]))

@@ -1,0 +1,153 @@
+"""ONNX export: graph contract (CONTRACTS.md section 2) and parity with PyTorch."""
+
+import json
+
+import numpy as np
+import pytest
+
+pytestmark = pytest.mark.torch
+torch = pytest.importorskip("torch")
+onnx = pytest.importorskip("onnx")
+import onnxruntime as ort  # noqa: E402
+
+from helpers import CONFIGS, SHARED_DATA_MISSING, load_small_rgb, procedural_image, real_frames  # noqa: E402
+from raindrop_tools import contract as C  # noqa: E402
+from raindrop_tools.config import load_config  # noqa: E402
+from raindrop_tools.edge import edge_map_numpy  # noqa: E402
+from raindrop_tools.export import export_networks, sha256  # noqa: E402
+from raindrop_tools.imageio import to_float  # noqa: E402
+from raindrop_tools.networks import build_networks  # noqa: E402
+
+TOLERANCE = 1e-4
+
+
+def _nchw(img_u8):
+    return torch.from_numpy(to_float(img_u8).transpose(2, 0, 1).copy())[None]
+
+
+def _edge(img_u8):
+    return torch.from_numpy(edge_map_numpy(to_float(img_u8)))[None, None]
+
+
+def _calibrate(nets, images):
+    """Give batch norm realistic running statistics (fresh ones are mean 0, variance 1, which
+    would make the check too easy) by running the networks in training mode on images."""
+    with torch.no_grad():
+        for name, net in nets.items():
+            for m in net.modules():
+                if isinstance(m, torch.nn.BatchNorm2d):
+                    m.reset_running_stats()
+                    m.momentum = None  # cumulative average
+            net.train()
+            for img in images:
+                x = _nchw(img)
+                if name == "rrn":
+                    net(x, _edge(img))
+                else:
+                    net(x)
+            net.eval()
+
+
+@pytest.fixture(scope="module", params=["paper", "compact"])
+def exported(request, tmp_path_factory):
+    cfg = load_config(CONFIGS / f"{request.param}.yaml", resolve_paths=False)
+    torch.manual_seed(0)
+    nets = build_networks(cfg.network)
+    _calibrate(nets, [procedural_image(64, 96, s) for s in range(3)])
+    out = tmp_path_factory.mktemp(f"export-{request.param}")
+    info = export_networks(cfg, nets, out, source={"test": True})
+    sessions = {}
+    for name in C.NETWORKS:
+        so = ort.SessionOptions()
+        so.intra_op_num_threads = 1
+        sessions[name] = ort.InferenceSession(str(out / C.FILES[name]), so, providers=["CPUExecutionProvider"])
+    return {"cfg": cfg, "nets": nets, "dir": out, "info": info, "sessions": sessions}
+
+
+def _compare(exported, name, inputs):
+    feed = {k: v.numpy() for k, v in zip(C.INPUTS[name], inputs)}
+    got = exported["sessions"][name].run(None, feed)[0]
+    with torch.no_grad():
+        net = exported["nets"][name]
+        want = torch.sigmoid(net(*inputs)) if name == "rdn" else net(*inputs)
+    want = want.numpy()
+    assert got.shape == want.shape
+    diff = float(np.abs(got - want).max())
+    assert diff <= TOLERANCE, f"{name} {tuple(inputs[0].shape)}: max |onnx - torch| = {diff}"
+    return got
+
+
+def _inputs_for(name, img_u8):
+    if name == "rrn":
+        return (_nchw(img_u8), _edge(img_u8))
+    return (_nchw(img_u8),)
+
+
+@pytest.mark.parametrize("size", [(1, 1), (1, 2), (2, 1), (3, 5), (37, 53), (64, 48), (100, 100)])
+def test_parity_random_inputs(exported, size):
+    g = torch.Generator().manual_seed(size[0] * 1000 + size[1])
+    for name in C.NETWORKS:
+        n = 2 if size == (37, 53) else 1
+        inputs = tuple(torch.rand(n, C.INPUT_CHANNELS[i], *size, generator=g) for i in C.INPUTS[name])
+        out = _compare(exported, name, inputs)
+        if name == "rdn":
+            assert out.min() >= 0.0 and out.max() <= 1.0
+
+
+@pytest.mark.parametrize("size,seed", [((37, 53), 11), ((96, 128), 12), ((33, 200), 13)])
+def test_parity_procedural_images(exported, size, seed):
+    img = procedural_image(*size, seed)
+    for name in C.NETWORKS:
+        _compare(exported, name, _inputs_for(name, img))
+
+
+def test_parity_real_images(exported):
+    frames = real_frames(max_count=3)
+    if not frames:
+        pytest.skip(SHARED_DATA_MISSING)
+    for path in frames:
+        img = load_small_rgb(path, max_side=160)
+        img = img[: img.shape[0] - 1 + img.shape[0] % 2, : img.shape[1] - 1 + img.shape[1] % 2]  # odd sizes
+        for name in C.NETWORKS:
+            _compare(exported, name, _inputs_for(name, img))
+
+
+def test_graph_contract(exported):
+    cfg = exported["cfg"]
+    for name in C.NETWORKS:
+        path = exported["dir"] / C.FILES[name]
+        model = onnx.load(str(path))
+        onnx.checker.check_model(model, full_check=True)
+        opset = {o.domain: o.version for o in model.opset_import}[""]
+        assert opset >= 17
+        assert [i.name for i in model.graph.input] == list(C.INPUTS[name])
+        assert [o.name for o in model.graph.output] == [C.OUTPUTS[name]]
+        for value, ch in [(v, C.INPUT_CHANNELS[v.name]) for v in model.graph.input] + [
+            (model.graph.output[0], C.OUTPUT_CHANNELS[name])
+        ]:
+            t = value.type.tensor_type
+            assert t.elem_type == onnx.TensorProto.FLOAT
+            dims = [d.dim_param or d.dim_value for d in t.shape.dim]
+            assert dims == ["N", ch, "H", "W"], (name, value.name, dims)
+        meta = {p.key: p.value for p in model.metadata_props}
+        assert meta == {
+            "raindrop.pad_multiple": "1",
+            "raindrop.config": cfg.name,
+            "raindrop.network": name,
+            "raindrop.threshold": repr(cfg.pipeline.threshold),
+            "raindrop.dilation": str(cfg.pipeline.dilation),
+        }
+        assert float(meta["raindrop.threshold"]) == cfg.pipeline.threshold
+
+
+def test_export_info(exported):
+    info = json.loads((exported["dir"] / C.EXPORT_INFO).read_text())
+    assert info == json.loads(json.dumps(exported["info"]))
+    for name in C.NETWORKS:
+        f = C.FILES[name]
+        assert info["files"][f]["sha256"] == sha256(exported["dir"] / f)
+        assert info["files"][f]["bytes"] == (exported["dir"] / f).stat().st_size
+    g = info["gflops_256x512"]
+    assert g["total"] == pytest.approx(g["rdn"] + g["rrn"] + g["rfn"])
+    assert info["config"] == exported["cfg"].name and info["pad_multiple"] == 1
+    assert max(info["parity_max_abs_diff"].values()) <= TOLERANCE

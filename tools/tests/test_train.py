@@ -1,0 +1,158 @@
+import json
+import shutil
+
+import numpy as np
+import pytest
+import yaml
+
+pytestmark = pytest.mark.torch
+torch = pytest.importorskip("torch")
+
+from helpers import CONFIGS  # noqa: E402
+from raindrop_tools import checkpoint as ckpt  # noqa: E402
+from raindrop_tools import export, losses, train  # noqa: E402
+from raindrop_tools.config import load_config  # noqa: E402
+from raindrop_tools.data import RaindropDataset, StepBatchSampler  # noqa: E402
+
+
+def _args(data, out, *extra):
+    return ["--config", str(CONFIGS / "smoke.yaml"), "--data", str(data), "--out", str(out), "--no-progress", *extra]
+
+
+def test_smoke_run_folder(smoke_run):
+    run = smoke_run["run"]
+    cfg = load_config(CONFIGS / "smoke.yaml", [("data.train", str(smoke_run["data"]))])
+    recorded = yaml.safe_load((run / "config.yaml").read_text())
+    assert recorded["data"]["train"] == str(smoke_run["data"])
+    assert recorded["seed"] == cfg.seed == 7
+    info = json.loads((run / "run.json").read_text())
+    assert info["seed"] == 7 and info["invocations"][0]["device"] == "cpu"
+    log = [json.loads(line) for line in (run / "log.jsonl").read_text().splitlines()]
+    s1 = [r for r in log if r["stage"] == 1]
+    s2 = [r for r in log if r["stage"] == 2]
+    assert [r["step"] for r in s1] == list(range(1, 7)) and [r["step"] for r in s2] == list(range(1, 5))
+    assert all(np.isfinite(r["loss_rdn"]) and np.isfinite(r["loss_rrn"]) for r in s1)
+    assert all(np.isfinite(r["loss_rfn"]) for r in s2)
+    assert s1[0]["lr"] == 1e-3 and s1[-1]["lr"] == pytest.approx(1e-4)
+    # keep_checkpoints=2 per stage; the end of stage 1 is kept
+    names = sorted(p.name for p in (run / "checkpoints").iterdir())
+    assert names == [
+        "stage1_step00000004.pt",
+        "stage1_step00000006.pt",
+        "stage2_step00000002.pt",
+        "stage2_step00000004.pt",
+    ]
+    state = ckpt.load_checkpoint(run / "checkpoints" / "stage2_step00000004.pt")
+    assert state["stage"] == 2 and state["complete"] and set(state["models"]) == {"rdn", "rrn", "rfn"}
+
+
+def test_frozen_networks_do_not_change_in_stage_2(smoke_run):
+    s1 = ckpt.load_checkpoint(smoke_run["run"] / "checkpoints" / "stage1_step00000006.pt")["models"]
+    s2 = ckpt.load_checkpoint(smoke_run["run"] / "checkpoints" / "stage2_step00000004.pt")["models"]
+    for net in ("rdn", "rrn"):  # includes the batch-norm running statistics
+        for k, v in s1[net].items():
+            assert torch.equal(v, s2[net][k]), f"{net}.{k} changed in stage 2"
+    assert any(not torch.equal(v, s2["rfn"][k]) for k, v in s1["rfn"].items())
+
+
+def test_resume_reproduces_the_uninterrupted_run(smoke_run, tmp_path):
+    out = tmp_path / "run"
+    data = smoke_run["data"]
+    # 3 steps, "crash"; 5 more (finishing stage 1, 2 steps into stage 2); then the rest.
+    assert train.main(_args(data, out, "--max-steps", "3")) == 0
+    assert [r.step for r in ckpt.list_checkpoints(out, 1)][-1] == 3
+    assert train.main(_args(data, out, "--resume", "--max-steps", "5")) == 0
+    assert ckpt.latest_checkpoint(out).stage == 2 and ckpt.latest_checkpoint(out).step == 2
+    assert train.main(["--out", str(out), "--resume", "--no-progress"]) == 0  # config from the run folder
+    a = ckpt.load_checkpoint(ckpt.latest_checkpoint(smoke_run["run"]).path)
+    b = ckpt.load_checkpoint(ckpt.latest_checkpoint(out).path)
+    assert b["stage"] == 2 and b["complete"]
+    for net in ("rdn", "rrn", "rfn"):
+        for k, v in a["models"][net].items():
+            assert torch.equal(v, b["models"][net][k]), f"{net}.{k} differs after resume"
+    assert len(json.loads((out / "run.json").read_text())["invocations"]) == 3
+
+
+def test_refuses_to_overwrite_or_change_a_run(smoke_run, tmp_path, capsys):
+    out = tmp_path / "run"
+    shutil.copytree(smoke_run["run"], out)
+    assert train.main(_args(smoke_run["data"], out)) == 2
+    assert "--resume" in capsys.readouterr().err
+    assert train.main(_args(smoke_run["data"], out, "--resume", "--set", "train.batch_size=2")) == 2
+    assert "train.batch_size: 4 -> 2" in capsys.readouterr().err
+    # resuming a finished run is a no-op
+    before = sorted(p.name for p in (out / "checkpoints").iterdir())
+    assert train.main(_args(smoke_run["data"], out, "--resume")) == 0
+    assert sorted(p.name for p in (out / "checkpoints").iterdir()) == before
+
+
+def test_stage_2_needs_stage_1(tiny_dataset, tmp_path, capsys):
+    assert train.main(_args(tiny_dataset, tmp_path / "run", "--stage", "2")) == 2
+    assert "run --stage 1 first" in capsys.readouterr().err
+
+
+def test_stages_one_at_a_time_and_export_refuses_unfinished(smoke_run, tmp_path, capsys):
+    out = tmp_path / "run"
+    assert train.main(_args(smoke_run["data"], out, "--stage", "1")) == 0
+    assert ckpt.latest_checkpoint(out).stage == 1
+    assert export.main(["--run", str(out), "--out", str(tmp_path / "m")]) == 2
+    assert "not finished" in capsys.readouterr().err
+    assert train.main(["--out", str(out), "--stage", "2", "--no-progress"]) == 0
+    a = ckpt.load_checkpoint(ckpt.latest_checkpoint(smoke_run["run"]).path)["models"]["rfn"]
+    b = ckpt.load_checkpoint(ckpt.latest_checkpoint(out).path)["models"]["rfn"]
+    assert all(torch.equal(v, b[k]) for k, v in a.items())
+
+
+def _inject_nan(monkeypatch, name, at_call):
+    original = getattr(losses, name)
+    calls = {"n": 0}
+
+    def poisoned(*args, **kwargs):
+        calls["n"] += 1
+        loss = original(*args, **kwargs)
+        return loss * float("nan") if calls["n"] == at_call else loss
+
+    monkeypatch.setattr(losses, name, poisoned)
+
+
+@pytest.mark.parametrize(
+    "net,loss_fn,stage", [("rdn", "detection_loss", 1), ("rrn", "reconstruction_loss", 1), ("rfn", "refine_loss", 2)]
+)
+def test_nan_guard_names_network_step_and_ids_and_writes_no_checkpoint(
+    smoke_run, tmp_path, monkeypatch, net, loss_fn, stage
+):
+    out = tmp_path / "run"
+    cfg = load_config(CONFIGS / "smoke.yaml", [("data.train", str(smoke_run["data"]))])
+    train.prepare_run_dir(out, cfg)
+    if stage == 2:  # start from the end of stage 1
+        (out / "checkpoints").mkdir()
+        shutil.copy(smoke_run["run"] / "checkpoints" / "stage1_step00000006.pt", out / "checkpoints")
+    _inject_nan(monkeypatch, loss_fn, at_call=3)  # step 3; checkpoints every 2 steps
+    trainer = train.Trainer(cfg, out, torch.device("cpu"), progress=False)
+    with pytest.raises(train.NonFiniteLossError) as e:
+        trainer.run([stage], resume=False)
+    msg = str(e.value)
+    ds = RaindropDataset(smoke_run["data"], crop=cfg.data.crop, validate="header")
+    keys = StepBatchSampler(ds.sizes, cfg.data.crop, cfg.train.batch_size, cfg.seed, stage, 6).keys_for_step(2)
+    ids = [ds.samples[k[0]].id for k in keys]
+    assert f"{net} loss is nan" in msg and f"stage {stage} step 3 " in msg
+    assert "batch sample ids: " + ", ".join(ids) in msg
+    assert ckpt.checkpoint_path(out, stage, 2).is_file()
+    assert not ckpt.checkpoint_path(out, stage, 3).exists()
+    assert not list((out / "checkpoints").glob(".tmp-*"))
+
+
+def test_cli_reports_nan_as_an_error(smoke_run, tmp_path, monkeypatch, capsys):
+    _inject_nan(monkeypatch, "detection_loss", at_call=1)
+    assert train.main(_args(smoke_run["data"], tmp_path / "run")) == 2
+    err = capsys.readouterr().err
+    assert "error: rdn loss is nan at stage 1 step 1 of 6" in err
+    assert not ckpt.list_checkpoints(tmp_path / "run")
+
+
+def test_choose_device():
+    assert train.choose_device("cpu").type == "cpu"
+    assert train.choose_device("auto").type == ("cuda" if torch.cuda.is_available() else "cpu")
+    if not torch.cuda.is_available():
+        with pytest.raises(train.TrainingError, match="no CUDA"):
+            train.choose_device("cuda")
