@@ -1,5 +1,7 @@
 #include "raindrop/camera.h"
 
+#include <algorithm>
+
 namespace raindrop {
 
 Camera Camera::resized(int new_width, int new_height) const {
@@ -26,7 +28,8 @@ Camera Camera::cropped(int x0, int y0, int new_width, int new_height) const {
 
 Camera Camera::default_for(int width, int height) {
   Camera c;
-  c.fx = c.fy = 2262.52 / 2048.0 * width;
+  // The field of view along the longer side, so portrait frames get the same lens.
+  c.fx = c.fy = 2262.52 / 2048.0 * std::max(width, height);
   c.cx = 0.5 * (width - 1);
   c.cy = 0.5 * (height - 1);
   c.width = width;

@@ -2,6 +2,7 @@
 
 #include <atomic>
 #include <cstdio>
+#include <cstring>
 #include <fstream>
 #include <memory>
 #include <system_error>
@@ -25,11 +26,28 @@ std::string first_line(std::string s) {
   return s.empty() ? "unknown error" : s;
 }
 
+// A PNG ends with an IEND chunk. libpng reports a file cut short by printing to stderr
+// itself before OIIO sees the error, so truncated PNGs are caught here instead.
+void check_png_complete(const fs::path& path, std::uintmax_t size) {
+  std::ifstream f(path, std::ios::binary);
+  char signature[8] = {0};
+  f.read(signature, 8);
+  static const char kPng[8] = {'\x89', 'P', 'N', 'G', '\r', '\n', '\x1a', '\n'};
+  if (!f || std::memcmp(signature, kPng, 8) != 0) return;  // not a PNG
+  const std::uintmax_t tail = std::min<std::uintmax_t>(size, 4096);
+  std::string end(tail, '\0');
+  f.seekg(static_cast<std::streamoff>(size - tail));
+  f.read(end.data(), static_cast<std::streamsize>(tail));
+  if (end.find("IEND") == std::string::npos) throw Error(quoted(path) + ": truncated PNG (no IEND chunk at the end)");
+}
+
 std::unique_ptr<OIIO::ImageInput> open_input(const fs::path& path, OIIO::ImageSpec* spec) {
   std::error_code ec;
   if (!fs::exists(path, ec)) throw Error(quoted(path) + ": no such file");
   if (fs::is_directory(path, ec)) throw Error(quoted(path) + ": is a folder, not an image");
-  if (fs::file_size(path, ec) == 0) throw Error(quoted(path) + ": file is empty");
+  const std::uintmax_t size = fs::file_size(path, ec);
+  if (ec || size == 0) throw Error(quoted(path) + ": file is empty");
+  check_png_complete(path, size);
   // Keep colour values as stored when there is alpha (PNG is unassociated).
   OIIO::ImageSpec config;
   config.attribute("oiio:UnassociatedAlpha", 1);

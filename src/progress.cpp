@@ -39,7 +39,8 @@ void Progress::finish() {
 }
 
 void Progress::draw(bool final_line) {
-  if (!enabled_) return;
+  // Nothing at all until something is done: a run that fails at once prints only its error.
+  if (!enabled_ || done_ == 0) return;
   const auto now = std::chrono::steady_clock::now();
   const double elapsed = std::chrono::duration<double>(now - start_).count();
   const double since_draw = std::chrono::duration<double>(now - last_draw_).count();

@@ -185,6 +185,13 @@ RenderSummary render_dataset(const std::vector<InputImage>& inputs, const Render
   std::int64_t todo = 0;
   for (const auto& t : tasks) todo += static_cast<std::int64_t>(t.variants.size());
   Progress progress(todo, "render", o.progress);
+  // Start from the complete records only: an interrupted append leaves a partial last line,
+  // which must not be glued to the next record.
+  if (fs::exists(manifest_path)) {
+    std::string text;
+    for (const auto& [id, entry] : kept) text += entry.line + "\n";
+    write_text_atomic(text, manifest_path);
+  }
   ManifestWriter manifest(manifest_path);
   std::atomic<bool> stop{false};
   std::mutex summary_mutex;

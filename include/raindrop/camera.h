@@ -26,7 +26,8 @@ struct Camera {
   // The same camera after cropping the image to the window starting at (x0, y0).
   Camera cropped(int x0, int y0, int new_width, int new_height) const;
 
-  // Cityscapes' field of view (fx = 2262.52 at 2048 px wide) when no calibration is known.
+  // Cityscapes' field of view (fx = 2262.52 at 2048 px) along the longer side, when no
+  // calibration is known.
   static Camera default_for(int width, int height);
 };
 

@@ -120,7 +120,7 @@ int run(int argc, char** argv) {
 
   const RenderSummary s = render_dataset(inputs, options);
   if (!s.errors.empty() && !keep_going) throw Error(s.errors.front());
-  for (const auto& e : s.errors) std::cerr << "raindrop-render: failed: " << e << "\n";
+  for (const auto& e : s.errors) std::cerr << "raindrop-render: failed: " << one_line(e) << "\n";
 
   if (!sheet.empty() && !s.samples.empty()) {
     std::vector<std::vector<cv::Mat>> rows;
@@ -148,7 +148,7 @@ int main(int argc, char** argv) {
   try {
     return run(argc, argv);
   } catch (const std::exception& e) {
-    std::cerr << "raindrop-render: error: " << e.what() << "\n";
+    std::cerr << "raindrop-render: error: " << one_line(e.what()) << "\n";
     return 1;
   }
 }

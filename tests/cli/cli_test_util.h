@@ -1,0 +1,329 @@
+#pragma once
+// Helpers for the end-to-end tests of raindrop-render: temporary folders, running the
+// binary with its stdout/stderr captured, reading and writing images with OpenImageIO
+// (independently of the renderer's own image_io), manifests and folder snapshots.
+#include <gtest/gtest.h>
+
+#include <sys/types.h>
+#include <sys/wait.h>
+
+#include <algorithm>
+#include <cctype>
+#include <cstdint>
+#include <cstdio>
+#include <cstdlib>
+#include <cstring>
+#include <filesystem>
+#include <fstream>
+#include <map>
+#include <optional>
+#include <sstream>
+#include <string>
+#include <vector>
+
+#include <OpenImageIO/imageio.h>
+#include <nlohmann/json.hpp>
+#include <opencv2/core.hpp>
+#include <opencv2/imgproc.hpp>
+
+#include "raindrop/demo.h"
+
+#ifndef RAINDROP_RENDER_BIN
+#error "RAINDROP_RENDER_BIN must name the raindrop-render binary"
+#endif
+#ifndef RAINDROP_SHARED_DATA
+#define RAINDROP_SHARED_DATA ""
+#endif
+
+namespace clitest {
+
+namespace fs = std::filesystem;
+using json = nlohmann::json;
+
+inline fs::path render_bin() { return fs::path(RAINDROP_RENDER_BIN); }
+
+// A fresh folder per test, removed afterwards (kept when RAINDROP_KEEP_TEST_DIRS is set).
+class TempDir {
+ public:
+  TempDir() {
+    const auto* info = ::testing::UnitTest::GetInstance()->current_test_info();
+    std::string name = "raindrop-cli-";
+    if (info) name += std::string(info->test_suite_name()) + "-" + info->name() + "-";
+    for (char& c : name) {
+      if (!std::isalnum(static_cast<unsigned char>(c)) && c != '-') c = '_';
+    }
+    std::string templ = (fs::temp_directory_path() / (name + "XXXXXX")).string();
+    std::vector<char> buf(templ.begin(), templ.end());
+    buf.push_back('\0');
+    if (!::mkdtemp(buf.data())) throw std::runtime_error("mkdtemp failed for " + templ);
+    path_ = fs::path(buf.data());
+  }
+  ~TempDir() {
+    if (std::getenv("RAINDROP_KEEP_TEST_DIRS")) return;
+    std::error_code ec;
+    fs::remove_all(path_, ec);
+  }
+  TempDir(const TempDir&) = delete;
+  TempDir& operator=(const TempDir&) = delete;
+  const fs::path& path() const { return path_; }
+  fs::path operator/(const std::string& rel) const { return path_ / rel; }
+
+ private:
+  fs::path path_;
+};
+
+inline std::string shell_quote(const std::string& s) {
+  std::string q = "'";
+  for (char c : s) {
+    if (c == '\'') {
+      q += "'\\''";
+    } else {
+      q += c;
+    }
+  }
+  return q + "'";
+}
+
+inline std::string read_file(const fs::path& p) {
+  std::ifstream in(p, std::ios::binary);
+  std::ostringstream s;
+  s << in.rdbuf();
+  return s.str();
+}
+
+inline void write_file(const fs::path& p, const std::string& bytes) {
+  fs::create_directories(p.parent_path());
+  std::ofstream out(p, std::ios::binary);
+  out << bytes;
+  ASSERT_TRUE(out.good()) << "cannot write " << p;
+}
+
+inline std::vector<std::string> split_lines(const std::string& text) {
+  std::vector<std::string> lines;
+  std::istringstream in(text);
+  std::string line;
+  while (std::getline(in, line)) lines.push_back(line);
+  return lines;
+}
+
+// The progress bar writes lines such as "render [####....] 3/8  1.20/s  ETA 0:02".
+inline bool is_progress_line(const std::string& line) { return line.rfind("render [", 0) == 0; }
+
+struct RunResult {
+  int code = -1;  // exit status; -1 if the program did not exit normally
+  std::string out, err;
+  std::string command;
+
+  std::vector<std::string> err_lines() const { return split_lines(err); }
+  // stderr without progress-bar lines
+  std::vector<std::string> message_lines() const {
+    std::vector<std::string> lines;
+    for (const auto& l : split_lines(err)) {
+      if (!is_progress_line(l)) lines.push_back(l);
+    }
+    return lines;
+  }
+  std::string describe() const {
+    return "command: " + command + "\nexit code: " + std::to_string(code) + "\n--- stdout ---\n" + out +
+           "--- stderr ---\n" + err + "--------------";
+  }
+};
+
+// Runs raindrop-render with `args` in folder `cwd`; stdout/stderr go to files beside it.
+inline RunResult run_render(const std::vector<std::string>& args, const fs::path& cwd) {
+  static int counter = 0;
+  const fs::path logs = cwd / "_logs";
+  fs::create_directories(logs);
+  const std::string tag = std::to_string(counter++);
+  const fs::path out_file = logs / ("stdout-" + tag), err_file = logs / ("stderr-" + tag);
+  std::string cmd = "cd " + shell_quote(cwd.string()) + " && " + shell_quote(render_bin().string());
+  for (const auto& a : args) cmd += " " + shell_quote(a);
+  RunResult r;
+  r.command = cmd;
+  cmd += " >" + shell_quote(out_file.string()) + " 2>" + shell_quote(err_file.string()) + " </dev/null";
+  const int status = std::system(cmd.c_str());
+  r.code = (status != -1 && WIFEXITED(status)) ? WEXITSTATUS(status) : -1;
+  r.out = read_file(out_file);
+  r.err = read_file(err_file);
+  return r;
+}
+
+// ---------------------------------------------------------------------------------------
+// Images through OpenImageIO.
+
+struct Image {
+  int width = 0, height = 0, channels = 0;
+  OIIO::TypeDesc format;  // stored per-channel format
+  cv::Mat pixels;         // CV_8UC(channels) (converted to 8 bits if stored deeper)
+};
+
+// Decodes the whole file; std::nullopt (and *why) if it cannot be opened or fully decoded.
+inline std::optional<Image> read_image(const fs::path& p, std::string* why = nullptr) {
+  auto in = OIIO::ImageInput::open(p.string());
+  if (!in) {
+    if (why) *why = OIIO::geterror();
+    return std::nullopt;
+  }
+  const OIIO::ImageSpec& spec = in->spec();
+  Image img;
+  img.width = spec.width;
+  img.height = spec.height;
+  img.channels = spec.nchannels;
+  img.format = spec.format;
+  if (img.width <= 0 || img.height <= 0 || img.channels < 1 || img.channels > 4) {
+    if (why) *why = "unexpected geometry";
+    return std::nullopt;
+  }
+  img.pixels.create(img.height, img.width, CV_8UC(img.channels));
+  // Decode in the stored format (catches truncation), then convert for the caller.
+  std::vector<unsigned char> native(spec.image_bytes());
+  if (!in->read_image(0, 0, 0, img.channels, spec.format, native.data())) {
+    if (why) *why = in->geterror();
+    return std::nullopt;
+  }
+  in->close();
+  if (spec.format == OIIO::TypeDesc::UINT8) {
+    std::memcpy(img.pixels.data, native.data(), native.size());
+  } else if (spec.format == OIIO::TypeDesc::UINT16) {
+    const auto* v = reinterpret_cast<const std::uint16_t*>(native.data());
+    for (size_t i = 0; i < img.pixels.total() * img.channels; ++i)
+      img.pixels.data[i] = static_cast<unsigned char>((v[i] + 128) / 257);
+  } else {
+    if (why) *why = "unexpected pixel format " + std::string(spec.format.c_str());
+    return std::nullopt;
+  }
+  return img;
+}
+
+// Writes an 8-bit (CV_8U) or 16-bit (CV_16U) image with 1, 3 or 4 channels in RGB(A) order.
+inline void write_image(const fs::path& p, const cv::Mat& m) {
+  fs::create_directories(p.parent_path());
+  auto out = OIIO::ImageOutput::create(p.string());
+  ASSERT_TRUE(out) << OIIO::geterror();
+  const OIIO::TypeDesc type = m.depth() == CV_16U ? OIIO::TypeDesc::UINT16 : OIIO::TypeDesc::UINT8;
+  OIIO::ImageSpec spec(m.cols, m.rows, m.channels(), type);
+  if (m.channels() == 4) {
+    spec.alpha_channel = 3;
+    spec.attribute("oiio:UnassociatedAlpha", 1);
+  }
+  const cv::Mat data = m.isContinuous() ? m : m.clone();
+  ASSERT_TRUE(out->open(p.string(), spec)) << out->geterror();
+  ASSERT_TRUE(out->write_image(type, data.data)) << out->geterror();
+  ASSERT_TRUE(out->close()) << out->geterror();
+}
+
+// Distinct 8-bit RGB backgrounds: the demo street or checkerboard, tinted and with a few
+// seeded discs (compressible, so PNG encoding stays fast).
+inline cv::Mat make_background(int width, int height, int seed) {
+  cv::Mat img = (seed % 2 == 0) ? raindrop::demo_street(width, height) : raindrop::demo_checkerboard(width, height);
+  cv::RNG rng(static_cast<std::uint64_t>(1000 + seed));
+  const cv::Scalar tint(rng.uniform(-30, 30), rng.uniform(-30, 30), rng.uniform(-30, 30));
+  img += cv::Scalar::all(40);  // room for a negative tint
+  img += tint;
+  img -= cv::Scalar::all(40);
+  for (int i = 0; i < 6; ++i) {
+    const cv::Point centre(rng.uniform(0, width), rng.uniform(0, height));
+    const int radius = rng.uniform(2, std::max(3, std::min(width, height) / 6));
+    cv::circle(img, centre, radius, cv::Scalar(rng.uniform(0, 256), rng.uniform(0, 256), rng.uniform(0, 256)),
+               cv::FILLED, cv::LINE_AA);
+  }
+  return img;
+}
+
+// ---------------------------------------------------------------------------------------
+// Data-set folders.
+
+inline std::vector<std::string> manifest_lines(const fs::path& out_dir) {
+  return split_lines(read_file(out_dir / "manifest.jsonl"));
+}
+
+inline std::vector<json> read_manifest(const fs::path& out_dir) {
+  std::vector<json> records;
+  for (const auto& l : manifest_lines(out_dir)) records.push_back(json::parse(l));
+  return records;
+}
+
+inline size_t count_newlines(const fs::path& p) {
+  const std::string s = read_file(p);
+  return static_cast<size_t>(std::count(s.begin(), s.end(), '\n'));
+}
+
+// Every regular file under `dir` (recursively, hidden ones included): relative path -> bytes.
+inline std::map<std::string, std::string> snapshot(const fs::path& dir) {
+  std::map<std::string, std::string> files;
+  if (!fs::exists(dir)) return files;
+  for (const auto& e : fs::recursive_directory_iterator(dir)) {
+    if (e.is_regular_file()) files[fs::relative(e.path(), dir).generic_string()] = read_file(e.path());
+  }
+  return files;
+}
+
+// Regular files under `dir`, recursively (relative paths).
+inline std::vector<std::string> list_files(const fs::path& dir) {
+  std::vector<std::string> names;
+  if (!fs::exists(dir)) return names;
+  for (const auto& e : fs::recursive_directory_iterator(dir)) {
+    if (e.is_regular_file()) names.push_back(fs::relative(e.path(), dir).generic_string());
+  }
+  std::sort(names.begin(), names.end());
+  return names;
+}
+
+// Hidden temporaries left by the atomic writes: ".<name>.tmp-<pid>-<n>".
+inline std::vector<std::string> hidden_temporaries(const fs::path& dir) {
+  std::vector<std::string> found;
+  if (!fs::exists(dir)) return found;
+  for (const auto& e : fs::recursive_directory_iterator(dir)) {
+    const std::string name = e.path().filename().string();
+    if (!name.empty() && name[0] == '.' && name.find(".tmp-") != std::string::npos)
+      found.push_back(fs::relative(e.path(), dir).generic_string());
+  }
+  return found;
+}
+
+// Files in rainy/, clean/ and mask/ (any file, hidden or not).
+inline std::vector<std::string> sample_files(const fs::path& out_dir) {
+  std::vector<std::string> all;
+  for (const char* sub : {"rainy", "clean", "mask"}) {
+    for (const auto& f : list_files(out_dir / sub)) all.push_back(std::string(sub) + "/" + f);
+  }
+  return all;
+}
+
+// "N rendered, M already done, K failed" from the summary line; nullopt if absent.
+struct Counts {
+  long rendered = -1, skipped = -1, failed = -1;
+};
+inline std::optional<Counts> parse_counts(const std::string& err) {
+  for (const auto& line : split_lines(err)) {
+    Counts c;
+    if (std::sscanf(line.c_str(), "raindrop-render: %ld rendered, %ld already done, %ld failed", &c.rendered,
+                    &c.skipped, &c.failed) == 3)
+      return c;
+  }
+  return std::nullopt;
+}
+
+// "WxHxC format" for failure messages.
+inline std::string image_summary(const std::optional<Image>& img) {
+  if (!img) return "undecodable";
+  return std::to_string(img->width) + "x" + std::to_string(img->height) + "x" + std::to_string(img->channels) +
+         " " + img->format.c_str();
+}
+
+// Exit code 1, exactly one non-progress line on stderr (the error), nothing on stdout, and
+// no file of any kind under rainy/, clean/ or mask/.
+inline void expect_clean_failure(const RunResult& r, const fs::path& out_dir, const std::string& must_mention) {
+  EXPECT_EQ(r.code, 1) << r.describe();
+  const auto lines = r.message_lines();
+  ASSERT_EQ(lines.size(), 1u) << "expected exactly one error line\n" << r.describe();
+  EXPECT_EQ(lines[0].rfind("raindrop-render: error: ", 0), 0u) << r.describe();
+  if (!must_mention.empty()) {
+    EXPECT_NE(lines[0].find(must_mention), std::string::npos) << r.describe();
+  }
+  EXPECT_EQ(r.out, "") << r.describe();
+  EXPECT_TRUE(sample_files(out_dir).empty()) << "files left behind under " << out_dir << ": "
+                                            << ::testing::PrintToString(sample_files(out_dir));
+}
+
+}  // namespace clitest

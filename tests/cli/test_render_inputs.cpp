@@ -1,0 +1,231 @@
+// End-to-end: where the frames come from (Cityscapes walk with camera intrinsics, list files,
+// the built-in demo) and the informational options.
+#include <set>
+
+#include "cli_test_util.h"
+
+namespace clitest {
+namespace {
+
+fs::path cityscapes_root() { return fs::path(RAINDROP_SHARED_DATA) / "cityscapes-mini"; }
+
+#define REQUIRE_CITYSCAPES()                                                                                \
+  do {                                                                                                      \
+    if (!fs::is_directory(cityscapes_root() / "leftImg8bit"))                                               \
+      GTEST_SKIP() << "real-image folder " << cityscapes_root()                                             \
+                   << " is absent (RAINDROP_SHARED_DATA); the Cityscapes walk is tested only where it exists"; \
+  } while (0)
+
+TEST(RenderCityscapes, ValSplitUsesCameraJsonIntrinsics) {
+  REQUIRE_CITYSCAPES();
+  TempDir tmp;
+  const auto r = run_render({"--cityscapes", cityscapes_root().string(), "--split", "val", "--size", "512x256", "--out",
+                             "out", "-j", "2", "-q"},
+                            tmp.path());
+  ASSERT_EQ(r.code, 0) << r.describe();
+  const auto records = read_manifest(tmp / "out");
+  ASSERT_EQ(records.size(), 2u) << "the mini set has two val frames";
+  std::set<std::string> ids;
+  for (const auto& rec : records) {
+    const std::string id = rec.at("id");
+    SCOPED_TRACE(id);
+    ids.insert(id);
+    EXPECT_EQ(rec.at("split"), "val");
+    EXPECT_EQ(rec.at("width"), 512);
+    EXPECT_EQ(rec.at("height"), 256);
+    const json& cam = rec.at("camera");
+    EXPECT_EQ(cam.at("origin"), "cityscapes-json");
+    // aachen intrinsics at 2048x1024: fx 2262.52, fy 2265.30..., u0 1096.98, v0 513.137; scaled by
+    // 1/4 with pixel centres at integers: c' = (c + 0.5) * s - 0.5.
+    EXPECT_NEAR(cam.at("fx").get<double>(), 2262.52 / 4, 1e-6);
+    EXPECT_NEAR(cam.at("fy").get<double>(), 2265.3017905988554 / 4, 1e-6);
+    EXPECT_NEAR(cam.at("cx").get<double>(), (1096.98 + 0.5) * 0.25 - 0.5, 1e-6);
+    EXPECT_NEAR(cam.at("cy").get<double>(), (513.137 + 0.5) * 0.25 - 0.5, 1e-6);
+    const double coverage = rec.at("coverage");
+    EXPECT_GT(coverage, 0.02);
+    EXPECT_LT(coverage, 0.5);
+    const fs::path source = rec.at("source").get<std::string>();
+    EXPECT_TRUE(fs::exists(source)) << source;
+    EXPECT_NE(source.string().find("leftImg8bit/val/aachen"), std::string::npos) << source;
+    for (const char* kind : {"rainy", "clean", "mask"}) {
+      std::string why;
+      const auto img = read_image(tmp / "out" / rec.at(kind).get<std::string>(), &why);
+      ASSERT_TRUE(img) << kind << ": " << why;
+      EXPECT_EQ(img->width, 512);
+      EXPECT_EQ(img->height, 256);
+    }
+  }
+  EXPECT_EQ(ids, (std::set<std::string>{"aachen_000006_000019_v00", "aachen_000007_000019_v00"}));
+}
+
+TEST(RenderCityscapes, SplitAllFindsEveryFrame) {
+  REQUIRE_CITYSCAPES();
+  TempDir tmp;
+  const auto r = run_render({"--cityscapes", cityscapes_root().string(), "--split", "all", "--size", "128x64", "--out",
+                             "out", "-j", "2", "-q"},
+                            tmp.path());
+  ASSERT_EQ(r.code, 0) << r.describe();
+  const auto records = read_manifest(tmp / "out");
+  EXPECT_EQ(records.size(), 8u);
+  std::map<std::string, int> per_split;
+  for (const auto& rec : records) {
+    ++per_split[rec.at("split").get<std::string>()];
+    EXPECT_EQ(rec.at("camera").at("origin"), "cityscapes-json");
+  }
+  EXPECT_EQ(per_split, (std::map<std::string, int>{{"train", 6}, {"val", 2}}));
+  EXPECT_EQ(sample_files(tmp / "out").size(), 3u * 8);
+}
+
+TEST(RenderCityscapes, MissingLayoutIsAnError) {
+  TempDir tmp;
+  fs::create_directories(tmp / "not-cityscapes" / "images");
+  const auto r = run_render({"--cityscapes", "not-cityscapes", "--out", "out"}, tmp.path());
+  expect_clean_failure(r, tmp / "out", "not-cityscapes");
+}
+
+TEST(RenderDemo, NoInputRendersTheDemoAndAContactSheet) {
+  TempDir tmp;
+  const auto r = run_render({"--out", "demo", "-j", "2"}, tmp.path());
+  ASSERT_EQ(r.code, 0) << r.describe();
+  std::string why;
+  const auto sheet = read_image(tmp / "demo" / "contact_sheet.png", &why);
+  ASSERT_TRUE(sheet) << why;
+  EXPECT_GT(sheet->width, sheet->height);
+  EXPECT_GE(sheet->channels, 3);
+  const auto records = read_manifest(tmp / "demo");
+  std::set<std::string> ids;
+  for (const auto& rec : records) ids.insert(rec.at("id").get<std::string>());
+  EXPECT_EQ(ids, (std::set<std::string>{"checkerboard_v00", "street_v00"}));
+  for (const auto& id : ids) {
+    for (const char* kind : {"rainy", "clean", "mask"}) {
+      EXPECT_TRUE(read_image(tmp / "demo" / kind / (id + ".png"))) << kind << "/" << id;
+    }
+  }
+  // The demo's own backgrounds are what the clean images hold.
+  const auto bg = read_image(tmp / "demo" / "backgrounds" / "street.png");
+  const auto clean = read_image(tmp / "demo" / "clean" / "street_v00.png");
+  ASSERT_TRUE(bg && clean);
+  EXPECT_EQ(cv::norm(bg->pixels, clean->pixels, cv::NORM_INF), 0.0);
+  const cv::Mat drawn = raindrop::demo_street(bg->width, bg->height);
+  EXPECT_EQ(cv::norm(bg->pixels, drawn, cv::NORM_INF), 0.0);
+}
+
+TEST(RenderInfo, HelpListScenesVersion) {
+  TempDir tmp;
+  const auto help = run_render({"--help"}, tmp.path());
+  EXPECT_EQ(help.code, 0) << help.describe();
+  EXPECT_NE(help.out.find("--cityscapes"), std::string::npos) << help.describe();
+  EXPECT_NE(help.out.find("--keep-going"), std::string::npos) << help.describe();
+
+  const auto scenes = run_render({"--list-scenes"}, tmp.path());
+  EXPECT_EQ(scenes.code, 0) << scenes.describe();
+  const auto names = split_lines(scenes.out);
+  EXPECT_NE(std::find(names.begin(), names.end(), "paper"), names.end()) << scenes.describe();
+
+  const auto version = run_render({"--version"}, tmp.path());
+  EXPECT_EQ(version.code, 0) << version.describe();
+  EXPECT_NE(version.out.find("raindrop-render "), std::string::npos) << version.describe();
+
+  // None of them renders anything.
+  EXPECT_FALSE(fs::exists(tmp / "out"));
+  EXPECT_EQ(list_files(tmp.path()).size(), list_files(tmp / "_logs").size());
+}
+
+// Every preset that --list-scenes names must load, and the presets that --help offers in the
+// --scene description, "Preset (a, b, c) or JSON scene file", must be the listed ones.
+TEST(RenderInfo, PresetsInHelpAndListAgreeAndLoad) {
+  TempDir tmp;
+  const auto scenes = run_render({"--list-scenes"}, tmp.path());
+  ASSERT_EQ(scenes.code, 0);
+  const auto names = split_lines(scenes.out);
+  ASSERT_FALSE(names.empty());
+  for (const auto& name : names) {
+    const auto r = run_render({"--scene", name, "--print-scene"}, tmp.path());
+    EXPECT_EQ(r.code, 0) << r.describe();
+    json parsed;
+    ASSERT_NO_THROW(parsed = json::parse(r.out)) << r.describe();
+    EXPECT_EQ(parsed.at("name"), name);
+  }
+  const auto help = run_render({"--help"}, tmp.path());
+  ASSERT_EQ(help.code, 0);
+  const auto at = help.out.find("Preset (");
+  ASSERT_NE(at, std::string::npos) << help.out;
+  const auto end = help.out.find(')', at);
+  ASSERT_NE(end, std::string::npos);
+  std::set<std::string> offered;
+  std::istringstream list(help.out.substr(at + 8, end - at - 8));
+  std::string item;
+  while (std::getline(list, item, ',')) {
+    item.erase(0, item.find_first_not_of(' '));
+    offered.insert(item);
+  }
+  EXPECT_EQ(offered, std::set<std::string>(names.begin(), names.end()))
+      << "--help's --scene text offers presets that --list-scenes does not have (or misses some)";
+}
+
+TEST(RenderListFile, RendersExactlyTheListedImages) {
+  TempDir tmp;
+  write_image(tmp / "imgs" / "sub" / "alpha.png", make_background(160, 80, 0));
+  write_image(tmp / "imgs" / "beta.png", make_background(150, 100, 1));
+  write_image(tmp / "imgs" / "gamma.png", make_background(120, 90, 2));  // in the folder, not listed
+  const fs::path beta_abs = fs::absolute(tmp / "imgs" / "beta.png");
+  write_file(tmp / "imgs" / "frames.txt",
+             "# two frames for the test\n"
+             "sub/alpha.png\n"
+             "\n"
+             "   \n" +
+                 beta_abs.string() + "\n"
+             "# gamma.png is deliberately not listed\n");
+  const auto r = run_render({"-i", "imgs/frames.txt", "--out", "out", "-j", "2", "-q"}, tmp.path());
+  ASSERT_EQ(r.code, 0) << r.describe();
+  const auto records = read_manifest(tmp / "out");
+  std::map<std::string, std::string> source_of;
+  for (const auto& rec : records) source_of[rec.at("id")] = rec.at("source");
+  ASSERT_EQ(source_of.size(), 2u) << ::testing::PrintToString(source_of);
+  ASSERT_TRUE(source_of.count("alpha_v00") && source_of.count("beta_v00")) << ::testing::PrintToString(source_of);
+  // Relative entries are relative to the list file's folder.
+  EXPECT_TRUE(fs::equivalent(tmp / source_of["alpha_v00"], tmp / "imgs" / "sub" / "alpha.png"));
+  EXPECT_EQ(source_of["beta_v00"], beta_abs.string());
+  EXPECT_EQ(sample_files(tmp / "out").size(), 6u);
+  for (const auto& [id, name] : std::map<std::string, std::string>{{"alpha_v00", "sub/alpha.png"}, {"beta_v00", "beta.png"}}) {
+    const auto input = read_image(tmp / "imgs" / name);
+    const auto clean = read_image(tmp / "out" / "clean" / (id + ".png"));
+    ASSERT_TRUE(input && clean) << id;
+    EXPECT_EQ(cv::norm(input->pixels, clean->pixels, cv::NORM_INF), 0.0) << id;
+  }
+}
+
+TEST(RenderListFile, ListedMissingImageIsAnError) {
+  TempDir tmp;
+  write_image(tmp / "imgs" / "here.png", make_background(96, 64, 0));
+  write_file(tmp / "imgs" / "frames.txt", "here.png\nmissing.png\n");
+  const auto r = run_render({"-i", "imgs/frames.txt", "--out", "out", "-j", "2"}, tmp.path());
+  expect_clean_failure(r, tmp / "out", "missing.png");
+}
+
+// Two inputs that would get the same sample id (same file stem from a list) are refused
+// before anything is rendered.
+TEST(RenderListFile, DuplicateIdsAreRefused) {
+  TempDir tmp;
+  write_image(tmp / "imgs" / "a" / "frame.png", make_background(96, 64, 0));
+  write_image(tmp / "imgs" / "b" / "frame.png", make_background(96, 64, 1));
+  write_file(tmp / "imgs" / "frames.txt", "a/frame.png\nb/frame.png\n");
+  const auto r = run_render({"-i", "imgs/frames.txt", "--out", "out", "-j", "2"}, tmp.path());
+  expect_clean_failure(r, tmp / "out", "frame");
+}
+
+// --limit N renders the first N inputs of the (sorted) folder walk.
+TEST(RenderListFile, LimitTakesTheFirstInputs) {
+  TempDir tmp;
+  for (const char* name : {"d.png", "b.png", "a.png", "c.png"})
+    write_image(tmp / "in" / name, make_background(96, 64, name[0]));
+  const auto r = run_render({"-i", "in", "--out", "out", "--limit", "2", "-j", "2", "-q"}, tmp.path());
+  ASSERT_EQ(r.code, 0) << r.describe();
+  std::vector<std::string> ids;
+  for (const auto& rec : read_manifest(tmp / "out")) ids.push_back(rec.at("id"));
+  EXPECT_EQ(ids, (std::vector<std::string>{"a_v00", "b_v00"}));
+  EXPECT_EQ(sample_files(tmp / "out").size(), 6u);
+}
+
+}  // namespace
+}  // namespace clitest
