@@ -100,6 +100,9 @@ class TrainConfig:
     # from it).
     keep_checkpoints: int = 3
     log_every: int = 50
+    # NHWC memory layout for convolutions: about 1.5x faster training steps on CPU with
+    # oneDNN (measured on this project's 2-core machine); results equal up to rounding.
+    channels_last: bool = False
 
 
 @dataclass(frozen=True)

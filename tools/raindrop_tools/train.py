@@ -156,6 +156,9 @@ class Trainer:
         # initial weights do not depend on which invocation starts stage 2.
         torch.manual_seed(cfg.seed)
         self.nets = {k: v.to(device) for k, v in build_networks(cfg.network).items()}
+        self.memory_format = torch.channels_last if cfg.train.channels_last else torch.contiguous_format
+        for net in self.nets.values():
+            net.to(memory_format=self.memory_format)
 
     # ------------------------------------------------------------------ plumbing
 
@@ -202,7 +205,12 @@ class Trainer:
 
     def _to_device(self, batch: dict) -> dict:
         nb = self.device.type == "cuda"
-        return {k: (v.to(self.device, non_blocking=nb) if torch.is_tensor(v) else v) for k, v in batch.items()}
+
+        def move(v):
+            v = v.to(self.device, non_blocking=nb)
+            return v.contiguous(memory_format=self.memory_format) if v.dim() == 4 else v
+
+        return {k: (move(v) if torch.is_tensor(v) else v) for k, v in batch.items()}
 
     def _check(self, what: str, value: torch.Tensor, stage: int, step: int, total: int, ids) -> None:
         if not torch.isfinite(value).all():

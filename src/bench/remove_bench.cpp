@@ -1,0 +1,177 @@
+// raindrop-bench remove: how long raindrop-remove takes per image, stage by stage, at the
+// paper's 256x512 and at Cityscapes' 1024x2048, with 1 and 2 threads (docs/design.md
+// section 4: mean of 20 runs after warm-up, threads and hardware stated), and the GFLOP/s
+// the networks reach. GFLOPs come from the model folder's export.json (measured by the
+// exporter at 256x512) scaled by the pixels the networks actually ran on (padded tiles,
+// overlaps included).
+#include "remove_bench.h"
+
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <iostream>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include <CLI/CLI.hpp>
+#include <nlohmann/json.hpp>
+#include <opencv2/core.hpp>
+
+#include "bench_util.h"
+#include "raindrop/demo.h"
+#include "raindrop/error.h"
+#include "raindrop/remove/model_paths.h"
+#include "raindrop/remove/remover.h"
+
+namespace raindrop {
+namespace fs = std::filesystem;
+using namespace removal;
+
+namespace {
+
+struct Gflops {
+  double rdn = 0, rrn = 0, rfn = 0;  // at 256x512
+};
+
+std::optional<Gflops> read_gflops(const fs::path& dir) {
+  std::ifstream in(dir / "export.json");
+  if (!in) return std::nullopt;
+  try {
+    const auto j = nlohmann::json::parse(in);
+    const auto& g = j.at("gflops_256x512");
+    return Gflops{g.at("rdn").get<double>(), g.at("rrn").get<double>(), g.at("rfn").get<double>()};
+  } catch (const std::exception&) {
+    return std::nullopt;
+  }
+}
+
+struct Row {
+  std::string models, size;
+  int threads = 0, tiles = 0, runs = 0;
+  StageTimes mean;
+  double wall_mean = 0, wall_median = 0;
+  std::optional<Gflops> gflop;  // for this image (scaled)
+};
+
+std::string fmt(double v, const char* f = "%.1f") {
+  char buf[64];
+  std::snprintf(buf, sizeof buf, f, v);
+  return buf;
+}
+
+}  // namespace
+
+int remove_bench(int argc, char** argv) {
+  CLI::App app{"raindrop-bench remove: raindrop-remove's time per image and stage, and GFLOP/s (markdown)"};
+  std::vector<std::string> model_dirs;
+  std::vector<int> thread_counts{1, 2};
+  std::string graph_opt = "all";
+  int tile = kDefaultTile, overlap = kDefaultOverlap, runs = 0;
+  bool quick = false;
+  app.add_option("--models", model_dirs, "Model folder (repeatable: one set of rows per folder; default: the one "
+                                         "raindrop-remove finds)");
+  app.add_option("--threads", thread_counts, "Thread counts to measure (repeatable)")->capture_default_str()
+      ->check(CLI::Range(1, 1024));
+  app.add_option("--graph-opt", graph_opt, "ONNX Runtime graph optimisation level")->capture_default_str()
+      ->check(CLI::IsMember({"disable", "basic", "extended", "all"}));
+  app.add_option("--tile", tile, "Tile size (0: never tile)")->capture_default_str();
+  app.add_option("--tile-overlap", overlap, "Tile overlap")->capture_default_str();
+  app.add_option("--runs", runs, "Timed runs per row (default 20; 3 with --quick)")->check(CLI::Range(1, 1000));
+  app.add_flag("--quick", quick, "3 timed runs after 1 warm-up instead of 20 after 2");
+  try {
+    app.parse(argc, argv);
+    check_tile_options(tile, overlap);
+  } catch (const CLI::ParseError& e) {
+    return app.exit(e) == 0 ? 0 : 2;
+  } catch (const Error& e) {
+    std::cerr << "raindrop-bench remove: " << one_line(e.what()) << "\n";
+    return 2;
+  }
+  if (runs == 0) runs = quick ? 3 : 20;
+  const int warmup = quick ? 1 : 2;
+  if (model_dirs.empty()) model_dirs.push_back(find_models(default_model_search()).string());
+
+  const std::vector<cv::Size> sizes = {{512, 256}, {2048, 1024}};  // W x H; named H x W below
+  SessionConfig session;
+  session.graph_opt = parse_graph_opt(graph_opt);
+  RemoveOptions options;
+  options.tile = tile;
+  options.overlap = overlap;
+
+  std::vector<Row> rows;
+  for (const auto& dir : model_dirs) {
+    const auto gflops = read_gflops(dir);
+    for (const int threads : thread_counts) {
+      session.threads = threads;
+      Remover remover(dir, session);
+      const std::string name = remover.info().config + " (" + fs::path(dir).filename().string() + ")";
+      for (const auto& size : sizes) {
+        const cv::Mat image = demo_street(size.width, size.height);
+        Row row;
+        row.models = name;
+        row.size = std::to_string(size.height) + "x" + std::to_string(size.width);
+        row.threads = threads;
+        row.runs = runs;
+        std::fprintf(stderr, "bench remove: %s %s, %d thread%s: ", name.c_str(), row.size.c_str(), threads,
+                     threads == 1 ? "" : "s");
+        double pixels = 0;
+        std::vector<double> walls;
+        for (int i = 0; i < warmup + runs; ++i) {
+          const double t0 = bench::now_ms();
+          const RemoveResult r = remover.run(image, options);
+          const double wall = bench::now_ms() - t0;
+          if (i < warmup) continue;
+          row.mean += r.times;
+          walls.push_back(wall);
+          row.tiles = r.tiles_x * r.tiles_y;
+          pixels = r.network_pixels;
+          std::fputc('.', stderr);
+        }
+        std::fputc('\n', stderr);
+        row.mean /= runs;
+        row.wall_mean = bench::mean(walls);
+        row.wall_median = bench::median(walls);
+        if (gflops) {
+          const double scale = pixels / (256.0 * 512.0);
+          row.gflop = Gflops{gflops->rdn * scale, gflops->rrn * scale, gflops->rfn * scale};
+        }
+        rows.push_back(row);
+      }
+    }
+  }
+
+  std::cout << "## raindrop-remove: time per image\n\n"
+            << "Machine: " << bench::machine_description() << "; " << ort_description() << ", CPU, graph optimisation "
+            << graph_opt << "; tile " << (tile ? std::to_string(tile) : std::string("off")) << " (overlap " << overlap
+            << "). Mean of " << runs << " runs after " << warmup << " warm-up run" << (warmup == 1 ? "" : "s")
+            << ", in ms; input: the built-in street image (8-bit RGB). \"other\": input conversion, tile blending and "
+               "quantisation; \"total\": wall time of Remover::run.\n\n";
+  std::cout << "| models | size (HxW) | threads | tiles | edge | RDN | threshold+dilation | 3RN | blend | RFN | other | "
+               "total | median total |\n|---|---|---|---|---|---|---|---|---|---|---|---|---|\n";
+  for (const auto& r : rows) {
+    std::cout << "| " << r.models << " | " << r.size << " | " << r.threads << " | " << r.tiles << " | " << fmt(r.mean.edge)
+              << " | " << fmt(r.mean.rdn) << " | " << fmt(r.mean.mask) << " | " << fmt(r.mean.rrn) << " | "
+              << fmt(r.mean.blend) << " | " << fmt(r.mean.rfn) << " | " << fmt(r.mean.convert + r.mean.output) << " | "
+              << fmt(r.wall_mean) << " | " << fmt(r.wall_median) << " |\n";
+  }
+  std::cout << "\n## raindrop-remove: GFLOP/s\n\nGFLOPs from each model folder's export.json (at 256x512), scaled by "
+               "the pixels the networks ran on (tiles and their overlaps included).\n\n"
+               "| models | size (HxW) | threads | GFLOP | RDN GFLOP/s | 3RN GFLOP/s | RFN GFLOP/s | overall GFLOP/s |\n"
+               "|---|---|---|---|---|---|---|---|\n";
+  for (const auto& r : rows) {
+    std::cout << "| " << r.models << " | " << r.size << " | " << r.threads << " | ";
+    if (!r.gflop) {
+      std::cout << "n/a (no export.json) | | | | |\n";
+      continue;
+    }
+    const auto& g = *r.gflop;
+    const double total = g.rdn + g.rrn + g.rfn;
+    const auto rate = [](double gf, double ms) { return ms > 0 ? fmt(gf / (ms / 1000.0)) : std::string("n/a"); };
+    std::cout << fmt(total, "%.2f") << " | " << rate(g.rdn, r.mean.rdn) << " | " << rate(g.rrn, r.mean.rrn) << " | "
+              << rate(g.rfn, r.mean.rfn) << " | " << rate(total, r.wall_mean) << " |\n";
+  }
+  return 0;
+}
+
+}  // namespace raindrop
