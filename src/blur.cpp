@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <memory>
 #include <vector>
 
 #include <opencv2/imgproc.hpp>
@@ -15,6 +16,11 @@ namespace {
 // 16x16 midpoint rule (exact for pixels entirely in or out; error < 1/256 of a pixel on the
 // rim, far below 8-bit resolution after normalisation).
 double pixel_area_in_disk(int x, int y, double r) {
+  // Entirely inside (farthest corner within r) or outside (nearest point beyond r): exact.
+  const double fx = std::abs(x) + 0.5, fy = std::abs(y) + 0.5;
+  if (fx * fx + fy * fy <= r * r) return 1.0;
+  const double nx = std::max(std::abs(x) - 0.5, 0.0), ny = std::max(std::abs(y) - 0.5, 0.0);
+  if (nx * nx + ny * ny >= r * r) return 0.0;
   constexpr int kSub = 16;
   int inside = 0;
   for (int j = 0; j < kSub; ++j) {
@@ -71,12 +77,29 @@ std::vector<KernelRow> disk_rows(double diameter, bool antialiased, bool split_r
 // Four floats (RGB and a pad) as one SIMD register: GCC/Clang vector extension.
 typedef float f4 __attribute__((vector_size(16)));
 
+// A buffer of f4 left uninitialised: every element is written before it is read, and
+// zeroing tens of megabytes per frame would cost more than the blur of small drops.
+class F4Buffer {
+ public:
+  F4Buffer() = default;
+  explicit F4Buffer(size_t n) : data_(new f4[n]), size_(n) {}
+  f4* data() { return data_.get(); }
+  const f4* data() const { return data_.get(); }
+  bool empty() const { return size_ == 0; }
+  f4& operator[](size_t i) { return data_[i]; }
+  const f4& operator[](size_t i) const { return data_[i]; }
+
+ private:
+  std::unique_ptr<f4[]> data_;
+  size_t size_ = 0;
+};
+
 // The window of the frame the blur reads: the traced colour inside drops, the clean pixel
 // outside, and per-row prefix sums of it (prefix[y][x] = sum of rgb[y][0..x-1]).
 struct Source {
   int x0, y0, w, h;
-  std::vector<f4> rgb;     // h x w
-  std::vector<f4> prefix;  // h x (w + 1)
+  F4Buffer rgb;     // h x w
+  F4Buffer prefix;  // h x (w + 1)
   const f4* rgb_row(int y) const { return rgb.data() + static_cast<size_t>(y - y0) * w - x0; }
   // prefix_row(y)[x] = sum of rgb over columns x0 .. x-1 (valid for x0 <= x <= x0 + w).
   const f4* prefix_row(int y) const { return prefix.data() + static_cast<size_t>(y - y0) * (w + 1) - x0; }
@@ -84,8 +107,8 @@ struct Source {
 
 Source make_source(const cv::Mat& clean, const cv::Mat& label, const cv::Mat& color,
                    const cv::Rect& box, bool prefix) {
-  Source s{box.x, box.y, box.width, box.height, std::vector<f4>(static_cast<size_t>(box.width) * box.height), {}};
-  if (prefix) s.prefix.resize(static_cast<size_t>(box.width + 1) * box.height);
+  Source s{box.x, box.y, box.width, box.height, F4Buffer(static_cast<size_t>(box.width) * box.height), {}};
+  if (prefix) s.prefix = F4Buffer(static_cast<size_t>(box.width + 1) * box.height);
   tbb::parallel_for(tbb::blocked_range<int>(0, box.height, 16), [&](const tbb::blocked_range<int>& r) {
     for (int j = r.begin(); j < r.end(); ++j) {
       const int y = box.y + j;
@@ -109,7 +132,7 @@ Source make_source(const cv::Mat& clean, const cv::Mat& label, const cv::Mat& co
 }
 
 // Writes `out` (one f4 per mask_box pixel, drop pixels only) back into `color`.
-void store(const std::vector<f4>& out, const cv::Mat& label, cv::Mat& color, const cv::Rect& mask_box) {
+void store(const F4Buffer& out, const cv::Mat& label, cv::Mat& color, const cv::Rect& mask_box) {
   for (int j = 0; j < mask_box.height; ++j) {
     const int y = mask_box.y + j;
     const int* lab = label.ptr<int>(y) + mask_box.x;
@@ -124,27 +147,36 @@ void store(const std::vector<f4>& out, const cv::Mat& label, cv::Mat& color, con
 void blur_rows(const Source& src, const cv::Mat& label, cv::Mat& color, const cv::Rect& mask_box,
                const std::vector<KernelRow>& kernel) {
   const int W = label.cols, H = label.rows;
+  // The kernel flattened for the inner loop: full-weight runs (prefix-sum differences) and
+  // partial taps, each with the index of its kernel row.
+  struct Run { int row, lo, hi; };
+  struct Tap { int row, dx; float w; };
+  std::vector<Run> runs;
+  std::vector<Tap> taps;
   int reach_x = 0, reach_y = 0;
   float total = 0;
-  for (const KernelRow& row : kernel) {
+  for (size_t k = 0; k < kernel.size(); ++k) {
+    const KernelRow& row = kernel[k];
     reach_y = std::max(reach_y, std::abs(row.dy));
     if (row.run_lo <= row.run_hi) {
+      runs.push_back({static_cast<int>(k), row.run_lo, row.run_hi + 1});
       reach_x = std::max({reach_x, std::abs(row.run_lo), std::abs(row.run_hi)});
       total += static_cast<float>(row.run_hi - row.run_lo + 1);
     }
     for (const auto& [dx, w] : row.taps) {
+      taps.push_back({static_cast<int>(k), dx, w});
       reach_x = std::max(reach_x, std::abs(dx));
       total += w;
     }
   }
   const float inv_total = 1.0f / total;
-  std::vector<f4> out(static_cast<size_t>(mask_box.width) * mask_box.height);
+  // Results go straight into `color`: the blur reads only `src`, a copy.
   tbb::parallel_for(tbb::blocked_range<int>(0, mask_box.height, 4), [&](const tbb::blocked_range<int>& r) {
     std::vector<const f4*> prefix_rows(kernel.size()), rgb_rows(kernel.size());
     for (int j = r.begin(); j < r.end(); ++j) {
       const int y = mask_box.y + j;
       const int* lab = label.ptr<int>(y);
-      f4* dst = out.data() + static_cast<size_t>(j) * mask_box.width;
+      auto* dst = color.ptr<cv::Vec3f>(y);
       const bool rows_inside = y - reach_y >= 0 && y + reach_y < H;
       for (size_t k = 0; k < kernel.size(); ++k) {
         const int yy = y + kernel[k].dy;
@@ -152,44 +184,37 @@ void blur_rows(const Source& src, const cv::Mat& label, cv::Mat& color, const cv
         prefix_rows[k] = valid && !src.prefix.empty() ? src.prefix_row(yy) : nullptr;
         rgb_rows[k] = valid ? src.rgb_row(yy) : nullptr;
       }
-      for (int i = 0; i < mask_box.width; ++i) {
-        const int x = mask_box.x + i;
+      for (int x = mask_box.x; x < mask_box.x + mask_box.width; ++x) {
         if (lab[x] < 0) continue;
         f4 sum{0, 0, 0, 0};
         if (rows_inside && x - reach_x >= 0 && x + reach_x < W) {
           // Fast path, away from the frame border: no clipping, constant weight.
-          for (size_t k = 0; k < kernel.size(); ++k) {
-            const KernelRow& row = kernel[k];
-            if (row.run_lo <= row.run_hi) sum += prefix_rows[k][x + row.run_hi + 1] - prefix_rows[k][x + row.run_lo];
-            for (const auto& [dx, w] : row.taps) sum += w * rgb_rows[k][x + dx];
-          }
-          dst[i] = sum * inv_total;
-          continue;
-        }
-        // Near the border: taps outside the frame are dropped and the rest renormalised.
-        float weight = 0;
-        for (size_t k = 0; k < kernel.size(); ++k) {
-          if (!rgb_rows[k]) continue;
-          const KernelRow& row = kernel[k];
-          if (row.run_lo <= row.run_hi) {
-            const int lo = std::max(x + row.run_lo, 0), hi = std::min(x + row.run_hi, W - 1);
-            if (lo <= hi) {
-              sum += prefix_rows[k][hi + 1] - prefix_rows[k][lo];
-              weight += static_cast<float>(hi - lo + 1);
+          for (const Run& run : runs) sum += prefix_rows[run.row][x + run.hi] - prefix_rows[run.row][x + run.lo];
+          for (const Tap& tap : taps) sum += tap.w * rgb_rows[tap.row][x + tap.dx];
+          sum *= inv_total;
+        } else {
+          // Near the border: taps outside the frame are dropped and the rest renormalised.
+          float weight = 0;
+          for (const Run& run : runs) {
+            if (!rgb_rows[run.row]) continue;
+            const int lo = std::max(x + run.lo, 0), hi = std::min(x + run.hi, W);
+            if (lo < hi) {
+              sum += prefix_rows[run.row][hi] - prefix_rows[run.row][lo];
+              weight += static_cast<float>(hi - lo);
             }
           }
-          for (const auto& [dx, w] : row.taps) {
-            const int xx = x + dx;
-            if (xx < 0 || xx >= W) continue;
-            sum += w * rgb_rows[k][xx];
-            weight += w;
+          for (const Tap& tap : taps) {
+            const int xx = x + tap.dx;
+            if (!rgb_rows[tap.row] || xx < 0 || xx >= W) continue;
+            sum += tap.w * rgb_rows[tap.row][xx];
+            weight += tap.w;
           }
+          sum = weight > 0 ? sum * (1.0f / weight) : src.rgb_row(y)[x];
         }
-        dst[i] = weight > 0 ? sum * (1.0f / weight) : src.rgb_row(y)[x];
+        dst[x] = cv::Vec3f(sum[0], sum[1], sum[2]);
       }
     }
   });
-  store(out, label, color, mask_box);
 }
 
 void blur_gaussian(const Source& src, const cv::Mat& label, cv::Mat& color, const cv::Rect& mask_box,
@@ -200,7 +225,7 @@ void blur_gaussian(const Source& src, const cv::Mat& label, cv::Mat& color, cons
   for (int i = -R; i <= R; ++i) g[i + R] = static_cast<float>(std::exp(-0.5 * i * i / (sigma * sigma)));
   // Horizontal pass over every source row (its weight in the pad lane, for renormalising at
   // the frame border), vertical pass at drop pixels only.
-  std::vector<f4> horiz(static_cast<size_t>(src.w) * src.h);
+  F4Buffer horiz(static_cast<size_t>(src.w) * src.h);
   tbb::parallel_for(tbb::blocked_range<int>(0, src.h, 8), [&](const tbb::blocked_range<int>& r) {
     for (int j = r.begin(); j < r.end(); ++j) {
       const f4* s = src.rgb.data() + static_cast<size_t>(j) * src.w;
@@ -215,7 +240,7 @@ void blur_gaussian(const Source& src, const cv::Mat& label, cv::Mat& color, cons
       }
     }
   });
-  std::vector<f4> out(static_cast<size_t>(mask_box.width) * mask_box.height);
+  F4Buffer out(static_cast<size_t>(mask_box.width) * mask_box.height);
   tbb::parallel_for(tbb::blocked_range<int>(0, mask_box.height, 4), [&](const tbb::blocked_range<int>& r) {
     for (int j = r.begin(); j < r.end(); ++j) {
       const int y = mask_box.y + j;
@@ -248,11 +273,10 @@ int kernel_reach(double diameter, BlurMethod method) {
 }  // namespace
 
 void blur_drops(const cv::Mat& clean, const cv::Mat& label, cv::Mat& color, double diameter_px,
-                BlurMethod method) {
+                BlurMethod method, const cv::Rect* drop_box) {
   if (!(diameter_px > 0)) return;
   // Bounding box of the mask, then of everything the kernel reads.
-  cv::Mat nonzero = label >= 0;
-  const cv::Rect mask_box = cv::boundingRect(nonzero);
+  const cv::Rect mask_box = drop_box ? *drop_box : cv::boundingRect(cv::Mat(label >= 0));
   if (mask_box.empty()) return;
   const int reach = kernel_reach(diameter_px, method);
   const cv::Rect read_box = cv::Rect(mask_box.x - reach, mask_box.y - reach, mask_box.width + 2 * reach,

@@ -188,6 +188,14 @@ DropAccel::DropAccel(const std::vector<Drop>& drops, const GeometryOptions& opti
 
 DropAccel::~DropAccel() = default;
 
+std::optional<DropHit> DropAccel::intersect_inside(const glm::dvec3& origin, const glm::dvec3& dir,
+                                                   const DropHit& from, double t_max) const {
+  if (!disjoint_ || options_.kind != GeometryOptions::Kind::Exact) return intersect(origin, dir, &from, 0.0, t_max);
+  const auto hit = drops_[from.drop].intersect(origin, dir, 0.0, t_max, from.surface);
+  if (!hit) return std::nullopt;
+  return DropHit{hit->t, from.drop, hit->surface, hit->normal};
+}
+
 std::optional<DropHit> DropAccel::intersect(const glm::dvec3& origin, const glm::dvec3& dir,
                                             const DropHit* from, double t_min, double t_max) const {
   RTCRayHit rh;

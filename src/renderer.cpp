@@ -26,7 +26,10 @@ RenderedFrame render_frame(const cv::Mat& clean, const Camera& camera, const Sce
   std::vector<Drop> drops;
   drops.reserve(scene.drops.size());
   for (const DropShape& shape : scene.drops) drops.emplace_back(shape, scene.glass);
-  const DropAccel accel(drops, config.geometry);
+  DropAccel accel(drops, config.geometry);
+  // Non-overlapping footprints mean non-overlapping caps (a cap never reaches past its
+  // footprint for contact angles up to 90 degrees).
+  accel.set_disjoint(!config.allow_overlap);
   frame.timings.accel_ms = ms_since(t0);
 
   t0 = std::chrono::steady_clock::now();
@@ -36,7 +39,7 @@ RenderedFrame render_frame(const cv::Mat& clean, const Camera& camera, const Sce
 
   t0 = std::chrono::steady_clock::now();
   if (config.blur.enabled) {
-    blur_drops(clean, traced.label, traced.color, scene.blur_diameter_px, config.blur.method);
+    blur_drops(clean, traced.label, traced.color, scene.blur_diameter_px, config.blur.method, &traced.drop_box);
   }
   frame.timings.blur_ms = ms_since(t0);
 
@@ -49,7 +52,7 @@ RenderedFrame render_frame(const cv::Mat& clean, const Camera& camera, const Sce
     const auto* rgb = traced.color.ptr<cv::Vec3f>(y);
     auto* out = frame.rainy.ptr<cv::Vec3b>(y);
     auto* m = frame.mask.ptr<std::uint8_t>(y);
-    for (int x = 0; x < clean.cols; ++x) {
+    for (const auto& [x0, x1] : traced.spans[y]) for (int x = x0; x <= x1; ++x) {
       if (label[x] < 0) continue;
       m[x] = 255;
       for (int c = 0; c < 3; ++c) {

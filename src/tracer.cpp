@@ -41,7 +41,8 @@ DropPath trace_path(const glm::dvec3& origin, const glm::dvec3& dir0, double n_w
     } else if (h0 < -1e-9 || h0 > slab_top) {
       break;  // parallel to the glass and outside the slab: no drop can be met
     }
-    const auto hit = accel.intersect(o, d, on_surface ? &current : nullptr, t_min, t_max);
+    const auto hit = inside ? accel.intersect_inside(o, d, current, t_max)
+                            : accel.intersect(o, d, on_surface ? &current : nullptr, t_min, t_max);
     if (!hit) break;
     ++path.events;
     if (!path.hit) {
@@ -309,8 +310,10 @@ TraceResult run(const cv::Mat& clean, const Camera& camera, const SceneConfig& c
   out.label = cv::Mat(camera.height, camera.width, CV_32S, cv::Scalar(-1));
   out.color = cv::Mat(camera.height, camera.width, CV_32FC3);
   cv::Mat classes(camera.height, camera.width, CV_32S, cv::Scalar(-1));
-  const auto spans = candidate_spans(camera, accel);
+  out.spans = candidate_spans(camera, accel);
+  const auto& spans = out.spans;
   std::atomic<std::int64_t> candidates{0}, drops{0}, dark{0}, off{0}, supersampled{0};
+  std::vector<int> row_lo(camera.height, camera.width), row_hi(camera.height, -1);
 
   // Pass 1: one ray through every candidate pixel's centre.
   tbb::parallel_for(tbb::blocked_range<int>(0, camera.height, 8), [&](const tbb::blocked_range<int>& r) {
@@ -325,6 +328,8 @@ TraceResult run(const cv::Mat& clean, const Camera& camera, const SceneConfig& c
           const Sample s = kernel.sample(x, y);
           if (!s.hit) continue;
           ++n_drop;
+          row_lo[y] = std::min(row_lo[y], x);
+          row_hi[y] = std::max(row_hi[y], x);
           n_dark += s.dark;
           n_off += s.off_frame;
           label[x] = s.drop;
@@ -339,6 +344,14 @@ TraceResult run(const cv::Mat& clean, const Camera& camera, const SceneConfig& c
     dark += n_dark;
     off += n_off;
   });
+
+  int box_x0 = camera.width, box_x1 = -1, box_y0 = camera.height, box_y1 = -1;
+  for (int y = 0; y < camera.height; ++y) {
+    if (row_hi[y] < 0) continue;
+    box_x0 = std::min(box_x0, row_lo[y]), box_x1 = std::max(box_x1, row_hi[y]);
+    box_y0 = std::min(box_y0, y), box_y1 = y;
+  }
+  out.drop_box = box_x1 < 0 ? cv::Rect() : cv::Rect(box_x0, box_y0, box_x1 - box_x0 + 1, box_y1 - box_y0 + 1);
 
   // Pass 2: supersample drop pixels on an edge (a neighbour of another class: outside, other
   // drop, dark band) or all drop pixels, on a stratified k x k grid. The mask stays the

@@ -21,8 +21,9 @@ namespace raindrop {
 
 // label: CV_32S (>= 0 inside drops); color: CV_32FC3 traced colours, replaced in place by
 // their blurred values inside drops; clean: CV_8UC3 frame seen outside drops.
+// `drop_box`, if given, bounds the drop pixels (saves a pass over the frame).
 void blur_drops(const cv::Mat& clean, const cv::Mat& label, cv::Mat& color, double diameter_px,
-                BlurMethod method);
+                BlurMethod method, const cv::Rect* drop_box = nullptr);
 
 // The kernel's weights as a dense (2R+1)^2 matrix, for tests and documentation.
 cv::Mat blur_kernel(double diameter_px, BlurMethod method);

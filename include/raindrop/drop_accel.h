@@ -47,6 +47,14 @@ class DropAccel {
                                    const DropHit* from = nullptr, double t_min = 0.0,
                                    double t_max = std::numeric_limits<double>::infinity()) const;
 
+  // The first surface met by a ray that is inside the water of drop `from.drop`. When drops
+  // are disjoint (`set_disjoint`; footprints apart, so caps apart) and caps are exact, the
+  // ray can only leave through that drop's own surface: answered analytically, no Embree
+  // query. Otherwise the same as intersect().
+  std::optional<DropHit> intersect_inside(const glm::dvec3& origin, const glm::dvec3& dir, const DropHit& from,
+                                          double t_max = std::numeric_limits<double>::infinity()) const;
+  void set_disjoint(bool disjoint) { disjoint_ = disjoint; }
+
   // Every drop lies between the glass plane and this height above it (cm).
   double max_height() const { return max_height_; }
 
@@ -58,6 +66,7 @@ class DropAccel {
   std::vector<Drop> drops_;
   GeometryOptions options_;
   double max_height_ = 0;
+  bool disjoint_ = false;
   std::unique_ptr<Impl> impl_;
 };
 

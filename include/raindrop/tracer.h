@@ -12,6 +12,8 @@
 // transmission and dispersion are template parameters of the per-pixel kernel, so a scene
 // without them runs code that does not contain them.
 #include <cstdint>
+#include <utility>
+#include <vector>
 
 #include <glm/vec2.hpp>
 #include <glm/vec3.hpp>
@@ -37,6 +39,10 @@ struct TraceResult {
   cv::Mat label;  // CV_32S: -1 where no drop is met, else the index of the first drop met
   cv::Mat color;  // CV_32FC3 RGB in [0, 1]: the traced colour where label >= 0
   TraceStats stats;
+  // Per row, the x-intervals that were traced (label is -1 everywhere else), and the
+  // bounding box of the drop pixels: later passes visit only these.
+  std::vector<std::vector<std::pair<int, int>>> spans;
+  cv::Rect drop_box;
 };
 
 // The path of one ray through the drops.

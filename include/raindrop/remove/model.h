@@ -1,0 +1,75 @@
+#pragma once
+// The three ONNX graphs of a model folder (docs/CONTRACTS.md section 2), loaded and checked
+// against the contract before any image is touched: a wrong, corrupt or mismatched file is a
+// one-line raindrop::Error that names the file, not a crash in the middle of a batch.
+//
+//   rdn.onnx  image [N,3,H,W]                 -> mask_prob [N,1,H,W]
+//   rrn.onnx  image [N,3,H,W], edge [N,1,H,W] -> reconstruction [N,3,H,W]
+//   rfn.onnx  blend [N,3,H,W]                 -> restored [N,3,H,W]
+//
+// float32 everywhere; H and W must be dynamic (any image size); N dynamic or 1.
+#include <filesystem>
+#include <map>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include <onnxruntime_cxx_api.h>
+
+#include "raindrop/remove/session.h"
+
+namespace raindrop::removal {
+
+// The raindrop.* metadata the three graphs agree on.
+struct ModelInfo {
+  std::string config;     // raindrop.config, e.g. "compact"
+  int pad_multiple = 1;   // lcm of the graphs' raindrop.pad_multiple
+  double threshold = 0.5; // raindrop.threshold of rdn.onnx (the training default)
+  int dilation = 1;       // raindrop.dilation of rdn.onnx
+};
+
+// One graph and its session. Inputs and outputs are single images (N = 1) in NCHW float32.
+class Network {
+ public:
+  // name: "rdn", "rrn" or "rfn" (decides the expected inputs and outputs).
+  Network(const std::filesystem::path& file, const std::string& name, const SessionConfig& config);
+
+  // inputs: one pointer per contract input, in contract order (rrn: image, edge), each
+  // holding channels x h x w floats; output: out_channels x h x w floats, written in place.
+  void run(const std::vector<const float*>& inputs, int h, int w, float* output);
+
+  const std::string& name() const { return name_; }
+  const std::filesystem::path& file() const { return file_; }
+  const std::map<std::string, std::string>& metadata() const { return metadata_; }
+  int output_channels() const { return out_channels_; }
+
+ private:
+  std::string name_;
+  std::filesystem::path file_;
+  std::unique_ptr<Ort::Session> session_;
+  std::vector<std::string> input_names_;  // contract order
+  std::vector<int> input_channels_;
+  std::string output_name_;
+  int out_channels_ = 0;
+  std::map<std::string, std::string> metadata_;
+  Ort::MemoryInfo memory_;
+};
+
+// rdn.onnx, rrn.onnx and rfn.onnx of one folder, with their metadata cross-checked.
+class Models {
+ public:
+  Models(const std::filesystem::path& dir, const SessionConfig& config);
+
+  Network& rdn() { return *rdn_; }
+  Network& rrn() { return *rrn_; }
+  Network& rfn() { return *rfn_; }
+  const ModelInfo& info() const { return info_; }
+  const std::filesystem::path& dir() const { return dir_; }
+
+ private:
+  std::filesystem::path dir_;
+  std::unique_ptr<Network> rdn_, rrn_, rfn_;
+  ModelInfo info_;
+};
+
+}  // namespace raindrop::removal

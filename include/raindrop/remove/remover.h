@@ -1,0 +1,63 @@
+#pragma once
+// The removal pipeline of docs/CONTRACTS.md section 2 between the three graphs:
+//   R = input RGB in [0, 1]; E = edge map of the unpadded R; both padded (replicate, bottom
+//   and right) to a multiple of the models' pad_multiple;
+//   P = RDN(R); M0 = P > threshold; M = elliptical dilation of M0 (k x k);
+//   Ihat = clamp(3RN(R, E), 0, 1); B = M * Ihat + (1 - M) * R; out = clamp(RFN(B), 0, 1),
+//   cropped back. It matches tools/raindrop_tools/reference.py to within 1/255.
+//
+// Large images are tiled (see tiling.h) in two passes: pass 1 runs the RDN per tile and
+// thresholds each pixel's probability from the one tile that owns it into a mask of the
+// whole (padded) image; the dilation then runs once on that whole mask; pass 2 runs 3RN and
+// RFN per tile with that mask and blends the tiles' outputs. Thresholding and dilating
+// globally (rather than per tile) makes the mask exactly the whole-image mask: a binary
+// decision has no sensible cross-fade, a per-tile dilation would need its own margins, and
+// the mask costs 1 byte per pixel, less than the image itself. Memory beyond the input and
+// output images: the mask (2 bytes per pixel), one tile's tensors and a float strip one
+// tile high and the image wide.
+#include <filesystem>
+#include <optional>
+
+#include <opencv2/core.hpp>
+
+#include "raindrop/remove/model.h"
+#include "raindrop/remove/session.h"
+#include "raindrop/remove/stage_times.h"
+#include "raindrop/remove/tiling.h"
+
+namespace raindrop::removal {
+
+struct RemoveOptions {
+  std::optional<double> threshold;  // default: the models' raindrop.threshold
+  std::optional<int> dilation;      // default: the models' raindrop.dilation
+  int tile = kDefaultTile;          // 0: whole image at once
+  int overlap = kDefaultOverlap;
+  bool keep_float = false;          // also return the float RGB output (before quantisation)
+};
+
+struct RemoveResult {
+  cv::Mat image;  // the input's size, channel count and depth (alpha copied through)
+  cv::Mat mask;   // CV_8UC1, 0 or 255: the final mask M (after threshold and dilation)
+  cv::Mat rgb;    // CV_32FC3 in [0, 1], keep_float only: clamp(RFN(B)) cropped, RGB
+  StageTimes times;
+  int tiles_x = 1, tiles_y = 1;
+  double network_pixels = 0;  // pixels each network ran on (sum of the tiles' padded areas)
+};
+
+class Remover {
+ public:
+  // Loads and checks rdn.onnx, rrn.onnx and rfn.onnx of `model_dir` (raindrop::Error if
+  // anything is missing or off-contract).
+  explicit Remover(const std::filesystem::path& model_dir, const SessionConfig& config = {});
+
+  // image: CV_8U, CV_16U or CV_32F with 1-4 channels (see pixels.h), any size >= 1x1.
+  RemoveResult run(const cv::Mat& image, const RemoveOptions& options = {});
+
+  const ModelInfo& info() const { return models_.info(); }
+  const std::filesystem::path& model_dir() const { return models_.dir(); }
+
+ private:
+  Models models_;
+};
+
+}  // namespace raindrop::removal

@@ -1,0 +1,274 @@
+// raindrop-remove: removes adherent raindrops from photographs with the three networks of
+// Hao et al. (ICCV-W 2019), run through ONNX Runtime (docs/CONTRACTS.md section 2).
+//
+//   raindrop-remove in.png out.png [options]        one image
+//   raindrop-remove in_folder/ out_folder/ [options] every image under in_folder (recursive),
+//                                                    written to out_folder with the same
+//                                                    relative names
+//
+// The output keeps the input's size, channel count and bit depth (8/16-bit grey, grey+alpha,
+// RGB, RGBA; alpha is copied through). Models are found without flags (see model_paths.h):
+// --models DIR, else $RAINDROP_MODELS, else <prefix>/share/raindrop/models/<name>, else the
+// source tree's models/<name>; <name> from --model-config or models/DEFAULT.
+//
+// Exit codes: 0 success; 1 error (bad input, bad model, unwritable output: one line on
+// stderr, no partial output file); 2 bad command line; 3 batch run with --keep-going
+// finished but some inputs failed.
+#include <algorithm>
+#include <cstdio>
+#include <filesystem>
+#include <iostream>
+#include <optional>
+#include <set>
+#include <string>
+#include <system_error>
+#include <vector>
+
+#include <CLI/CLI.hpp>
+#include <opencv2/imgproc.hpp>
+
+#include "raindrop/contact_sheet.h"
+#include "raindrop/error.h"
+#include "raindrop/image_io.h"
+#include "raindrop/progress.h"
+#include "raindrop/remove/model_paths.h"
+#include "raindrop/remove/remover.h"
+
+#ifndef RAINDROP_VERSION
+#define RAINDROP_VERSION "unknown"
+#endif
+
+namespace fs = std::filesystem;
+using namespace raindrop;
+using namespace raindrop::removal;
+
+namespace {
+
+constexpr int kSheetRows = 4;  // images on a batch run's contact sheet
+constexpr int kPanelWidth = 512;
+
+bool is_image_name(const fs::path& p) {
+  static const std::set<std::string> kExt = {".png", ".jpg", ".jpeg", ".tif", ".tiff", ".bmp", ".webp"};
+  std::string ext = p.extension().string();
+  std::transform(ext.begin(), ext.end(), ext.begin(), [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
+  const std::string name = p.filename().string();
+  return kExt.count(ext) > 0 && !name.empty() && name[0] != '.';  // hidden: e.g. our own temporaries
+}
+
+bool is_under(const fs::path& p, const fs::path& dir) {
+  const auto rel = fs::weakly_canonical(p).lexically_relative(fs::weakly_canonical(dir));
+  return !rel.empty() && *rel.begin() != "..";
+}
+
+// Image files under `dir`, recursively, sorted, relative to `dir`; files under `skip` (the
+// output folder, when it lies inside the input folder) are left out.
+std::vector<fs::path> list_images(const fs::path& dir, const fs::path& skip) {
+  std::vector<fs::path> files;
+  std::error_code ec;
+  for (auto it = fs::recursive_directory_iterator(dir, fs::directory_options::skip_permission_denied, ec);
+       !ec && it != fs::recursive_directory_iterator(); it.increment(ec)) {
+    if (it->is_directory() && is_under(it->path(), skip)) {
+      it.disable_recursion_pending();
+      continue;
+    }
+    if (it->is_regular_file() && is_image_name(it->path())) files.push_back(fs::relative(it->path(), dir));
+  }
+  if (ec) throw Error("cannot list '" + dir.string() + "' (" + ec.message() + ")");
+  std::sort(files.begin(), files.end());
+  return files;
+}
+
+// An 8-bit RGB view of any image we handle, for the contact sheet (alpha dropped).
+cv::Mat sheet_panel(const cv::Mat& img) {
+  cv::Mat eight;
+  if (img.depth() == CV_16U) {
+    img.convertTo(eight, CV_8U, 1.0 / 257.0);
+  } else {
+    eight = img;
+  }
+  cv::Mat rgb;
+  switch (eight.channels()) {
+    case 1: cv::cvtColor(eight, rgb, cv::COLOR_GRAY2RGB); break;
+    case 2: {
+      cv::Mat grey;
+      cv::extractChannel(eight, grey, 0);
+      cv::cvtColor(grey, rgb, cv::COLOR_GRAY2RGB);
+      break;
+    }
+    case 4: cv::cvtColor(eight, rgb, cv::COLOR_RGBA2RGB); break;
+    default: rgb = eight.clone();
+  }
+  // Keep the sheet's memory small in batch runs: panels are shown kPanelWidth wide anyway.
+  if (rgb.cols > kPanelWidth) {
+    cv::Mat small;
+    const int h = std::max(1, static_cast<int>(std::lround(static_cast<double>(rgb.rows) * kPanelWidth / rgb.cols)));
+    cv::resize(rgb, small, {kPanelWidth, h}, 0, 0, cv::INTER_AREA);
+    rgb = small;
+  }
+  return rgb;
+}
+
+struct Job {
+  fs::path input, output;
+  std::optional<fs::path> mask;
+  std::string caption;
+};
+
+struct Settings {
+  RemoveOptions options;
+  bool time = false;
+};
+
+// Removes the drops from one file; returns the panels for the contact sheet.
+std::vector<cv::Mat> process(Remover& remover, const Job& job, const Settings& s, bool want_panels) {
+  const cv::Mat input = read_image_native(job.input);
+  RemoveResult r = remover.run(input, s.options);
+  write_image_atomic(r.image, job.output);
+  if (job.mask) write_image_atomic(r.mask, *job.mask);
+  if (s.time) {
+    const double coverage = 100.0 * cv::countNonZero(r.mask) / static_cast<double>(r.mask.total());
+    std::fprintf(stderr, "raindrop-remove: %s: %dx%d, %d tile%s, mask %.2f%%: %s\n", job.input.string().c_str(),
+                 input.cols, input.rows, r.tiles_x * r.tiles_y, r.tiles_x * r.tiles_y == 1 ? "" : "s", coverage,
+                 r.times.describe().c_str());
+  }
+  if (!want_panels) return {};
+  return {sheet_panel(input), sheet_panel(r.mask), sheet_panel(r.image)};
+}
+
+int run(int argc, char** argv) {
+  CLI::App app{"raindrop-remove: removes adherent raindrops from images (Hao et al., ICCV-W 2019:\n"
+               "detection, region reconstruction and refinement networks, run with ONNX Runtime).\n"
+               "IN and OUT are two image files, or two folders (every image under IN, recursively,\n"
+               "is written to OUT under the same relative name)."};
+  app.footer(
+      "Models: --models DIR, else $RAINDROP_MODELS, else <prefix>/share/raindrop/models/<name>, else the source\n"
+      "tree's models/<name>; <name> is --model-config or the one line of models/DEFAULT.\n"
+      "Inputs: 8/16-bit grey, grey+alpha, RGB, RGBA of any size; the output keeps size, channels and depth\n"
+      "(grey: the networks see it as RGB, the output is its luma 0.299R+0.587G+0.114B; alpha is copied).\n"
+      "Exit codes: 0 success; 1 error (one line on stderr, no partial output); 2 bad command line;\n"
+      "3 folder run with --keep-going finished but some images failed.");
+  std::string input, output, models_dir, model_config, mask, sheet, device = "cpu", graph_opt = "all";
+  std::optional<double> threshold;
+  std::optional<int> dilation;
+  int threads = 0, tile = kDefaultTile, overlap = kDefaultOverlap;
+  bool time = false, quiet = false, keep_going = false;
+  app.add_option("input", input, "Input image, or folder of images")->required();
+  app.add_option("output", output, "Output image (format from the extension), or folder")->required();
+  app.add_option("--models", models_dir, "Model folder with rdn.onnx, rrn.onnx, rfn.onnx (default: see below)");
+  app.add_option("--model-config", model_config, "Model configuration name, e.g. compact or paper (default: models/DEFAULT)");
+  app.add_option("--mask", mask, "Also write the final mask (0/255, after dilation) here; a folder in folder mode");
+  app.add_option("--threshold", threshold, "Detection threshold on the RDN probability (default: the models')")
+      ->check(CLI::Range(0.0, 1.0));
+  app.add_option("--dilation", dilation, "Mask dilation size k (elliptical k x k; 1: none; default: the models')")
+      ->check(CLI::Range(1, 1023));
+  app.add_option("-j,--threads", threads, "ONNX Runtime intra-op threads (0: one per core)")
+      ->capture_default_str()->check(CLI::Range(0, 1024));
+  app.add_option("--device", device, "Execution device")->capture_default_str()->check(CLI::IsMember({"cpu", "cuda"}));
+  app.add_option("--tile", tile, "Process images larger than N x N in overlapping tiles of at most N x N (0: never)")
+      ->capture_default_str();
+  app.add_option("--tile-overlap", overlap, "Smallest overlap between tiles, in pixels")->capture_default_str();
+  app.add_option("--graph-opt", graph_opt, "ONNX Runtime graph optimisation level")
+      ->capture_default_str()->check(CLI::IsMember({"disable", "basic", "extended", "all"}));
+  app.add_flag("--time", time, "Print per-stage timings on stderr");
+  app.add_option("--contact-sheet", sheet, "Also write an input | mask | output PNG (folder mode: the first images)");
+  app.add_flag("--keep-going", keep_going, "Folder mode: go on after an image fails (exit code 3)");
+  app.add_flag("-q,--quiet", quiet, "No progress bar");
+  app.set_version_flag("--version", std::string("raindrop-remove ") + RAINDROP_VERSION + " (" + ort_description() + ")");
+  try {
+    app.parse(argc, argv);
+    check_tile_options(tile, overlap);
+  } catch (const CLI::ParseError& e) {
+    return app.exit(e) == 0 ? 0 : 2;
+  } catch (const Error& e) {
+    std::cerr << "raindrop-remove: " << one_line(e.what()) << "\nRun with --help for more information.\n";
+    return 2;
+  }
+
+  // Check the inputs before loading the models (which takes a moment).
+  std::error_code ec;
+  const fs::path in_path(input), out_arg(output);
+  if (!fs::exists(in_path, ec)) throw Error("'" + input + "': no such file or folder");
+  const bool batch = fs::is_directory(in_path, ec);
+
+  std::vector<Job> jobs;
+  if (batch) {
+    if (fs::exists(out_arg, ec) && !fs::is_directory(out_arg, ec))
+      throw Error("input '" + input + "' is a folder, so the output must be a folder too; '" + output + "' is a file");
+    ensure_writable_dir(out_arg);
+    if (!mask.empty()) ensure_writable_dir(mask);
+    for (const auto& rel : list_images(in_path, out_arg)) {
+      Job j{in_path / rel, out_arg / rel, std::nullopt, rel.string()};
+      if (!mask.empty()) j.mask = (fs::path(mask) / rel).replace_extension(".png");
+      jobs.push_back(j);
+    }
+    if (jobs.empty()) throw Error("no image files (png, jpg, jpeg, tif, tiff, bmp, webp) under '" + input + "'");
+  } else {
+    fs::path out = out_arg;
+    if (fs::is_directory(out, ec)) out /= in_path.filename();
+    Job j{in_path, out, std::nullopt, in_path.filename().string()};
+    if (!mask.empty()) j.mask = fs::path(mask);
+    jobs.push_back(j);
+  }
+
+  SessionConfig session;
+  session.threads = threads;
+  session.device = parse_device(device);
+  session.graph_opt = parse_graph_opt(graph_opt);
+  ModelSearch search = default_model_search();
+  if (!models_dir.empty()) search.explicit_dir = fs::path(models_dir);
+  if (!model_config.empty()) search.config = model_config;
+  Remover remover(find_models(search), session);
+
+  Settings s;
+  s.options.threshold = threshold;
+  s.options.dilation = dilation;
+  s.options.tile = tile;
+  s.options.overlap = overlap;
+  s.time = time;
+  if (time) {
+    const ModelInfo& mi = remover.info();
+    std::fprintf(stderr, "raindrop-remove: models '%s' (config %s, threshold %g, dilation %d), %s, %s, %d thread%s\n",
+                 remover.model_dir().string().c_str(), mi.config.c_str(), threshold.value_or(mi.threshold),
+                 dilation.value_or(mi.dilation), ort_description().c_str(), device.c_str(), threads,
+                 threads == 1 ? "" : "s (0: one per core)");
+  }
+
+  std::vector<std::vector<cv::Mat>> rows;
+  std::vector<std::string> captions;
+  std::vector<std::string> errors;
+  Progress progress(static_cast<std::int64_t>(jobs.size()), "remove", batch && !quiet);
+  for (const auto& job : jobs) {
+    const bool want_panels = !sheet.empty() && static_cast<int>(rows.size()) < kSheetRows;
+    try {
+      auto panels = process(remover, job, s, want_panels);
+      if (want_panels) {
+        rows.push_back(std::move(panels));
+        captions.push_back(job.caption);
+      }
+    } catch (const std::exception& e) {
+      // Without --keep-going the first failure ends the run (exit 1 through main).
+      if (!batch || !keep_going) throw;
+      errors.push_back(one_line(e.what()));
+    }
+    progress.advance();
+  }
+  progress.finish();
+  if (!sheet.empty() && !rows.empty())
+    write_image_atomic(make_contact_sheet(rows, {"input", "mask", "output"}, captions, kPanelWidth), sheet);
+  for (const auto& e : errors) std::cerr << "raindrop-remove: failed: " << e << "\n";
+  if (batch && (!quiet || !errors.empty()))
+    std::fprintf(stderr, "raindrop-remove: %zu of %zu images done, %zu failed; output in %s\n", jobs.size() - errors.size(),
+                 jobs.size(), errors.size(), output.c_str());
+  return errors.empty() ? 0 : 3;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  try {
+    return run(argc, argv);
+  } catch (const std::exception& e) {
+    std::cerr << "raindrop-remove: error: " << one_line(e.what()) << "\n";
+    return 1;
+  }
+}

@@ -1,0 +1,82 @@
+#include "raindrop/remove/model_paths.h"
+
+#include <cstdlib>
+#include <fstream>
+#include <system_error>
+
+#include "raindrop/error.h"
+
+#ifndef RAINDROP_SOURCE_MODELS_DIR
+#define RAINDROP_SOURCE_MODELS_DIR ""
+#endif
+
+namespace raindrop::removal {
+namespace fs = std::filesystem;
+namespace {
+
+constexpr const char* kFallbackConfig = "compact";
+
+bool has_models(const fs::path& dir) {
+  std::error_code ec;
+  return fs::is_regular_file(dir / "rdn.onnx", ec);
+}
+
+void check_config_name(const std::string& name) {
+  if (name.empty() || name.find('/') != std::string::npos || name == "." || name == "..")
+    throw Error("model configuration name '" + name + "' is not a plain folder name");
+}
+
+}  // namespace
+
+std::optional<std::string> read_default_config(const fs::path& models_root) {
+  std::ifstream in(models_root / "DEFAULT");
+  if (!in) return std::nullopt;
+  std::string line;
+  std::getline(in, line);
+  const auto first = line.find_first_not_of(" \t\r");
+  const auto last = line.find_last_not_of(" \t\r");
+  if (first == std::string::npos) return std::nullopt;
+  return line.substr(first, last - first + 1);
+}
+
+ModelSearch default_model_search() {
+  ModelSearch s;
+  if (const char* env = std::getenv("RAINDROP_MODELS"); env && *env) s.env_dir = fs::path(env);
+  std::error_code ec;
+  s.executable = fs::read_symlink("/proc/self/exe", ec);
+  if (ec) s.executable.clear();
+  s.source_models = RAINDROP_SOURCE_MODELS_DIR;
+  return s;
+}
+
+fs::path find_models(const ModelSearch& s) {
+  if (s.explicit_dir) return *s.explicit_dir;  // loading it says what is wrong with it
+  if (s.config) check_config_name(*s.config);
+  const auto name_in = [&](const fs::path& root) {
+    std::string name = s.config ? *s.config : read_default_config(root).value_or(kFallbackConfig);
+    check_config_name(name);
+    return name;
+  };
+  if (s.env_dir) {
+    // An explicit environment variable is authoritative: no fall-back past it.
+    if (!s.config && has_models(*s.env_dir)) return *s.env_dir;
+    const fs::path dir = *s.env_dir / name_in(*s.env_dir);
+    if (has_models(dir)) return dir;
+    throw Error("$RAINDROP_MODELS is '" + s.env_dir->string() + "', but neither it nor '" + dir.string() +
+                "' holds rdn.onnx, rrn.onnx and rfn.onnx");
+  }
+  std::vector<fs::path> roots;
+  if (!s.executable.empty()) roots.push_back(s.executable.parent_path().parent_path() / "share" / "raindrop" / "models");
+  if (!s.source_models.empty()) roots.push_back(s.source_models);
+  std::string tried;
+  for (const auto& root : roots) {
+    const fs::path dir = root / name_in(root);
+    if (has_models(dir)) return dir;
+    tried += (tried.empty() ? "" : ", ") + ("'" + dir.string() + "'");
+  }
+  throw Error("no models found (tried " + (tried.empty() ? std::string("nothing") : tried) +
+              "); pass --models DIR or set RAINDROP_MODELS, or train and export a configuration into models/<name> "
+              "(python -m raindrop_tools.export)");
+}
+
+}  // namespace raindrop::removal

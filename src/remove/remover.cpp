@@ -1,0 +1,215 @@
+#include "raindrop/remove/remover.h"
+
+#include <chrono>
+#include <cmath>
+#include <numeric>
+#include <string>
+#include <vector>
+
+#include "raindrop/error.h"
+#include "raindrop/remove/edge_map.h"
+#include "raindrop/remove/mask.h"
+#include "raindrop/remove/pixels.h"
+
+namespace raindrop::removal {
+namespace {
+
+using Clock = std::chrono::steady_clock;
+
+double ms_since(Clock::time_point& t) {
+  const auto now = Clock::now();
+  const double ms = std::chrono::duration<double, std::milli>(now - t).count();
+  t = now;
+  return ms;
+}
+
+int round_up(int v, int a) { return (v + a - 1) / a * a; }
+
+// One tile's network inputs: R (3 planes) and E (1 plane), NCHW with N = 1.
+struct TileInputs {
+  int h = 0, w = 0;
+  std::vector<float> r, e;
+};
+
+// The window [y0, y1) x [x0, x1) of the padded canvas. The edge map is computed on the real
+// pixels of the window plus a one-pixel ring (clipped at the image border), which is exactly
+// the whole-image edge map there; padded rows/columns then repeat the last real one, for R
+// and E alike (the reference pads E after computing it).
+TileInputs build_inputs(const cv::Mat& image, int y0, int y1, int x0, int x1, StageTimes& t) {
+  auto clock = Clock::now();
+  const int H = image.rows, W = image.cols;
+  const int ry0 = std::max(0, y0 - 1), ry1 = std::min(H, y1 + 1);
+  const int rx0 = std::max(0, x0 - 1), rx1 = std::min(W, x1 + 1);
+  const cv::Mat rgb = to_rgb_float(image, cv::Rect(rx0, ry0, rx1 - rx0, ry1 - ry0));
+  t.convert += ms_since(clock);
+  const cv::Mat edge = edge_map(rgb);
+  t.edge += ms_since(clock);
+  TileInputs in;
+  in.h = y1 - y0;
+  in.w = x1 - x0;
+  const size_t plane = static_cast<size_t>(in.h) * in.w;
+  in.r.resize(3 * plane);
+  in.e.resize(plane);
+  std::vector<int> cols(in.w);
+  for (int x = x0; x < x1; ++x) cols[x - x0] = std::min(x, W - 1) - rx0;
+  for (int y = y0; y < y1; ++y) {
+    const int cy = std::min(y, H - 1) - ry0;
+    const float* src = rgb.ptr<float>(cy);
+    const float* esrc = edge.ptr<float>(cy);
+    const size_t row = static_cast<size_t>(y - y0) * in.w;
+    float* r = in.r.data() + row;
+    float* g = r + plane;
+    float* b = g + plane;
+    float* e = in.e.data() + row;
+    for (int x = 0; x < in.w; ++x) {
+      const int cx = cols[x];
+      r[x] = src[3 * cx];
+      g[x] = src[3 * cx + 1];
+      b[x] = src[3 * cx + 2];
+      e[x] = esrc[cx];
+    }
+  }
+  t.convert += ms_since(clock);
+  return in;
+}
+
+void clamp_all(std::vector<float>& v) {
+  for (float& x : v) x = clamp01(x);
+}
+
+}  // namespace
+
+Remover::Remover(const std::filesystem::path& model_dir, const SessionConfig& config) : models_(model_dir, config) {}
+
+RemoveResult Remover::run(const cv::Mat& image, const RemoveOptions& opt) {
+  check_input_format(image);
+  check_tile_options(opt.tile, opt.overlap);
+  const double threshold = opt.threshold.value_or(info().threshold);
+  if (!std::isfinite(threshold)) throw Error("--threshold must be a finite number");
+  const int k = opt.dilation.value_or(info().dilation);
+  if (k < 1 || k > 1023) throw Error("--dilation must be between 1 and 1023, got " + std::to_string(k));
+
+  const int H = image.rows, W = image.cols, m = info().pad_multiple;
+  const int Hp = round_up(H, m), Wp = round_up(W, m);
+  const int align = std::lcm(2, m);
+  const AxisLayout ly = layout_axis(Hp, opt.tile, opt.overlap, align);
+  const AxisLayout lx = layout_axis(Wp, opt.tile, opt.overlap, align);
+  const bool single = ly.count() == 1 && lx.count() == 1;
+
+  RemoveResult res;
+  res.tiles_y = ly.count();
+  res.tiles_x = lx.count();
+  StageTimes& t = res.times;
+
+  // Pass 1: detection, thresholded into the whole-image mask from each pixel's owning tile.
+  cv::Mat mask0(Hp, Wp, CV_8U, cv::Scalar(0));
+  TileInputs kept;  // the single tile's inputs, reused by pass 2
+  for (int iy = 0; iy < ly.count(); ++iy) {
+    for (int ix = 0; ix < lx.count(); ++ix) {
+      const int y0 = ly.begin[iy], x0 = lx.begin[ix];
+      TileInputs in = build_inputs(image, y0, ly.end[iy], x0, lx.end[ix], t);
+      auto clock = Clock::now();
+      std::vector<float> prob(static_cast<size_t>(in.h) * in.w);
+      models_.rdn().run({in.r.data()}, in.h, in.w, prob.data());
+      t.rdn += ms_since(clock);
+      const cv::Rect owned(lx.owned_begin(ix), ly.owned_begin(iy), lx.owned_end(ix) - lx.owned_begin(ix),
+                           ly.owned_end(iy) - ly.owned_begin(iy));
+      const cv::Mat p(in.h, in.w, CV_32F, prob.data());
+      threshold_mask(p(owned - cv::Point(x0, y0)), threshold, mask0(owned));
+      t.mask += ms_since(clock);
+      res.network_pixels += static_cast<double>(in.h) * in.w;
+      if (single) kept = std::move(in);
+    }
+  }
+  auto clock = Clock::now();
+  const cv::Mat mask = dilate_mask(mask0, k);
+  mask0.release();
+  t.mask += ms_since(clock);
+
+  // Pass 2: reconstruction, blend, refinement; tile outputs blended into a strip of rows
+  // that is finished (quantised into the output) as soon as no later tile row reaches it.
+  res.image.create(H, W, image.type());
+  if (opt.keep_float) res.rgb.create(H, W, CV_32FC3);
+  cv::Mat strip;  // rows [strip_y0, strip_y0 + strip.rows) of the padded canvas
+  int strip_y0 = 0;
+  for (int iy = 0; iy < ly.count(); ++iy) {
+    const int y0 = ly.begin[iy], y1 = ly.end[iy];
+    {
+      clock = Clock::now();
+      cv::Mat next(y1 - y0, Wp, CV_32FC3, cv::Scalar::all(0));
+      if (!strip.empty() && strip_y0 + strip.rows > y0) {
+        const int carried = strip_y0 + strip.rows - y0;
+        strip.rowRange(y0 - strip_y0, strip.rows).copyTo(next.rowRange(0, carried));
+      }
+      strip = next;
+      strip_y0 = y0;
+      t.output += ms_since(clock);
+    }
+    std::vector<float> wy(y1 - y0);
+    for (int y = y0; y < y1; ++y) wy[y - y0] = ly.weight(iy, y);
+    for (int ix = 0; ix < lx.count(); ++ix) {
+      const int x0 = lx.begin[ix], x1 = lx.end[ix];
+      TileInputs in = single ? std::move(kept) : build_inputs(image, y0, y1, x0, x1, t);
+      const size_t plane = static_cast<size_t>(in.h) * in.w;
+      clock = Clock::now();
+      std::vector<float> ihat(3 * plane);
+      models_.rrn().run({in.r.data(), in.e.data()}, in.h, in.w, ihat.data());
+      clamp_all(ihat);
+      t.rrn += ms_since(clock);
+      // B = M * Ihat + (1 - M) * R with M in {0, 1} is exactly a choice between the two
+      // (as in numpy: 1 * a + 0 * b == a for finite values).
+      std::vector<float>& blend = ihat;
+      for (int y = 0; y < in.h; ++y) {
+        const unsigned char* mrow = mask.ptr<unsigned char>(y0 + y) + x0;
+        for (int c = 0; c < 3; ++c) {
+          float* b = blend.data() + c * plane + static_cast<size_t>(y) * in.w;
+          const float* r = in.r.data() + c * plane + static_cast<size_t>(y) * in.w;
+          for (int x = 0; x < in.w; ++x) {
+            if (!mrow[x]) b[x] = r[x];
+          }
+        }
+      }
+      t.blend += ms_since(clock);
+      std::vector<float> out(3 * plane);
+      models_.rfn().run({blend.data()}, in.h, in.w, out.data());
+      clamp_all(out);
+      t.rfn += ms_since(clock);
+      std::vector<float> wx(in.w);
+      for (int x = x0; x < x1; ++x) wx[x - x0] = lx.weight(ix, x);
+      for (int y = 0; y < in.h; ++y) {
+        if (wy[y] == 0.0f) continue;
+        float* dst = strip.ptr<float>(y) + 3 * static_cast<size_t>(x0);
+        const size_t row = static_cast<size_t>(y) * in.w;
+        for (int x = 0; x < in.w; ++x) {
+          const float w = wy[y] * wx[x];
+          if (w == 0.0f) continue;
+          for (int c = 0; c < 3; ++c) dst[3 * x + c] += w * out[c * plane + row + x];
+        }
+      }
+      t.output += ms_since(clock);
+    }
+    // Rows before the next tile row's first row are final.
+    clock = Clock::now();
+    const int done_end = std::min(iy + 1 < ly.count() ? ly.begin[iy + 1] : y1, H);
+    if (done_end > y0) {
+      const cv::Mat rows = strip(cv::Rect(0, 0, W, done_end - y0));
+      store_rgb_float(rows, res.image, y0);
+      if (opt.keep_float) {
+        cv::Mat dst = res.rgb.rowRange(y0, done_end);
+        rows.copyTo(dst);
+        for (int y = 0; y < dst.rows; ++y) {
+          float* p = dst.ptr<float>(y);
+          for (int x = 0; x < 3 * W; ++x) p[x] = clamp01(p[x]);
+        }
+      }
+    }
+    t.output += ms_since(clock);
+  }
+  clock = Clock::now();
+  copy_alpha(image, res.image);
+  res.mask = mask(cv::Rect(0, 0, W, H)) * 255;
+  t.output += ms_since(clock);
+  return res;
+}
+
+}  // namespace raindrop::removal

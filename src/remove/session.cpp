@@ -1,0 +1,81 @@
+#include "raindrop/remove/session.h"
+
+#include <algorithm>
+
+#include "raindrop/error.h"
+
+namespace raindrop::removal {
+
+Device parse_device(const std::string& text) {
+  if (text == "cpu") return Device::cpu;
+  if (text == "cuda") return Device::cuda;
+  throw Error("device '" + text + "' is not one of cpu, cuda");
+}
+
+GraphOpt parse_graph_opt(const std::string& text) {
+  if (text == "disable") return GraphOpt::disable;
+  if (text == "basic") return GraphOpt::basic;
+  if (text == "extended") return GraphOpt::extended;
+  if (text == "all") return GraphOpt::all;
+  throw Error("graph optimisation level '" + text + "' is not one of disable, basic, extended, all");
+}
+
+const char* to_string(Device d) { return d == Device::cuda ? "cuda" : "cpu"; }
+
+const char* to_string(GraphOpt g) {
+  switch (g) {
+    case GraphOpt::disable: return "disable";
+    case GraphOpt::basic: return "basic";
+    case GraphOpt::extended: return "extended";
+    case GraphOpt::all: return "all";
+  }
+  return "?";
+}
+
+Ort::Env& ort_env() {
+  // Function-local static: created on first use, after main() has started, and destroyed
+  // after every session (sessions are owned by objects with shorter lives).
+  static Ort::Env env(ORT_LOGGING_LEVEL_ERROR, "raindrop-remove");
+  return env;
+}
+
+std::vector<std::string> available_providers() { return Ort::GetAvailableProviders(); }
+
+Ort::SessionOptions make_session_options(const SessionConfig& config) {
+  if (config.threads < 0) throw Error("--threads must be >= 0 (0: ONNX Runtime's default)");
+  Ort::SessionOptions so;
+  if (config.threads > 0) so.SetIntraOpNumThreads(config.threads);
+  // The graphs are chains: parallelism is inside the operators, not between them.
+  so.SetInterOpNumThreads(1);
+  so.SetExecutionMode(ORT_SEQUENTIAL);
+  switch (config.graph_opt) {
+    case GraphOpt::disable: so.SetGraphOptimizationLevel(ORT_DISABLE_ALL); break;
+    case GraphOpt::basic: so.SetGraphOptimizationLevel(ORT_ENABLE_BASIC); break;
+    case GraphOpt::extended: so.SetGraphOptimizationLevel(ORT_ENABLE_EXTENDED); break;
+    case GraphOpt::all: so.SetGraphOptimizationLevel(ORT_ENABLE_ALL); break;
+  }
+  if (config.device == Device::cuda) {
+    const auto providers = available_providers();
+    if (std::find(providers.begin(), providers.end(), "CUDAExecutionProvider") == providers.end()) {
+      std::string list;
+      for (const auto& p : providers) list += (list.empty() ? "" : ", ") + p;
+      throw Error("--device cuda: this ONNX Runtime build (" + ort_description() +
+                  ") has no CUDA execution provider (available: " + list +
+                  "); use --device cpu, or configure with -DONNXRUNTIME_ROOT=<a CUDA-enabled ONNX Runtime>");
+    }
+    OrtCUDAProviderOptions cuda{};
+    cuda.device_id = config.cuda_device;
+    try {
+      so.AppendExecutionProvider_CUDA(cuda);
+    } catch (const Ort::Exception& e) {
+      throw Error(std::string("--device cuda: ONNX Runtime cannot start the CUDA provider: ") + e.what());
+    }
+  }
+  return so;
+}
+
+std::string ort_description() {
+  return "ONNX Runtime " + Ort::GetVersionString() + " (API " + std::to_string(ORT_API_VERSION) + ")";
+}
+
+}  // namespace raindrop::removal
