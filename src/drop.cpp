@@ -21,18 +21,15 @@ Drop::Drop(const DropShape& shape, const GlassPlane& glass)
       n_(glass.normal()),
       radius_(shape.sphere_radius()),
       centre_height_(-shape.sphere_radius() * std::cos(shape.contact_angle)),
-      rim_radius2_(shape.footprint_radius * shape.footprint_radius) {}
+      rim_radius2_(shape.footprint_radius * shape.footprint_radius),
+      inv_elongation_(1.0 / shape.elongation),
+      inv_flattening_(1.0 / shape.flattening) {}
 
 // Scaled local frame: x across, y downhill / elongation, z height / flattening.
-glm::dvec3 Drop::to_local(const glm::dvec3& p) const {
-  const glm::dvec3 d = p - c_;
-  return {glm::dot(d, u_), glm::dot(d, v_) / shape_.elongation,
-          glm::dot(d, n_) / shape_.flattening};
-}
+glm::dvec3 Drop::to_local(const glm::dvec3& p) const { return dir_to_local(p - c_); }
 
 glm::dvec3 Drop::dir_to_local(const glm::dvec3& d) const {
-  return {glm::dot(d, u_), glm::dot(d, v_) / shape_.elongation,
-          glm::dot(d, n_) / shape_.flattening};
+  return {glm::dot(d, u_), glm::dot(d, v_) * inv_elongation_, glm::dot(d, n_) * inv_flattening_};
 }
 
 std::optional<SurfaceHit> Drop::intersect(const glm::dvec3& origin, const glm::dvec3& dir,
@@ -86,7 +83,7 @@ glm::dvec3 Drop::cap_normal(const glm::dvec3& p) const {
   const glm::dvec3 l = to_local(p);
   // Sphere normal in the scaled frame, mapped back with the inverse transpose of the scaling.
   const glm::dvec3 m{l.x, l.y, l.z - centre_height_};
-  const glm::dvec3 world = m.x * u_ + (m.y / shape_.elongation) * v_ + (m.z / shape_.flattening) * n_;
+  const glm::dvec3 world = m.x * u_ + (m.y * inv_elongation_) * v_ + (m.z * inv_flattening_) * n_;
   const double len = glm::length(world);
   return len > 0 ? world / len : n_;
 }

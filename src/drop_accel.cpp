@@ -206,10 +206,11 @@ std::optional<DropHit> DropAccel::intersect(const glm::dvec3& origin, const glm:
   rh.ray.dir_y = static_cast<float>(dir.y);
   rh.ray.dir_z = static_cast<float>(dir.z);
   rh.ray.time = 0.f;
-  // Float bounds widened by a few ulps so the float traversal never clips the double query.
+  // Float bounds widened by a relative 1e-6 (about 8 float ulps) so the float traversal never
+  // clips the double-precision query.
   const float inf = std::numeric_limits<float>::infinity();
-  rh.ray.tfar = std::isfinite(t_max) ? std::nextafter(std::nextafter(static_cast<float>(t_max), inf), inf) : inf;
-  const float tnear = std::nextafter(std::nextafter(static_cast<float>(t_min), 0.f), 0.f);
+  rh.ray.tfar = std::isfinite(t_max) ? static_cast<float>(t_max * (1 + 1e-6) + 1e-6) : inf;
+  const float tnear = static_cast<float>(std::max(0.0, t_min * (1 - 1e-6) - 1e-6));
   rh.ray.mask = 0xFFFFFFFFu;
   rh.ray.id = 0;
   rh.ray.flags = 0;

@@ -132,7 +132,7 @@ cv::Mat read_image_native(const fs::path& path, int min_size) {
   return img;
 }
 
-void write_image_atomic(const cv::Mat& image, const fs::path& path) {
+void write_image_atomic(const cv::Mat& image, const fs::path& path, int png_level) {
   CV_Assert(image.depth() == CV_8U || image.depth() == CV_16U);
   const fs::path dir = path.has_parent_path() ? path.parent_path() : fs::path(".");
   const fs::path tmp = dir / temp_name_for(path);
@@ -143,6 +143,7 @@ void write_image_atomic(const cv::Mat& image, const fs::path& path) {
   OIIO::ImageSpec spec(data.cols, data.rows, data.channels(),
                        data.depth() == CV_8U ? OIIO::TypeDesc::UINT8 : OIIO::TypeDesc::UINT16);
   if (data.channels() == 4) spec.alpha_channel = 3;
+  spec.attribute("png:compressionLevel", std::min(std::max(png_level, 0), 9));
   if (data.channels() == 4 || data.channels() == 2) spec.attribute("oiio:UnassociatedAlpha", 1);
   bool ok = out->open(tmp.string(), spec) &&
             out->write_image(data.depth() == CV_8U ? OIIO::TypeDesc::UINT8 : OIIO::TypeDesc::UINT16, data.data);

@@ -214,9 +214,9 @@ RenderSummary render_dataset(const std::vector<InputImage>& inputs, const Render
                 Rng rng(seed);
                 const SceneSample scene = sample_scene(o.scene, frame.camera, rng);
                 const RenderedFrame rendered = render_frame(frame.clean, frame.camera, o.scene, scene);
-                write_image_atomic(rendered.rainy, o.out_dir / "rainy" / (id + ".png"));
-                write_image_atomic(frame.clean, o.out_dir / "clean" / (id + ".png"));
-                write_image_atomic(rendered.mask, o.out_dir / "mask" / (id + ".png"));
+                write_image_atomic(rendered.rainy, o.out_dir / "rainy" / (id + ".png"), o.png_level);
+                write_image_atomic(frame.clean, o.out_dir / "clean" / (id + ".png"), o.png_level);
+                write_image_atomic(rendered.mask, o.out_dir / "mask" / (id + ".png"), o.png_level);
                 manifest.append(id, sample_record(id, *task.input, v, seed, frame, o.scene, scene, rendered, job).dump());
                 ++finished;
                 {

@@ -18,19 +18,27 @@ namespace {
 
 constexpr int kMaxEvents = 16;  // surface crossings/reflections followed before giving up
 
+// The glass plane's normal and a point on it, computed once per frame (GlassPlane derives
+// them from the tilt with a sine and a cosine each time it is asked).
+struct GlassFrame {
+  glm::dvec3 normal, point;
+  explicit GlassFrame(const GlassPlane& g) : normal(g.normal()), point(g.origin()) {}
+};
+
 template <bool kFresnel>
 DropPath trace_path(const glm::dvec3& origin, const glm::dvec3& dir0, double n_water, TirMode tir,
-                    const DropAccel& accel, const GlassPlane& glass) {
+                    const DropAccel& accel, const GlassFrame& glass) {
   DropPath path;
   glm::dvec3 o = origin, d = glm::normalize(dir0);
   DropHit current;
   bool on_surface = false, inside = false;
-  const glm::dvec3 normal = glass.normal();
+  const glm::dvec3& normal = glass.normal;
+  const glm::dvec3& plane_point = glass.point;
   // All drops lie in the slab between the glass plane and the tallest cap: each query is
   // limited to the part of the ray inside that slab (padded), so Embree can prune early.
   const double slab_top = accel.max_height() * (1 + 1e-9) + 1e-9;
   for (int event = 0; event < kMaxEvents; ++event) {
-    const double h0 = glass.height(o), dn = glm::dot(d, normal);
+    const double h0 = glm::dot(o - plane_point, normal), dn = glm::dot(d, normal);
     double t_min = 0, t_max = std::numeric_limits<double>::infinity();
     if (std::abs(dn) > 1e-12) {
       const double t_bottom = -h0 / dn, t_top = (slab_top - h0) / dn;
@@ -76,7 +84,7 @@ DropPath trace_path(const glm::dvec3& origin, const glm::dvec3& dir0, double n_w
     return path;
   }
   // A ray heading back through the glass sees the car interior.
-  path.escaped_in = path.hit && glm::dot(d, glass.normal()) <= 0;
+  path.escaped_in = path.hit && glm::dot(d, normal) <= 0;
   path.origin = o;
   path.dir = d;
   return path;
@@ -98,8 +106,9 @@ glm::dvec2 background_pixel(const DropPath& p, const Camera& camera, double back
 
 DropPath trace_through_drops(const glm::dvec3& origin, const glm::dvec3& dir, double n_water, TirMode tir,
                              bool fresnel, const DropAccel& accel, const GlassPlane& glass) {
-  return fresnel ? trace_path<true>(origin, dir, n_water, tir, accel, glass)
-                 : trace_path<false>(origin, dir, n_water, tir, accel, glass);
+  const GlassFrame frame(glass);
+  return fresnel ? trace_path<true>(origin, dir, n_water, tir, accel, frame)
+                 : trace_path<false>(origin, dir, n_water, tir, accel, frame);
 }
 
 namespace {
@@ -120,6 +129,7 @@ class Kernel {
       : bg_(clean, config.border),
         camera_(camera),
         scene_(scene),
+        glass_(scene.glass),
         accel_(accel),
         tir_(config.tir),
         interior_(config.fresnel.enabled ? config.fresnel.interior_rgb : glm::dvec3(0.0)),
@@ -129,7 +139,7 @@ class Kernel {
     const glm::dvec3 dir = camera_.ray_direction(px, py);
     Sample s;
     if constexpr (!kDispersion) {
-      const DropPath p = trace_path<kFresnel>(glm::dvec3(0.0), dir, n_rgb_.y, tir_, accel_, scene_.glass);
+      const DropPath p = trace_path<kFresnel>(glm::dvec3(0.0), dir, n_rgb_.y, tir_, accel_, glass_);
       s.hit = p.hit;
       if (!s.hit) return s;
       s.drop = p.first_drop;
@@ -139,7 +149,7 @@ class Kernel {
       // One path per colour channel: the green path decides hit and drop (all three meet the
       // same first surface, whose position does not depend on the index).
       for (int c = 0; c < 3; ++c) {
-        const DropPath p = trace_path<kFresnel>(glm::dvec3(0.0), dir, n_rgb_[c], tir_, accel_, scene_.glass);
+        const DropPath p = trace_path<kFresnel>(glm::dvec3(0.0), dir, n_rgb_[c], tir_, accel_, glass_);
         if (!p.hit) return s;  // same first hit for every channel
         bool off = false;
         s.rgb[c] = shade(p, &off)[c];
@@ -177,6 +187,7 @@ class Kernel {
   BackgroundSampler bg_;
   const Camera& camera_;
   const SceneSample& scene_;
+  const GlassFrame glass_;
   const DropAccel& accel_;
   TirMode tir_;
   glm::dvec3 interior_;

@@ -55,6 +55,7 @@ class BackgroundSampler {
 
   // Maps a coordinate into [0, n - 1] according to the border mode.
   double fold(double v, int n) const {
+    if (v >= 0.0 && v <= n - 1.0) return v;  // inside: the common case, no fmod
     if (!std::isfinite(v)) return v > 0 ? n - 1 : 0;
     if (border_ == BorderMode::Clamp || n == 1) return std::min(std::max(v, 0.0), n - 1.0);
     // Mirror about the outer pixel edges (-0.5 and n - 0.5): period 2n.

@@ -75,6 +75,7 @@ class Drop {
   double radius_;             // R of the sphere in the scaled frame
   double centre_height_;      // -R cos(tau): sphere centre below the glass, scaled frame
   double rim_radius2_;        // a^2
+  double inv_elongation_, inv_flattening_;
 };
 
 }  // namespace raindrop

@@ -14,6 +14,7 @@
 
 #include <opencv2/core.hpp>
 
+#include "raindrop/image_io.h"
 #include "raindrop/inputs.h"
 #include "raindrop/renderer.h"
 #include "raindrop/scene_config.h"
@@ -30,6 +31,7 @@ struct RenderOptions {
   bool convert = false;          // accept 16-bit / grey / RGBA inputs by converting them
   bool keep_going = false;       // render the rest after a failing input
   bool progress = true;
+  int png_level = kDefaultPngLevel;  // zlib level of the PNGs written (0-9)
   int contact_sheet_rows = 0;    // > 0: keep this many samples for a contact sheet
 };
 

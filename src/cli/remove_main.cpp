@@ -112,6 +112,7 @@ struct Job {
   fs::path input, output;
   std::optional<fs::path> mask;
   std::string caption;
+  bool make_dirs = false;  // folder mode: create the output's sub-folders
 };
 
 struct Settings {
@@ -123,6 +124,13 @@ struct Settings {
 std::vector<cv::Mat> process(Remover& remover, const Job& job, const Settings& s, bool want_panels) {
   const cv::Mat input = read_image_native(job.input);
   RemoveResult r = remover.run(input, s.options);
+  if (job.make_dirs) {
+    for (const fs::path* p : {&job.output, job.mask ? &*job.mask : nullptr}) {
+      std::error_code ec;
+      if (p && p->has_parent_path() && !fs::create_directories(p->parent_path(), ec) && ec)
+        throw Error("cannot create the folder '" + p->parent_path().string() + "' (" + ec.message() + ")");
+    }
+  }
   write_image_atomic(r.image, job.output);
   if (job.mask) write_image_atomic(r.mask, *job.mask);
   if (s.time) {
@@ -197,7 +205,7 @@ int run(int argc, char** argv) {
     ensure_writable_dir(out_arg);
     if (!mask.empty()) ensure_writable_dir(mask);
     for (const auto& rel : list_images(in_path, out_arg)) {
-      Job j{in_path / rel, out_arg / rel, std::nullopt, rel.string()};
+      Job j{in_path / rel, out_arg / rel, std::nullopt, rel.string(), true};
       if (!mask.empty()) j.mask = (fs::path(mask) / rel).replace_extension(".png");
       jobs.push_back(j);
     }

@@ -55,7 +55,7 @@ int run(int argc, char** argv) {
                "Without an input it renders the built-in demo backgrounds."};
   std::string cityscapes, split = "train", out = "out/render", scene_name = "paper", size_text, sheet;
   std::vector<std::string> input_paths;
-  int variants = 1, threads = 0, limit = 0, sheet_rows = 4;
+  int variants = 1, threads = 0, limit = 0, sheet_rows = 4, png_level = kDefaultPngLevel;
   std::uint64_t seed = 0;
   bool demo = false, convert = false, keep_going = false, quiet = false, list_scenes = false, print_scene = false;
   app.add_option("--cityscapes", cityscapes, "Cityscapes root: walks leftImg8bit/<split>/<city>/*.png, reads camera/ intrinsics where present");
@@ -69,6 +69,8 @@ int run(int argc, char** argv) {
   app.add_option("--scene", scene_name, "Preset (paper, full-physics, real-photo) or JSON scene file")->capture_default_str();
   app.add_option("--size", size_text, "Output WIDTHxHEIGHT (centre-crop to the aspect, then resize), e.g. 512x256; default: input size");
   app.add_option("--limit", limit, "Render only the first N inputs (0: all)")->check(CLI::Range(0, 100000000));
+  app.add_option("--png-level", png_level, "PNG zlib level: 1 fastest, 9 smallest (OpenImageIO's default is 6)")
+      ->capture_default_str()->check(CLI::Range(0, 9));
   app.add_flag("--convert", convert, "Accept 16-bit, grey and RGBA inputs by converting them to 8-bit RGB");
   app.add_flag("--keep-going", keep_going, "Render the remaining inputs after one fails (exit code 3)");
   app.add_option("--contact-sheet", sheet, "Write a clean | rainy | mask PNG of the first samples (default for the demo: <out>/contact_sheet.png)");
@@ -101,6 +103,7 @@ int run(int argc, char** argv) {
   options.convert = convert;
   options.keep_going = keep_going;
   options.progress = !quiet;
+  options.png_level = png_level;
 
   std::vector<InputImage> inputs;
   if (!cityscapes.empty()) inputs = find_cityscapes(cityscapes, split);

@@ -51,7 +51,8 @@ AxisLayout layout_axis(int length, int tile, int overlap, int align) {
   // stays within the tile.
   const long long o = overlap + align - 1;
   long long t = round_down(tile, align) - align;
-  t = std::max<long long>(t, o + align);
+  // Starts are then >= (t - o) / 2 apart, so they stay distinct after rounding to `align`.
+  t = std::max<long long>(t, o + 2LL * align);
   const long long n = std::max<long long>(2, (length - o + (t - o) - 1) / (t - o));
   long long win = (length + (n - 1) * o + n - 1) / n;
   win = round_up(static_cast<int>(win), align);
@@ -65,6 +66,12 @@ AxisLayout layout_axis(int length, int tile, int overlap, int align) {
     const int a = l.begin[i + 1], e = l.end[i];
     l.cut.push_back((a + e) / 2);
     l.ramp.push_back((e - a) / 4);
+  }
+  // Neighbouring ramps must not overlap (possible only when windows are barely larger than
+  // twice the overlap), or three windows would share a pixel and the weights would not sum to 1.
+  for (size_t j = 0; j < l.cut.size(); ++j) {
+    if (j > 0) l.ramp[j] = std::min(l.ramp[j], (l.cut[j] - l.cut[j - 1]) / 2);
+    if (j + 1 < l.cut.size()) l.ramp[j] = std::min(l.ramp[j], (l.cut[j + 1] - l.cut[j]) / 2);
   }
   return l;
 }
