@@ -10,7 +10,13 @@ here="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 source "$here/deps/onnxruntime.env"
 dest="${1:-$here/build/_deps/onnxruntime}"
 stamp="$ORT_LIB_VERSION/$ORT_HEADERS_DEB_VERSION"
+soname_links() {
+  # libonnxruntime.so (for linking) and libonnxruntime.so.1 (its SONAME, what programs load).
+  ln -sf "libonnxruntime.so.$ORT_LIB_VERSION" "$dest/lib/libonnxruntime.so"
+  ln -sf "libonnxruntime.so.$ORT_LIB_VERSION" "$dest/lib/libonnxruntime.so.1"
+}
 if [[ -f "$dest/.complete" && "$(cat "$dest/.complete")" == "$stamp" ]]; then
+  soname_links
   exit 0
 fi
 work="$(mktemp -d)"
@@ -41,7 +47,7 @@ name = f"onnxruntime/capi/libonnxruntime.so.{ver}"
 with zipfile.ZipFile(whl) as z, open(os.path.join(out, os.path.basename(name)), "wb") as f:
     f.write(z.read(name))
 PY
-ln -sf "libonnxruntime.so.$ORT_LIB_VERSION" "$dest/lib/libonnxruntime.so"
+soname_links
 dpkg -x "$work/$ORT_HEADERS_DEB" "$work/deb"
 cp -r "$work/deb/usr/include/onnxruntime" "$dest/include/"
 echo "$stamp" > "$dest/.complete"

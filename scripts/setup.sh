@@ -15,7 +15,7 @@ run_demo=1
 
 packages=(build-essential cmake ninja-build pkg-config ca-certificates dpkg
           libopencv-dev libembree-dev libopenimageio-dev libglm-dev libtbb-dev
-          nlohmann-json3-dev libcli11-dev libgtest-dev
+          nlohmann-json3-dev libcli11-dev libgtest-dev zlib1g-dev
           python3 python3-pip python3-venv)
 missing=()
 for p in "${packages[@]}"; do

@@ -35,11 +35,12 @@ cv::Mat demo_street(int width, int height) {
   Rng rng(7);  // fixed layout
   int x = 0;
   while (x < width) {
-    const int w = width / 14 + rng.uniform_int(0, width / 12);
+    const int w = std::max(1, width / 14 + rng.uniform_int(0, width / 12));
     const int top = horizon - height / 10 - rng.uniform_int(0, height * 3 / 10);
     const cv::Scalar wall(rng.uniform_int(90, 200), rng.uniform_int(70, 160), rng.uniform_int(60, 140));
     cv::rectangle(img, {x, top}, {x + w, horizon + height / 20}, wall, cv::FILLED);
-    for (int wy = top + height / 40; wy < horizon - height / 40; wy += height / 18) {
+    // Steps of at least one pixel: tiny frames must not loop forever.
+    for (int wy = top + height / 40; wy < horizon - height / 40; wy += std::max(1, height / 18)) {
       for (int wx = x + w / 8; wx < x + w - w / 8; wx += std::max(6, w / 4)) {
         cv::rectangle(img, {wx, wy}, {wx + std::max(3, w / 10), wy + height / 36}, cv::Scalar(40, 60, 90), cv::FILLED);
       }

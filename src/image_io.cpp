@@ -1,13 +1,16 @@
 #include "raindrop/image_io.h"
 
 #include <atomic>
+#include <cmath>
 #include <cstdio>
 #include <cstring>
 #include <fstream>
 #include <memory>
 #include <system_error>
+#include <vector>
 
 #include <unistd.h>
+#include <zlib.h>
 
 #include <OpenImageIO/imageio.h>
 
@@ -26,19 +29,38 @@ std::string first_line(std::string s) {
   return s.empty() ? "unknown error" : s;
 }
 
-// A PNG ends with an IEND chunk. libpng reports a file cut short by printing to stderr
-// itself before OIIO sees the error, so truncated PNGs are caught here instead.
-void check_png_complete(const fs::path& path, std::uintmax_t size) {
+// libpng reports malformed files by printing to stderr itself before OIIO sees the error,
+// which would break the one-line-error rule. So a PNG's chunk structure is walked first:
+// IHDR first, every chunk within the file with a valid CRC, IDAT present, IEND at the end.
+void check_png_structure(const fs::path& path, std::uintmax_t size) {
   std::ifstream f(path, std::ios::binary);
-  char signature[8] = {0};
-  f.read(signature, 8);
-  static const char kPng[8] = {'\x89', 'P', 'N', 'G', '\r', '\n', '\x1a', '\n'};
-  if (!f || std::memcmp(signature, kPng, 8) != 0) return;  // not a PNG
-  const std::uintmax_t tail = std::min<std::uintmax_t>(size, 4096);
-  std::string end(tail, '\0');
-  f.seekg(static_cast<std::streamoff>(size - tail));
-  f.read(end.data(), static_cast<std::streamsize>(tail));
-  if (end.find("IEND") == std::string::npos) throw Error(quoted(path) + ": truncated PNG (no IEND chunk at the end)");
+  unsigned char signature[8] = {0};
+  f.read(reinterpret_cast<char*>(signature), 8);
+  static const unsigned char kPng[8] = {0x89, 'P', 'N', 'G', '\r', '\n', 0x1a, '\n'};
+  if (!f || std::memcmp(signature, kPng, 8) != 0) return;  // not a PNG: OIIO decides
+  std::vector<unsigned char> data(size - 8);
+  f.read(reinterpret_cast<char*>(data.data()), static_cast<std::streamsize>(data.size()));
+  auto be32 = [&](size_t at) {
+    return (static_cast<std::uint32_t>(data[at]) << 24) | (static_cast<std::uint32_t>(data[at + 1]) << 16) |
+           (static_cast<std::uint32_t>(data[at + 2]) << 8) | data[at + 3];
+  };
+  size_t at = 0;
+  bool first = true, idat = false;
+  while (true) {
+    if (at + 12 > data.size()) throw Error(quoted(path) + ": truncated PNG (ends inside a chunk, no IEND)");
+    const std::uint32_t length = be32(at);
+    if (length > data.size() - at - 12) throw Error(quoted(path) + ": truncated PNG (a chunk runs past the end of the file)");
+    const std::string type(reinterpret_cast<const char*>(&data[at + 4]), 4);
+    const std::uint32_t crc = static_cast<std::uint32_t>(
+        ::crc32(::crc32(0L, Z_NULL, 0), &data[at + 4], static_cast<uInt>(4 + length)));
+    if (crc != be32(at + 8 + length)) throw Error(quoted(path) + ": corrupt PNG (CRC error in a " + type + " chunk)");
+    if (first && type != "IHDR") throw Error(quoted(path) + ": corrupt PNG (first chunk is " + type + ", not IHDR)");
+    first = false;
+    idat = idat || type == "IDAT";
+    if (type == "IEND") break;
+    at += 12 + length;
+  }
+  if (!idat) throw Error(quoted(path) + ": corrupt PNG (no image data)");
 }
 
 std::unique_ptr<OIIO::ImageInput> open_input(const fs::path& path, OIIO::ImageSpec* spec) {
@@ -47,7 +69,7 @@ std::unique_ptr<OIIO::ImageInput> open_input(const fs::path& path, OIIO::ImageSp
   if (fs::is_directory(path, ec)) throw Error(quoted(path) + ": is a folder, not an image");
   const std::uintmax_t size = fs::file_size(path, ec);
   if (ec || size == 0) throw Error(quoted(path) + ": file is empty");
-  check_png_complete(path, size);
+  check_png_structure(path, size);
   // Keep colour values as stored when there is alpha (PNG is unassociated).
   OIIO::ImageSpec config;
   config.attribute("oiio:UnassociatedAlpha", 1);
@@ -104,9 +126,28 @@ cv::Mat read_rgb8(const fs::path& path, bool convert, int min_size) {
   }
   if (nc < 1 || nc > 4) throw Error(quoted(path) + ": " + std::to_string(nc) + " channels are not supported");
   cv::Mat raw(h, w, CV_8UC(nc));
-  // OIIO converts 16-bit and float data to 8 bits with rounding and clamping.
-  if (!in->read_image(0, 0, 0, nc, OIIO::TypeDesc::UINT8, raw.data))
+  const bool is_float = spec.format.basetype == OIIO::TypeDesc::FLOAT || spec.format.basetype == OIIO::TypeDesc::HALF ||
+                        spec.format.basetype == OIIO::TypeDesc::DOUBLE;
+  if (is_float) {
+    // Float files (EXR, HDR) hold linear light: encode with the sRGB transfer curve, as the
+    // 8-bit frames the renderer otherwise reads are encoded (alpha stays linear).
+    cv::Mat linear(h, w, CV_32FC(nc));
+    if (!in->read_image(0, 0, 0, nc, OIIO::TypeDesc::FLOAT, linear.data))
+      throw Error(quoted(path) + ": cannot decode (" + first_line(in->geterror()) + ")");
+    const int colour = nc == 2 || nc == 4 ? nc - 1 : nc;
+    for (int y = 0; y < h; ++y) {
+      const float* src = linear.ptr<float>(y);
+      auto* dst = raw.ptr<std::uint8_t>(y);
+      for (int i = 0; i < w * nc; ++i) {
+        float v = std::isfinite(src[i]) ? std::min(std::max(src[i], 0.0f), 1.0f) : 0.0f;
+        if (i % nc < colour) v = v <= 0.0031308f ? 12.92f * v : 1.055f * std::pow(v, 1.0f / 2.4f) - 0.055f;
+        dst[i] = static_cast<std::uint8_t>(std::floor(v * 255.0f + 0.5f));
+      }
+    }
+  } else if (!in->read_image(0, 0, 0, nc, OIIO::TypeDesc::UINT8, raw.data)) {
+    // OIIO converts 16-bit data to 8 bits with rounding.
     throw Error(quoted(path) + ": cannot decode (" + first_line(in->geterror()) + ")");
+  }
   in->close();
   if (nc == 3) return raw;
   cv::Mat rgb(h, w, CV_8UC3);

@@ -23,8 +23,9 @@ struct ImageHeader {
 ImageHeader read_header(const std::filesystem::path& path);
 
 // The frame as 8-bit RGB (CV_8UC3). Strict mode accepts only 8-bit, 3-channel images and
-// says why otherwise; with `convert`, 16-bit/float inputs are rounded to 8 bits, grey is
-// replicated to RGB and alpha is dropped (colour kept as stored, not premultiplied).
+// says why otherwise; with `convert`, 16-bit inputs are rounded to 8 bits, float inputs
+// (linear light, e.g. EXR) are clamped to [0, 1] and sRGB-encoded, grey is replicated to RGB
+// and alpha is dropped (colour kept as stored, not premultiplied).
 // Images smaller than `min_size` on a side are refused. Truncated files are errors.
 cv::Mat read_rgb8(const std::filesystem::path& path, bool convert, int min_size = 16);
 

@@ -63,7 +63,8 @@ std::string fmt(double v, const char* f = "%.1f") {
 }  // namespace
 
 int remove_bench(int argc, char** argv) {
-  CLI::App app{"raindrop-bench remove: raindrop-remove's time per image and stage, and GFLOP/s (markdown)"};
+  CLI::App app{"raindrop-bench remove: raindrop-remove's time per image and stage, and GFLOP/s (markdown)",
+               "raindrop-bench remove"};
   std::vector<std::string> model_dirs;
   std::vector<int> thread_counts{1, 2};
   std::string graph_opt = "all";

@@ -4,7 +4,7 @@
 //   raindrop-remove in.png out.png [options]        one image
 //   raindrop-remove in_folder/ out_folder/ [options] every image under in_folder (recursive),
 //                                                    written to out_folder with the same
-//                                                    relative names
+//                                                    relative names (masks: --mask-dir DIR)
 //
 // The output keeps the input's size, channel count and bit depth (8/16-bit grey, grey+alpha,
 // RGB, RGBA; alpha is copied through). Models are found without flags (see model_paths.h):
@@ -15,6 +15,7 @@
 // stderr, no partial output file); 2 bad command line; 3 batch run with --keep-going
 // finished but some inputs failed.
 #include <algorithm>
+#include <cmath>
 #include <cstdio>
 #include <filesystem>
 #include <iostream>
@@ -155,7 +156,7 @@ int run(int argc, char** argv) {
       "(grey: the networks see it as RGB, the output is its luma 0.299R+0.587G+0.114B; alpha is copied).\n"
       "Exit codes: 0 success; 1 error (one line on stderr, no partial output); 2 bad command line;\n"
       "3 folder run with --keep-going finished but some images failed.");
-  std::string input, output, models_dir, model_config, mask, sheet, device = "cpu", graph_opt = "all";
+  std::string input, output, models_dir, model_config, mask, mask_dir, sheet, device = "cpu", graph_opt = "all";
   std::optional<double> threshold;
   std::optional<int> dilation;
   int threads = 0, tile = kDefaultTile, overlap = kDefaultOverlap;
@@ -164,7 +165,10 @@ int run(int argc, char** argv) {
   app.add_option("output", output, "Output image (format from the extension), or folder")->required();
   app.add_option("--models", models_dir, "Model folder with rdn.onnx, rrn.onnx, rfn.onnx (default: see below)");
   app.add_option("--model-config", model_config, "Model configuration name, e.g. compact or paper (default: models/DEFAULT)");
-  app.add_option("--mask", mask, "Also write the final mask (0/255, after dilation) here; a folder in folder mode");
+  auto* mask_opt =
+      app.add_option("--mask", mask, "Also write the final mask (0/255, after dilation) here; a folder in folder mode");
+  app.add_option("--mask-dir", mask_dir, "Also write the masks into this folder, as <relative name>.png (either mode)")
+      ->excludes(mask_opt);
   app.add_option("--threshold", threshold, "Detection threshold on the RDN probability (default: the models')")
       ->check(CLI::Range(0.0, 1.0));
   app.add_option("--dilation", dilation, "Mask dilation size k (elliptical k x k; 1: none; default: the models')")
@@ -174,7 +178,9 @@ int run(int argc, char** argv) {
   app.add_option("--device", device, "Execution device")->capture_default_str()->check(CLI::IsMember({"cpu", "cuda"}));
   app.add_option("--tile", tile, "Process images larger than N x N in overlapping tiles of at most N x N (0: never)")
       ->capture_default_str();
-  app.add_option("--tile-overlap", overlap, "Smallest overlap between tiles, in pixels")->capture_default_str();
+  app.add_option("--tile-overlap", overlap,
+                 "Smallest overlap between tiles, in pixels (seamless when >= 4x the networks' receptive radius: 28 px for the paper's)")
+      ->capture_default_str();
   app.add_option("--graph-opt", graph_opt, "ONNX Runtime graph optimisation level")
       ->capture_default_str()->check(CLI::IsMember({"disable", "basic", "extended", "all"}));
   app.add_flag("--time", time, "Print per-stage timings on stderr");
@@ -199,14 +205,17 @@ int run(int argc, char** argv) {
   const bool batch = fs::is_directory(in_path, ec);
 
   std::vector<Job> jobs;
+  if (batch && mask_dir.empty()) std::swap(mask, mask_dir);  // folder mode: --mask is a folder
+  if (!mask_dir.empty()) ensure_writable_dir(mask_dir);
   if (batch) {
     if (fs::exists(out_arg, ec) && !fs::is_directory(out_arg, ec))
       throw Error("input '" + input + "' is a folder, so the output must be a folder too; '" + output + "' is a file");
+    if (fs::weakly_canonical(in_path) == fs::weakly_canonical(out_arg))
+      throw Error("the output folder is the input folder; choose another one (the inputs would be overwritten)");
     ensure_writable_dir(out_arg);
-    if (!mask.empty()) ensure_writable_dir(mask);
     for (const auto& rel : list_images(in_path, out_arg)) {
       Job j{in_path / rel, out_arg / rel, std::nullopt, rel.string(), true};
-      if (!mask.empty()) j.mask = (fs::path(mask) / rel).replace_extension(".png");
+      if (!mask_dir.empty()) j.mask = (fs::path(mask_dir) / rel).replace_extension(".png");
       jobs.push_back(j);
     }
     if (jobs.empty()) throw Error("no image files (png, jpg, jpeg, tif, tiff, bmp, webp) under '" + input + "'");
@@ -215,7 +224,14 @@ int run(int argc, char** argv) {
     if (fs::is_directory(out, ec)) out /= in_path.filename();
     Job j{in_path, out, std::nullopt, in_path.filename().string()};
     if (!mask.empty()) j.mask = fs::path(mask);
+    if (!mask_dir.empty()) j.mask = (fs::path(mask_dir) / in_path.filename()).replace_extension(".png");
     jobs.push_back(j);
+    // Fail before the (slow) inference when a destination folder is missing.
+    for (const fs::path& p : {j.output, j.mask.value_or(fs::path()), fs::path(sheet)}) {
+      if (p.empty() || !p.has_parent_path()) continue;
+      if (!fs::is_directory(p.parent_path(), ec))
+        throw Error("'" + p.string() + "': cannot write (folder '" + p.parent_path().string() + "' does not exist)");
+    }
   }
 
   SessionConfig session;
@@ -235,10 +251,11 @@ int run(int argc, char** argv) {
   s.time = time;
   if (time) {
     const ModelInfo& mi = remover.info();
-    std::fprintf(stderr, "raindrop-remove: models '%s' (config %s, threshold %g, dilation %d), %s, %s, %d thread%s\n",
+    const std::string thread_text = threads == 0 ? std::string("threads: one per core")
+                                                  : std::to_string(threads) + (threads == 1 ? " thread" : " threads");
+    std::fprintf(stderr, "raindrop-remove: models '%s' (config %s, threshold %g, dilation %d), %s, %s, %s\n",
                  remover.model_dir().string().c_str(), mi.config.c_str(), threshold.value_or(mi.threshold),
-                 dilation.value_or(mi.dilation), ort_description().c_str(), device.c_str(), threads,
-                 threads == 1 ? "" : "s (0: one per core)");
+                 dilation.value_or(mi.dilation), ort_description().c_str(), device.c_str(), thread_text.c_str());
   }
 
   std::vector<std::vector<cv::Mat>> rows;

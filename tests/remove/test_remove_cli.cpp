@@ -1,0 +1,275 @@
+// raindrop-remove end to end: bad inputs (one line, exit code, nothing written), usage
+// errors, model discovery, formats kept, folder mode.
+#include "remove_test_util.h"
+
+namespace removetest {
+namespace {
+
+const std::string kErrorPrefix = "raindrop-remove: error: ";
+
+class RemoveCli : public ::testing::Test {
+ protected:
+  void SetUp() override { write_image(tmp / "in.png", make_image(61, 43, 1)); }
+
+  // Exit 1, exactly one line on stderr (the error, mentioning `mention`), nothing on stdout,
+  // no output, mask or temporary file anywhere in the test folder.
+  void expect_clean_failure(const RunResult& r, const std::string& mention) {
+    EXPECT_EQ(r.code, 1) << r.describe();
+    const auto lines = split_lines(r.err);
+    ASSERT_EQ(lines.size(), 1u) << "expected exactly one error line\n" << r.describe();
+    EXPECT_EQ(lines[0].rfind(kErrorPrefix, 0), 0u) << r.describe();
+    EXPECT_NE(lines[0].find(mention), std::string::npos) << "should mention '" << mention << "'\n" << r.describe();
+    EXPECT_EQ(r.out, "") << r.describe();
+    EXPECT_FALSE(fs::exists(tmp / "out.png")) << "partial output left behind";
+    EXPECT_FALSE(fs::exists(tmp / "mask.png")) << "mask left behind";
+    EXPECT_TRUE(hidden_temporaries(tmp.path()).empty()) << ::testing::PrintToString(hidden_temporaries(tmp.path()));
+  }
+
+  RunResult remove(std::vector<std::string> args, const std::vector<std::string>& env = {}) {
+    if (std::find(args.begin(), args.end(), "--models") == args.end() && env.empty()) {
+      args.push_back("--models");
+      args.push_back(smoke_models().string());
+    }
+    return run_remove(args, tmp.path(), env);
+  }
+
+  TempDir tmp;
+};
+
+TEST_F(RemoveCli, OneImage) {
+  const RunResult r = remove({"in.png", "out.png", "--mask", "mask.png", "--threads", "2"});
+  ASSERT_EQ(r.code, 0) << r.describe();
+  EXPECT_EQ(r.out, "");
+  EXPECT_EQ(r.err, "") << "a single image prints nothing without --time";
+  const auto out = read_image(tmp / "out.png");
+  const auto mask = read_image(tmp / "mask.png");
+  ASSERT_TRUE(out && mask);
+  EXPECT_EQ(out->width, 61);
+  EXPECT_EQ(out->height, 43);
+  EXPECT_EQ(out->channels, 3);
+  EXPECT_EQ(mask->channels, 1);
+  EXPECT_EQ(mask->width, 61);
+  EXPECT_EQ(cv::countNonZero((mask->pixels != 0) & (mask->pixels != 255)), 0) << "mask is 0/255 only";
+  EXPECT_TRUE(hidden_temporaries(tmp.path()).empty());
+}
+
+TEST_F(RemoveCli, OutputIntoAnExistingFolder) {
+  fs::create_directories(tmp / "results");
+  const RunResult r = remove({"in.png", "results"});
+  ASSERT_EQ(r.code, 0) << r.describe();
+  EXPECT_TRUE(read_image(tmp / "results" / "in.png"));
+}
+
+TEST_F(RemoveCli, TimeAndContactSheet) {
+  const RunResult r = remove({"in.png", "out.png", "--time", "--contact-sheet", "sheet.png"});
+  ASSERT_EQ(r.code, 0) << r.describe();
+  EXPECT_NE(r.err.find("RDN"), std::string::npos) << r.describe();
+  EXPECT_NE(r.err.find("3RN"), std::string::npos) << r.describe();
+  EXPECT_NE(r.err.find("total"), std::string::npos) << r.describe();
+  const auto sheet = read_image(tmp / "sheet.png");
+  ASSERT_TRUE(sheet);
+  EXPECT_GT(sheet->width, 3 * 512) << "input | mask | output panels";
+}
+
+TEST_F(RemoveCli, HelpVersionAndUsageErrors) {
+  RunResult r = remove({"--help"});
+  EXPECT_EQ(r.code, 0) << r.describe();
+  EXPECT_NE(r.out.find("Exit codes"), std::string::npos) << r.describe();
+  EXPECT_NE(r.out.find("--tile-overlap"), std::string::npos) << r.describe();
+  r = remove({"--version"});
+  EXPECT_EQ(r.code, 0) << r.describe();
+  EXPECT_NE(r.out.find("raindrop-remove "), std::string::npos) << r.describe();
+  EXPECT_NE(r.out.find("ONNX Runtime"), std::string::npos) << r.describe();
+  for (const std::vector<std::string>& bad :
+       {std::vector<std::string>{}, {"in.png"}, {"in.png", "out.png", "--device", "tpu"},
+        {"in.png", "out.png", "--graph-opt", "max"}, {"in.png", "out.png", "--tile", "10"},
+        {"in.png", "out.png", "--tile", "256", "--tile-overlap", "200"}, {"in.png", "out.png", "--threshold", "2"},
+        {"in.png", "out.png", "--dilation", "0"}, {"in.png", "out.png", "--no-such-option"}}) {
+    r = remove(bad);
+    EXPECT_EQ(r.code, 2) << r.describe();
+    EXPECT_FALSE(fs::exists(tmp / "out.png"));
+  }
+}
+
+TEST_F(RemoveCli, MissingInput) { expect_clean_failure(remove({"nope.png", "out.png", "--mask", "mask.png"}), "nope.png"); }
+
+TEST_F(RemoveCli, EmptyInput) {
+  write_file(tmp / "empty.png", "");
+  expect_clean_failure(remove({"empty.png", "out.png", "--mask", "mask.png"}), "empty");
+}
+
+TEST_F(RemoveCli, TruncatedInput) {
+  const std::string bytes = read_file(tmp / "in.png");
+  write_file(tmp / "cut.png", bytes.substr(0, bytes.size() / 2));
+  expect_clean_failure(remove({"cut.png", "out.png", "--mask", "mask.png"}), "truncated");
+}
+
+TEST_F(RemoveCli, NotAnImage) {
+  write_file(tmp / "text.png", "hello, I am not a picture\n");
+  expect_clean_failure(remove({"text.png", "out.png"}), "text.png");
+}
+
+TEST_F(RemoveCli, HugeDeclaredSize) {
+  write_file(tmp / "huge.png", png_declaring(100000, 100000));
+  expect_clean_failure(remove({"huge.png", "out.png"}), "exceeds");
+}
+
+TEST_F(RemoveCli, MissingModelFile) {
+  fs::create_directories(tmp / "models");
+  fs::copy_file(smoke_models() / "rdn.onnx", tmp / "models" / "rdn.onnx");
+  fs::copy_file(smoke_models() / "rrn.onnx", tmp / "models" / "rrn.onnx");
+  expect_clean_failure(remove({"in.png", "out.png", "--models", "models"}), "rfn.onnx");
+}
+
+TEST_F(RemoveCli, CorruptModelFile) {
+  fs::create_directories(tmp / "models");
+  for (const char* f : {"rdn.onnx", "rrn.onnx", "rfn.onnx"}) fs::copy_file(smoke_models() / f, tmp / "models" / f);
+  const std::string bytes = read_file(tmp / "models" / "rrn.onnx");
+  write_file(tmp / "models" / "rrn.onnx", bytes.substr(0, bytes.size() / 2));
+  expect_clean_failure(remove({"in.png", "out.png", "--models", "models"}), "rrn.onnx");
+}
+
+TEST_F(RemoveCli, MissingModelFolder) { expect_clean_failure(remove({"in.png", "out.png", "--models", "nowhere"}), "nowhere"); }
+
+TEST_F(RemoveCli, UnwritableOutputPath) {
+  write_file(tmp / "afile", "x");
+  const RunResult r = remove({"in.png", "afile/out.png"});
+  expect_clean_failure(r, "afile/out.png");
+  EXPECT_EQ(read_file(tmp / "afile"), "x");
+}
+
+TEST_F(RemoveCli, OutputFolderMissing) {
+  expect_clean_failure(remove({"in.png", "no/such/dir/out.png"}), "out.png");
+  // The mask's folder is checked before anything is written.
+  expect_clean_failure(remove({"in.png", "out.png", "--mask", "nodir/mask.png"}), "nodir");
+}
+
+TEST_F(RemoveCli, UnknownOutputFormat) { expect_clean_failure(remove({"in.png", "out.unknownext"}), "out.unknownext"); }
+
+TEST_F(RemoveCli, CudaWithoutTheProvider) {
+  const RunResult r = remove({"in.png", "out.png", "--device", "cuda"});
+  if (r.code == 0) GTEST_SKIP() << "this ONNX Runtime has CUDA";
+  expect_clean_failure(r, "CUDA");
+}
+
+TEST_F(RemoveCli, ModelsFromTheEnvironment) {
+  // A model folder...
+  RunResult r = remove({"in.png", "out.png"}, {"RAINDROP_MODELS=" + smoke_models().string()});
+  ASSERT_EQ(r.code, 0) << r.describe();
+  fs::remove(tmp / "out.png");
+  // ... or a folder of configurations with DEFAULT naming one, or --model-config.
+  fs::create_directories(tmp / "root");
+  fs::create_directory_symlink(smoke_models(), tmp / "root" / "smoke");
+  write_file(tmp / "root" / "DEFAULT", "smoke\n");
+  r = remove({"in.png", "out.png", "--time"}, {"RAINDROP_MODELS=" + (tmp / "root").string()});
+  ASSERT_EQ(r.code, 0) << r.describe();
+  EXPECT_NE(r.err.find("root/smoke"), std::string::npos) << r.describe();
+  r = remove({"in.png", "out2.png", "--model-config", "smoke"}, {"RAINDROP_MODELS=" + (tmp / "root").string()});
+  ASSERT_EQ(r.code, 0) << r.describe();
+  fs::remove(tmp / "out.png");
+  fs::remove(tmp / "out2.png");
+  // Nothing there: a clear error naming the variable.
+  fs::create_directories(tmp / "empty");
+  r = remove({"in.png", "out.png"}, {"RAINDROP_MODELS=" + (tmp / "empty").string()});
+  expect_clean_failure(r, "RAINDROP_MODELS");
+}
+
+TEST_F(RemoveCli, FormatsAreKept) {
+  cv::Mat rgb8 = make_image(23, 19, 5), grey8, alpha8(19, 23, CV_8U);
+  cv::cvtColor(rgb8, grey8, cv::COLOR_RGB2GRAY);
+  cv::randu(alpha8, 0, 256);
+  cv::Mat rgba8, ga8, rgb16, rgba16, grey16, ga16;
+  cv::merge(std::vector<cv::Mat>{rgb8, alpha8}, rgba8);
+  cv::merge(std::vector<cv::Mat>{grey8, alpha8}, ga8);
+  rgb8.convertTo(rgb16, CV_16U, 257.0);
+  rgba8.convertTo(rgba16, CV_16U, 257.0);
+  grey8.convertTo(grey16, CV_16U, 257.0);
+  ga8.convertTo(ga16, CV_16U, 257.0);
+  const std::vector<std::pair<std::string, cv::Mat>> images = {
+      {"rgb8.png", rgb8},   {"grey8.png", grey8},   {"ga8.png", ga8},  {"rgba8.png", rgba8},
+      {"rgb16.png", rgb16}, {"grey16.png", grey16}, {"ga16.png", ga16}, {"rgba16.png", rgba16},
+      {"rgb8.tif", rgb8},   {"rgba16.tif", rgba16}};
+  for (const auto& [name, img] : images) {
+    SCOPED_TRACE(name);
+    write_image(tmp / "fmt" / name, img);
+    const RunResult r = remove({"fmt/" + name, "fmt/out_" + name});
+    ASSERT_EQ(r.code, 0) << r.describe();
+    const auto in = read_image(tmp / "fmt" / name);
+    const auto out = read_image(tmp / "fmt" / ("out_" + name));
+    ASSERT_TRUE(in && out);
+    EXPECT_EQ(out->width, in->width);
+    EXPECT_EQ(out->height, in->height);
+    EXPECT_EQ(out->channels, in->channels);
+    EXPECT_EQ(out->format, in->format);
+    if (in->channels == 2 || in->channels == 4) {
+      cv::Mat a_in, a_out;
+      cv::extractChannel(in->pixels, a_in, in->channels - 1);
+      cv::extractChannel(out->pixels, a_out, in->channels - 1);
+      EXPECT_EQ(cv::countNonZero(a_in != a_out), 0) << "alpha changed";
+    }
+  }
+}
+
+TEST_F(RemoveCli, FolderMode) {
+  write_image(tmp / "batch" / "a.png", make_image(40, 30, 1));
+  write_image(tmp / "batch" / "sub" / "b.png", make_image(17, 33, 2));
+  write_image(tmp / "batch" / "sub" / "deeper" / "c.tif", make_image(20, 20, 3));
+  write_file(tmp / "batch" / "notes.txt", "not an image, not touched");
+  const RunResult r = remove({"batch", "results", "--mask-dir", "masks", "--contact-sheet", "sheet.png"});
+  ASSERT_EQ(r.code, 0) << r.describe();
+  for (const char* rel : {"a.png", "sub/b.png", "sub/deeper/c.tif"}) {
+    const auto in = read_image(tmp / "batch" / rel);
+    const auto out = read_image(tmp / "results" / rel);
+    ASSERT_TRUE(in && out) << rel;
+    EXPECT_EQ(out->width, in->width) << rel;
+    EXPECT_TRUE(read_image((tmp / "masks" / rel).replace_extension(".png"))) << rel;
+  }
+  EXPECT_FALSE(fs::exists(tmp / "results" / "notes.txt"));
+  EXPECT_TRUE(read_image(tmp / "sheet.png"));
+  EXPECT_NE(r.err.find("remove ["), std::string::npos) << "progress bar expected\n" << r.describe();
+  EXPECT_NE(r.err.find("3 of 3 images done"), std::string::npos) << r.describe();
+  // Output folder inside the input folder: its files are not taken as inputs on a re-run.
+  const RunResult again = remove({"batch", "batch/out", "-q", "--mask", "masks2"});
+  ASSERT_EQ(again.code, 0) << again.describe();
+  EXPECT_FALSE(fs::exists(tmp / "batch" / "out" / "out"));
+  EXPECT_EQ(again.err, "") << "-q: nothing on stderr";
+  EXPECT_TRUE(read_image(tmp / "masks2" / "sub" / "deeper" / "c.png")) << "--mask is a folder in folder mode";
+  // --mask-dir with one image: <dir>/<name>.png; --mask and --mask-dir together are a usage error.
+  const RunResult one = remove({"batch/sub/b.png", "b_out.png", "--mask-dir", "m"});
+  ASSERT_EQ(one.code, 0) << one.describe();
+  EXPECT_TRUE(read_image(tmp / "m" / "b.png"));
+  EXPECT_EQ(remove({"batch/a.png", "a_out.png", "--mask", "x.png", "--mask-dir", "m"}).code, 2);
+}
+
+TEST_F(RemoveCli, FolderModeFailures) {
+  write_image(tmp / "batch" / "a.png", make_image(40, 30, 1));
+  write_file(tmp / "batch" / "b.png", "broken");
+  write_image(tmp / "batch" / "c.png", make_image(20, 30, 2));
+  RunResult r = remove({"batch", "stop", "-q"});
+  EXPECT_EQ(r.code, 1) << r.describe();
+  EXPECT_NE(r.err.find("b.png"), std::string::npos) << r.describe();
+  EXPECT_FALSE(fs::exists(tmp / "stop" / "b.png"));
+  EXPECT_FALSE(fs::exists(tmp / "stop" / "c.png")) << "without --keep-going the run stops at the first failure";
+  r = remove({"batch", "go", "-q", "--keep-going"});
+  EXPECT_EQ(r.code, 3) << r.describe();
+  EXPECT_TRUE(fs::exists(tmp / "go" / "a.png"));
+  EXPECT_TRUE(fs::exists(tmp / "go" / "c.png"));
+  EXPECT_FALSE(fs::exists(tmp / "go" / "b.png"));
+  EXPECT_NE(r.err.find("raindrop-remove: failed: "), std::string::npos) << r.describe();
+  EXPECT_NE(r.err.find("2 of 3 images done, 1 failed"), std::string::npos) << r.describe();
+  // A folder input needs a folder output.
+  write_file(tmp / "plain", "x");
+  r = remove({"batch", "plain"});
+  EXPECT_EQ(r.code, 1) << r.describe();
+  // The input folder as the output folder would overwrite the inputs.
+  r = remove({"batch", "batch/"});
+  EXPECT_EQ(r.code, 1) << r.describe();
+  EXPECT_NE(r.err.find("input folder"), std::string::npos) << r.describe();
+  // An empty folder is an error, not a silent success.
+  fs::create_directories(tmp / "nothing");
+  r = remove({"nothing", "out"});
+  EXPECT_EQ(r.code, 1) << r.describe();
+}
+
+}  // namespace
+}  // namespace removetest

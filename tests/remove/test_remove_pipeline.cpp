@@ -1,0 +1,396 @@
+// The removal library (raindrop::removal::Remover) on the fixture models: wiring of the
+// stages, stability on extreme inputs, odd sizes, tiling, formats, model checks.
+#include <cmath>
+#include <limits>
+#include <memory>
+
+#include "raindrop/error.h"
+#include "raindrop/remove/edge_map.h"
+#include "raindrop/remove/model.h"
+#include "raindrop/remove/pixels.h"
+#include "raindrop/remove/remover.h"
+#include "remove_test_util.h"
+
+namespace removetest {
+namespace {
+
+using namespace raindrop::removal;
+
+SessionConfig two_threads() {
+  SessionConfig c;
+  c.threads = 2;
+  return c;
+}
+
+// One Remover for the whole suite: loading takes longer than running the tiny graphs.
+Remover& smoke() {
+  static Remover r(smoke_models(), two_threads());
+  return r;
+}
+
+RemoveOptions with_float() {
+  RemoveOptions o;
+  o.keep_float = true;
+  return o;
+}
+
+// Every value finite and in [0, 1].
+::testing::AssertionResult all_in_unit_range(const cv::Mat& f) {
+  if (f.depth() != CV_32F) return ::testing::AssertionFailure() << "not float";
+  const cv::Mat flat = f.reshape(1);
+  for (int y = 0; y < flat.rows; ++y) {
+    for (int x = 0; x < flat.cols; ++x) {
+      const float v = flat.at<float>(y, x);
+      if (!std::isfinite(v) || v < 0.0f || v > 1.0f)
+        return ::testing::AssertionFailure() << "value " << v << " at row " << y << " col " << x;
+    }
+  }
+  return ::testing::AssertionSuccess();
+}
+
+bool mask_is_binary(const cv::Mat& m) { return cv::countNonZero((m != 0) & (m != 255)) == 0; }
+
+// NCHW planes of an 8-bit RGB image (v / 255), and the inverse.
+std::vector<float> planes(const cv::Mat& rgb8) {
+  const cv::Mat f = to_rgb_float(rgb8, cv::Rect(0, 0, rgb8.cols, rgb8.rows));
+  std::vector<float> p(3 * f.total());
+  for (int y = 0; y < f.rows; ++y)
+    for (int x = 0; x < f.cols; ++x)
+      for (int c = 0; c < 3; ++c) p[c * f.total() + y * f.cols + x] = f.at<cv::Vec3f>(y, x)[c];
+  return p;
+}
+
+cv::Mat from_planes(const std::vector<float>& p, int h, int w) {
+  cv::Mat f(h, w, CV_32FC3);
+  const size_t n = static_cast<size_t>(h) * w;
+  for (int y = 0; y < h; ++y)
+    for (int x = 0; x < w; ++x)
+      for (int c = 0; c < 3; ++c) f.at<cv::Vec3f>(y, x)[c] = clamp01(p[c * n + y * w + x]);
+  return f;
+}
+
+float max_float_diff(const cv::Mat& a, const cv::Mat& b) {
+  cv::Mat d;
+  cv::absdiff(a, b, d);
+  double mx = 0;
+  cv::minMaxLoc(d.reshape(1), nullptr, &mx);
+  return static_cast<float>(mx);
+}
+
+TEST(Remover, ReadsTheModelMetadata) {
+  const ModelInfo& info = smoke().info();
+  EXPECT_EQ(info.config, "smoke");
+  EXPECT_EQ(info.pad_multiple, 1);
+  EXPECT_DOUBLE_EQ(info.threshold, 0.2);
+  EXPECT_EQ(info.dilation, 3);
+}
+
+// With threshold 1 the mask is empty (P <= 1), so B = R and the output is clamp(RFN(R));
+// with threshold 0 it is full (a sigmoid is > 0 here), so the output is clamp(RFN(clamp(3RN(R, E)))).
+// Checked against the graphs run directly, which pins the wiring between the stages.
+TEST(Remover, EmptyAndFullMasksWireTheStagesAsTheContractSays) {
+  const cv::Mat img = make_image(45, 31, 1);
+  const int h = img.rows, w = img.cols;
+  Models models(smoke_models(), two_threads());
+  const std::vector<float> r = planes(img);
+  std::vector<float> rfn_of_r(r.size());
+  models.rfn().run({r.data()}, h, w, rfn_of_r.data());
+  std::vector<float> e(static_cast<size_t>(h) * w);
+  const cv::Mat edge = edge_map(to_rgb_float(img, cv::Rect(0, 0, w, h)));
+  std::memcpy(e.data(), edge.ptr<float>(), e.size() * sizeof(float));
+  std::vector<float> ihat(r.size()), out_full(r.size());
+  models.rrn().run({r.data(), e.data()}, h, w, ihat.data());
+  for (float& v : ihat) v = clamp01(v);
+  models.rfn().run({ihat.data()}, h, w, out_full.data());
+
+  RemoveOptions none = with_float();
+  none.threshold = 1.0;
+  const RemoveResult a = smoke().run(img, none);
+  EXPECT_EQ(cv::countNonZero(a.mask), 0);
+  EXPECT_LE(max_float_diff(a.rgb, from_planes(rfn_of_r, h, w)), 1e-6f);
+
+  RemoveOptions all = with_float();
+  all.threshold = 0.0;
+  const RemoveResult b = smoke().run(img, all);
+  EXPECT_EQ(cv::countNonZero(b.mask), h * w);
+  EXPECT_LE(max_float_diff(b.rgb, from_planes(out_full, h, w)), 1e-6f);
+  EXPECT_GT(max_float_diff(a.rgb, b.rgb), 1e-3f) << "the mask must make a difference";
+}
+
+TEST(Remover, DilationGrowsTheMask) {
+  const cv::Mat img = make_image(80, 60, 2);
+  RemoveOptions o;
+  o.dilation = 1;
+  const int n1 = cv::countNonZero(smoke().run(img, o).mask);
+  o.dilation = 7;
+  const int n7 = cv::countNonZero(smoke().run(img, o).mask);
+  ASSERT_GT(n1, 0) << "test image should trigger some detections";
+  ASSERT_LT(n1, 80 * 60);
+  EXPECT_GT(n7, n1);
+}
+
+TEST(Remover, ExtremeInputsGiveFiniteOutputsInRange) {
+  const int w = 48, h = 40;
+  std::vector<std::pair<std::string, cv::Mat>> inputs;
+  inputs.emplace_back("black", cv::Mat(h, w, CV_8UC3, cv::Scalar::all(0)));
+  inputs.emplace_back("white", cv::Mat(h, w, CV_8UC3, cv::Scalar::all(255)));
+  cv::Mat saturated(h, w, CV_8UC3);
+  const cv::Vec3b colours[] = {{255, 0, 0}, {0, 255, 0}, {0, 0, 255}, {255, 255, 0}, {255, 0, 255}, {0, 255, 255}};
+  for (int y = 0; y < h; ++y)
+    for (int x = 0; x < w; ++x) saturated.at<cv::Vec3b>(y, x) = colours[(x / 8 + y / 8) % 6];
+  inputs.emplace_back("saturated colours", saturated);
+  cv::Mat noise8(h, w, CV_8UC3), noise16(h, w, CV_16UC3), noise_f(h, w, CV_32FC3);
+  cv::RNG rng(5);
+  rng.fill(noise8, cv::RNG::UNIFORM, 0, 256);
+  rng.fill(noise16, cv::RNG::UNIFORM, 0, 65536);
+  rng.fill(noise_f, cv::RNG::UNIFORM, -1.0, 2.0);  // out of range on purpose: clamped on the way in
+  noise_f.at<cv::Vec3f>(3, 3) = cv::Vec3f(std::numeric_limits<float>::quiet_NaN(), 0.5f, 0.5f);
+  inputs.emplace_back("uniform noise 8-bit", noise8);
+  inputs.emplace_back("uniform noise 16-bit", noise16);
+  inputs.emplace_back("float noise with NaN", noise_f);
+  for (const auto& [name, img] : inputs) {
+    SCOPED_TRACE(name);
+    for (const double t : {0.0, 0.2, 1.0}) {
+      RemoveOptions o = with_float();
+      o.threshold = t;
+      const RemoveResult r = smoke().run(img, o);
+      ASSERT_EQ(r.rgb.size(), img.size());
+      EXPECT_TRUE(all_in_unit_range(r.rgb)) << "threshold " << t;
+      EXPECT_TRUE(mask_is_binary(r.mask));
+      EXPECT_EQ(r.image.type(), img.type());
+      if (img.depth() == CV_32F) {
+        EXPECT_TRUE(all_in_unit_range(r.image));
+      }
+    }
+  }
+}
+
+TEST(Remover, AnySizeWorks) {
+  for (const cv::Size s : {cv::Size(1, 1), cv::Size(2, 3), cv::Size(3, 2), cv::Size(7, 5), cv::Size(33, 17),
+                           cv::Size(1, 40), cv::Size(40, 1)}) {
+    SCOPED_TRACE(::testing::PrintToString(s));
+    const cv::Mat img = make_image(s.width, s.height, s.area());
+    const RemoveResult r = smoke().run(img, with_float());
+    EXPECT_EQ(r.image.size(), s);
+    EXPECT_EQ(r.image.type(), CV_8UC3);
+    EXPECT_EQ(r.mask.size(), s);
+    EXPECT_TRUE(all_in_unit_range(r.rgb));
+    EXPECT_EQ(r.tiles_x * r.tiles_y, 1);
+    EXPECT_DOUBLE_EQ(r.network_pixels, s.area());
+  }
+}
+
+TEST(Remover, LargeNonMultipleSizeIsTiledAndMatchesTheWholeImage) {
+  // 1031 x 517 with the default 1024 tile: two windows across.
+  const cv::Mat img = make_image(1031, 517, 9);
+  const RemoveResult tiled = smoke().run(img, with_float());
+  EXPECT_EQ(tiled.tiles_x, 2);
+  EXPECT_EQ(tiled.tiles_y, 1);
+  EXPECT_EQ(tiled.image.size(), img.size());
+  EXPECT_TRUE(all_in_unit_range(tiled.rgb));
+  RemoveOptions whole = with_float();
+  whole.tile = 0;
+  const RemoveResult ref = smoke().run(img, whole);
+  EXPECT_EQ(cv::countNonZero(tiled.mask != ref.mask), 0);
+  EXPECT_LE(max_float_diff(tiled.rgb, ref.rgb), 1e-4f);
+  EXPECT_LE(max_abs_diff(tiled.image, ref.image), 1);
+}
+
+// The fixture's receptive radius for the output is RFN 4 + 3RN 7 = 11 pixels; with an
+// overlap of 48 the blend ramps start 12 pixels inside each window, so the tiled output is
+// the whole-image output up to float rounding, and the mask is the same bit for bit.
+TEST(Remover, TiledEqualsWholeWhenTheOverlapCoversTheReceptiveField) {
+  const cv::Mat img = make_image(300, 211, 3);
+  RemoveOptions whole = with_float();
+  whole.tile = 0;
+  const RemoveResult ref = smoke().run(img, whole);
+  RemoveOptions tiled = with_float();
+  tiled.tile = 128;
+  tiled.overlap = 48;
+  const RemoveResult t = smoke().run(img, tiled);
+  EXPECT_GE(t.tiles_x, 3);
+  EXPECT_GE(t.tiles_y, 2);
+  EXPECT_EQ(cv::countNonZero(t.mask != ref.mask), 0);
+  EXPECT_LE(max_float_diff(t.rgb, ref.rgb), 1e-4f);
+  EXPECT_LE(max_abs_diff(t.image, ref.image), 1);
+}
+
+// A small overlap puts tile-edge effects inside the ramps: the seams are cross-faded and the
+// difference stays small (stated bound: mean < 1/255, max < 40/255 on this random-weight
+// model). The mask is still exactly the whole-image mask: each pixel's probability comes
+// from the tile that owns it, >= overlap/2 = 8 pixels from that tile's inner edges, more
+// than the RDN's receptive radius of 7.
+TEST(Remover, SmallOverlapStillBlendsSeams) {
+  const cv::Mat img = make_image(300, 211, 4);
+  RemoveOptions whole = with_float();
+  whole.tile = 0;
+  const RemoveResult ref = smoke().run(img, whole);
+  RemoveOptions tiled = with_float();
+  tiled.tile = 96;
+  tiled.overlap = 16;
+  const RemoveResult t = smoke().run(img, tiled);
+  EXPECT_GE(t.tiles_x * t.tiles_y, 6);
+  EXPECT_TRUE(all_in_unit_range(t.rgb));
+  cv::Mat d;
+  cv::absdiff(t.rgb, ref.rgb, d);
+  EXPECT_LT(cv::mean(d)[0], 1.0 / 255.0);
+  EXPECT_LT(max_float_diff(t.rgb, ref.rgb), 40.0f / 255.0f);
+  EXPECT_EQ(cv::countNonZero(t.mask != ref.mask), 0);
+}
+
+TEST(Remover, FormatsAreKept) {
+  const cv::Mat rgb8 = make_image(37, 29, 11);
+  cv::Mat grey8;
+  cv::cvtColor(rgb8, grey8, cv::COLOR_RGB2GRAY);
+  cv::Mat alpha8(rgb8.size(), CV_8U);
+  cv::randu(alpha8, 0, 256);
+  cv::Mat rgba8, ga8, rgb16, rgba16, grey16;
+  cv::merge(std::vector<cv::Mat>{rgb8, alpha8}, rgba8);
+  cv::merge(std::vector<cv::Mat>{grey8, alpha8}, ga8);
+  rgb8.convertTo(rgb16, CV_16U, 257.0);
+  rgba8.convertTo(rgba16, CV_16U, 257.0);
+  grey8.convertTo(grey16, CV_16U, 257.0);
+
+  const RemoveResult base = smoke().run(rgb8, with_float());
+  for (const cv::Mat* m : std::vector<const cv::Mat*>{&rgb8, &grey8, &rgba8, &ga8, &rgb16, &rgba16, &grey16}) {
+    SCOPED_TRACE("type " + std::to_string(m->type()));
+    const RemoveResult r = smoke().run(*m);
+    ASSERT_EQ(r.image.type(), m->type());
+    ASSERT_EQ(r.image.size(), m->size());
+    if (m->channels() == 2 || m->channels() == 4) {
+      cv::Mat a_in, a_out;
+      cv::extractChannel(*m, a_in, m->channels() - 1);
+      cv::extractChannel(r.image, a_out, m->channels() - 1);
+      EXPECT_EQ(cv::countNonZero(a_in != a_out), 0) << "alpha must pass through unchanged";
+    }
+  }
+  // RGBA's colour is RGB's (alpha is not composited into the colour).
+  const RemoveResult rgba = smoke().run(rgba8);
+  cv::Mat rgb_of_rgba;
+  cv::cvtColor(rgba.image, rgb_of_rgba, cv::COLOR_RGBA2RGB);
+  EXPECT_EQ(max_abs_diff(rgb_of_rgba, base.image), 0);
+  // 16-bit v * 257 is the same float as 8-bit v / 255: same result at 16-bit precision.
+  const RemoveResult r16 = smoke().run(rgb16);
+  cv::Mat r16_as_8;
+  r16.image.convertTo(r16_as_8, CV_8U, 1.0 / 257.0);
+  EXPECT_LE(max_abs_diff(r16_as_8, base.image), 1);
+  // Grey: the networks see (g, g, g); the output is the luma of their RGB output.
+  cv::Mat grey_as_rgb;
+  cv::cvtColor(grey8, grey_as_rgb, cv::COLOR_GRAY2RGB);
+  const RemoveResult g_rgb = smoke().run(grey_as_rgb, with_float());
+  const RemoveResult g = smoke().run(grey8);
+  cv::Mat luma(grey8.size(), CV_8U);
+  store_rgb_float(g_rgb.rgb, luma, 0);
+  EXPECT_EQ(max_abs_diff(g.image, luma), 0);
+  EXPECT_EQ(cv::countNonZero(g.mask != g_rgb.mask), 0);
+}
+
+TEST(Remover, StageTimesAreRecorded) {
+  const RemoveResult r = smoke().run(make_image(64, 48, 12));
+  EXPECT_GT(r.times.rdn, 0.0);
+  EXPECT_GT(r.times.rrn, 0.0);
+  EXPECT_GT(r.times.rfn, 0.0);
+  EXPECT_GE(r.times.total(), r.times.rdn + r.times.rrn + r.times.rfn);
+  EXPECT_NE(r.times.describe().find("RDN"), std::string::npos);
+}
+
+TEST(Remover, RejectsBadOptions) {
+  const cv::Mat img = make_image(16, 16, 1);
+  RemoveOptions o;
+  o.dilation = 0;
+  EXPECT_THROW(smoke().run(img, o), raindrop::Error);
+  o = {};
+  o.threshold = std::numeric_limits<double>::quiet_NaN();
+  EXPECT_THROW(smoke().run(img, o), raindrop::Error);
+  o = {};
+  o.tile = 10;
+  EXPECT_THROW(smoke().run(img, o), raindrop::Error);
+  EXPECT_THROW(smoke().run(cv::Mat()), raindrop::Error);
+  EXPECT_THROW(smoke().run(cv::Mat(4, 4, CV_64FC3, cv::Scalar::all(0))), raindrop::Error);
+}
+
+// -------------------------------------------------------------------------------------------
+// Model files that break the contract: one clear error naming the file.
+
+class BadModels : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    for (const char* f : {"rdn.onnx", "rrn.onnx", "rfn.onnx"}) fs::copy_file(smoke_models() / f, tmp / f);
+  }
+  std::string load_error() {
+    try {
+      Models m(tmp.path(), two_threads());
+    } catch (const raindrop::Error& e) {
+      return e.what();
+    }
+    return "";
+  }
+  TempDir tmp;
+};
+
+TEST_F(BadModels, TheCopyLoads) { EXPECT_EQ(load_error(), ""); }
+
+TEST_F(BadModels, MissingFile) {
+  fs::remove(tmp / "rrn.onnx");
+  const std::string e = load_error();
+  EXPECT_NE(e.find("rrn.onnx"), std::string::npos) << e;
+  EXPECT_NE(e.find("missing"), std::string::npos) << e;
+}
+
+TEST_F(BadModels, EmptyFile) {
+  write_file(tmp / "rfn.onnx", "");
+  const std::string e = load_error();
+  EXPECT_NE(e.find("rfn.onnx"), std::string::npos) << e;
+  EXPECT_NE(e.find("empty"), std::string::npos) << e;
+}
+
+TEST_F(BadModels, CorruptFile) {
+  std::string bytes = read_file(tmp / "rdn.onnx");
+  bytes.resize(bytes.size() / 3);
+  write_file(tmp / "rdn.onnx", bytes);
+  const std::string e = load_error();
+  EXPECT_NE(e.find("rdn.onnx"), std::string::npos) << e;
+  EXPECT_NE(e.find("cannot load"), std::string::npos) << e;
+  EXPECT_EQ(e.find('\n'), std::string::npos) << "one line: " << e;
+}
+
+TEST_F(BadModels, NotAModel) {
+  write_file(tmp / "rdn.onnx", "this is not a protobuf\n");
+  const std::string e = load_error();
+  EXPECT_NE(e.find("rdn.onnx"), std::string::npos) << e;
+}
+
+TEST_F(BadModels, WrongGraphInPlace) {
+  fs::copy_file(smoke_models() / "rfn.onnx", tmp / "rdn.onnx", fs::copy_options::overwrite_existing);
+  const std::string e = load_error();
+  EXPECT_NE(e.find("rdn.onnx"), std::string::npos) << e;
+  EXPECT_NE(e.find("expected [image] / [mask_prob]"), std::string::npos) << e;
+}
+
+TEST_F(BadModels, MissingFolder) {
+  try {
+    Models m(tmp / "nope", two_threads());
+    FAIL() << "expected an error";
+  } catch (const raindrop::Error& e) {
+    EXPECT_NE(std::string(e.what()).find("nope"), std::string::npos);
+  }
+}
+
+TEST(Device, CudaIsAClearErrorWithoutTheProvider) {
+  const auto providers = available_providers();
+  if (std::find(providers.begin(), providers.end(), "CUDAExecutionProvider") != providers.end())
+    GTEST_SKIP() << "this ONNX Runtime has CUDA; the error path cannot be checked here";
+  SessionConfig c;
+  c.device = Device::cuda;
+  try {
+    Models m(smoke_models(), c);
+    FAIL() << "expected an error";
+  } catch (const raindrop::Error& e) {
+    const std::string msg = e.what();
+    EXPECT_NE(msg.find("no CUDA execution provider"), std::string::npos) << msg;
+    EXPECT_NE(msg.find("CPUExecutionProvider"), std::string::npos) << msg;
+  }
+}
+
+}  // namespace
+}  // namespace removetest
