@@ -70,6 +70,7 @@ int remove_bench(int argc, char** argv) {
   std::string graph_opt = "all";
   int tile = kDefaultTile, overlap = kDefaultOverlap, runs = 0;
   bool quick = false;
+  std::vector<std::string> size_texts{"256x512", "1024x2048"};
   app.add_option("--models", model_dirs, "Model folder (repeatable: one set of rows per folder; default: the one "
                                          "raindrop-remove finds)");
   app.add_option("--threads", thread_counts, "Thread counts to measure (repeatable)")->capture_default_str()
@@ -80,6 +81,7 @@ int remove_bench(int argc, char** argv) {
   app.add_option("--tile-overlap", overlap, "Tile overlap")->capture_default_str();
   app.add_option("--runs", runs, "Timed runs per row (default 20; 3 with --quick)")->check(CLI::Range(1, 1000));
   app.add_flag("--quick", quick, "3 timed runs after 1 warm-up instead of 20 after 2");
+  app.add_option("--size", size_texts, "Image sizes HxW (repeatable)")->capture_default_str();
   try {
     app.parse(argc, argv);
     check_tile_options(tile, overlap);
@@ -93,7 +95,16 @@ int remove_bench(int argc, char** argv) {
   const int warmup = quick ? 1 : 2;
   if (model_dirs.empty()) model_dirs.push_back(find_models(default_model_search()).string());
 
-  const std::vector<cv::Size> sizes = {{512, 256}, {2048, 1024}};  // W x H; named H x W below
+  std::vector<cv::Size> sizes;  // W x H; named H x W below
+  for (const auto& text : size_texts) {
+    int h = 0, w = 0;
+    char tail = 0;
+    if (std::sscanf(text.c_str(), "%dx%d%c", &h, &w, &tail) != 2 || h < 1 || w < 1 || h > 16384 || w > 16384) {
+      std::cerr << "raindrop-bench remove: --size '" << text << "' must be HEIGHTxWIDTH, e.g. 256x512\n";
+      return 2;
+    }
+    sizes.emplace_back(w, h);
+  }
   SessionConfig session;
   session.graph_opt = parse_graph_opt(graph_opt);
   RemoveOptions options;

@@ -1,0 +1,143 @@
+"""What accuracy costs in time, for raindrop-remove: one table and a Pareto plot.
+
+Accuracy depends on the models only (paper or compact, fp32 or int8): it comes from
+`python -m raindrop_tools.evaluate` on the held-out synthetic set (results.json per model
+folder). Time depends also on threads, ONNX Runtime's graph optimisation level and tiling:
+it comes from `raindrop-bench remove` (C++, the program users run), one invocation per row.
+
+    python -m raindrop_tools.tradeoffs --bench build/raindrop-bench --eval-root out/eval --out out/tradeoffs
+
+Imports without torch.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import re
+import subprocess
+import sys
+from dataclasses import dataclass
+from pathlib import Path
+
+
+@dataclass
+class Variant:
+    label: str
+    models: str          # model folder, e.g. models/compact
+    threads: int = 2
+    graph_opt: str = "all"
+    tile: int = 1024
+    size: str = "256x512"  # HxW
+    knob: str = ""        # what this row changes
+
+
+DEFAULT_VARIANTS = [
+    Variant("paper, fp32", "models/paper", knob="models"),
+    Variant("paper, int8", "models/paper-int8", knob="precision"),
+    Variant("compact, fp32", "models/compact", knob="models"),
+    Variant("compact, int8", "models/compact-int8", knob="precision"),
+    Variant("paper, fp32, 1 thread", "models/paper", threads=1, knob="threads"),
+    Variant("compact, fp32, 1 thread", "models/compact", threads=1, knob="threads"),
+    Variant("compact, int8, 1 thread", "models/compact-int8", threads=1, knob="threads"),
+    Variant("compact, fp32, graph opt disable", "models/compact", graph_opt="disable", knob="graph optimisation"),
+    Variant("compact, fp32, graph opt basic", "models/compact", graph_opt="basic", knob="graph optimisation"),
+    Variant("compact, fp32, graph opt extended", "models/compact", graph_opt="extended", knob="graph optimisation"),
+    Variant("compact, fp32, 1024x2048, whole image", "models/compact", tile=0, size="1024x2048", knob="tiles"),
+    Variant("compact, fp32, 1024x2048, tiles 1024", "models/compact", tile=1024, size="1024x2048", knob="tiles"),
+    Variant("compact, fp32, 1024x2048, tiles 512", "models/compact", tile=512, size="1024x2048", knob="tiles"),
+]
+
+ROW_RE = re.compile(r"^\| (?P<models>[^|]+) \| (?P<size>\d+x\d+) \| (?P<threads>\d+) \| (?P<tiles>\d+) \|(?P<rest>.*)$")
+
+
+def bench_ms(bench: str, v: Variant, runs: int) -> dict:
+    """Median wall time (ms) of raindrop-remove's pipeline for one variant."""
+    cmd = [bench, "remove", "--models", v.models, "--threads", str(v.threads), "--graph-opt", v.graph_opt,
+           "--tile", str(v.tile), "--size", v.size, "--runs", str(runs)]
+    out = subprocess.run(cmd, check=True, capture_output=True, text=True).stdout
+    for line in out.splitlines():
+        m = ROW_RE.match(line)
+        if m and m["size"] == v.size and int(m["threads"]) == v.threads:
+            cells = [c.strip() for c in m["rest"].split("|") if c.strip()]
+            return {"ms": float(cells[-1]), "tiles": int(m["tiles"]), "command": " ".join(cmd)}
+    raise RuntimeError(f"no timing row in the output of {' '.join(cmd)}")
+
+
+def accuracy(eval_root: Path, models: str) -> dict | None:
+    """The full pipeline's row (with its dilation) and AP from evaluate's results.json."""
+    path = eval_root / Path(models).name / "results.json"
+    if not path.is_file():
+        return None
+    res = json.loads(path.read_text())
+    full = next(r for r in res["rows"] if r["row"] == f"full_k{res['dilation']}")
+    return {"psnr_y": full["psnr_y"], "ssim_y": full["ssim_y"], "psnr_rgb": full["psnr_rgb"],
+            "ssim_rgb": full["ssim_rgb"], "ap": res["ap"], "images": res["images"]}
+
+
+def pareto(points: list[tuple[float, float]]) -> list[int]:
+    """Indices of points not dominated (lower time, higher accuracy)."""
+    keep = []
+    for i, (t, a) in enumerate(points):
+        if not any((t2 <= t and a2 >= a) and (t2 < t or a2 > a) for j, (t2, a2) in enumerate(points) if j != i):
+            keep.append(i)
+    return keep
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(prog="python -m raindrop_tools.tradeoffs", description=__doc__.split("\n\n")[0])
+    ap.add_argument("--bench", default="build/raindrop-bench")
+    ap.add_argument("--eval-root", default="out/eval", help="folder with <model folder name>/results.json")
+    ap.add_argument("--out", default="out/tradeoffs")
+    ap.add_argument("--runs", type=int, default=20)
+    args = ap.parse_args(argv)
+    out = Path(args.out)
+    out.mkdir(parents=True, exist_ok=True)
+    rows = []
+    for v in DEFAULT_VARIANTS:
+        if not Path(v.models).is_dir():
+            print(f"tradeoffs: skipping {v.label}: no {v.models}", file=sys.stderr)
+            continue
+        print(f"tradeoffs: {v.label}", file=sys.stderr)
+        t = bench_ms(args.bench, v, args.runs)
+        rows.append({"variant": v.__dict__, **t, "accuracy": accuracy(Path(args.eval_root), v.models)})
+    (out / "tradeoffs.json").write_text(json.dumps(rows, indent=2) + "\n")
+
+    lines = ["| variant | knob | size | ms (median) | PSNR Y dB | SSIM Y | PSNR RGB dB | SSIM RGB | AP |",
+             "|---|---|---|---|---|---|---|---|---|"]
+    for r in rows:
+        a, v = r["accuracy"], r["variant"]
+        acc = (f'{a["psnr_y"]:.2f} | {a["ssim_y"]:.4f} | {a["psnr_rgb"]:.2f} | {a["ssim_rgb"]:.4f} | {a["ap"]:.4f}'
+               if a else "n/a | n/a | n/a | n/a | n/a")
+        lines.append(f'| {v["label"]} | {v["knob"]} | {v["size"]} | {r["ms"]:.1f} | {acc} |')
+    (out / "tradeoffs.md").write_text("\n".join(lines) + "\n")
+    print("\n".join(lines))
+
+    # Pareto plot over the 256x512 rows that have an accuracy.
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    pts = [(r["ms"], r["accuracy"]["psnr_y"], r["variant"]["label"]) for r in rows
+           if r["accuracy"] and r["variant"]["size"] == "256x512"]
+    if pts:
+        front = sorted((pts[i] for i in pareto([(t, a) for t, a, _ in pts])), key=lambda p: p[0])
+        fig, ax = plt.subplots(figsize=(8, 5))
+        ax.scatter([p[0] for p in pts], [p[1] for p in pts], color="tab:blue", zorder=3)
+        ax.plot([p[0] for p in front], [p[1] for p in front], color="tab:red", lw=1.5, label="Pareto front", zorder=2)
+        for t, a, label in pts:
+            ax.annotate(label, (t, a), textcoords="offset points", xytext=(5, 4), fontsize=7)
+        ax.set_xscale("log")
+        ax.set_xlabel("ms per 256x512 image (raindrop-remove, median; log scale)")
+        ax.set_ylabel("PSNR (Y, dB) on the held-out synthetic set")
+        ax.set_title("raindrop-remove: accuracy against time")
+        ax.grid(True, which="both", alpha=0.3)
+        ax.legend(loc="lower right")
+        fig.tight_layout()
+        fig.savefig(out / "pareto.png", dpi=130)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
