@@ -1,0 +1,85 @@
+#!/usr/bin/env bash
+# Regenerates every figure of docs/RESULTS.md into out/results/ (run after scripts/setup.sh
+# and scripts/setup-tools.sh; needs ../shared/data for the real frames). Sections can be
+# chosen: scripts/results.sh render stats eval remove tradeoffs sheets
+#
+# Nothing here is committed automatically: images derived from Cityscapes, CamVid or the
+# real raindrop photographs stay under out/ (their licences forbid redistribution).
+set -euo pipefail
+cd "$(dirname "${BASH_SOURCE[0]}")/.."
+shared="${RAINDROP_SHARED_DATA:-../shared/data}"
+py=.venv/bin/python
+out=out/results
+mkdir -p "$out"
+sections=("$@")
+((${#sections[@]})) || sections=(render stats eval remove tradeoffs sheets)
+want() { [[ " ${sections[*]} " == *" $1 "* ]]; }
+
+if want render; then
+  # Renderer: time per frame vs the I/O floor, effects, accuracy/time (docs/RESULTS.md 1).
+  build/raindrop-bench render --frames 4 --repeats 3 | tee "$out/bench_render.md"
+fi
+
+if want stats; then
+  # What the presets look like on the real Cityscapes frames, and the training/test sets.
+  build/raindrop-render --cityscapes "$shared/cityscapes-mini" --split all --out "$out/cs-paper" -q \
+    --contact-sheet "$out/cityscapes_paper_sheet.png" --sheet-rows 3
+  build/raindrop-render --cityscapes "$shared/cityscapes-mini" --split all --out "$out/cs-real-photo" -q \
+    --scene real-photo --contact-sheet "$out/cityscapes_real_photo_sheet.png" --sheet-rows 3
+  build/raindrop-render --cityscapes "$shared/cityscapes-mini" --split all --out "$out/cs-full-physics" -q \
+    --scene full-physics --contact-sheet "$out/cityscapes_full_physics_sheet.png" --sheet-rows 3
+  $py -m raindrop_tools.dataset_stats "$out/cs-paper" "$out/cs-real-photo" "$out/cs-full-physics" data/train data/test \
+    | tee "$out/dataset_stats.md"
+fi
+
+if want eval; then
+  # Networks on the held-out synthetic set (docs/RESULTS.md 2).
+  for m in compact paper compact-int8 paper-int8; do
+    [[ -d models/$m ]] || continue
+    OMP_NUM_THREADS=2 $py -m raindrop_tools.evaluate --data data/test --models "models/$m" --out "out/eval/$m" --threads 2
+  done
+fi
+
+if want remove; then
+  # raindrop-remove per stage and GFLOP/s (docs/RESULTS.md 3).
+  build/raindrop-bench remove --models models/paper --models models/compact | tee "$out/bench_remove.md"
+fi
+
+if want tradeoffs; then
+  $py -m raindrop_tools.tradeoffs --bench build/raindrop-bench --eval-root out/eval --out "$out/tradeoffs"
+fi
+
+if want sheets; then
+  # Removal on real raindrop photographs, with Qian et al.'s published outputs for the five
+  # inputs they cover (out/results/real_*; not committed: the photographs' licences).
+  rm -rf "$out/real" && mkdir -p "$out/real"
+  build/raindrop-remove "$shared/real-raindrop" "$out/real/removed" --mask-dir "$out/real/masks" -q
+  $py - "$shared" "$out" <<'PY'
+import sys, cv2, numpy as np
+from pathlib import Path
+shared, out = Path(sys.argv[1]), Path(sys.argv[2])
+def load(p, w=360):
+    im = cv2.imread(str(p), cv2.IMREAD_COLOR)
+    return cv2.resize(im, (w, int(round(im.shape[0] * w / im.shape[1]))), interpolation=cv2.INTER_AREA)
+def label(im, text):
+    im = im.copy(); cv2.putText(im, text, (6, 18), cv2.FONT_HERSHEY_SIMPLEX, 0.5, (255, 255, 255), 1, cv2.LINE_AA); return im
+def sheet(names, path, peer):
+    rows = []
+    for n in names:
+        src = shared / "real-raindrop" / n
+        rel = Path(n)
+        cells = [label(load(src), n), label(load(out / "real/masks" / rel.with_suffix(".png")), "mask"),
+                 label(load(out / "real/removed" / n), "raindrop-remove")]
+        if peer:
+            cells.append(label(load(shared / "peer-output-qian" / n.replace("qian_demo_", "")), "Qian et al. (published)"))
+        h = max(c.shape[0] for c in cells)
+        rows.append(np.hstack([cv2.copyMakeBorder(c, 0, h - c.shape[0], 0, 4, cv2.BORDER_CONSTANT) for c in cells]))
+    w = max(r.shape[1] for r in rows)
+    cv2.imwrite(str(path), np.vstack([cv2.copyMakeBorder(r, 0, 4, 0, w - r.shape[1], cv2.BORDER_CONSTANT) for r in rows]))
+qian = [f"qian_demo_case{i}.jpg" for i in range(1, 6)]
+sheet(qian, out / "real_qian_sheet.png", peer=True)
+others = sorted(p.name for p in (shared / "real-raindrop").iterdir() if not p.name.startswith("qian_demo"))
+sheet(others[::4], out / "real_other_sheet.png", peer=False)
+print("sheets:", out / "real_qian_sheet.png", out / "real_other_sheet.png")
+PY
+fi
