@@ -74,6 +74,8 @@ std::vector<KernelRow> disk_rows(double diameter, bool antialiased, bool split_r
   return rows;
 }
 
+using Spans = std::vector<std::vector<std::pair<int, int>>>;
+
 // Four floats (RGB and a pad) as one SIMD register: GCC/Clang vector extension.
 typedef float f4 __attribute__((vector_size(16)));
 
@@ -98,33 +100,64 @@ class F4Buffer {
 // outside, and per-row prefix sums of it (prefix[y][x] = sum of rgb[y][0..x-1]).
 struct Source {
   int x0, y0, w, h;
-  F4Buffer rgb;     // h x w
-  F4Buffer prefix;  // h x (w + 1)
+  F4Buffer rgb;     // h x w, filled only inside `intervals`
+  F4Buffer prefix;  // h x (w + 1): prefix sums restarting at each interval's start
+  // Per row, the x-intervals (absolute, inclusive) the blur can read: lookups for a drop
+  // pixel never leave the interval that holds it.
+  std::vector<std::vector<std::pair<int, int>>> intervals;
   const f4* rgb_row(int y) const { return rgb.data() + static_cast<size_t>(y - y0) * w - x0; }
   // prefix_row(y)[x] = sum of rgb over columns x0 .. x-1 (valid for x0 <= x <= x0 + w).
   const f4* prefix_row(int y) const { return prefix.data() + static_cast<size_t>(y - y0) * (w + 1) - x0; }
 };
 
-Source make_source(const cv::Mat& clean, const cv::Mat& label, const cv::Mat& color,
-                   const cv::Rect& box, bool prefix) {
-  Source s{box.x, box.y, box.width, box.height, F4Buffer(static_cast<size_t>(box.width) * box.height), {}};
+// The part of row y that the blur of drop pixels can read: the traced spans of the rows
+// within `reach`, widened by `reach` and clipped to the box, merged. Without spans: the row.
+std::vector<std::pair<int, int>> read_intervals(const Spans* spans, int y, int reach, const cv::Rect& box) {
+  const int lo = box.x, hi = box.x + box.width - 1;
+  if (!spans) return {{lo, hi}};
+  std::vector<std::pair<int, int>> in;
+  for (int yy = std::max(0, y - reach); yy <= std::min(static_cast<int>(spans->size()) - 1, y + reach); ++yy) {
+    for (const auto& [a, b] : (*spans)[yy]) {
+      const int ia = std::max(lo, a - reach), ib = std::min(hi, b + reach);
+      if (ia <= ib) in.push_back({ia, ib});
+    }
+  }
+  std::sort(in.begin(), in.end());
+  std::vector<std::pair<int, int>> merged;
+  for (const auto& iv : in) {
+    if (!merged.empty() && iv.first <= merged.back().second + 1) {
+      merged.back().second = std::max(merged.back().second, iv.second);
+    } else {
+      merged.push_back(iv);
+    }
+  }
+  return merged;
+}
+
+Source make_source(const cv::Mat& clean, const cv::Mat& label, const cv::Mat& color, const cv::Rect& box,
+                   bool prefix, const Spans* spans, int reach) {
+  Source s{box.x, box.y, box.width, box.height, F4Buffer(static_cast<size_t>(box.width) * box.height), {}, {}};
   if (prefix) s.prefix = F4Buffer(static_cast<size_t>(box.width + 1) * box.height);
+  s.intervals.resize(box.height);
   tbb::parallel_for(tbb::blocked_range<int>(0, box.height, 16), [&](const tbb::blocked_range<int>& r) {
     for (int j = r.begin(); j < r.end(); ++j) {
       const int y = box.y + j;
-      const auto* c8 = clean.ptr<cv::Vec3b>(y) + box.x;
-      const int* lab = label.ptr<int>(y) + box.x;
-      const auto* col = color.ptr<cv::Vec3f>(y) + box.x;
-      f4* dst = s.rgb.data() + static_cast<size_t>(j) * box.width;
+      s.intervals[j] = read_intervals(spans, y, reach, box);
+      const auto* c8 = clean.ptr<cv::Vec3b>(y);
+      const int* lab = label.ptr<int>(y);
+      const auto* col = color.ptr<cv::Vec3f>(y);
+      f4* dst = s.rgb.data() + static_cast<size_t>(j) * box.width - box.x;
+      f4* p = prefix ? s.prefix.data() + static_cast<size_t>(j) * (box.width + 1) - box.x : nullptr;
       constexpr float k = 1.0f / 255.0f;
-      for (int i = 0; i < box.width; ++i) {
-        dst[i] = lab[i] >= 0 ? f4{col[i][0], col[i][1], col[i][2], 0.f}
-                             : f4{c8[i][0] * k, c8[i][1] * k, c8[i][2] * k, 0.f};
-      }
-      if (prefix) {
-        f4* p = s.prefix.data() + static_cast<size_t>(j) * (box.width + 1);
-        p[0] = f4{0, 0, 0, 0};
-        for (int i = 0; i < box.width; ++i) p[i + 1] = p[i] + dst[i];
+      for (const auto& [a, b] : s.intervals[j]) {
+        for (int x = a; x <= b; ++x) {
+          dst[x] = lab[x] >= 0 ? f4{col[x][0], col[x][1], col[x][2], 0.f}
+                               : f4{c8[x][0] * k, c8[x][1] * k, c8[x][2] * k, 0.f};
+        }
+        if (p) {
+          p[a] = f4{0, 0, 0, 0};
+          for (int x = a; x <= b; ++x) p[x + 1] = p[x] + dst[x];
+        }
       }
     }
   });
@@ -228,15 +261,17 @@ void blur_gaussian(const Source& src, const cv::Mat& label, cv::Mat& color, cons
   F4Buffer horiz(static_cast<size_t>(src.w) * src.h);
   tbb::parallel_for(tbb::blocked_range<int>(0, src.h, 8), [&](const tbb::blocked_range<int>& r) {
     for (int j = r.begin(); j < r.end(); ++j) {
-      const f4* s = src.rgb.data() + static_cast<size_t>(j) * src.w;
-      f4* h = horiz.data() + static_cast<size_t>(j) * src.w;
-      for (int i = 0; i < src.w; ++i) {
-        f4 sum{0, 0, 0, 0};
-        for (int k = std::max(-R, -i); k <= std::min(R, src.w - 1 - i); ++k) {
-          sum += g[k + R] * s[i + k];
-          sum[3] += g[k + R];
+      const f4* s = src.rgb.data() + static_cast<size_t>(j) * src.w - src.x0;
+      f4* h = horiz.data() + static_cast<size_t>(j) * src.w - src.x0;
+      for (const auto& [a, b] : src.intervals[j]) {
+        for (int x = a; x <= b; ++x) {
+          f4 sum{0, 0, 0, 0};
+          for (int k = std::max(-R, a - x); k <= std::min(R, b - x); ++k) {
+            sum += g[k + R] * s[x + k];
+            sum[3] += g[k + R];
+          }
+          h[x] = sum;
         }
-        h[i] = sum;
       }
     }
   });
@@ -273,7 +308,7 @@ int kernel_reach(double diameter, BlurMethod method) {
 }  // namespace
 
 void blur_drops(const cv::Mat& clean, const cv::Mat& label, cv::Mat& color, double diameter_px,
-                BlurMethod method, const cv::Rect* drop_box) {
+                BlurMethod method, const cv::Rect* drop_box, const Spans* spans) {
   if (!(diameter_px > 0)) return;
   // Bounding box of the mask, then of everything the kernel reads.
   const cv::Rect mask_box = drop_box ? *drop_box : cv::boundingRect(cv::Mat(label >= 0));
@@ -283,7 +318,7 @@ void blur_drops(const cv::Mat& clean, const cv::Mat& label, cv::Mat& color, doub
                                      mask_box.height + 2 * reach) &
                             cv::Rect(0, 0, label.cols, label.rows);
   const bool runs = method == BlurMethod::DiskSpan || method == BlurMethod::DiskAntialiased;
-  const Source src = make_source(clean, label, color, read_box, runs);
+  const Source src = make_source(clean, label, color, read_box, runs, spans, reach);
   if (method == BlurMethod::Gaussian) {
     blur_gaussian(src, label, color, mask_box, diameter_px);
     return;

@@ -39,7 +39,7 @@ RenderedFrame render_frame(const cv::Mat& clean, const Camera& camera, const Sce
 
   t0 = std::chrono::steady_clock::now();
   if (config.blur.enabled) {
-    blur_drops(clean, traced.label, traced.color, scene.blur_diameter_px, config.blur.method, &traced.drop_box);
+    blur_drops(clean, traced.label, traced.color, scene.blur_diameter_px, config.blur.method, &traced.drop_box, &traced.spans);
   }
   frame.timings.blur_ms = ms_since(t0);
 

@@ -13,6 +13,9 @@
 //  - gaussian:    separable Gaussian with the disk's variance (sigma = d / 4).
 // disk-aa and disk sum each kernel row's full-weight run with prefix sums and add the
 // partial rim taps one by one, O(d) per pixel instead of O(d^2).
+#include <utility>
+#include <vector>
+
 #include <opencv2/core.hpp>
 
 #include "raindrop/scene_config.h"
@@ -21,9 +24,12 @@ namespace raindrop {
 
 // label: CV_32S (>= 0 inside drops); color: CV_32FC3 traced colours, replaced in place by
 // their blurred values inside drops; clean: CV_8UC3 frame seen outside drops.
-// `drop_box`, if given, bounds the drop pixels (saves a pass over the frame).
+// `drop_box`, if given, bounds the drop pixels (saves a pass over the frame); `spans`, if
+// given, are per-row x-intervals holding every drop pixel (the tracer's), so that only the
+// parts of the frame near drops are read.
 void blur_drops(const cv::Mat& clean, const cv::Mat& label, cv::Mat& color, double diameter_px,
-                BlurMethod method, const cv::Rect* drop_box = nullptr);
+                BlurMethod method, const cv::Rect* drop_box = nullptr,
+                const std::vector<std::vector<std::pair<int, int>>>* spans = nullptr);
 
 // The kernel's weights as a dense (2R+1)^2 matrix, for tests and documentation.
 cv::Mat blur_kernel(double diameter_px, BlurMethod method);

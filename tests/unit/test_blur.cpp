@@ -3,6 +3,7 @@
 #include <cmath>
 
 #include <gtest/gtest.h>
+#include <opencv2/imgproc.hpp>
 
 #include "raindrop/blur.h"
 #include "raindrop/rng.h"
@@ -142,4 +143,29 @@ TEST(Blur, AntialiasedDiskIsExactAtSmallDiametersWhereTheBinaryDiskIsNot) {
   const int R = binary.rows / 2;
   EXPECT_DOUBLE_EQ(binary.at<double>(R, R), 1.0);
   EXPECT_LT(aa.at<double>(R, R), 0.5);
+}
+
+TEST(Blur, ReadingOnlyNearTracedSpansGivesTheSameResult) {
+  // The renderer passes the tracer's spans so the blur builds its source only near drops;
+  // the result must equal the whole-row source up to float rounding of the prefix sums.
+  Fixture f = random_fixture(120, 70, 17);
+  std::vector<std::vector<std::pair<int, int>>> spans(f.label.rows);
+  for (int y = 0; y < f.label.rows; ++y) {
+    int lo = -1, hi = -1;
+    for (int x = 0; x < f.label.cols; ++x) {
+      if (f.label.at<int>(y, x) < 0) continue;
+      if (lo < 0) lo = x;
+      hi = x;
+    }
+    if (lo >= 0) spans[y].push_back({lo, hi});
+  }
+  const cv::Rect box = cv::boundingRect(cv::Mat(f.label >= 0));
+  for (BlurMethod m : {BlurMethod::DiskSpan, BlurMethod::DiskDirect, BlurMethod::DiskAntialiased, BlurMethod::Gaussian}) {
+    for (double d : {3.0, 9.5, 21.0}) {
+      cv::Mat full = f.color.clone(), near = f.color.clone();
+      blur_drops(f.clean, f.label, full, d, m);
+      blur_drops(f.clean, f.label, near, d, m, &box, &spans);
+      EXPECT_LT(max_diff_in_mask(f, full, near), 1e-5) << to_string(m) << " d " << d;
+    }
+  }
 }
