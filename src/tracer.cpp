@@ -320,7 +320,10 @@ TraceResult run(const cv::Mat& clean, const Camera& camera, const SceneConfig& c
   TraceResult out;
   out.label = cv::Mat(camera.height, camera.width, CV_32S, cv::Scalar(-1));
   out.color = cv::Mat(camera.height, camera.width, CV_32FC3);
-  cv::Mat classes(camera.height, camera.width, CV_32S, cv::Scalar(-1));
+  // Edge classes are only needed to find the pixels to supersample.
+  const int k = static_cast<int>(std::lround(std::sqrt(config.samples_per_pixel)));
+  const bool need_classes = k > 1 && config.supersample_edges_only;
+  cv::Mat classes = need_classes ? cv::Mat(camera.height, camera.width, CV_32S, cv::Scalar(-1)) : cv::Mat();
   out.spans = candidate_spans(camera, accel);
   const auto& spans = out.spans;
   std::atomic<std::int64_t> candidates{0}, drops{0}, dark{0}, off{0}, supersampled{0};
@@ -331,7 +334,7 @@ TraceResult run(const cv::Mat& clean, const Camera& camera, const SceneConfig& c
     std::int64_t n_cand = 0, n_drop = 0, n_dark = 0, n_off = 0;
     for (int y = r.begin(); y < r.end(); ++y) {
       auto* label = out.label.ptr<int>(y);
-      auto* cls = classes.ptr<int>(y);
+      int* cls = need_classes ? classes.ptr<int>(y) : nullptr;
       auto* rgb = out.color.ptr<cv::Vec3f>(y);
       for (const auto& [x0, x1] : spans[y]) {
         for (int x = x0; x <= x1; ++x) {
@@ -344,7 +347,7 @@ TraceResult run(const cv::Mat& clean, const Camera& camera, const SceneConfig& c
           n_dark += s.dark;
           n_off += s.off_frame;
           label[x] = s.drop;
-          cls[x] = edge_class(s.drop, s.dark);
+          if (cls) cls[x] = edge_class(s.drop, s.dark);
           rgb[x] = cv::Vec3f(static_cast<float>(s.rgb.x), static_cast<float>(s.rgb.y),
                              static_cast<float>(s.rgb.z));
         }
@@ -367,7 +370,6 @@ TraceResult run(const cv::Mat& clean, const Camera& camera, const SceneConfig& c
   // Pass 2: supersample drop pixels on an edge (a neighbour of another class: outside, other
   // drop, dark band) or all drop pixels, on a stratified k x k grid. The mask stays the
   // pixel-centre rule; sub-samples that miss every drop see the clean pixel.
-  const int k = static_cast<int>(std::lround(std::sqrt(config.samples_per_pixel)));
   if (k > 1) {
     tbb::parallel_for(tbb::blocked_range<int>(0, camera.height, 8), [&](const tbb::blocked_range<int>& r) {
       std::int64_t n_ss = 0;
