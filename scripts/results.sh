@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # Regenerates every figure of docs/RESULTS.md into out/results/ (run after scripts/setup.sh
 # and scripts/setup-tools.sh; needs ../shared/data for the real frames). Sections can be
-# chosen: scripts/results.sh render stats eval remove tradeoffs sheets
+# chosen: scripts/results.sh data render stats eval remove tradeoffs sheets
 #
 # Nothing here is committed automatically: images derived from Cityscapes, CamVid or the
 # real raindrop photographs stay under out/ (their licences forbid redistribution).
@@ -12,8 +12,17 @@ py=.venv/bin/python
 out=out/results
 mkdir -p "$out"
 sections=("$@")
-((${#sections[@]})) || sections=(render stats eval remove tradeoffs sheets)
+((${#sections[@]})) || sections=(data render stats eval remove tradeoffs sheets)
 want() { [[ " ${sections[*]} " == *" $1 "* ]]; }
+
+if want data; then
+  # The training and held-out test sets behind models/ (models/README.md). A folder that is
+  # already complete is checked against these settings and left as it is.
+  build/raindrop-render --input "$shared/camvid/train" --input "$shared/camvid/val" \
+    --cityscapes "$shared/cityscapes-mini" --split train --size 512x256 --variants 6 --seed 1 --out data/train -q
+  build/raindrop-render --input "$shared/camvid/test" \
+    --cityscapes "$shared/cityscapes-mini" --split val --size 512x256 --variants 2 --seed 2 --out data/test -q
+fi
 
 if want render; then
   # Renderer: time per frame vs the I/O floor, effects, accuracy/time (docs/RESULTS.md 1).

@@ -107,9 +107,19 @@ def quantize_models(models_dir: Path, data_dir: Path, out_dir: Path, count: int 
                 "activations": "uint8",
                 "calibration": f"{count} rendered images from {data_dir} (seed {seed}), min-max",
             },
-            "sha256": {name: sha256(out_dir / GRAPH_FILES[name]) for name in NETWORKS},
+            # The int8 files' own digests (the fp32 entries and the fp32 export's PyTorch
+            # parity figures describe other files).
+            "files": {
+                GRAPH_FILES[name]: {
+                    "sha256": sha256(out_dir / GRAPH_FILES[name]),
+                    "bytes": (out_dir / GRAPH_FILES[name]).stat().st_size,
+                }
+                for name in NETWORKS
+            },
         }
     )
+    info.pop("parity_max_abs_diff", None)
+    info.pop("sha256", None)
     (out_dir / EXPORT_INFO).write_text(json.dumps(info, indent=2) + "\n")
     for extra in ("README.md",):
         if (models_dir / extra).is_file() and not (out_dir / extra).exists():
@@ -126,7 +136,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--seed", type=int, default=0)
     args = ap.parse_args(argv)
     info = quantize_models(Path(args.models), Path(args.data), Path(args.out), args.count, args.seed)
-    print(json.dumps(info["sha256"], indent=2))
+    print(json.dumps(info["files"], indent=2))
     return 0
 
 

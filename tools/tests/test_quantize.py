@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import hashlib
 import json
 
 import numpy as np
@@ -40,4 +41,8 @@ def test_quantized_graphs_keep_the_contract_and_stay_close(tmp_path, tiny_datase
         a, b = run(fp32), run(int8)
         assert np.abs(a - b).mean() < 0.15 * a.std()
     assert int8.remove(procedural_image(40, 50, seed=9)).output.shape == (40, 50, 3)
-    assert json.loads((out / "export.json").read_text())["sha256"].keys() == set(NETWORKS)
+    info = json.loads((out / "export.json").read_text())
+    assert set(info["files"]) == {FILES[n] for n in NETWORKS}
+    for f, entry in info["files"].items():  # the int8 files' digests, not the fp32 ones
+        assert entry["sha256"] == hashlib.sha256((out / f).read_bytes()).hexdigest(), f
+    assert "parity_max_abs_diff" not in info

@@ -1,0 +1,42 @@
+"""The trained models committed under models/: files match their export.json digests, the
+model card lists every digest, DEFAULT names a folder that exists, and each graph carries the
+contract's metadata (no torch needed)."""
+
+from __future__ import annotations
+
+import hashlib
+import json
+from pathlib import Path
+
+import onnx
+import pytest
+
+from raindrop_tools.contract import FILES, META_CONFIG, META_DILATION, META_THRESHOLD, NETWORKS
+
+MODELS = Path(__file__).resolve().parents[2] / "models"
+FOLDERS = sorted(p for p in MODELS.iterdir() if p.is_dir() and (p / "export.json").is_file()) if MODELS.is_dir() else []
+
+
+def test_default_names_a_committed_model():
+    if not FOLDERS:
+        pytest.skip(f"no trained models in {MODELS}")
+    default = (MODELS / "DEFAULT").read_text().strip()
+    assert default in {p.name for p in FOLDERS}, f"models/DEFAULT says {default!r}"
+
+
+@pytest.mark.parametrize("folder", FOLDERS, ids=[p.name for p in FOLDERS])
+def test_files_match_their_digests_and_the_model_card(folder: Path):
+    info = json.loads((folder / "export.json").read_text())
+    card = (MODELS / "README.md").read_text()
+    assert set(info["files"]) == {FILES[n] for n in NETWORKS}
+    for name in NETWORKS:
+        path = folder / FILES[name]
+        entry = info["files"][FILES[name]]
+        digest = hashlib.sha256(path.read_bytes()).hexdigest()
+        assert digest == entry["sha256"], f"{path} changed since export.json was written"
+        assert path.stat().st_size == entry["bytes"]
+        assert digest in card, f"models/README.md does not list {path.relative_to(MODELS.parent)} ({digest})"
+        meta = {p.key: p.value for p in onnx.load(str(path), load_external_data=False).metadata_props}
+        assert meta[META_CONFIG] == info["config"] == folder.name
+        assert float(meta[META_THRESHOLD]) == info["pipeline"]["threshold"]
+        assert int(meta[META_DILATION]) == info["pipeline"]["dilation"]
