@@ -193,6 +193,7 @@ class Trainer:
             batch_sampler=sampler,
             num_workers=self.cfg.data.workers,
             pin_memory=self.device.type == "cuda",
+            worker_init_fn=_leave_stop_signals_to_the_trainer if self.cfg.data.workers else None,
         )
 
     def _optimizer(self, net: torch.nn.Module, total: int):
@@ -389,6 +390,15 @@ class Trainer:
                 return result
             resume = True  # stage 2 after stage 1 in the same invocation
         return result
+
+
+def _leave_stop_signals_to_the_trainer(worker_id: int) -> None:
+    """DataLoader workers ignore SIGINT and SIGTERM. Ctrl-C in a terminal, and `docker stop`
+    or systemd, signal the whole process group; a worker killed that way takes the run down
+    before the trainer has written its checkpoint. The trainer stops them itself when it
+    exits (and they exit on their own when it dies)."""
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    signal.signal(signal.SIGTERM, signal.SIG_IGN)
 
 
 def _install_signal_handlers(trainer: Trainer) -> dict:

@@ -1,5 +1,10 @@
 import json
+import os
 import shutil
+import signal
+import subprocess
+import sys
+import time
 
 import numpy as np
 import pytest
@@ -156,3 +161,30 @@ def test_choose_device():
     if not torch.cuda.is_available():
         with pytest.raises(train.TrainingError, match="no CUDA"):
             train.choose_device("cuda")
+
+
+@pytest.mark.parametrize("sig", [signal.SIGTERM, signal.SIGINT], ids=["SIGTERM", "SIGINT"])
+def test_a_signal_to_the_whole_process_group_stops_with_a_checkpoint(tiny_dataset, tmp_path, sig):
+    """Ctrl-C in a terminal, `docker stop` and systemd signal every process of the group,
+    DataLoader workers included: the run must still stop after its step with a checkpoint."""
+    out = tmp_path / "run"
+    cmd = [sys.executable, "-m", "raindrop_tools.train", *_args(tiny_dataset, out),
+           "--set", "data.workers=2", "--set", "train.stage1_steps=100000", "--set", "train.log_every=1",
+           "--set", "train.checkpoint_every=100000", "--threads", "1"]
+    proc = subprocess.Popen(cmd, start_new_session=True, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+    try:
+        log = out / "log.jsonl"
+        deadline = time.monotonic() + 120
+        while not (log.is_file() and log.read_text().count("\n") >= 2):
+            assert proc.poll() is None, proc.stdout.read()
+            assert time.monotonic() < deadline, "training logged no step in 120 s"
+            time.sleep(0.1)
+        os.killpg(proc.pid, sig)
+        text, _ = proc.communicate(timeout=120)
+    finally:
+        if proc.poll() is None:
+            os.killpg(proc.pid, signal.SIGKILL)
+    assert proc.returncode == 130, text
+    latest = ckpt.latest_checkpoint(out)
+    assert latest is not None and latest.step >= 2, text
+    assert "continue with --resume" in text
