@@ -47,6 +47,16 @@ if want eval; then
     [[ -d models/$m ]] || continue
     OMP_NUM_THREADS=2 $py -m raindrop_tools.evaluate --data data/test --models "models/$m" --out "out/eval/$m" --threads 2
   done
+  # The same test frames with the drop density of the authors' released renderer (5-7 drops,
+  # about 1% of the frame; design.md section 1), everything else the paper preset.
+  sed 's/"name": "paper"/"name": "paper-sparse"/; s/"drop_count": \[50, 70\]/"drop_count": [5, 7]/' scenes/paper.json \
+    > "$out/paper-sparse.json"
+  build/raindrop-render --input "$shared/camvid/test" --cityscapes "$shared/cityscapes-mini" --split val \
+    --size 512x256 --variants 2 --seed 2 --scene "$out/paper-sparse.json" --out data/test-sparse -q
+  for m in compact paper; do
+    [[ -d models/$m ]] || continue
+    OMP_NUM_THREADS=2 $py -m raindrop_tools.evaluate --data data/test-sparse --models "models/$m" --out "out/eval-sparse/$m" --threads 2
+  done
 fi
 
 if want remove; then
