@@ -47,6 +47,9 @@ if want eval; then
     [[ -d models/$m ]] || continue
     OMP_NUM_THREADS=2 $py -m raindrop_tools.evaluate --data data/test --models "models/$m" --out "out/eval/$m" --threads 2
   done
+  # Where the remaining error lies: inside or outside the true mask (every tenth test image).
+  OMP_NUM_THREADS=2 $py -m raindrop_tools.error_split --data data/test --models models/compact --every 10 --threads 2 \
+    | tee "$out/error_split_compact.json"
   # The same test frames with the drop density of the authors' released renderer (5-7 drops,
   # about 1% of the frame; design.md section 1), everything else the paper preset.
   sed 's/"name": "paper"/"name": "paper-sparse"/; s/"drop_count": \[50, 70\]/"drop_count": [5, 7]/' scenes/paper.json \

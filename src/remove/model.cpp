@@ -4,6 +4,7 @@
 #include <cmath>
 #include <numeric>
 #include <system_error>
+#include <thread>
 
 #include "raindrop/error.h"
 
@@ -163,8 +164,15 @@ void Network::run(const std::vector<const float*>& inputs, int h, int w, float* 
 Models::Models(const fs::path& dir, const SessionConfig& config) : dir_(dir) {
   std::error_code ec;
   if (!fs::is_directory(dir, ec)) throw Error("model folder " + quoted(dir) + " does not exist");
-  rdn_ = std::make_unique<Network>(dir / "rdn.onnx", "rdn", config);
-  rrn_ = std::make_unique<Network>(dir / "rrn.onnx", "rrn", config);
+  if (config.threads < 0) throw Error("--threads must be >= 0 (0: ONNX Runtime's default)");
+  const int threads = config.threads > 0 ? config.threads : static_cast<int>(std::thread::hardware_concurrency());
+  SessionConfig branch = config;
+  if (config.device == Device::cpu && threads >= 2) {
+    branches_ = 2;
+    branch.threads = threads / 2;
+  }
+  rdn_ = std::make_unique<Network>(dir / "rdn.onnx", "rdn", branch);
+  rrn_ = std::make_unique<Network>(dir / "rrn.onnx", "rrn", branch);
   rfn_ = std::make_unique<Network>(dir / "rfn.onnx", "rfn", config);
   const std::string cfg = rdn_->metadata().at("raindrop.config");
   for (Network* n : {rrn_.get(), rfn_.get()}) {

@@ -215,6 +215,28 @@ TEST(Remover, TiledEqualsWholeWhenTheOverlapCoversTheReceptiveField) {
   EXPECT_LE(max_abs_diff(t.image, ref.image), 1);
 }
 
+// With two threads RDN and 3RN run side by side (one tile) or two tiles at a time; with one
+// thread everything runs in order. The output must not depend on that: same mask bit for
+// bit, float output equal up to rounding, for a single tile and for an odd number of tiles.
+TEST(Remover, SideBySideEqualsInOrder) {
+  SessionConfig one;
+  one.threads = 1;
+  Remover in_order(smoke_models(), one);
+  ASSERT_EQ(in_order.run(make_image(8, 8, 1)).image.size(), cv::Size(8, 8));
+  EXPECT_EQ(smoke().run(make_image(8, 8, 1)).image.size(), cv::Size(8, 8));
+  for (const int tile : {0, 96}) {
+    const cv::Mat img = make_image(200, 211, 21);
+    RemoveOptions o = with_float();
+    o.tile = tile;
+    o.overlap = 16;
+    const RemoveResult a = in_order.run(img, o), b = smoke().run(img, o);
+    if (tile) EXPECT_EQ(a.tiles_x * a.tiles_y, 9) << "3 x 3: an odd count leaves one tile alone";
+    EXPECT_EQ(cv::countNonZero(a.mask != b.mask), 0) << "tile " << tile;
+    EXPECT_LE(max_float_diff(a.rgb, b.rgb), 1e-5f) << "tile " << tile;
+    EXPECT_LE(max_abs_diff(a.image, b.image), 1) << "tile " << tile;
+  }
+}
+
 // A small overlap puts tile-edge effects inside the ramps: the seams are cross-faded and the
 // difference stays small (stated bound: mean < 1/255, max < 40/255 on this random-weight
 // model). The mask is still exactly the whole-image mask: each pixel's probability comes

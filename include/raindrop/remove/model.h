@@ -56,9 +56,17 @@ class Network {
 };
 
 // rdn.onnx, rrn.onnx and rfn.onnx of one folder, with their metadata cross-checked.
+//
+// RDN and 3RN both read only the input, so with two or more CPU threads the pipeline runs
+// them side by side (or two tiles at a time) instead of one after the other: each of their
+// sessions gets half the threads, RFN all of them. The narrow layers of a compact model
+// scale poorly when one convolution is split over both cores (2 threads were slower than 1
+// at 256x512); two independent graphs on two cores do not share that cost.
 class Models {
  public:
   Models(const std::filesystem::path& dir, const SessionConfig& config);
+  // 2 when RDN and 3RN run side by side (CPU, two or more threads), else 1.
+  int branches() const { return branches_; }
 
   Network& rdn() { return *rdn_; }
   Network& rrn() { return *rrn_; }
@@ -70,6 +78,7 @@ class Models {
   std::filesystem::path dir_;
   std::unique_ptr<Network> rdn_, rrn_, rfn_;
   ModelInfo info_;
+  int branches_ = 1;
 };
 
 }  // namespace raindrop::removal
