@@ -173,7 +173,7 @@ int run(int argc, char** argv) {
       ->check(CLI::Range(0.0, 1.0));
   app.add_option("--dilation", dilation, "Mask dilation size k (elliptical k x k; 1: none; default: the models')")
       ->check(CLI::Range(1, 1023));
-  app.add_option("-j,--threads", threads, "ONNX Runtime intra-op threads (0: one per core)")
+  app.add_option("-j,--threads", threads, "CPU threads (0: one per core); with 2 or more, RDN and 3RN run side by side on half each")
       ->capture_default_str()->check(CLI::Range(0, 1024));
   app.add_option("--device", device, "Execution device")->capture_default_str()->check(CLI::IsMember({"cpu", "cuda"}));
   app.add_option("--tile", tile, "Process images larger than N x N in overlapping tiles of at most N x N (0: never)")

@@ -161,7 +161,7 @@ void Network::run(const std::vector<const float*>& inputs, int h, int w, float* 
   }
 }
 
-Models::Models(const fs::path& dir, const SessionConfig& config) : dir_(dir) {
+Models::Models(const fs::path& dir, const SessionConfig& config) : dir_(dir), config_(config) {
   std::error_code ec;
   if (!fs::is_directory(dir, ec)) throw Error("model folder " + quoted(dir) + " does not exist");
   if (config.threads < 0) throw Error("--threads must be >= 0 (0: ONNX Runtime's default)");
@@ -191,6 +191,21 @@ Models::Models(const fs::path& dir, const SessionConfig& config) : dir_(dir) {
   info_.threshold = parse_double(rdn_->file(), "raindrop.threshold", rdn_->metadata().at("raindrop.threshold"));
   info_.dilation = parse_int(rdn_->file(), "raindrop.dilation", rdn_->metadata().at("raindrop.dilation"));
   if (info_.dilation < 1) throw Error(quoted(rdn_->file()) + ": raindrop.dilation must be >= 1");
+}
+
+Network& Models::rdn() {
+  if (branches_ == 1) return *rdn_;
+  std::call_once(all_threads_once_, [this] {
+    rdn_all_ = std::make_unique<Network>(rdn_->file(), "rdn", config_);
+    rrn_all_ = std::make_unique<Network>(rrn_->file(), "rrn", config_);
+  });
+  return *rdn_all_;
+}
+
+Network& Models::rrn() {
+  if (branches_ == 1) return *rrn_;
+  rdn();  // makes both
+  return *rrn_all_;
 }
 
 }  // namespace raindrop::removal

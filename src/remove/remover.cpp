@@ -135,10 +135,10 @@ RemoveResult Remover::run(const cv::Mat& image, const RemoveOptions& opt) {
   res.tiles_x = lx.count();
   StageTimes& t = res.times;
 
-  // Pass 1: detection, thresholded into the whole-image mask from each pixel's owning tile
-  // (tiles own disjoint rectangles, so side-by-side tiles never write the same pixel). A
-  // single tile's 3RN runs here too, beside its RDN: it needs only the input.
-  const int branches = models_.branches();
+  // Pass 1: detection, thresholded into the whole-image mask from each pixel's owning tile.
+  // A single tile's 3RN runs here too, beside its RDN, when there are threads for both
+  // (Models::branches): it needs only the input.
+  const int branches = single ? models_.branches() : 1;
   cv::Mat mask0(Hp, Wp, CV_8U, cv::Scalar(0));
   TileInputs kept;                // the single tile's inputs, reused by pass 2
   std::vector<float> kept_ihat;   // and its 3RN output when it ran beside the RDN
@@ -165,12 +165,12 @@ RemoveResult Remover::run(const cv::Mat& image, const RemoveOptions& opt) {
       run_side_by_side({[&] {
                           auto clock = Clock::now();
                           std::vector<float> prob(static_cast<size_t>(kept.h) * kept.w);
-                          models_.rdn().run({kept.r.data()}, kept.h, kept.w, prob.data());
+                          models_.rdn_beside().run({kept.r.data()}, kept.h, kept.w, prob.data());
                           worker_times[0].rdn += ms_since(clock);
                           threshold_mask(cv::Mat(kept.h, kept.w, CV_32F, prob.data()), threshold, mask0);
                           worker_times[0].mask += ms_since(clock);
                         },
-                        [&] { kept_ihat = reconstruct(models_.rrn(), kept, worker_times[1]); }});
+                        [&] { kept_ihat = reconstruct(models_.rrn_beside(), kept, worker_times[1]); }});
     } else {
       auto clock = Clock::now();
       std::vector<float> prob(static_cast<size_t>(kept.h) * kept.w);
@@ -180,12 +180,7 @@ RemoveResult Remover::run(const cv::Mat& image, const RemoveOptions& opt) {
       t.mask += ms_since(clock);
     }
   } else {
-    for (size_t i = 0; i < tiles.size(); i += branches) {
-      std::vector<std::function<void()>> jobs;
-      for (size_t j = i; j < std::min(tiles.size(), i + branches); ++j)
-        jobs.emplace_back([&, j] { detect(tiles[j].first, tiles[j].second, worker_times[j - i]); });
-      run_side_by_side(jobs);
-    }
+    for (const auto& [iy, ix] : tiles) detect(iy, ix, t);
   }
   for (int iy = 0; iy < ly.count(); ++iy)
     for (int ix = 0; ix < lx.count(); ++ix)
@@ -216,62 +211,44 @@ RemoveResult Remover::run(const cv::Mat& image, const RemoveOptions& opt) {
     }
     std::vector<float> wy(y1 - y0);
     for (int y = y0; y < y1; ++y) wy[y - y0] = ly.weight(iy, y);
-    // 3RN for up to `branches` tiles of this row side by side, then blend, RFN (with all the
-    // threads) and accumulation one tile at a time, in order (so the sum is deterministic).
-    for (int ix0 = 0; ix0 < lx.count(); ix0 += branches) {
-      const int n = std::min(branches, lx.count() - ix0);
-      std::vector<TileInputs> ins(n);
-      std::vector<std::vector<float>> ihats(n);
-      if (single) {
-        ins[0] = std::move(kept);
-        ihats[0] = kept_ihat.empty() ? reconstruct(models_.rrn(), ins[0], t) : std::move(kept_ihat);
-      } else {
-        std::vector<std::function<void()>> jobs;
-        for (int j = 0; j < n; ++j)
-          jobs.emplace_back([&, j] {
-            const int ix = ix0 + j;
-            ins[j] = build_inputs(image, y0, y1, lx.begin[ix], lx.end[ix], worker_times[j]);
-            ihats[j] = reconstruct(models_.rrn(), ins[j], worker_times[j]);
-          });
-        run_side_by_side(jobs);
-      }
-      for (int j = 0; j < n; ++j) {
-        const int ix = ix0 + j, x0 = lx.begin[ix], x1 = lx.end[ix];
-        const TileInputs& in = ins[j];
-        const size_t plane = static_cast<size_t>(in.h) * in.w;
-        clock = Clock::now();
-        // B = M * Ihat + (1 - M) * R with M in {0, 1} is exactly a choice between the two
-        // (as in numpy: 1 * a + 0 * b == a for finite values).
-        std::vector<float>& blend = ihats[j];
-        for (int y = 0; y < in.h; ++y) {
-          const unsigned char* mrow = mask.ptr<unsigned char>(y0 + y) + x0;
-          for (int c = 0; c < 3; ++c) {
-            float* b = blend.data() + c * plane + static_cast<size_t>(y) * in.w;
-            const float* r = in.r.data() + c * plane + static_cast<size_t>(y) * in.w;
-            for (int x = 0; x < in.w; ++x) {
-              if (!mrow[x]) b[x] = r[x];
-            }
-          }
-        }
-        t.blend += ms_since(clock);
-        std::vector<float> out(3 * plane);
-        models_.rfn().run({blend.data()}, in.h, in.w, out.data());
-        clamp_all(out);
-        t.rfn += ms_since(clock);
-        std::vector<float> wx(in.w);
-        for (int x = x0; x < x1; ++x) wx[x - x0] = lx.weight(ix, x);
-        for (int y = 0; y < in.h; ++y) {
-          if (wy[y] == 0.0f) continue;
-          float* dst = strip.ptr<float>(y) + 3 * static_cast<size_t>(x0);
-          const size_t row = static_cast<size_t>(y) * in.w;
+    for (int ix = 0; ix < lx.count(); ++ix) {
+      const int x0 = lx.begin[ix], x1 = lx.end[ix];
+      TileInputs in = single ? std::move(kept) : build_inputs(image, y0, y1, x0, x1, t);
+      // 3RN (already run beside the RDN for a single tile on two threads).
+      std::vector<float> ihat = !kept_ihat.empty() ? std::move(kept_ihat) : reconstruct(models_.rrn(), in, t);
+      const size_t plane = static_cast<size_t>(in.h) * in.w;
+      clock = Clock::now();
+      // B = M * Ihat + (1 - M) * R with M in {0, 1} is exactly a choice between the two
+      // (as in numpy: 1 * a + 0 * b == a for finite values).
+      std::vector<float>& blend = ihat;
+      for (int y = 0; y < in.h; ++y) {
+        const unsigned char* mrow = mask.ptr<unsigned char>(y0 + y) + x0;
+        for (int c = 0; c < 3; ++c) {
+          float* b = blend.data() + c * plane + static_cast<size_t>(y) * in.w;
+          const float* r = in.r.data() + c * plane + static_cast<size_t>(y) * in.w;
           for (int x = 0; x < in.w; ++x) {
-            const float w = wy[y] * wx[x];
-            if (w == 0.0f) continue;
-            for (int c = 0; c < 3; ++c) dst[3 * x + c] += w * out[c * plane + row + x];
+            if (!mrow[x]) b[x] = r[x];
           }
         }
-        t.output += ms_since(clock);
       }
+      t.blend += ms_since(clock);
+      std::vector<float> out(3 * plane);
+      models_.rfn().run({blend.data()}, in.h, in.w, out.data());
+      clamp_all(out);
+      t.rfn += ms_since(clock);
+      std::vector<float> wx(in.w);
+      for (int x = x0; x < x1; ++x) wx[x - x0] = lx.weight(ix, x);
+      for (int y = 0; y < in.h; ++y) {
+        if (wy[y] == 0.0f) continue;
+        float* dst = strip.ptr<float>(y) + 3 * static_cast<size_t>(x0);
+        const size_t row = static_cast<size_t>(y) * in.w;
+        for (int x = 0; x < in.w; ++x) {
+          const float w = wy[y] * wx[x];
+          if (w == 0.0f) continue;
+          for (int c = 0; c < 3; ++c) dst[3 * x + c] += w * out[c * plane + row + x];
+        }
+      }
+      t.output += ms_since(clock);
     }
     // Rows before the next tile row's first row are final.
     clock = Clock::now();

@@ -13,14 +13,12 @@
 // globally (rather than per tile) makes the mask exactly the whole-image mask: a binary
 // decision has no sensible cross-fade, a per-tile dilation would need its own margins, and
 // the mask costs 1 byte per pixel, less than the image itself. Memory beyond the input and
-// output images: the mask (2 bytes per pixel), two tiles' tensors and a float strip one
+// output images: the mask (2 bytes per pixel), one tile's tensors and a float strip one
 // tile high and the image wide.
 //
-// With two or more CPU threads (Models::branches), work that does not depend on each other
-// runs side by side on half the threads each: a single tile's RDN beside its 3RN, or two
-// tiles' RDN (pass 1) or 3RN (pass 2) at a time; RFN then runs alone with all the threads.
-// Tiles are still accumulated one at a time in a fixed order, so the output does not depend
-// on the scheduling. StageTimes then sum the busy time of both sides (more than the wall time).
+// With two or more CPU threads a single-tile image runs its RDN and 3RN side by side on half
+// the threads each, then RFN on all of them (Models::branches); StageTimes then sum the busy
+// time of both sides, more than the wall time. Tiled images run in order.
 #include <filesystem>
 #include <optional>
 
