@@ -84,15 +84,57 @@ def pareto(points: list[tuple[float, float]]) -> list[int]:
     return keep
 
 
+def label_offsets(points: list[tuple[float, float]], dy: float = 9.0) -> list[tuple[float, float]]:
+    """Text offsets (points) that stack upwards the labels of points at about the same accuracy
+    (within 0.005 dB: same models, other settings), which would otherwise overlap."""
+    offsets = []
+    for i, (t, a) in enumerate(points):
+        k = sum(1 for _, a2 in points[:i] if abs(a2 - a) <= 0.005)
+        offsets.append((5.0, 4.0 + dy * k))
+    return offsets
+
+
+def plot_pareto(rows: list[dict], path: Path) -> None:
+    """Pareto plot over the 256x512 rows that have an accuracy."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    pts = [(r["ms"], r["accuracy"]["psnr_y"], r["variant"]["label"]) for r in rows
+           if r["accuracy"] and r["variant"]["size"] == "256x512"]
+    if not pts:
+        return
+    front = sorted((pts[i] for i in pareto([(t, a) for t, a, _ in pts])), key=lambda p: p[0])
+    fig, ax = plt.subplots(figsize=(9, 5.5))
+    ax.scatter([p[0] for p in pts], [p[1] for p in pts], color="tab:blue", zorder=3)
+    ax.plot([p[0] for p in front], [p[1] for p in front], color="tab:red", lw=1.5, label="Pareto front", zorder=2)
+    for (t, a, label), off in zip(pts, label_offsets([(t, a) for t, a, _ in pts])):
+        ax.annotate(f"{label} ({t:.0f} ms)", (t, a), textcoords="offset points", xytext=off, fontsize=7)
+    ax.set_xscale("log")
+    ax.set_xlabel("ms per 256x512 image (raindrop-remove, median; log scale)")
+    ax.set_ylabel("PSNR (Y, dB) on the held-out synthetic set")
+    ax.set_title("raindrop-remove: accuracy against time")
+    ax.grid(True, which="both", alpha=0.3)
+    ax.legend(loc="lower right")
+    fig.tight_layout()
+    fig.savefig(path, dpi=130)
+    plt.close(fig)
+
+
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(prog="python -m raindrop_tools.tradeoffs", description=__doc__.split("\n\n")[0])
     ap.add_argument("--bench", default="build/raindrop-bench")
     ap.add_argument("--eval-root", default="out/eval", help="folder with <model folder name>/results.json")
     ap.add_argument("--out", default="out/tradeoffs")
     ap.add_argument("--runs", type=int, default=20)
+    ap.add_argument("--plot-only", action="store_true", help="redraw pareto.png from --out's tradeoffs.json")
     args = ap.parse_args(argv)
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
+    if args.plot_only:
+        plot_pareto(json.loads((out / "tradeoffs.json").read_text()), out / "pareto.png")
+        return 0
     rows = []
     for v in DEFAULT_VARIANTS:
         if not Path(v.models).is_dir():
@@ -113,29 +155,7 @@ def main(argv: list[str] | None = None) -> int:
     (out / "tradeoffs.md").write_text("\n".join(lines) + "\n")
     print("\n".join(lines))
 
-    # Pareto plot over the 256x512 rows that have an accuracy.
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    pts = [(r["ms"], r["accuracy"]["psnr_y"], r["variant"]["label"]) for r in rows
-           if r["accuracy"] and r["variant"]["size"] == "256x512"]
-    if pts:
-        front = sorted((pts[i] for i in pareto([(t, a) for t, a, _ in pts])), key=lambda p: p[0])
-        fig, ax = plt.subplots(figsize=(8, 5))
-        ax.scatter([p[0] for p in pts], [p[1] for p in pts], color="tab:blue", zorder=3)
-        ax.plot([p[0] for p in front], [p[1] for p in front], color="tab:red", lw=1.5, label="Pareto front", zorder=2)
-        for t, a, label in pts:
-            ax.annotate(label, (t, a), textcoords="offset points", xytext=(5, 4), fontsize=7)
-        ax.set_xscale("log")
-        ax.set_xlabel("ms per 256x512 image (raindrop-remove, median; log scale)")
-        ax.set_ylabel("PSNR (Y, dB) on the held-out synthetic set")
-        ax.set_title("raindrop-remove: accuracy against time")
-        ax.grid(True, which="both", alpha=0.3)
-        ax.legend(loc="lower right")
-        fig.tight_layout()
-        fig.savefig(out / "pareto.png", dpi=130)
+    plot_pareto(rows, out / "pareto.png")
     return 0
 
 

@@ -19,3 +19,9 @@ def test_bench_rows_are_parsed():
     assert m and m["size"] == "256x512" and m["threads"] == "2" and m["tiles"] == "1"
     cells = [c.strip() for c in m["rest"].split("|") if c.strip()]
     assert float(cells[-1]) == 53.2
+
+
+def test_labels_of_points_at_the_same_accuracy_are_stacked():
+    from raindrop_tools.tradeoffs import label_offsets
+
+    assert label_offsets([(80.0, 31.0), (100.0, 31.002), (500.0, 31.2)], dy=9.0) == [(5.0, 4.0), (5.0, 13.0), (5.0, 4.0)]
