@@ -4,17 +4,12 @@
 // (independently of the renderer's own image_io), manifests and folder snapshots.
 #include <gtest/gtest.h>
 
-#include <sys/types.h>
-#include <sys/wait.h>
-
 #include <algorithm>
-#include <cctype>
 #include <cstdint>
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
 #include <filesystem>
-#include <fstream>
 #include <map>
 #include <optional>
 #include <sstream>
@@ -26,6 +21,7 @@
 #include <opencv2/core.hpp>
 #include <opencv2/imgproc.hpp>
 
+#include "../common/test_support.h"
 #include "raindrop/demo.h"
 
 #ifndef RAINDROP_RENDER_BIN
@@ -38,83 +34,24 @@
 namespace clitest {
 
 namespace fs = std::filesystem;
+using testsupport::hidden_temporaries;
+using testsupport::read_file;
+using testsupport::shell_quote;
+using testsupport::split_lines;
+using testsupport::write_file;
+
+class TempDir : public testsupport::TempDir {
+ public:
+  TempDir() : testsupport::TempDir("raindrop-cli-") {}
+};
 using json = nlohmann::json;
 
 inline fs::path render_bin() { return fs::path(RAINDROP_RENDER_BIN); }
 
-// A fresh folder per test, removed afterwards (kept when RAINDROP_KEEP_TEST_DIRS is set).
-class TempDir {
- public:
-  TempDir() {
-    const auto* info = ::testing::UnitTest::GetInstance()->current_test_info();
-    std::string name = "raindrop-cli-";
-    if (info) name += std::string(info->test_suite_name()) + "-" + info->name() + "-";
-    for (char& c : name) {
-      if (!std::isalnum(static_cast<unsigned char>(c)) && c != '-') c = '_';
-    }
-    std::string templ = (fs::temp_directory_path() / (name + "XXXXXX")).string();
-    std::vector<char> buf(templ.begin(), templ.end());
-    buf.push_back('\0');
-    if (!::mkdtemp(buf.data())) throw std::runtime_error("mkdtemp failed for " + templ);
-    path_ = fs::path(buf.data());
-  }
-  ~TempDir() {
-    if (std::getenv("RAINDROP_KEEP_TEST_DIRS")) return;
-    std::error_code ec;
-    fs::remove_all(path_, ec);
-  }
-  TempDir(const TempDir&) = delete;
-  TempDir& operator=(const TempDir&) = delete;
-  const fs::path& path() const { return path_; }
-  fs::path operator/(const std::string& rel) const { return path_ / rel; }
-
- private:
-  fs::path path_;
-};
-
-inline std::string shell_quote(const std::string& s) {
-  std::string q = "'";
-  for (char c : s) {
-    if (c == '\'') {
-      q += "'\\''";
-    } else {
-      q += c;
-    }
-  }
-  return q + "'";
-}
-
-inline std::string read_file(const fs::path& p) {
-  std::ifstream in(p, std::ios::binary);
-  std::ostringstream s;
-  s << in.rdbuf();
-  return s.str();
-}
-
-inline void write_file(const fs::path& p, const std::string& bytes) {
-  fs::create_directories(p.parent_path());
-  std::ofstream out(p, std::ios::binary);
-  out << bytes;
-  ASSERT_TRUE(out.good()) << "cannot write " << p;
-}
-
-inline std::vector<std::string> split_lines(const std::string& text) {
-  std::vector<std::string> lines;
-  std::istringstream in(text);
-  std::string line;
-  while (std::getline(in, line)) lines.push_back(line);
-  return lines;
-}
-
 // The progress bar writes lines such as "render [####....] 3/8  1.20/s  ETA 0:02".
 inline bool is_progress_line(const std::string& line) { return line.rfind("render [", 0) == 0; }
 
-struct RunResult {
-  int code = -1;  // exit status; -1 if the program did not exit normally
-  std::string out, err;
-  std::string command;
-
-  std::vector<std::string> err_lines() const { return split_lines(err); }
+struct RunResult : testsupport::RunResult {
   // stderr without progress-bar lines
   std::vector<std::string> message_lines() const {
     std::vector<std::string> lines;
@@ -123,29 +60,11 @@ struct RunResult {
     }
     return lines;
   }
-  std::string describe() const {
-    return "command: " + command + "\nexit code: " + std::to_string(code) + "\n--- stdout ---\n" + out +
-           "--- stderr ---\n" + err + "--------------";
-  }
 };
 
 // Runs raindrop-render with `args` in folder `cwd`; stdout/stderr go to files beside it.
 inline RunResult run_render(const std::vector<std::string>& args, const fs::path& cwd) {
-  static int counter = 0;
-  const fs::path logs = cwd / "_logs";
-  fs::create_directories(logs);
-  const std::string tag = std::to_string(counter++);
-  const fs::path out_file = logs / ("stdout-" + tag), err_file = logs / ("stderr-" + tag);
-  std::string cmd = "cd " + shell_quote(cwd.string()) + " && " + shell_quote(render_bin().string());
-  for (const auto& a : args) cmd += " " + shell_quote(a);
-  RunResult r;
-  r.command = cmd;
-  cmd += " >" + shell_quote(out_file.string()) + " 2>" + shell_quote(err_file.string()) + " </dev/null";
-  const int status = std::system(cmd.c_str());
-  r.code = (status != -1 && WIFEXITED(status)) ? WEXITSTATUS(status) : -1;
-  r.out = read_file(out_file);
-  r.err = read_file(err_file);
-  return r;
+  return RunResult{testsupport::run_captured(render_bin(), args, cwd)};
 }
 
 // ---------------------------------------------------------------------------------------
@@ -267,18 +186,6 @@ inline std::vector<std::string> list_files(const fs::path& dir) {
   }
   std::sort(names.begin(), names.end());
   return names;
-}
-
-// Hidden temporaries left by the atomic writes: ".<name>.tmp-<pid>-<n>".
-inline std::vector<std::string> hidden_temporaries(const fs::path& dir) {
-  std::vector<std::string> found;
-  if (!fs::exists(dir)) return found;
-  for (const auto& e : fs::recursive_directory_iterator(dir)) {
-    const std::string name = e.path().filename().string();
-    if (!name.empty() && name[0] == '.' && name.find(".tmp-") != std::string::npos)
-      found.push_back(fs::relative(e.path(), dir).generic_string());
-  }
-  return found;
 }
 
 // Files in rainy/, clean/ and mask/ (any file, hidden or not).

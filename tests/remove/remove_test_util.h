@@ -4,17 +4,12 @@
 // of the program's own image_io), and where the models are.
 #include <gtest/gtest.h>
 
-#include <sys/types.h>
-#include <sys/wait.h>
-
 #include <algorithm>
-#include <cctype>
 #include <cmath>
 #include <cstdint>
 #include <cstdlib>
 #include <cstring>
 #include <filesystem>
-#include <fstream>
 #include <optional>
 #include <sstream>
 #include <string>
@@ -24,6 +19,7 @@
 #include <opencv2/core.hpp>
 #include <opencv2/imgproc.hpp>
 
+#include "../common/test_support.h"
 #include "raindrop/demo.h"
 
 #ifndef RAINDROP_REMOVE_BIN
@@ -42,6 +38,17 @@
 namespace removetest {
 
 namespace fs = std::filesystem;
+using testsupport::hidden_temporaries;
+using testsupport::read_file;
+using testsupport::RunResult;
+using testsupport::shell_quote;
+using testsupport::split_lines;
+using testsupport::write_file;
+
+class TempDir : public testsupport::TempDir {
+ public:
+  TempDir() : testsupport::TempDir("raindrop-remove-") {}
+};
 
 inline fs::path remove_bin() { return fs::path(RAINDROP_REMOVE_BIN); }
 inline fs::path source_dir() { return fs::path(RAINDROP_SOURCE_DIR); }
@@ -61,93 +68,13 @@ inline std::vector<fs::path> trained_models() {
   return dirs;
 }
 
-// A fresh folder per test, removed afterwards (kept when RAINDROP_KEEP_TEST_DIRS is set).
-class TempDir {
- public:
-  TempDir() {
-    const auto* info = ::testing::UnitTest::GetInstance()->current_test_info();
-    std::string name = "raindrop-remove-";
-    if (info) name += std::string(info->test_suite_name()) + "-" + info->name() + "-";
-    for (char& c : name) {
-      if (!std::isalnum(static_cast<unsigned char>(c)) && c != '-') c = '_';
-    }
-    std::string templ = (fs::temp_directory_path() / (name + "XXXXXX")).string();
-    std::vector<char> buf(templ.begin(), templ.end());
-    buf.push_back('\0');
-    if (!::mkdtemp(buf.data())) throw std::runtime_error("mkdtemp failed for " + templ);
-    path_ = fs::path(buf.data());
-  }
-  ~TempDir() {
-    if (std::getenv("RAINDROP_KEEP_TEST_DIRS")) return;
-    std::error_code ec;
-    fs::remove_all(path_, ec);
-  }
-  TempDir(const TempDir&) = delete;
-  TempDir& operator=(const TempDir&) = delete;
-  const fs::path& path() const { return path_; }
-  fs::path operator/(const std::string& rel) const { return path_ / rel; }
-
- private:
-  fs::path path_;
-};
-
-inline std::string shell_quote(const std::string& s) {
-  std::string q = "'";
-  for (char c : s) q += c == '\'' ? std::string("'\\''") : std::string(1, c);
-  return q + "'";
-}
-
-inline std::string read_file(const fs::path& p) {
-  std::ifstream in(p, std::ios::binary);
-  std::ostringstream s;
-  s << in.rdbuf();
-  return s.str();
-}
-
-inline void write_file(const fs::path& p, const std::string& bytes) {
-  if (p.has_parent_path()) fs::create_directories(p.parent_path());
-  std::ofstream out(p, std::ios::binary);
-  out << bytes;
-}
-
-inline std::vector<std::string> split_lines(const std::string& text) {
-  std::vector<std::string> lines;
-  std::istringstream in(text);
-  std::string line;
-  while (std::getline(in, line)) lines.push_back(line);
-  return lines;
-}
-
-struct RunResult {
-  int code = -1;
-  std::string out, err, command;
-  std::string describe() const {
-    return "command: " + command + "\nexit code: " + std::to_string(code) + "\n--- stdout ---\n" + out +
-           "--- stderr ---\n" + err + "--------------";
-  }
-};
-
 // Runs `program args...` in `cwd` with `env` assignments ("NAME=value") prepended;
 // RAINDROP_MODELS is cleared unless `env` sets it, so the tests do not depend on the caller's.
 inline RunResult run_command(const fs::path& program, const std::vector<std::string>& args, const fs::path& cwd,
                              const std::vector<std::string>& env = {}) {
-  static int counter = 0;
-  const fs::path logs = cwd / "_logs";
-  fs::create_directories(logs);
-  const std::string tag = std::to_string(counter++);
-  const fs::path out_file = logs / ("stdout-" + tag), err_file = logs / ("stderr-" + tag);
-  std::string cmd = "cd " + shell_quote(cwd.string()) + " && env -u RAINDROP_MODELS";
-  for (const auto& e : env) cmd += " " + shell_quote(e);
-  cmd += " " + shell_quote(program.string());
-  for (const auto& a : args) cmd += " " + shell_quote(a);
-  RunResult r;
-  r.command = cmd;
-  cmd += " >" + shell_quote(out_file.string()) + " 2>" + shell_quote(err_file.string()) + " </dev/null";
-  const int status = std::system(cmd.c_str());
-  r.code = (status != -1 && WIFEXITED(status)) ? WEXITSTATUS(status) : -1;
-  r.out = read_file(out_file);
-  r.err = read_file(err_file);
-  return r;
+  std::string prefix = "env -u RAINDROP_MODELS ";
+  for (const auto& e : env) prefix += shell_quote(e) + " ";
+  return testsupport::run_captured(program, args, cwd, prefix);
 }
 
 inline RunResult run_remove(const std::vector<std::string>& args, const fs::path& cwd,
@@ -257,17 +184,6 @@ inline std::string png_declaring(std::uint32_t width, std::uint32_t height) {
   // An IDAT (an empty zlib stream) so that libpng's header reading stops there cleanly.
   const std::string idat{'\x78', '\x9c', '\x03', '\x00', '\x00', '\x00', '\x00', '\x01'};
   return sig + png_chunk("IHDR", ihdr) + png_chunk("IDAT", idat) + png_chunk("IEND", "");
-}
-
-// Hidden temporaries left by atomic writes: ".<name>.tmp-<pid>-<n>".
-inline std::vector<std::string> hidden_temporaries(const fs::path& dir) {
-  std::vector<std::string> found;
-  std::error_code ec;
-  for (const auto& e : fs::recursive_directory_iterator(dir, ec)) {
-    const std::string name = e.path().filename().string();
-    if (name.size() > 1 && name[0] == '.' && name.find(".tmp-") != std::string::npos) found.push_back(name);
-  }
-  return found;
 }
 
 }  // namespace removetest
