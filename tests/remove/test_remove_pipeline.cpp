@@ -34,6 +34,14 @@ RemoveOptions with_float() {
   return o;
 }
 
+// with_float() in tiles of at most `tile` pixels (0: the whole image at once).
+RemoveOptions with_float(int tile, int overlap) {
+  RemoveOptions o = with_float();
+  o.tile = tile;
+  o.overlap = overlap;
+  return o;
+}
+
 // Every value finite and in [0, 1].
 ::testing::AssertionResult all_in_unit_range(const cv::Mat& f) {
   if (f.depth() != CV_32F) return ::testing::AssertionFailure() << "not float";
@@ -201,13 +209,8 @@ TEST(Remover, LargeNonMultipleSizeIsTiledAndMatchesTheWholeImage) {
 // the whole-image output up to float rounding, and the mask is the same bit for bit.
 TEST(Remover, TiledEqualsWholeWhenTheOverlapCoversTheReceptiveField) {
   const cv::Mat img = make_image(300, 211, 3);
-  RemoveOptions whole = with_float();
-  whole.tile = 0;
-  const RemoveResult ref = smoke().run(img, whole);
-  RemoveOptions tiled = with_float();
-  tiled.tile = 128;
-  tiled.overlap = 48;
-  const RemoveResult t = smoke().run(img, tiled);
+  const RemoveResult ref = smoke().run(img, with_float(0, 48));
+  const RemoveResult t = smoke().run(img, with_float(128, 48));
   EXPECT_GE(t.tiles_x, 3);
   EXPECT_GE(t.tiles_y, 2);
   EXPECT_EQ(cv::countNonZero(t.mask != ref.mask), 0);
@@ -227,9 +230,7 @@ TEST(Remover, SideBySideEqualsInOrder) {
   EXPECT_EQ(smoke().run(make_image(8, 8, 1)).image.size(), cv::Size(8, 8));
   for (const int tile : {0, 96}) {
     const cv::Mat img = make_image(200, 211, 21);
-    RemoveOptions o = with_float();
-    o.tile = tile;
-    o.overlap = 16;
+    const RemoveOptions o = with_float(tile, 16);
     const RemoveResult a = in_order.run(img, o), b = smoke().run(img, o);
     EXPECT_EQ(a.tiles_x * a.tiles_y, tile ? 9 : 1);
     EXPECT_EQ(cv::countNonZero(a.mask != b.mask), 0) << "tile " << tile;
@@ -245,13 +246,8 @@ TEST(Remover, SideBySideEqualsInOrder) {
 // than the RDN's receptive radius of 7.
 TEST(Remover, SmallOverlapStillBlendsSeams) {
   const cv::Mat img = make_image(300, 211, 4);
-  RemoveOptions whole = with_float();
-  whole.tile = 0;
-  const RemoveResult ref = smoke().run(img, whole);
-  RemoveOptions tiled = with_float();
-  tiled.tile = 96;
-  tiled.overlap = 16;
-  const RemoveResult t = smoke().run(img, tiled);
+  const RemoveResult ref = smoke().run(img, with_float(0, 16));
+  const RemoveResult t = smoke().run(img, with_float(96, 16));
   EXPECT_GE(t.tiles_x * t.tiles_y, 6);
   EXPECT_TRUE(all_in_unit_range(t.rgb));
   cv::Mat d;
