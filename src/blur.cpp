@@ -9,6 +9,8 @@
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
 
+#include "raindrop/spans.h"
+
 namespace raindrop {
 namespace {
 
@@ -122,16 +124,8 @@ std::vector<std::pair<int, int>> read_intervals(const Spans* spans, int y, int r
       if (ia <= ib) in.push_back({ia, ib});
     }
   }
-  std::sort(in.begin(), in.end());
-  std::vector<std::pair<int, int>> merged;
-  for (const auto& iv : in) {
-    if (!merged.empty() && iv.first <= merged.back().second + 1) {
-      merged.back().second = std::max(merged.back().second, iv.second);
-    } else {
-      merged.push_back(iv);
-    }
-  }
-  return merged;
+  merge_spans(in);
+  return in;
 }
 
 Source make_source(const cv::Mat& clean, const cv::Mat& label, const cv::Mat& color, const cv::Rect& box,

@@ -12,6 +12,7 @@
 
 #include "raindrop/background.h"
 #include "raindrop/optics.h"
+#include "raindrop/spans.h"
 
 namespace raindrop {
 namespace {
@@ -295,18 +296,7 @@ std::vector<std::vector<std::pair<int, int>>> candidate_spans(const Camera& came
       add_rows(y, y, lo[y - iy0] - pad, hi[y - iy0] + pad);
     }
   }
-  for (auto& spans : rows) {
-    std::sort(spans.begin(), spans.end());
-    std::vector<std::pair<int, int>> merged;
-    for (const auto& sp : spans) {
-      if (!merged.empty() && sp.first <= merged.back().second + 1) {
-        merged.back().second = std::max(merged.back().second, sp.second);
-      } else {
-        merged.push_back(sp);
-      }
-    }
-    spans = std::move(merged);
-  }
+  for (auto& spans : rows) merge_spans(spans);
   return rows;
 }
 

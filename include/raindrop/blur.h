@@ -19,6 +19,7 @@
 #include <opencv2/core.hpp>
 
 #include "raindrop/scene_config.h"
+#include "raindrop/spans.h"
 
 namespace raindrop {
 
@@ -29,7 +30,7 @@ namespace raindrop {
 // parts of the frame near drops are read.
 void blur_drops(const cv::Mat& clean, const cv::Mat& label, cv::Mat& color, double diameter_px,
                 BlurMethod method, const cv::Rect* drop_box = nullptr,
-                const std::vector<std::vector<std::pair<int, int>>>* spans = nullptr);
+                const std::vector<std::vector<Span>>* spans = nullptr);
 
 // The kernel's weights as a dense (2R+1)^2 matrix, for tests and documentation.
 cv::Mat blur_kernel(double diameter_px, BlurMethod method);

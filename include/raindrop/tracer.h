@@ -24,6 +24,7 @@
 #include "raindrop/drop_accel.h"
 #include "raindrop/scene.h"
 #include "raindrop/scene_config.h"
+#include "raindrop/spans.h"
 
 namespace raindrop {
 
@@ -41,7 +42,7 @@ struct TraceResult {
   TraceStats stats;
   // Per row, the x-intervals that were traced (label is -1 everywhere else), and the
   // bounding box of the drop pixels: later passes visit only these.
-  std::vector<std::vector<std::pair<int, int>>> spans;
+  std::vector<std::vector<Span>> spans;
   cv::Rect drop_box;
 };
 
