@@ -20,6 +20,7 @@ import numpy as np
 
 from .data import DatasetError, read_manifest
 from .imageio import ImageError, read_mask_strict, read_rgb_strict, to_uint8
+from .metrics import psnr_from_mse
 from .reference import ModelError, RaindropRemover
 
 STAGES = ("input", "reconstruction", "blend", "output")
@@ -44,9 +45,7 @@ class ErrorSplit:
 
     @staticmethod
     def _psnr(sq: float, n: int) -> float:
-        if n == 0:
-            return float("nan")
-        return 100.0 if sq == 0 else float(10.0 * np.log10(255.0**2 * n / sq))
+        return psnr_from_mse(sq / n) if n else float("nan")
 
     def summary(self) -> dict:
         out = {

@@ -60,12 +60,16 @@ def luma(rgb_u8: np.ndarray) -> np.ndarray:
     return np.floor(rgb_u8.astype(np.float64) @ LUMA_WEIGHTS + 0.5).astype(np.uint8)
 
 
-def psnr(a: np.ndarray, b: np.ndarray, data_range: float = 255.0) -> float:
-    _check_pair(a, b)
-    mse = float(np.mean((a.astype(np.float64) - b.astype(np.float64)) ** 2))
+def psnr_from_mse(mse: float, data_range: float = 255.0) -> float:
+    """PSNR of a mean squared error, capped at PSNR_CAP_DB (0 error included)."""
     if mse == 0.0:
         return PSNR_CAP_DB
     return min(PSNR_CAP_DB, 10.0 * math.log10(data_range**2 / mse))
+
+
+def psnr(a: np.ndarray, b: np.ndarray, data_range: float = 255.0) -> float:
+    _check_pair(a, b)
+    return psnr_from_mse(float(np.mean((a.astype(np.float64) - b.astype(np.float64)) ** 2)), data_range)
 
 
 def ssim(a: np.ndarray, b: np.ndarray) -> float:
