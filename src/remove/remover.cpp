@@ -101,6 +101,17 @@ void run_side_by_side(const std::vector<std::function<void()>>& jobs) {
   if (failure) std::rethrow_exception(failure);
 }
 
+// RDN on one tile's inputs, thresholded into `dst`: the part of the whole-image mask that the
+// tile owns, at `owned` within the tile.
+void detect(Network& rdn, const TileInputs& in, const cv::Rect& owned, double threshold, cv::Mat dst, StageTimes& t) {
+  auto clock = Clock::now();
+  std::vector<float> prob(static_cast<size_t>(in.h) * in.w);
+  rdn.run({in.r.data()}, in.h, in.w, prob.data());
+  t.rdn += ms_since(clock);
+  threshold_mask(cv::Mat(in.h, in.w, CV_32F, prob.data())(owned), threshold, dst);
+  t.mask += ms_since(clock);
+}
+
 // 3RN on one tile's inputs, clamped to [0, 1].
 std::vector<float> reconstruct(Network& rrn, const TileInputs& in, StageTimes& t) {
   auto clock = Clock::now();
@@ -143,44 +154,26 @@ RemoveResult Remover::run(const cv::Mat& image, const RemoveOptions& opt) {
   TileInputs kept;                // the single tile's inputs, reused by pass 2
   std::vector<float> kept_ihat;   // and its 3RN output when it ran beside the RDN
   std::vector<StageTimes> worker_times(branches);
-  std::vector<std::pair<int, int>> tiles;
-  for (int iy = 0; iy < ly.count(); ++iy)
-    for (int ix = 0; ix < lx.count(); ++ix) tiles.emplace_back(iy, ix);
-  auto detect = [&](int iy, int ix, StageTimes& tt) {
-    const int y0 = ly.begin[iy], x0 = lx.begin[ix];
-    TileInputs in = build_inputs(image, y0, ly.end[iy], x0, lx.end[ix], tt);
-    auto clock = Clock::now();
-    std::vector<float> prob(static_cast<size_t>(in.h) * in.w);
-    models_.rdn().run({in.r.data()}, in.h, in.w, prob.data());
-    tt.rdn += ms_since(clock);
-    const cv::Rect owned(lx.owned_begin(ix), ly.owned_begin(iy), lx.owned_end(ix) - lx.owned_begin(ix),
-                         ly.owned_end(iy) - ly.owned_begin(iy));
-    const cv::Mat p(in.h, in.w, CV_32F, prob.data());
-    threshold_mask(p(owned - cv::Point(x0, y0)), threshold, mask0(owned));
-    tt.mask += ms_since(clock);
-  };
   if (single) {
+    // rdn_beside() and rrn_beside() are the all-thread sessions when branches == 1.
     kept = build_inputs(image, 0, ly.end[0], 0, lx.end[0], t);
+    const cv::Rect whole(0, 0, kept.w, kept.h);
     if (branches > 1) {
-      run_side_by_side({[&] {
-                          auto clock = Clock::now();
-                          std::vector<float> prob(static_cast<size_t>(kept.h) * kept.w);
-                          models_.rdn_beside().run({kept.r.data()}, kept.h, kept.w, prob.data());
-                          worker_times[0].rdn += ms_since(clock);
-                          threshold_mask(cv::Mat(kept.h, kept.w, CV_32F, prob.data()), threshold, mask0);
-                          worker_times[0].mask += ms_since(clock);
-                        },
+      run_side_by_side({[&] { detect(models_.rdn_beside(), kept, whole, threshold, mask0, worker_times[0]); },
                         [&] { kept_ihat = reconstruct(models_.rrn_beside(), kept, worker_times[1]); }});
     } else {
-      auto clock = Clock::now();
-      std::vector<float> prob(static_cast<size_t>(kept.h) * kept.w);
-      models_.rdn().run({kept.r.data()}, kept.h, kept.w, prob.data());
-      t.rdn += ms_since(clock);
-      threshold_mask(cv::Mat(kept.h, kept.w, CV_32F, prob.data()), threshold, mask0);
-      t.mask += ms_since(clock);
+      detect(models_.rdn_beside(), kept, whole, threshold, mask0, t);
     }
   } else {
-    for (const auto& [iy, ix] : tiles) detect(iy, ix, t);
+    for (int iy = 0; iy < ly.count(); ++iy) {
+      for (int ix = 0; ix < lx.count(); ++ix) {
+        const int y0 = ly.begin[iy], x0 = lx.begin[ix];
+        const TileInputs in = build_inputs(image, y0, ly.end[iy], x0, lx.end[ix], t);
+        const cv::Rect owned(lx.owned_begin(ix), ly.owned_begin(iy), lx.owned_end(ix) - lx.owned_begin(ix),
+                             ly.owned_end(iy) - ly.owned_begin(iy));
+        detect(models_.rdn(), in, owned - cv::Point(x0, y0), threshold, mask0(owned), t);
+      }
+    }
   }
   for (int iy = 0; iy < ly.count(); ++iy)
     for (int ix = 0; ix < lx.count(); ++ix)
