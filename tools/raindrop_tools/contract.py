@@ -3,6 +3,9 @@ the reference pipeline. No torch here."""
 
 from __future__ import annotations
 
+import hashlib
+from pathlib import Path
+
 NETWORKS = ("rdn", "rrn", "rfn")
 FILES = {"rdn": "rdn.onnx", "rrn": "rrn.onnx", "rfn": "rfn.onnx"}
 INPUTS = {"rdn": ("image",), "rrn": ("image", "edge"), "rfn": ("blend",)}
@@ -19,3 +22,16 @@ META_KEYS = (META_PAD_MULTIPLE, META_CONFIG, META_NETWORK, META_THRESHOLD, META_
 
 # The small JSON the exporter writes next to the graphs (not part of the contract).
 EXPORT_INFO = "export.json"
+
+
+def graph_files(folder: str | Path) -> dict:
+    """export.json's "files" entry: sha256 and size of each graph in `folder`."""
+    entries = {}
+    for name in NETWORKS:
+        path = Path(folder) / FILES[name]
+        h = hashlib.sha256()
+        with open(path, "rb") as f:
+            for chunk in iter(lambda: f.read(1 << 20), b""):
+                h.update(chunk)
+        entries[FILES[name]] = {"sha256": h.hexdigest(), "bytes": path.stat().st_size}
+    return entries

@@ -14,7 +14,6 @@ from __future__ import annotations
 import argparse
 import contextlib
 import datetime as _dt
-import hashlib
 import io
 import json
 import logging
@@ -165,14 +164,6 @@ def parity(name: str, net: nn.Module, path: Path, inputs: tuple[torch.Tensor, ..
     return float(np.abs(got - want).max())
 
 
-def sha256(path: Path) -> str:
-    h = hashlib.sha256()
-    with open(path, "rb") as f:
-        for chunk in iter(lambda: f.read(1 << 20), b""):
-            h.update(chunk)
-    return h.hexdigest()
-
-
 def load_run(run_dir: Path, checkpoint: Path | None = None, allow_incomplete: bool = False):
     """(config, networks in eval mode, checkpoint info) of a run's latest checkpoint."""
     run_dir = Path(run_dir)
@@ -221,10 +212,7 @@ def export_networks(cfg: RunConfig, nets: dict[str, nn.Module], out_dir: Path, s
         "opset": OPSET,
         "gflops_256x512": gflops(cfg.network, 256, 512),
         "params": {k: parameter_count(v) for k, v in nets.items()},
-        "files": {
-            C.FILES[k]: {"sha256": sha256(out_dir / C.FILES[k]), "bytes": (out_dir / C.FILES[k]).stat().st_size}
-            for k in C.NETWORKS
-        },
+        "files": C.graph_files(out_dir),
         "parity_max_abs_diff": diffs,
         "checkpoint": source,
         "exported": _dt.datetime.now(_dt.timezone.utc).isoformat(timespec="seconds"),

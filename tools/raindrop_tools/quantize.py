@@ -14,7 +14,6 @@ Imports without torch.
 from __future__ import annotations
 
 import argparse
-import hashlib
 import json
 import random
 import shutil
@@ -27,7 +26,7 @@ import onnx
 from onnxruntime.quantization import CalibrationDataReader, CalibrationMethod, QuantFormat, QuantType, quantize_static
 from onnxruntime.quantization.shape_inference import quant_pre_process
 
-from .contract import EXPORT_INFO, FILES as GRAPH_FILES, NETWORKS
+from .contract import EXPORT_INFO, FILES as GRAPH_FILES, NETWORKS, graph_files
 from .imageio import read_rgb
 from .reference import RaindropRemover
 
@@ -59,10 +58,6 @@ def calibration_feeds(models_dir: Path, data_dir: Path, count: int, seed: int) -
         feeds["rrn"].append({"image": R, "edge": E})
         feeds["rfn"].append({"blend": B})
     return feeds
-
-
-def sha256(path: Path) -> str:
-    return hashlib.sha256(path.read_bytes()).hexdigest()
 
 
 def quantize_models(models_dir: Path, data_dir: Path, out_dir: Path, count: int = 16, seed: int = 0) -> dict:
@@ -109,17 +104,10 @@ def quantize_models(models_dir: Path, data_dir: Path, out_dir: Path, count: int 
             },
             # The int8 files' own digests (the fp32 entries and the fp32 export's PyTorch
             # parity figures describe other files).
-            "files": {
-                GRAPH_FILES[name]: {
-                    "sha256": sha256(out_dir / GRAPH_FILES[name]),
-                    "bytes": (out_dir / GRAPH_FILES[name]).stat().st_size,
-                }
-                for name in NETWORKS
-            },
+            "files": graph_files(out_dir),
         }
     )
     info.pop("parity_max_abs_diff", None)
-    info.pop("sha256", None)
     (out_dir / EXPORT_INFO).write_text(json.dumps(info, indent=2) + "\n")
     for extra in ("README.md",):
         if (models_dir / extra).is_file() and not (out_dir / extra).exists():

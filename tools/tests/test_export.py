@@ -1,5 +1,6 @@
 """ONNX export: graph contract (CONTRACTS.md section 2) and parity with PyTorch."""
 
+import hashlib
 import json
 
 import numpy as np
@@ -14,7 +15,7 @@ from helpers import CONFIGS, SHARED_DATA_MISSING, load_small_rgb, procedural_ima
 from raindrop_tools import contract as C  # noqa: E402
 from raindrop_tools.config import load_config  # noqa: E402
 from raindrop_tools.edge import edge_map_numpy  # noqa: E402
-from raindrop_tools.export import export_networks, sha256  # noqa: E402
+from raindrop_tools.export import export_networks  # noqa: E402
 from raindrop_tools.imageio import to_float  # noqa: E402
 from raindrop_tools.networks import build_networks  # noqa: E402
 
@@ -145,7 +146,7 @@ def test_export_info(exported):
     assert info == json.loads(json.dumps(exported["info"]))
     for name in C.NETWORKS:
         f = C.FILES[name]
-        assert info["files"][f]["sha256"] == sha256(exported["dir"] / f)
+        assert info["files"][f]["sha256"] == hashlib.sha256((exported["dir"] / f).read_bytes()).hexdigest()
         assert info["files"][f]["bytes"] == (exported["dir"] / f).stat().st_size
     g = info["gflops_256x512"]
     assert g["total"] == pytest.approx(g["rdn"] + g["rrn"] + g["rfn"])
