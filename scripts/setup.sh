@@ -14,7 +14,8 @@ run_demo=1
 [[ "${1:-}" == "--no-demo" ]] && run_demo=0
 
 packages=(build-essential cmake ninja-build pkg-config ca-certificates dpkg
-          libopencv-dev libembree-dev libopenimageio-dev libglm-dev libtbb-dev
+          libopencv-dev libembree-dev libopenimageio-dev openimageio-tools python3-imath
+          libglm-dev libtbb-dev
           nlohmann-json3-dev libcli11-dev libgtest-dev zlib1g-dev
           python3 python3-pip python3-venv)
 missing=()
