@@ -55,12 +55,13 @@ void remove_stale_temporaries(const fs::path& dir) {
   }
 }
 
-json drop_record(const DropShape& d, bool gravity) {
+json drop_record(const DropShape& d, bool gravity, double coc_px, bool lens) {
   json j = {{"center_cm", {d.center.x, d.center.y}},
             {"footprint_radius_cm", d.footprint_radius},
             {"sphere_radius_cm", d.sphere_radius()},
             {"contact_angle_deg", d.contact_angle * kDeg},
             {"height_cm", d.height()}};
+  if (lens) j["coc_px"] = coc_px;
   if (gravity) {
     j["elongation"] = d.elongation;
     j["flattening"] = d.flattening;
@@ -72,9 +73,11 @@ json sample_record(const std::string& id, const InputImage& input, int variant, 
                    const Frame& frame, const SceneConfig& config, const SceneSample& scene,
                    const RenderedFrame& rendered, const std::string& job) {
   json drops = json::array();
-  for (const auto& d : scene.drops) drops.push_back(drop_record(d, config.gravity.enabled));
+  for (size_t i = 0; i < scene.drops.size(); ++i)
+    drops.push_back(drop_record(scene.drops[i], config.gravity.enabled,
+                                i < rendered.coc_px.size() ? rendered.coc_px[i] : 0.0, config.lens.enabled));
   const double px = static_cast<double>(rendered.stats.drop_pixels);
-  return json{{"id", id},
+  json record{{"id", id},
               {"rainy", "rainy/" + id + ".png"},
               {"clean", "clean/" + id + ".png"},
               {"mask", "mask/" + id + ".png"},
@@ -103,6 +106,29 @@ json sample_record(const std::string& id, const InputImage& input, int variant, 
               {"off_frame_fraction", px > 0 ? rendered.stats.off_frame_pixels / px : 0.0},
               {"renderer", "raindrop-render " + renderer_version()},
               {"job", job}};
+  if (config.lens.enabled) {
+    record["alpha"] = "alpha/" + id + ".png";
+    record["lens"] = {{"f_number", scene.f_number},
+                      {"focal_length_mm", scene.focal_length_mm},
+                      {"aperture_cm", scene.aperture_cm()},
+                      {"focus_distance_cm", scene.background_distance_cm},
+                      {"defocus", rendered.defocused ? to_string(config.lens.method) : "skipped"},
+                      {"why", rendered.defocused ? "some drop's circle of confusion is at least 0.5 px"
+                                                 : "every drop's circle of confusion is under 0.5 px"},
+                      {"mask_threshold", config.lens.mask_threshold}};
+  }
+  return record;
+}
+
+// Coverage in [0, 1] as a 16-bit image (the pinhole mask's 0/1 when the lens was skipped).
+cv::Mat alpha16(const RenderedFrame& f) {
+  cv::Mat out;
+  if (f.alpha.empty()) {
+    f.mask.convertTo(out, CV_16U, 65535.0 / 255.0);
+  } else {
+    f.alpha.convertTo(out, CV_16U, 65535.0);
+  }
+  return out;
 }
 
 std::string variant_id(const std::string& input_id, int variant) {
@@ -123,7 +149,9 @@ RenderSummary render_dataset(const std::vector<InputImage>& inputs, const Render
   const auto start = std::chrono::steady_clock::now();
   if (o.variants < 1) throw Error("--variants must be at least 1");
   check_unique_ids(inputs);
-  for (const char* sub : {"", "rainy", "clean", "mask"}) {
+  std::vector<std::string> subs{"", "rainy", "clean", "mask"};
+  if (o.scene.lens.enabled) subs.push_back("alpha");
+  for (const auto& sub : subs) {
     ensure_writable_dir(o.out_dir / sub);
     remove_stale_temporaries(o.out_dir / sub);
   }
@@ -214,6 +242,10 @@ RenderSummary render_dataset(const std::vector<InputImage>& inputs, const Render
                 Rng rng(seed);
                 const SceneSample scene = sample_scene(o.scene, frame.camera, rng);
                 const RenderedFrame rendered = render_frame(frame.clean, frame.camera, o.scene, scene);
+                // alpha first: a sample whose three main images exist (what resume checks)
+                // then has its alpha too.
+                if (o.scene.lens.enabled)
+                  write_image_atomic(alpha16(rendered), o.out_dir / "alpha" / (id + ".png"), o.png_level);
                 write_image_atomic(rendered.rainy, o.out_dir / "rainy" / (id + ".png"), o.png_level);
                 write_image_atomic(frame.clean, o.out_dir / "clean" / (id + ".png"), o.png_level);
                 write_image_atomic(rendered.mask, o.out_dir / "mask" / (id + ".png"), o.png_level);

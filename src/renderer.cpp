@@ -4,6 +4,9 @@
 #include <cmath>
 
 #include "raindrop/blur.h"
+#include "raindrop/defocus.h"
+
+#include <opencv2/core.hpp>
 #include "raindrop/drop_accel.h"
 
 namespace raindrop {
@@ -11,6 +14,58 @@ namespace {
 
 double ms_since(std::chrono::steady_clock::time_point t0) {
   return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+}
+
+void finish_mask(const SceneConfig& config, RenderedFrame& frame) {
+  frame.mask = cv::Mat(frame.alpha.size(), CV_8UC1);
+  const float threshold = static_cast<float>(config.lens.mask_threshold);
+  std::int64_t n = 0;
+  for (int y = 0; y < frame.mask.rows; ++y) {
+    const float* a = frame.alpha.ptr<float>(y);
+    auto* m = frame.mask.ptr<std::uint8_t>(y);
+    for (int x = 0; x < frame.mask.cols; ++x) {
+      m[x] = a[x] >= threshold ? 255 : 0;
+      n += m[x] != 0;
+    }
+  }
+  frame.stats.drop_pixels = n;
+}
+
+// The thin-lens camera: layered compositing (fast) or aperture sampling (reference).
+// A drop just outside the frame still spreads light into it, so both run on the frame
+// widened by the largest circle's radius (the clean frame mirrored into the margin, as the
+// border mode continues it) and are cropped back.
+RenderedFrame render_defocused(const cv::Mat& clean, const Camera& camera, const SceneConfig& config,
+                               const SceneSample& scene, const DropAccel& accel, const std::vector<Drop>& drops,
+                               double largest_coc_px, RenderedFrame frame) {
+  frame.defocused = true;
+  const int pad = static_cast<int>(std::ceil(std::min(0.5 * largest_coc_px, 0.5 * std::max(clean.cols, clean.rows)))) + 1;
+  cv::Mat wide;
+  cv::copyMakeBorder(clean, wide, pad, pad, pad, pad,
+                     config.border == BorderMode::Clamp ? cv::BORDER_REPLICATE : cv::BORDER_REFLECT);
+  const Camera wide_camera = camera.cropped(-pad, -pad, clean.cols + 2 * pad, clean.rows + 2 * pad);
+  const cv::Rect inner(pad, pad, clean.cols, clean.rows);
+  auto t0 = std::chrono::steady_clock::now();
+  DefocusedFrame out;
+  if (config.lens.method == DefocusMethod::Aperture) {
+    out = encode_aperture(wide, trace_aperture(wide, wide_camera, config, scene, accel, config.lens.aperture_samples));
+    frame.timings.trace_ms = ms_since(t0);
+    for (const Drop& d : drops) out.coc_px.push_back(scene.coc_px(scene.glass.point(d.shape().center).z, camera.fx));
+  } else {
+    const TraceResult traced = trace_drops(wide, wide_camera, config, scene, accel);
+    frame.stats = traced.stats;
+    frame.timings.trace_ms = ms_since(t0);
+    t0 = std::chrono::steady_clock::now();
+    out = composite_layers(wide, traced, wide_camera, scene, drops);
+    frame.timings.blur_ms = ms_since(t0);
+  }
+  t0 = std::chrono::steady_clock::now();
+  frame.rainy = out.rainy(inner).clone();
+  frame.alpha = out.coverage(inner).clone();
+  frame.coc_px = std::move(out.coc_px);
+  finish_mask(config, frame);
+  frame.timings.compose_ms = ms_since(t0);
+  return frame;
 }
 
 }  // namespace
@@ -31,6 +86,17 @@ RenderedFrame render_frame(const cv::Mat& clean, const Camera& camera, const Sce
   // footprint for contact angles up to 90 degrees).
   accel.set_disjoint(!config.allow_overlap);
   frame.timings.accel_ms = ms_since(t0);
+
+  if (config.lens.enabled && scene.aperture_cm() > 0) {
+    // Skip the lens when no drop's circle of confusion reaches half a pixel: the pinhole
+    // render is then what the lens would give, to rounding.
+    double largest = 0;
+    for (const Drop& d : drops) {
+      const double z = scene.glass.point(d.shape().center).z;
+      largest = std::max(largest, z > 0 ? scene.coc_px(z, camera.fx) : 1e9);
+    }
+    if (largest >= kMinVisibleCocPx) return render_defocused(clean, camera, config, scene, accel, drops, largest, frame);
+  }
 
   t0 = std::chrono::steady_clock::now();
   TraceResult traced = trace_drops(clean, camera, config, scene, accel);

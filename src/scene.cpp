@@ -22,6 +22,10 @@ SceneSample sample_scene(const SceneConfig& config, const Camera& camera, Rng& r
   if (config.blur.enabled) {
     s.blur_diameter_px = draw(config.blur.diameter_px_2048, rng) * camera.width / 2048.0;
   }
+  if (config.lens.enabled) {
+    s.f_number = draw(config.lens.f_number, rng);
+    s.focal_length_mm = draw(config.lens.focal_length_mm, rng);
+  }
   s.drops_requested = rng.uniform_int(static_cast<int>(config.drop_count.lo),
                                       static_cast<int>(config.drop_count.hi));
 
@@ -52,7 +56,9 @@ SceneSample sample_scene(const SceneConfig& config, const Camera& camera, Rng& r
   constexpr int kAttempts = 200;
   for (int i = 0; i < s.drops_requested; ++i) {
     DropShape shape;
-    const double size = draw(config.drop_size_cm, rng);
+    const double size = config.size_distribution == SizeDistribution::LogUniform
+                            ? std::exp(draw({std::log(config.drop_size_cm.lo), std::log(config.drop_size_cm.hi)}, rng))
+                            : draw(config.drop_size_cm, rng);
     shape.contact_angle = draw(config.contact_angle_deg, rng) * kDeg;
     shape.footprint_radius = config.size_param == DropSizeParam::FootprintRadius
                                  ? size

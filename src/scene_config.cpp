@@ -125,6 +125,8 @@ Enum parse_enum(Reader& r, const std::string& key, Enum fallback,
 
 const char* to_string(BorderMode m) { return m == BorderMode::Clamp ? "clamp" : "mirror"; }
 const char* to_string(TirMode m) { return m == TirMode::Black ? "black" : "trace"; }
+const char* to_string(SizeDistribution d) { return d == SizeDistribution::Uniform ? "uniform" : "log-uniform"; }
+const char* to_string(DefocusMethod m) { return m == DefocusMethod::Layered ? "layered" : "aperture"; }
 const char* to_string(BlurMethod m) {
   switch (m) {
     case BlurMethod::DiskSpan: return "disk";
@@ -138,6 +140,8 @@ const char* to_string(BlurMethod m) {
 std::vector<std::string> SceneConfig::effect_names() const {
   std::vector<std::string> names{"refraction", tir == TirMode::Black ? "dark_band" : "internal_reflection"};
   if (blur.enabled) names.push_back("blur");
+  if (lens.enabled) names.push_back(std::string("defocus-") + to_string(lens.method));
+  if (sky.enabled) names.push_back("sky");
   if (fresnel.enabled) names.push_back("fresnel");
   if (dispersion.enabled) names.push_back("dispersion");
   if (gravity.enabled) names.push_back("gravity");
@@ -177,14 +181,33 @@ SceneConfig parse_scene_json(const std::string& text, const std::string& origin)
   } else {
     r.range("sphere_radius_cm", &c.drop_size_cm, 1e-3, 50);
   }
+  c.size_distribution = parse_enum<SizeDistribution>(
+      r, "size_distribution", c.size_distribution,
+      {{"uniform", SizeDistribution::Uniform}, {"log-uniform", SizeDistribution::LogUniform}});
   r.range("contact_angle_deg", &c.contact_angle_deg, 1, 90);
   r.number("refractive_index", &c.refractive_index, 1.0, 3.0);
   r.boolean("allow_overlap", &c.allow_overlap);
   r.number("min_gap_cm", &c.min_gap_cm, 0, 10);
   c.tir = parse_enum<TirMode>(r, "dark_band", c.tir, {{"black", TirMode::Black}, {"trace", TirMode::Trace}});
 
+  if (r.has("camera")) {
+    Reader l = r.child("camera");
+    c.lens.enabled = true;
+    l.range("f_number", &c.lens.f_number, 0.5, 1e6);
+    l.range("focal_length_mm", &c.lens.focal_length_mm, 0.5, 2000);
+    c.lens.method = parse_enum<DefocusMethod>(l, "defocus", c.lens.method,
+                                              {{"layered", DefocusMethod::Layered}, {"aperture", DefocusMethod::Aperture}});
+    double samples = c.lens.aperture_samples;
+    l.number("aperture_samples", &samples, 1, 1024);
+    const int side = static_cast<int>(std::lround(std::sqrt(samples)));
+    if (side * side != samples) l.fail("'aperture_samples' must be a square number (1, 4, 16, 64, 256)");
+    c.lens.aperture_samples = static_cast<int>(samples);
+    l.number("mask_threshold", &c.lens.mask_threshold, 1e-3, 1);
+    l.reject_unknown();
+  }
+
   // Effects: present = on.
-  c.blur.enabled = c.fresnel.enabled = c.dispersion.enabled = c.gravity.enabled = false;
+  c.blur.enabled = c.fresnel.enabled = c.dispersion.enabled = c.gravity.enabled = c.sky.enabled = false;
   if (r.has("effects")) {
     Reader e = r.child("effects");
     if (e.has("blur")) {
@@ -197,6 +220,13 @@ SceneConfig parse_scene_json(const std::string& text, const std::string& origin)
                                               {"disk-aa", BlurMethod::DiskAntialiased},
                                               {"gaussian", BlurMethod::Gaussian}});
       b.reject_unknown();
+    }
+    if (e.has("sky")) {
+      Reader k = e.child("sky");
+      c.sky.enabled = true;
+      k.number("fade_rows", &c.sky.fade_rows, 0, 10);
+      k.number("gain", &c.sky.gain, 0, 10);
+      k.reject_unknown();
     }
     if (e.has("fresnel")) {
       Reader f = e.child("fresnel");
@@ -219,6 +249,9 @@ SceneConfig parse_scene_json(const std::string& text, const std::string& origin)
     }
     e.reject_unknown();
   }
+
+  if (c.lens.enabled && c.blur.enabled)
+    r.fail("a scene with a 'camera' is defocused by its lens: remove 'effects.blur' (the paper's disk blur)");
 
   if (r.has("quality")) {
     Reader q = r.child("quality");
@@ -249,13 +282,21 @@ std::string scene_to_json(const SceneConfig& c) {
   j["tilt_deg"] = range(c.tilt_deg);
   j["drop_count"] = range(c.drop_count);
   j[c.size_param == DropSizeParam::SphereRadius ? "sphere_radius_cm" : "footprint_radius_cm"] = range(c.drop_size_cm);
+  if (c.size_distribution != SizeDistribution::Uniform) j["size_distribution"] = to_string(c.size_distribution);
   j["contact_angle_deg"] = range(c.contact_angle_deg);
+  if (c.lens.enabled)
+    j["camera"] = {{"f_number", range(c.lens.f_number)},
+                   {"focal_length_mm", range(c.lens.focal_length_mm)},
+                   {"defocus", to_string(c.lens.method)},
+                   {"aperture_samples", c.lens.aperture_samples},
+                   {"mask_threshold", c.lens.mask_threshold}};
   j["refractive_index"] = c.refractive_index;
   j["allow_overlap"] = c.allow_overlap;
   j["min_gap_cm"] = c.min_gap_cm;
   j["dark_band"] = to_string(c.tir);
   json effects = json::object();
   if (c.blur.enabled) effects["blur"] = {{"diameter_px_2048", range(c.blur.diameter_px_2048)}, {"method", to_string(c.blur.method)}};
+  if (c.sky.enabled) effects["sky"] = {{"fade_rows", c.sky.fade_rows}, {"gain", c.sky.gain}};
   if (c.fresnel.enabled) effects["fresnel"] = {{"interior_rgb", vec3(c.fresnel.interior_rgb)}};
   if (c.dispersion.enabled) effects["dispersion"] = {{"wavelength_nm", vec3(c.dispersion.wavelength_nm)}};
   if (c.gravity.enabled) effects["gravity"] = {{"elongation", range(c.gravity.elongation)}, {"flattening", range(c.gravity.flattening)}};

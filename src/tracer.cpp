@@ -12,6 +12,9 @@
 
 #include "raindrop/background.h"
 #include "raindrop/optics.h"
+#include "raindrop/rng.h"
+#include "raindrop/sky.h"
+#include "raindrop/srgb.h"
 #include "raindrop/spans.h"
 
 namespace raindrop {
@@ -134,13 +137,17 @@ class Kernel {
         accel_(accel),
         tir_(config.tir),
         interior_(config.fresnel.enabled ? config.fresnel.interior_rgb : glm::dvec3(0.0)),
-        n_rgb_(config.channel_indices()) {}
+        n_rgb_(config.channel_indices()) {
+    if (config.sky.enabled) bg_.set_sky(estimate_sky_rgb(clean, config.sky.gain), config.sky.fade_rows * clean.rows);
+  }
 
-  Sample sample(double px, double py) const {
-    const glm::dvec3 dir = camera_.ray_direction(px, py);
+  Sample sample(double px, double py) const { return sample_ray(glm::dvec3(0.0), camera_.ray_direction(px, py)); }
+
+  // A ray from `origin` (a point of the lens, z = 0) along `dir`.
+  Sample sample_ray(const glm::dvec3& origin, const glm::dvec3& dir) const {
     Sample s;
     if constexpr (!kDispersion) {
-      const DropPath p = trace_path<kFresnel>(glm::dvec3(0.0), dir, n_rgb_.y, tir_, accel_, glass_);
+      const DropPath p = trace_path<kFresnel>(origin, dir, n_rgb_.y, tir_, accel_, glass_);
       s.hit = p.hit;
       if (!s.hit) return s;
       s.drop = p.first_drop;
@@ -150,7 +157,7 @@ class Kernel {
       // One path per colour channel: the green path decides hit and drop (all three meet the
       // same first surface, whose position does not depend on the index).
       for (int c = 0; c < 3; ++c) {
-        const DropPath p = trace_path<kFresnel>(glm::dvec3(0.0), dir, n_rgb_[c], tir_, accel_, glass_);
+        const DropPath p = trace_path<kFresnel>(origin, dir, n_rgb_[c], tir_, accel_, glass_);
         if (!p.hit) return s;  // same first hit for every channel
         bool off = false;
         s.rgb[c] = shade(p, &off)[c];
@@ -407,7 +414,103 @@ TraceResult run(const cv::Mat& clean, const Camera& camera, const SceneConfig& c
   return out;
 }
 
+// The aperture reference: every pixel near a drop averages rays from a stratified grid of
+// points on the lens disk, each aimed at the pixel's point on the plane of focus (the
+// background, z = T) and traced through the drops. A ray that meets no drop lands exactly on
+// that point, so it sees the pixel's own clean colour.
+template <bool kFresnel, bool kDispersion>
+ApertureResult run_aperture(const cv::Mat& clean, const Camera& camera, const SceneConfig& config,
+                            const SceneSample& scene, const DropAccel& accel, int samples) {
+  const Kernel<kFresnel, kDispersion> kernel(clean, camera, config, scene, accel);
+  ApertureResult out;
+  out.linear = cv::Mat(camera.height, camera.width, CV_32FC3, cv::Scalar::all(0));
+  out.coverage = cv::Mat(camera.height, camera.width, CV_32F, cv::Scalar(0));
+  const auto& lin = srgb8_to_linear_table();
+  const int k = std::max(1, static_cast<int>(std::lround(std::sqrt(samples))));
+  const double radius = 0.5 * scene.aperture_cm();
+  // Lens points: a k x k stratified grid, jittered per pixel and stratum by a hash (so the
+  // result is the same for any thread count), mapped onto the disk by the concentric map,
+  // which keeps the strata's equal areas. Without the jitter, every pixel would use the
+  // same k/2 rings of the disk and coverage would come in visible steps.
+  auto lens_point = [&](int x, int y, int i, int j) {
+    const std::uint64_t h = mix64((static_cast<std::uint64_t>(y) << 40) ^ (static_cast<std::uint64_t>(x) << 16) ^
+                                  static_cast<std::uint64_t>(j * k + i));
+    const double ju = static_cast<double>(h & 0xffffffffULL) * 0x1.0p-32;
+    const double jv = static_cast<double>(h >> 32) * 0x1.0p-32;
+    const double a = 2.0 * (i + ju) / k - 1.0, b = 2.0 * (j + jv) / k - 1.0;
+    double r = 0, phi = 0;
+    if (a == 0 && b == 0) return glm::dvec2(0.0);
+    if (std::abs(a) > std::abs(b)) {
+      r = a, phi = M_PI / 4 * (b / a);
+    } else {
+      r = b, phi = M_PI / 2 - M_PI / 4 * (a / b);
+    }
+    return radius * r * glm::dvec2(std::cos(phi), std::sin(phi));
+  };
+  // Pixels whose aperture cone can meet a drop: the pinhole candidates widened by the
+  // largest circle of confusion (plus a pixel).
+  const auto spans = candidate_spans(camera, accel);
+  double reach = 0;
+  for (const Drop& d : accel.drops()) {
+    reach = std::max(reach, 0.5 * scene.coc_px(scene.glass.point(d.shape().center).z, camera.fx));
+    glm::dvec3 lo, hi;
+    d.bounds(&lo, &hi);
+    if (lo.z > 1e-9) reach = std::max(reach, 0.5 * scene.coc_px(lo.z, camera.fx));
+  }
+  const int pad = static_cast<int>(std::ceil(std::min(reach, 4.0 * (camera.width + camera.height)))) + 1;
+  std::vector<std::vector<Span>> rows(camera.height);
+  for (int y = 0; y < camera.height; ++y) {
+    for (const auto& [x0, x1] : spans[y]) {
+      for (int yy = std::max(0, y - pad); yy <= std::min(camera.height - 1, y + pad); ++yy)
+        rows[yy].push_back({std::max(0, x0 - pad), std::min(camera.width - 1, x1 + pad)});
+    }
+  }
+  for (auto& r : rows) merge_spans(r);
+  const double T = scene.background_distance_cm;
+  tbb::parallel_for(tbb::blocked_range<int>(0, camera.height, 4), [&](const tbb::blocked_range<int>& r) {
+    for (int y = r.begin(); y < r.end(); ++y) {
+      auto* out_rgb = out.linear.ptr<cv::Vec3f>(y);
+      auto* out_cov = out.coverage.ptr<float>(y);
+      const auto* src = clean.ptr<cv::Vec3b>(y);
+      for (const auto& [x0, x1] : rows[y]) {
+        for (int x = x0; x <= x1; ++x) {
+          const glm::dvec3 focus = T * camera.ray_direction(x, y);
+          const glm::dvec3 own(lin[src[x][0]], lin[src[x][1]], lin[src[x][2]]);
+          glm::dvec3 sum(0.0);
+          int hits = 0;
+          for (int sample = 0; sample < k * k; ++sample) {
+            const glm::dvec2 p = lens_point(x, y, sample % k, sample / k);
+            const glm::dvec3 origin(p.x, p.y, 0.0);
+            const Sample s = kernel.sample_ray(origin, focus - origin);
+            if (!s.hit) {
+              sum += own;
+              continue;
+            }
+            ++hits;
+            for (int c = 0; c < 3; ++c) sum[c] += srgb_to_linear(std::min(std::max(s.rgb[c], 0.0), 1.0));
+          }
+          if (hits == 0) continue;
+          sum /= static_cast<double>(k * k);
+          out_rgb[x] = cv::Vec3f(static_cast<float>(sum.x), static_cast<float>(sum.y), static_cast<float>(sum.z));
+          out_cov[x] = static_cast<float>(hits) / static_cast<float>(k * k);
+        }
+      }
+    }
+  });
+  return out;
+}
+
 }  // namespace
+
+ApertureResult trace_aperture(const cv::Mat& clean, const Camera& camera, const SceneConfig& config,
+                              const SceneSample& scene, const DropAccel& accel, int samples) {
+  CV_Assert(clean.type() == CV_8UC3 && clean.cols == camera.width && clean.rows == camera.height);
+  const bool fresnel = config.fresnel.enabled, dispersion = config.dispersion.enabled;
+  if (fresnel && dispersion) return run_aperture<true, true>(clean, camera, config, scene, accel, samples);
+  if (fresnel) return run_aperture<true, false>(clean, camera, config, scene, accel, samples);
+  if (dispersion) return run_aperture<false, true>(clean, camera, config, scene, accel, samples);
+  return run_aperture<false, false>(clean, camera, config, scene, accel, samples);
+}
 
 TraceResult trace_drops(const cv::Mat& clean, const Camera& camera, const SceneConfig& config,
                         const SceneSample& scene, const DropAccel& accel) {

@@ -6,6 +6,7 @@
 // into streaks), `mirror` reflects the frame about its edges (a plausible continuation of
 // sky and road; the default).
 #include <cmath>
+#include <algorithm>
 #include <cstdint>
 
 #include <glm/vec3.hpp>
@@ -25,9 +26,23 @@ class BackgroundSampler {
     return x >= -0.5 && y >= -0.5 && x <= img_.cols - 0.5 && y <= img_.rows - 0.5;
   }
 
+  // Above the frame, the view fades from the border mode's continuation into `rgb` over
+  // `fade_px` rows (the sky effect); fade_px <= 0 turns it off.
+  void set_sky(const glm::dvec3& rgb, double fade_px) {
+    sky_ = rgb;
+    sky_fade_px_ = fade_px;
+  }
+
   // RGB in [0, 1]. Finite for any finite input; non-finite coordinates give the nearest
   // corner's colour.
   glm::dvec3 sample(double x, double y) const {
+    const glm::dvec3 c = sample_frame(x, y);
+    if (sky_fade_px_ <= 0 || !(y < -0.5)) return c;
+    const double w = std::isfinite(y) ? std::min(1.0, (-0.5 - y) / sky_fade_px_) : 1.0;
+    return c + w * (sky_ - c);
+  }
+
+  glm::dvec3 sample_frame(double x, double y) const {
     x = fold(x, img_.cols);
     y = fold(y, img_.rows);
     const int x0 = static_cast<int>(std::floor(x)), y0 = static_cast<int>(std::floor(y));
@@ -68,6 +83,8 @@ class BackgroundSampler {
 
   const cv::Mat& img_;
   BorderMode border_;
+  glm::dvec3 sky_{0.0};
+  double sky_fade_px_ = 0;
 };
 
 }  // namespace raindrop

@@ -23,10 +23,15 @@ enum class DropSizeParam { SphereRadius, FootprintRadius };
 enum class BorderMode { Clamp, Mirror };
 enum class BlurMethod { DiskSpan, DiskDirect, DiskAntialiased, Gaussian };
 enum class TirMode { Black, Trace };
+enum class SizeDistribution { Uniform, LogUniform };
+// How a thin-lens camera's defocus of the drops is rendered (see defocus.h, aperture.h).
+enum class DefocusMethod { Layered, Aperture };
 
 const char* to_string(BorderMode);
 const char* to_string(BlurMethod);
 const char* to_string(TirMode);
+const char* to_string(SizeDistribution);
+const char* to_string(DefocusMethod);
 
 struct SceneConfig {
   std::string name = "paper";
@@ -38,6 +43,9 @@ struct SceneConfig {
   Range drop_count{50, 70};               // integers, inclusive
   DropSizeParam size_param = DropSizeParam::SphereRadius;
   Range drop_size_cm{0.8, 1.5};           // r (sphere) or a (footprint), per size_param
+  // Uniform as in the paper; log-uniform gives many small drops and few large ones, as on
+  // real glass.
+  SizeDistribution size_distribution = SizeDistribution::Uniform;
   Range contact_angle_deg{30, 45};        // tau
   double refractive_index = 1.333;
   bool allow_overlap = false;             // false: footprints never overlap (real drops merge)
@@ -67,6 +75,30 @@ struct SceneConfig {
     Range elongation{1.0, 1.3};  // downhill footprint stretch
     Range flattening{0.6, 1.0};  // height relative to the spherical cap
   } gravity;
+
+  // A thin-lens camera (optional). Without it the camera is a pinhole and the drops get the
+  // paper's disk blur (effects.blur). With it, drops are defocused as a real lens focused on
+  // the street sees them: each drop spreads over its circle of confusion and becomes
+  // semi-transparent where it is smaller than that circle. The lens' aperture in cm is
+  // focal_length / f_number; the circle of confusion of a point at depth z, with focus on
+  // the background at S, is aperture * fx_px * |1/z - 1/S| pixels.
+  struct Lens {
+    bool enabled = false;
+    Range f_number{2, 8};
+    Range focal_length_mm{5, 5};  // physical focal length (Cityscapes: fx 2262 px x 2.2 um ~ 5 mm)
+    DefocusMethod method = DefocusMethod::Layered;
+    int aperture_samples = 16;    // per pixel, for method Aperture (square number)
+    double mask_threshold = 0.1;  // binary mask = coverage >= this
+  } lens;
+
+  // What refracted rays see above the frame: the sky (its colour estimated from the brightest
+  // part of the frame's top third) instead of a mirrored copy of the frame. A drop is a
+  // wide-angle lens whose lower half looks up into the sky: this is why real drops are bright.
+  struct Sky {
+    bool enabled = false;
+    double fade_rows = 0.15;  // fraction of the frame height over which the mirror fades into the sky
+    double gain = 1.0;        // sky radiance relative to the estimate (overcast ~1, sunny >1)
+  } sky;
 
   // Quality: the accuracy/time knobs.
   GeometryOptions geometry;

@@ -69,4 +69,13 @@ glm::dvec2 background_pixel(const DropPath& path, const Camera& camera, double b
 TraceResult trace_drops(const cv::Mat& clean, const Camera& camera, const SceneConfig& config,
                         const SceneSample& scene, const DropAccel& accel);
 
+// The thin-lens reference (SceneConfig::lens, method Aperture): `samples` rays per pixel
+// from points spread over the aperture disk, focused on the background plane.
+struct ApertureResult {
+  cv::Mat linear;    // CV_32FC3 linear RGB, where coverage > 0 (zero elsewhere)
+  cv::Mat coverage;  // CV_32F: the fraction of the aperture's rays that met a drop
+};
+ApertureResult trace_aperture(const cv::Mat& clean, const Camera& camera, const SceneConfig& config,
+                              const SceneSample& scene, const DropAccel& accel, int samples);
+
 }  // namespace raindrop
