@@ -63,10 +63,30 @@ class NetworkConfig:
 
 
 @dataclass(frozen=True)
+class SourceConfig:
+    """One data set folder of ``data.sources``: training draws from the sources by weight."""
+
+    # Data set folder (CONTRACTS.md section 1 layout: rendered, or real pairs written by
+    # ``raindrop_tools.realpairs prepare``). Relative paths: against the working directory.
+    path: str = ""
+    # Share of every batch drawn from this source (weights are normalised to sum to 1).
+    weight: float = 1.0
+    # Manifest "split" values to use: a string or a list; null = data.splits.
+    split: str | list[str] | None = None
+    # rainy == clean outside the mask; null = data.check_outside_mask. Real pairs: false.
+    check_outside_mask: bool | None = None
+
+
+@dataclass(frozen=True)
 class DataConfig:
     # Rendered data set folder (CONTRACTS.md section 1). Relative paths are resolved against
-    # the current working directory when the configuration is loaded.
+    # the current working directory when the configuration is loaded. Used when ``sources``
+    # is null (or empty).
     train: str = "data/train"
+    # Several data set folders with weights (``SourceConfig``); replaces ``train``. E.g.
+    # [{path: data/train, weight: 0.7}, {path: data/real, weight: 0.3, split: train,
+    #   check_outside_mask: false}]. crop, flip, cache and validate apply to every source.
+    sources: list[SourceConfig] | None = None
     # Manifest "split" values to train on; null uses every sample.
     splits: list[str] | None = None
     crop: int = 100
@@ -146,6 +166,9 @@ def _coerce(value: Any, tp: Any, where: str) -> Any:
         if value is None and type(None) in args:
             return None
         inner = [a for a in args if a is not type(None)]
+        # str | list[str]: a list goes to the list alternative
+        if len(inner) > 1 and isinstance(value, (list, tuple)):
+            inner = [a for a in inner if typing.get_origin(a) is list] or inner
         return _coerce(value, inner[0], where)
     if dataclasses.is_dataclass(tp):
         if not isinstance(value, dict):
@@ -229,6 +252,11 @@ def validate_config(cfg: RunConfig) -> None:
         problems.append("data.validate must be 'full' or 'header'")
     if cfg.data.workers < 0:
         problems.append("data.workers must be >= 0")
+    for i, src in enumerate(cfg.data.sources or []):
+        if not src.path:
+            problems.append(f"data.sources[{i}].path is empty")
+        if not (src.weight > 0 and src.weight < float("inf")):
+            problems.append(f"data.sources[{i}].weight must be > 0, got {src.weight}")
     t = cfg.train
     if t.batch_size < 1 or t.stage1_steps < 1 or t.stage2_steps < 1:
         problems.append("train.batch_size, stage1_steps and stage2_steps must be >= 1")
@@ -297,18 +325,59 @@ def load_config(
     if not isinstance(data, dict):
         raise ConfigError(f"{path}: expected a mapping at the top level")
     try:
+        _check_one_data_form(data, overrides)
+        if any(k == "data.sources" for k, _ in overrides or []) and isinstance(data.get("data"), dict):
+            data = {**data, "data": {k: v for k, v in data["data"].items() if k != "train"}}
         cfg = config_from_dict(data, overrides)
     except ConfigError as e:
         raise ConfigError(f"{path}: {e}") from None
     return resolve_data_paths(cfg) if resolve_paths else cfg
 
 
+def _check_one_data_form(data: dict, overrides: list[tuple[str, Any]] | None) -> None:
+    """``data.train`` and ``data.sources`` must not both be given where one would be silently
+    ignored: both in the file, or ``data.train`` (``--data``) as an override of a
+    configuration with sources. An override ``data.sources`` replaces the file's
+    ``data.train``. Only checked on what a user writes: a resolved config.yaml holds both keys
+    (every default filled in)."""
+    section = data.get("data") if isinstance(data.get("data"), dict) else {}
+    over = dict(overrides or [])
+    file_sources = bool(section.get("sources"))
+    sources = bool(over["data.sources"]) if "data.sources" in over else file_sources
+    if ("train" in section and file_sources and "data.sources" not in over) or ("data.train" in over and sources):
+        raise ConfigError(
+            "data.train (or --data) and data.sources are both given; data.sources replaces data.train: "
+            "give one of them"
+        )
+
+
+def data_sources(cfg: RunConfig) -> list[SourceConfig]:
+    """The effective sources: ``data.sources``, or ``data.train`` as a single source. Each
+    has its split list (a list or None) and check_outside_mask filled in from ``data``."""
+    d = cfg.data
+    if not d.sources:
+        return [SourceConfig(path=d.train, weight=1.0, split=d.splits, check_outside_mask=d.check_outside_mask)]
+    out = []
+    for s in d.sources:
+        split = d.splits if s.split is None else ([s.split] if isinstance(s.split, str) else list(s.split))
+        check = d.check_outside_mask if s.check_outside_mask is None else s.check_outside_mask
+        out.append(SourceConfig(path=s.path, weight=s.weight, split=split, check_outside_mask=check))
+    return out
+
+
+def _absolute(path: str, base: Path) -> str:
+    p = Path(path).expanduser()
+    return str(p if p.is_absolute() else (base / p).resolve())
+
+
 def resolve_data_paths(cfg: RunConfig, base: Path | None = None) -> RunConfig:
     base = Path.cwd() if base is None else base
-    train = Path(cfg.data.train).expanduser()
-    if not train.is_absolute():
-        train = (base / train).resolve()
-    return dataclasses.replace(cfg, data=dataclasses.replace(cfg.data, train=str(train)))
+    sources = cfg.data.sources
+    if sources:
+        sources = [dataclasses.replace(s, path=_absolute(s.path, base)) for s in sources]
+    return dataclasses.replace(
+        cfg, data=dataclasses.replace(cfg.data, train=_absolute(cfg.data.train, base), sources=sources)
+    )
 
 
 def dump_config(cfg: RunConfig) -> str:

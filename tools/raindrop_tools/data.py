@@ -301,7 +301,39 @@ class RaindropDataset:
         }
 
 
-class StepBatchSampler:
+class _StepSampler:
+    """What the step samplers share: the run's numbers, crop draws, iteration over steps.
+    Subclasses define ``keys_for_step``."""
+
+    def _setup(self, crop: int, batch_size: int, seed: int, stage: int, total_steps: int, start_step: int,
+               flip: bool) -> None:
+        self.crop = crop
+        self.batch_size = batch_size
+        self.seed = seed
+        self.stage = stage
+        self.total_steps = total_steps
+        self.start_step = start_step
+        self.flip = flip
+
+    def _crop(self, rng: np.random.Generator, h: int, w: int) -> tuple[int, int, bool]:
+        """(y0, x0, flip) of one crop of an HxW image, drawn from the step's generator."""
+        y0 = int(rng.integers(0, h - self.crop + 1))
+        x0 = int(rng.integers(0, w - self.crop + 1))
+        flip = bool(rng.integers(0, 2)) if self.flip else False
+        return y0, x0, flip
+
+    def keys_for_step(self, step: int) -> list[tuple]:
+        raise NotImplementedError
+
+    def __iter__(self) -> Iterator[list[tuple]]:
+        for step in range(self.start_step, self.total_steps):
+            yield self.keys_for_step(step)
+
+    def __len__(self) -> int:
+        return max(0, self.total_steps - self.start_step)
+
+
+class StepBatchSampler(_StepSampler):
     """Yields, for each step in [start_step, total_steps), the list of dataset keys of that
     step's batch. Samples are drawn without replacement within an epoch (a permutation seeded
     by (seed, stage, epoch)); crop positions and flips are seeded by (seed, stage, step). The
@@ -322,13 +354,7 @@ class StepBatchSampler:
         if not sizes:
             raise ValueError("no samples")
         self.sizes = sizes
-        self.crop = crop
-        self.batch_size = batch_size
-        self.seed = seed
-        self.stage = stage
-        self.total_steps = total_steps
-        self.start_step = start_step
-        self.flip = flip
+        self._setup(crop, batch_size, seed, stage, total_steps, start_step, flip)
         self._perm: dict[int, np.ndarray] = {}
 
     def _permutation(self, epoch: int) -> np.ndarray:
@@ -346,19 +372,131 @@ class StepBatchSampler:
         for b in range(self.batch_size):
             pos = step * self.batch_size + b
             i = int(self._permutation(pos // n)[pos % n])
-            h, w = self.sizes[i]
-            y0 = int(rng.integers(0, h - self.crop + 1))
-            x0 = int(rng.integers(0, w - self.crop + 1))
-            flip = bool(rng.integers(0, 2)) if self.flip else False
-            keys.append((i, y0, x0, flip))
+            keys.append((i, *self._crop(rng, *self.sizes[i])))
         return keys
 
-    def __iter__(self) -> Iterator[list[tuple[int, int, int, bool]]]:
-        for step in range(self.start_step, self.total_steps):
-            yield self.keys_for_step(step)
+
+class MultiSourceDataset:
+    """Several ``RaindropDataset`` (the ``data.sources`` of a configuration) behind one index:
+    a key is ``(source index, sample index, y0, x0, flip)`` (what
+    ``WeightedStepBatchSampler`` yields). Sample ids are reported as ``<name>/<id>``, the name
+    being the source folder's name (made unique by its index when two folders share one)."""
+
+    def __init__(self, datasets: list[RaindropDataset], names: list[str] | None = None):
+        if not datasets:
+            raise ValueError("no sources")
+        self.datasets = list(datasets)
+        names = names or [d.root.name for d in self.datasets]
+        if len(set(names)) != len(names):
+            names = [f"{i}:{n}" for i, n in enumerate(names)]
+        self.names = names
+        crops = {d.crop for d in self.datasets}
+        if len(crops) != 1:
+            raise ValueError(f"sources with different crop sizes: {sorted(crops)}")
+        self.crop = crops.pop()
+        self.flip = self.datasets[0].flip
 
     def __len__(self) -> int:
-        return max(0, self.total_steps - self.start_step)
+        return sum(len(d) for d in self.datasets)
+
+    @property
+    def sizes(self) -> list[list[tuple[int, int]]]:
+        """(height, width) of every sample, per source."""
+        return [d.sizes for d in self.datasets]
+
+    def sample_id(self, key) -> str:
+        s, i = key[0], key[1]
+        return f"{self.names[s]}/{self.datasets[s].samples[i].id}"
+
+    def __getitem__(self, key) -> dict:
+        s, *rest = key
+        item = self.datasets[s][tuple(rest)]
+        item["id"] = f"{self.names[s]}/{item['id']}"
+        return item
+
+
+def _normalised(weights: list[float]) -> np.ndarray:
+    w = np.asarray(weights, dtype=np.float64)
+    if w.ndim != 1 or not len(w) or not np.all(np.isfinite(w)) or np.any(w <= 0):
+        raise ValueError(f"source weights must be finite and > 0, got {list(weights)}")
+    return w / w.sum()
+
+
+def source_counts(weights: list[float], batch_size: int, seed: int, stage: int, step: int) -> np.ndarray:
+    """How many crops of step ``step``'s batch come from each source. Source s gets
+    ``floor(B w_s)`` crops, plus one more when the step's systematic sample picks it: the
+    fractional parts ``B w_s - floor(B w_s)`` (summing to the r crops left) are laid end to end
+    on [0, r) and the points ``u, u + 1, ..., u + r - 1`` (u uniform in [0, 1), seeded by
+    (seed, stage, step)) pick the sources they fall in. Each source's expected count per step
+    is exactly ``B w_s``, and every batch is within one crop of it."""
+    w = _normalised(weights)
+    quota = batch_size * w
+    base = np.floor(quota).astype(np.int64)
+    frac = quota - base
+    left = int(batch_size - base.sum())
+    counts = base.copy()
+    if left > 0:
+        u = np.random.default_rng([seed, stage, step, 2]).random()
+        edges = np.cumsum(frac)
+        edges[-1] = left  # absorb rounding: the fractions sum to `left`
+        picks = np.searchsorted(edges, u + np.arange(left), side="right")
+        counts += np.bincount(np.minimum(picks, len(w) - 1), minlength=len(w))
+    return counts
+
+
+class WeightedStepBatchSampler(_StepSampler):
+    """``StepBatchSampler`` for several sources drawn by weight. Per step, the number of crops
+    from each source is ``source_counts`` (seeded by (seed, stage, step)); within a source,
+    samples come without replacement from a permutation per (seed, stage, source, epoch), the
+    source reserving ``ceil(B w_s)`` positions of its own stream per step (a step that draws
+    fewer leaves the rest unused), so a step's samples are a pure function of the step too.
+    Crop positions and flips are seeded by (seed, stage, step). Keys: ``(source, i, y0, x0,
+    flip)``."""
+
+    def __init__(
+        self,
+        sizes: list[list[tuple[int, int]]],
+        weights: list[float],
+        crop: int,
+        batch_size: int,
+        seed: int,
+        stage: int,
+        total_steps: int,
+        start_step: int = 0,
+        flip: bool = True,
+    ):
+        if len(sizes) != len(weights):
+            raise ValueError(f"{len(sizes)} sources but {len(weights)} weights")
+        if any(not s for s in sizes):
+            raise ValueError("a source has no samples")
+        self.sizes = sizes
+        self.weights = list(_normalised(weights))
+        self._setup(crop, batch_size, seed, stage, total_steps, start_step, flip)
+        quota = batch_size * _normalised(self.weights)
+        # the most crops source_counts can give a source in one step (same arithmetic)
+        self.reserved = [int(np.floor(q)) + int(q > np.floor(q)) for q in quota]
+        self._perm: dict[tuple[int, int], np.ndarray] = {}
+
+    def _permutation(self, source: int, epoch: int) -> np.ndarray:
+        key = (source, epoch)
+        if key not in self._perm:
+            if len(self._perm) > 4 * len(self.sizes):
+                self._perm.clear()
+            rng = np.random.default_rng([self.seed, self.stage, epoch, 3, source])
+            self._perm[key] = rng.permutation(len(self.sizes[source]))
+        return self._perm[key]
+
+    def keys_for_step(self, step: int) -> list[tuple[int, int, int, int, bool]]:
+        counts = source_counts(self.weights, self.batch_size, self.seed, self.stage, step)
+        rng = np.random.default_rng([self.seed, self.stage, step, 1])
+        keys = []
+        for s, count in enumerate(counts):
+            n = len(self.sizes[s])
+            for j in range(int(count)):
+                pos = step * self.reserved[s] + j
+                i = int(self._permutation(s, pos // n)[pos % n])
+                keys.append((s, i, *self._crop(rng, *self.sizes[s][i])))
+        return keys
 
 
 def epochs(total_steps: int, batch_size: int, n_samples: int) -> float:
@@ -369,7 +507,10 @@ def epochs(total_steps: int, batch_size: int, n_samples: int) -> float:
 __all__ = [
     "DatasetError",
     "MANIFEST",
+    "MultiSourceDataset",
     "RaindropDataset",
+    "WeightedStepBatchSampler",
+    "source_counts",
     "Sample",
     "StepBatchSampler",
     "check_files",

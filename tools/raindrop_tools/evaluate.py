@@ -20,6 +20,7 @@ each row's time is the sum of the steps it uses.
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import csv
 import json
 import os
@@ -32,8 +33,9 @@ import numpy as np
 from tqdm import tqdm
 
 from . import metrics as MT
+from . import realpairs as RP
 from .data import DatasetError, check_files, read_manifest
-from .imageio import ImageError, read_mask_strict, read_rgb_strict, to_uint8
+from .imageio import ImageError, read_mask_strict, read_rgb_strict, to_uint8, write_rgb
 from .reference import ModelError, RaindropRemover
 
 QUALITY = ("psnr_y", "ssim_y", "psnr_rgb", "ssim_rgb")
@@ -219,20 +221,213 @@ def plot_pr_curve(precision: np.ndarray, recall: np.ndarray, ap: float, path: Pa
     plt.close(fig)
 
 
+# --------------------------------------------------------------------------- real pairs
+
+SHEET_LEGEND = "detected mask: white = detected and in the rough mask, cyan = detected only, red = rough mask only"
+
+
+def _label(panel: np.ndarray, text: str) -> np.ndarray:
+    import cv2
+
+    bar = np.full((18, panel.shape[1], 3), 255, np.uint8)
+    cv2.putText(bar, text, (3, 13), cv2.FONT_HERSHEY_SIMPLEX, 0.4, (0, 0, 0), 1, cv2.LINE_AA)
+    return np.vstack([bar, panel])
+
+
+def mask_panel(detected: np.ndarray, rough: np.ndarray) -> np.ndarray:
+    """RGB picture of the detected mask against the rough mask (``SHEET_LEGEND``)."""
+    d, r = detected.astype(bool), rough.astype(bool)
+    out = np.zeros(d.shape + (3,), np.uint8)
+    out[r & ~d] = (200, 0, 0)
+    out[d & ~r] = (0, 220, 220)
+    out[d & r] = (255, 255, 255)
+    return out
+
+
+def contact_sheet(rainy, detected, rough, output, clean, title: str = "") -> np.ndarray:
+    """input | detected mask | output | clean, side by side with labels (HxW RGB uint8)."""
+    panels = [
+        _label(rainy, "input"),
+        _label(mask_panel(detected, rough), "detected (vs rough)"),
+        _label(output, "output"),
+        _label(clean, "clean"),
+    ]
+    gap = np.full((panels[0].shape[0], 4, 3), 255, np.uint8)
+    row = np.hstack([x for p in panels for x in (p, gap)][:-1])
+    return _label(row, title) if title else row
+
+
+def evaluate_real_pairs(
+    folder: Path,
+    models: Path,
+    out: Path,
+    split: str = "test",
+    holdout=None,
+    mask_params: RP.MaskParams | None = None,
+    limit: int | None = None,
+    threshold: float | None = None,
+    dilation: int | None = None,
+    threads: int | None = None,
+    sheets: bool = True,
+    progress: bool = True,
+) -> dict:
+    """Removal on real rainy/clean pairs (``realpairs``): PSNR/SSIM of the input and of the
+    pipeline's output against the clean photograph, the gain, and detection against the rough
+    masks (``realpairs.rough_mask``, which stand in for a ground truth real pairs lack).
+    Writes results.json, results.md, per_image.csv and sheets/<id>.png to ``out``."""
+    mask_params = mask_params or RP.MaskParams()
+    pairs = RP.select(RP.assign_splits(RP.find_pairs(folder), holdout), split)
+    if limit:
+        pairs = pairs[:limit]
+    if not pairs:
+        raise RP.PairsError(f"{folder}: no pairs in split {split!r}")
+    remover = RaindropRemover(models, threads=threads)
+    thr = remover.threshold if threshold is None else float(threshold)
+    k = remover.dilation if dilation is None else int(dilation)
+    pr = MT.PRAccumulator()
+    counts = MT.MaskCounts()
+    per_image = []
+    out.mkdir(parents=True, exist_ok=True)
+    for p in tqdm(pairs, desc="evaluate", disable=not progress, dynamic_ncols=True):
+        rainy, clean, rough = RP.pair_mask(p, mask_params)
+        gt = rough > 0
+        res = remover.remove(rainy, thr, k, keep_intermediates=True)
+        pr.add(res.prob, gt)
+        counts.add(res.mask, gt)
+        m_in, m_out = MT.image_metrics(rainy, clean), MT.image_metrics(res.output, clean)
+        rec = {"id": p.id, "group": p.group, "split": p.split, "rough_coverage": float(gt.mean()),
+               "detected_coverage": float(res.mask.mean())}
+        for key in QUALITY:
+            rec[f"input_{key}"] = m_in[key]
+            rec[f"output_{key}"] = m_out[key]
+            rec[f"gain_{key}"] = m_out[key] - m_in[key]
+        per_image.append(rec)
+        if sheets:
+            title = (f"{p.id} ({p.split})  PSNR-Y {m_in['psnr_y']:.2f} -> {m_out['psnr_y']:.2f} dB, "
+                     f"SSIM-Y {m_in['ssim_y']:.3f} -> {m_out['ssim_y']:.3f}")
+            write_rgb(out / "sheets" / f"{p.id}.png", contact_sheet(rainy, res.mask, gt, res.output, clean, title))
+    mean = {key: float(np.mean([r[key] for r in per_image])) for key in per_image[0] if key.startswith(
+        ("input_", "output_", "gain_", "rough_", "detected_"))}
+    result = {
+        "real_pairs": str(folder),
+        "models": str(models),
+        "config": remover.config,
+        "split": split,
+        "holdout": holdout if holdout is not None else RP.DEFAULT_HOLDOUT,
+        "groups": sorted({p.group for p in pairs}),
+        "images": len(pairs),
+        "threshold": thr,
+        "dilation": k,
+        "mask_params": dataclasses.asdict(mask_params),
+        "mean": mean,
+        "ap_rough": pr.average_precision(),
+        "mask_vs_rough": counts.summary(),
+        "ap_bins": pr.bins,
+        "psnr_cap_db": MT.PSNR_CAP_DB,
+        "per_image": per_image,
+    }
+    (out / "results.json").write_text(json.dumps(result, indent=2, allow_nan=True) + "\n")
+    (out / "results.md").write_text(real_pairs_markdown(result))
+    with open(out / "per_image.csv", "w", newline="") as f:
+        wr = csv.DictWriter(f, fieldnames=list(per_image[0]))
+        wr.writeheader()
+        wr.writerows(per_image)
+    return result
+
+
+def real_pairs_markdown(result: dict) -> str:
+    m = result["mean"]
+    lines = [
+        f"# Real pairs: {result['config']} on {result['images']} pairs (split {result['split']})",
+        "",
+        f"Pairs: `{result['real_pairs']}`, groups {', '.join(result['groups'])}; models: `{result['models']}`; "
+        f"threshold {result['threshold']}, dilation k={result['dilation']}.",
+        "",
+        "| | PSNR (Y) | SSIM (Y) | PSNR (RGB) | SSIM (RGB) |",
+        "| --- | ---: | ---: | ---: | ---: |",
+    ]
+    for row, label in (("input", "Input (no removal)"), ("output", "Output (3RN + RDN + RFN)"), ("gain", "Gain")):
+        sign = "+" if row == "gain" else ""
+        cells = [f"{m[f'{row}_{key}']:{sign}.{2 if key.startswith('psnr') else 4}f}" for key in QUALITY]
+        lines.append(f"| {label} | " + " | ".join(cells) + " |")
+    mk = result["mask_vs_rough"]
+    mp = result["mask_params"]
+    lines += [
+        "",
+        f"Detection against the rough masks: AP {_fmt(result['ap_rough'], 4)}; final mask precision "
+        f"{_fmt(mk['precision'], 4)}, recall {_fmt(mk['recall'], 4)}, IoU {_fmt(mk['iou'], 4)}, coverage "
+        f"{_fmt(mk['coverage'], 4)} (rough masks: {_fmt(m['rough_coverage'], 4)}).",
+        "",
+        "Means over pairs of per-pair values; gain = output - input per pair. Protocol of `metrics.py` (Y: 8-bit "
+        "luma, cropped to multiples of 4; SSIM 7x7 uniform window; PSNR capped at "
+        f"{result['psnr_cap_db']:.0f} dB). Rough masks (`realpairs.rough_mask`): |luma difference| after a "
+        f"{mp['blur']}x{mp['blur']} box blur > {mp['threshold']:g} levels, opening {mp['open_size']}, closing "
+        f"{mp['close_size']}, components >= {mp['min_area']} px; they include stereo parallax and miss drops that "
+        "look like the scene, so AP against them is a rough indication. Contact sheets: `sheets/<id>.png`, "
+        f"{SHEET_LEGEND}.",
+        "",
+        "| pair | input PSNR-Y | output PSNR-Y | gain | input SSIM-Y | output SSIM-Y |",
+        "| --- | ---: | ---: | ---: | ---: | ---: |",
+    ]
+    for r in result["per_image"]:
+        lines.append(
+            f"| {r['id']} | {r['input_psnr_y']:.2f} | {r['output_psnr_y']:.2f} | {r['gain_psnr_y']:+.2f} | "
+            f"{r['input_ssim_y']:.4f} | {r['output_ssim_y']:.4f} |"
+        )
+    lines.append("")
+    return "\n".join(lines)
+
+
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(
-        prog="python -m raindrop_tools.evaluate", description="Evaluate ONNX models on a rendered test set."
+        prog="python -m raindrop_tools.evaluate",
+        description="Evaluate ONNX models on a rendered test set, or on real rainy/clean pairs.",
     )
-    ap.add_argument("--data", required=True, help="rendered test set (CONTRACTS.md section 1)")
+    src = ap.add_mutually_exclusive_group(required=True)
+    src.add_argument("--data", help="rendered test set (CONTRACTS.md section 1)")
+    src.add_argument(
+        "--real-pairs", metavar="DIR", help="folder of real X_rain.* / X_clean.* pairs (raindrop_tools.realpairs)"
+    )
     ap.add_argument("--models", required=True, help="folder with rdn.onnx, rrn.onnx, rfn.onnx")
     ap.add_argument("--out", required=True, help="output folder")
-    ap.add_argument("--split", action="append", help="only samples with this manifest split (repeatable; default all)")
+    ap.add_argument(
+        "--split",
+        action="append",
+        help="--data: only samples with this manifest split (repeatable; default all). "
+        "--real-pairs: train, test (default) or all, by the realpairs group split",
+    )
+    ap.add_argument("--holdout", help="--real-pairs: the test split's groups (realpairs --holdout; default 0.5)")
+    ap.add_argument("--no-sheets", action="store_true", help="--real-pairs: no contact sheets")
     ap.add_argument("--limit", type=int, help="only the first N samples")
     ap.add_argument("--threshold", type=float, help="mask threshold (default: the models')")
     ap.add_argument("--dilation", type=int, help="dilation size k of the last row (default: the models')")
     ap.add_argument("--threads", type=int, help="ONNX Runtime intra-op threads")
     ap.add_argument("--no-progress", action="store_true")
+    RP.add_mask_arguments(ap)
     args = ap.parse_args(argv)
+    if args.real_pairs:
+        if args.split and len(args.split) > 1:
+            ap.error("--real-pairs takes one --split (train, test or all)")
+        try:
+            result = evaluate_real_pairs(
+                Path(args.real_pairs),
+                Path(args.models),
+                Path(args.out),
+                split=args.split[0] if args.split else "test",
+                holdout=RP.parse_holdout(args.holdout) if args.holdout else None,
+                mask_params=RP.mask_params_from_args(args),
+                limit=args.limit,
+                threshold=args.threshold,
+                dilation=args.dilation,
+                threads=args.threads,
+                sheets=not args.no_sheets,
+                progress=not args.no_progress,
+            )
+        except (RP.PairsError, ModelError, ImageError, ValueError) as e:
+            print(f"error: {e}", file=sys.stderr)
+            return 2
+        print(real_pairs_markdown(result).split("\n\n| pair |")[0])
+        return 0
     try:
         result = evaluate(
             Path(args.data),

@@ -34,8 +34,17 @@ from tqdm import tqdm
 
 from . import checkpoint as ckpt
 from . import losses
-from .config import ConfigError, RunConfig, config_from_dict, dump_config, load_config, parse_overrides, to_dict
-from .data import DatasetError, RaindropDataset, StepBatchSampler, epochs
+from .config import (
+    ConfigError,
+    RunConfig,
+    config_from_dict,
+    data_sources,
+    dump_config,
+    load_config,
+    parse_overrides,
+    to_dict,
+)
+from .data import DatasetError, MultiSourceDataset, RaindropDataset, StepBatchSampler, WeightedStepBatchSampler, epochs
 from .morphology import Dilation
 from .networks import build_networks
 from .schedule import lr_factor
@@ -163,27 +172,50 @@ class Trainer:
     # ------------------------------------------------------------------ plumbing
 
     @property
-    def dataset(self) -> RaindropDataset:
+    def dataset(self) -> RaindropDataset | MultiSourceDataset:
+        """``data.train`` alone (the original single-source form, whose batches are unchanged),
+        or a ``MultiSourceDataset`` of ``data.sources``."""
         if self._dataset is None:
             d = self.cfg.data
-            self.log(f"data: reading {d.train}")
-            self._dataset = RaindropDataset(
-                d.train,
-                crop=d.crop,
-                flip=d.flip,
-                splits=d.splits,
-                cache=d.cache,
-                cache_max_gib=d.cache_max_gib,
-                validate=d.validate,
-                check_outside_mask=d.check_outside_mask,
-                log=self.log,
-            )
+            parts = []
+            for src in data_sources(self.cfg):
+                self.log(
+                    f"data: reading {src.path}"
+                    + (f" (weight {src.weight:g}, splits {src.split}, check_outside_mask {src.check_outside_mask})"
+                       if d.sources else "")
+                )
+                parts.append(
+                    RaindropDataset(
+                        src.path,
+                        crop=d.crop,
+                        flip=d.flip,
+                        splits=src.split,
+                        cache=d.cache,
+                        cache_max_gib=d.cache_max_gib,
+                        validate=d.validate,
+                        check_outside_mask=src.check_outside_mask,
+                        log=self.log,
+                    )
+                )
+            self._dataset = MultiSourceDataset(parts) if d.sources else parts[0]
         return self._dataset
 
     def _loader(self, stage: int, total: int, start: int) -> DataLoader:
         ds = self.dataset
         t = self.cfg.train
-        sampler = StepBatchSampler(ds.sizes, ds.crop, t.batch_size, self.cfg.seed, stage, total, start, flip=ds.flip)
+        if isinstance(ds, MultiSourceDataset):
+            weights = [s.weight for s in data_sources(self.cfg)]
+            sampler = WeightedStepBatchSampler(
+                ds.sizes, weights, ds.crop, t.batch_size, self.cfg.seed, stage, total, start, flip=ds.flip
+            )
+            share = ", ".join(
+                f"{n} {len(d)} samples x {w:.2f}" for n, d, w in zip(ds.names, ds.datasets, sampler.weights)
+            )
+            self.log(f"stage {stage}: sources {share}")
+        else:
+            sampler = StepBatchSampler(
+                ds.sizes, ds.crop, t.batch_size, self.cfg.seed, stage, total, start, flip=ds.flip
+            )
         self.log(
             f"stage {stage}: {len(ds)} samples, batch {t.batch_size}, steps {start}->{total} "
             f"of {total} ({epochs(total, t.batch_size, len(ds)):.2f} epochs), device {self.device}"
@@ -258,6 +290,39 @@ class Trainer:
     def _load_models(self, state: dict) -> None:
         for k, net in self.nets.items():
             net.load_state_dict(state["models"][k])
+
+    def init_from(self, source: str | os.PathLike) -> Path:
+        """Fine-tuning: load the network weights (all three; not the optimizers, schedulers or
+        step) of a checkpoint file, or of a run folder's best checkpoint (``init_checkpoint``).
+        Refused once the run has checkpoints of its own (those decide where it continues)."""
+        latest = ckpt.latest_checkpoint(self.run_dir)
+        if latest is not None:
+            raise TrainingError(
+                f"--init-from: {self.run_dir} already has checkpoints ({latest.path.name}); "
+                "--init-from only starts a run (continue this one with --resume, without --init-from)"
+            )
+        path = init_checkpoint(source)
+        state = ckpt.load_checkpoint(path, self.device)
+        if not isinstance(state, dict) or "models" not in state:
+            raise TrainingError(f"--init-from {path}: not a raindrop training checkpoint (no 'models')")
+        missing = [k for k in self.nets if k not in state["models"]]
+        if missing:
+            raise TrainingError(f"--init-from {path}: checkpoint lacks network(s) {', '.join(missing)}")
+        for k, net in self.nets.items():
+            try:
+                net.load_state_dict(state["models"][k])
+            except RuntimeError as e:
+                first = str(e).strip().splitlines()
+                raise TrainingError(
+                    f"--init-from {path}: the {k} weights do not fit this configuration's network "
+                    f"(network.* must match the checkpoint's; {first[1].strip() if len(first) > 1 else first[0]})"
+                ) from None
+            net.to(memory_format=self.memory_format)
+        self.log(
+            f"init: network weights from {path} (stage {state.get('stage')}, step {state.get('step')}, "
+            f"config {state.get('config', {}).get('name')}); optimizers start fresh"
+        )
+        return path
 
     def _budget_exhausted(self) -> bool:
         return self.stop_requested or (self.steps_left is not None and self.steps_left <= 0)
@@ -392,6 +457,27 @@ class Trainer:
         return result
 
 
+def init_checkpoint(source: str | os.PathLike) -> Path:
+    """The checkpoint ``--init-from`` loads: a ``.pt`` file as given, or in a run folder the
+    latest complete stage-2 checkpoint, else the latest checkpoint of any stage. ONNX model
+    folders (``models/<config>``) hold no trainable state: refused with a message."""
+    p = Path(source)
+    if p.is_file():
+        return p
+    if not p.is_dir():
+        raise TrainingError(f"--init-from {p}: no such file or folder")
+    refs = ckpt.list_checkpoints(p)
+    if refs:
+        s2 = [r for r in refs if r.stage == 2]
+        return (s2 or refs)[-1].path
+    if list(p.glob("*.onnx")):
+        raise TrainingError(
+            f"--init-from {p}: an exported model folder (ONNX graphs only); fine-tuning needs the training "
+            "checkpoint the graphs came from (its export.json names it): give that .pt file or its run folder"
+        )
+    raise TrainingError(f"--init-from {p}: no checkpoints/stage*_step*.pt there")
+
+
 def _leave_stop_signals_to_the_trainer(worker_id: int) -> None:
     """DataLoader workers ignore SIGINT and SIGTERM. Ctrl-C in a terminal, and `docker stop`
     or systemd, signal the whole process group; a worker killed that way takes the run down
@@ -436,6 +522,12 @@ def build_arg_parser() -> argparse.ArgumentParser:
     ap.add_argument(
         "--max-steps", type=int, help="stop (with a checkpoint) after this many optimizer steps in this invocation"
     )
+    ap.add_argument(
+        "--init-from",
+        metavar="RUN_OR_CHECKPOINT",
+        help="fine-tune: start from the network weights of a run folder (its latest stage-2 checkpoint) or a "
+        "checkpoint .pt file; optimizers and step counts start fresh. Only when the run has no checkpoints yet",
+    )
     ap.add_argument("--threads", type=int, help="torch CPU threads (default: torch's choice)")
     ap.add_argument("--no-progress", action="store_true", help="no progress bar")
     return ap
@@ -464,6 +556,16 @@ def main(argv: list[str] | None = None) -> int:
             torch.backends.cudnn.benchmark = True
         _record_invocation(run_dir, cfg, device, argv)
         trainer = Trainer(cfg, run_dir, device, progress=not args.no_progress, max_steps=args.max_steps)
+        info_path = run_dir / RUN_FILE
+        info = json.loads(info_path.read_text())
+        if args.init_from:
+            if args.resume and ckpt.latest_checkpoint(run_dir) is not None:
+                raise TrainingError("--init-from with --resume: the run already has checkpoints; drop --init-from")
+            info["init_from"] = str(trainer.init_from(args.init_from).resolve())
+            _write_json_atomic(info_path, info)
+        elif info.get("init_from") and ckpt.latest_checkpoint(run_dir) is None:
+            # a fine-tuning run stopped before its first checkpoint starts again from the same weights
+            trainer.init_from(info["init_from"])
         stages = [1, 2] if args.stage == "all" else [int(args.stage)]
         previous = _install_signal_handlers(trainer)
         try:

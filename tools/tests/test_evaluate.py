@@ -90,3 +90,42 @@ def test_refuses_a_bad_test_set(tmp_path, capsys):
         main(["--data", str(data), "--models", str(FIXTURE_MODELS), "--out", str(tmp_path / "o"), "--no-progress"]) == 2
     )
     assert "manifest.jsonl:3: not valid JSON" in capsys.readouterr().err
+
+
+def test_real_pairs_evaluation(tmp_path):
+    from realpairs_helpers import write_pairs
+
+    from raindrop_tools import realpairs as RP
+
+    pairs_dir = write_pairs(tmp_path / "pairs", groups=4, per_group=2, h=40, w=56)
+    out = tmp_path / "out"
+    args = ["--real-pairs", str(pairs_dir), "--models", str(FIXTURE_MODELS), "--out", str(out), "--threads", "1",
+            "--no-progress"]
+    assert main([*args, "--split", "test"]) == 0
+    r = json.loads((out / "results.json").read_text())
+    test_pairs = RP.select(RP.assign_splits(RP.find_pairs(pairs_dir)), "test")
+    assert r["images"] == len(test_pairs) == 4 and r["split"] == "test"
+    assert [x["id"] for x in r["per_image"]] == [p.id for p in test_pairs]
+    remover = RaindropRemover(FIXTURE_MODELS, threads=1)
+    pr = MT.PRAccumulator()
+    for rec, p in zip(r["per_image"], test_pairs):
+        rainy, clean, rough = RP.pair_mask(p)
+        res = remover.remove(rainy, keep_intermediates=True)
+        pr.add(res.prob, rough > 0)
+        m_in, m_out = MT.image_metrics(rainy, clean), MT.image_metrics(res.output, clean)
+        for k in ("psnr_y", "ssim_y", "psnr_rgb", "ssim_rgb"):
+            assert rec[f"input_{k}"] == pytest.approx(m_in[k]) and rec[f"output_{k}"] == pytest.approx(m_out[k])
+            assert rec[f"gain_{k}"] == pytest.approx(m_out[k] - m_in[k])
+        sheet = cv2.imread(str(out / "sheets" / f"{p.id}.png"))
+        assert sheet is not None and sheet.shape[1] == 4 * 56 + 3 * 4 and sheet.shape[0] >= 40
+    for k in ("input_psnr_y", "output_ssim_rgb", "gain_psnr_y"):
+        assert r["mean"][k] == pytest.approx(np.mean([x[k] for x in r["per_image"]]))
+    assert r["ap_rough"] == pytest.approx(pr.average_precision())
+    md = (out / "results.md").read_text()
+    assert "| Gain |" in md and "| Input (no removal) |" in md
+    with open(out / "per_image.csv") as f:
+        assert len(list(csv.DictReader(f))) == 4
+    # all pairs, another holdout, bad split
+    assert main([*args, "--split", "all", "--holdout", "scene0", "--no-sheets", "--out", str(tmp_path / "o2")]) == 0
+    assert json.loads((tmp_path / "o2" / "results.json").read_text())["images"] == 8
+    assert main([*args, "--split", "val", "--out", str(tmp_path / "o3")]) == 2

@@ -23,7 +23,8 @@ def test_light_modules_import_without_torch():
     r = _run(
         "import raindrop_tools, raindrop_tools.reference, raindrop_tools.metrics, raindrop_tools.evaluate, "
         "raindrop_tools.data, raindrop_tools.edge, raindrop_tools.imageio, raindrop_tools.config, "
-        "raindrop_tools.morphology, raindrop_tools.contract\n"
+        "raindrop_tools.morphology, raindrop_tools.contract, raindrop_tools.realpairs, "
+        "raindrop_tools.realism\n"
         "assert 'torch' not in sys.modules\n"
         "from raindrop_tools.reference import RaindropRemover\n"
         f"r = RaindropRemover({str(FIXTURE_MODELS)!r}, threads=1)\n"

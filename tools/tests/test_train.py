@@ -188,3 +188,71 @@ def test_a_signal_to_the_whole_process_group_stops_with_a_checkpoint(tiny_datase
     latest = ckpt.latest_checkpoint(out)
     assert latest is not None and latest.step >= 2, text
     assert "continue with --resume" in text
+
+
+def test_training_on_rendered_and_real_sources(tiny_dataset, tmp_path):
+    """A run with data.sources: the batches mix both sources; a real-pairs source is accepted
+    with check_outside_mask false and refused with it; resume stays exact."""
+    from realpairs_helpers import write_pairs
+
+    from raindrop_tools import realpairs as RP
+
+    real = tmp_path / "real"
+    RP.prepare(write_pairs(tmp_path / "pairs", groups=2, per_group=2), real)
+    sources = [{"path": str(tiny_dataset), "weight": 0.5}, {"path": str(real), "weight": 0.5, "split": "train",
+                                                          "check_outside_mask": False}]
+    cfg_file = tmp_path / "multi.yaml"
+    raw = yaml.safe_load((CONFIGS / "smoke.yaml").read_text())
+    del raw["data"]["train"]
+    raw["data"]["sources"] = sources
+    cfg_file.write_text(yaml.safe_dump(raw))
+    base = ["--config", str(cfg_file), "--no-progress", "--stage", "1"]
+    out = tmp_path / "run"
+    assert train.main([*base, "--out", str(out)]) == 0
+    recorded = yaml.safe_load((out / "config.yaml").read_text())
+    assert [s["path"] for s in recorded["data"]["sources"]] == [str(tiny_dataset), str(real)]
+    # resume reproduces the uninterrupted run
+    out2 = tmp_path / "run2"
+    assert train.main([*base, "--out", str(out2), "--max-steps", "4"]) == 0
+    assert train.main(["--out", str(out2), "--resume", "--stage", "1", "--no-progress"]) == 0
+    a = ckpt.load_checkpoint(ckpt.latest_checkpoint(out).path)["models"]
+    b = ckpt.load_checkpoint(ckpt.latest_checkpoint(out2).path)["models"]
+    for net in ("rdn", "rrn"):
+        assert all(torch.equal(v, b[net][k]) for k, v in a[net].items())
+    # the same real source with the outside-mask check on is refused
+    raw["data"]["sources"][1]["check_outside_mask"] = True
+    cfg_file.write_text(yaml.safe_dump(raw))
+    assert train.main([*base, "--out", str(tmp_path / "run3")]) == 2
+
+
+def test_init_from_loads_the_weights_not_the_optimizer(smoke_run, tmp_path, capsys):
+    src_ckpt = ckpt.latest_checkpoint(smoke_run["run"]).path
+    src = ckpt.load_checkpoint(src_ckpt)["models"]
+    data = smoke_run["data"]
+    out = tmp_path / "ft"
+    # from a run folder: its latest stage-2 checkpoint; 1 step of stage 1 only
+    assert train.main(_args(data, out, "--init-from", str(smoke_run["run"]), "--max-steps", "1")) == 0
+    assert json.loads((out / "run.json").read_text())["init_from"] == str(src_ckpt.resolve())
+    state = ckpt.load_checkpoint(ckpt.latest_checkpoint(out).path)
+    assert state["step"] == 1  # the step count starts fresh
+    assert state["optimizers"]["rdn"]["state"][0]["step"] == 1  # a fresh Adam: one step taken
+    # RFN is not trained in stage 1: it holds exactly the loaded weights
+    assert all(torch.equal(v, state["models"]["rfn"][k]) for k, v in src["rfn"].items())
+    # RDN moved one step away from the loaded weights, not from a fresh initialisation
+    torch.manual_seed(7)
+    fresh = train.build_networks(load_config(CONFIGS / "smoke.yaml").network)["rdn"].state_dict()
+    k = next(k for k in src["rdn"] if k.endswith("weight"))
+    d_loaded = (state["models"]["rdn"][k] - src["rdn"][k]).abs().max()
+    d_fresh = (state["models"]["rdn"][k] - fresh[k]).abs().max()
+    assert d_loaded < d_fresh
+    # from a checkpoint file; refused once the run has checkpoints; refused for ONNX folders
+    out2 = tmp_path / "ft2"
+    assert train.main(_args(data, out2, "--init-from", str(src_ckpt), "--max-steps", "1")) == 0
+    capsys.readouterr()
+    assert train.main(_args(data, out2, "--resume", "--init-from", str(src_ckpt))) == 2
+    assert "drop --init-from" in capsys.readouterr().err
+    assert train.main(_args(data, tmp_path / "ft3", "--init-from", str(smoke_run["models"]))) == 2
+    assert "ONNX graphs only" in capsys.readouterr().err
+    # a network that does not fit is named
+    assert train.main(_args(data, tmp_path / "ft4", "--init-from", str(src_ckpt), "--set", "network.rdn.width=4")) == 2
+    assert "rdn weights do not fit" in capsys.readouterr().err

@@ -1,0 +1,106 @@
+"""raindrop_tools.realism on generated data (no torch, no ../shared)."""
+
+import json
+import math
+
+import numpy as np
+import pytest
+
+from helpers import procedural_image, write_dataset
+from raindrop_tools import realism as RM
+from realpairs_helpers import write_pairs
+
+
+def _disc(h, w, cy, cx, r):
+    yy, xx = np.mgrid[0:h, 0:w]
+    return (yy - cy) ** 2 + (xx - cx) ** 2 < r * r
+
+
+def test_image_stats_of_known_drops():
+    rng = np.random.default_rng(0)
+    clean = np.clip(rng.normal(100, 10, (80, 120, 3)), 0, 255).astype(np.uint8)
+    mask = np.zeros((80, 120), np.uint8)
+    disc = _disc(80, 120, 30, 30, 10)
+    ellipse = ((np.mgrid[0:80, 0:120][0] - 50) / 4.0) ** 2 + ((np.mgrid[0:80, 0:120][1] - 90) / 16.0) ** 2 < 1
+    mask[disc | ellipse] = 255
+    rainy = clean.copy()
+    rainy[mask > 0] = np.clip(clean[mask > 0].astype(int) + 20, 0, 255)
+    st = RM.image_stats(rainy, clean, mask)
+    assert st["drops"] == 2
+    assert st["coverage"] == pytest.approx((mask > 0).mean())
+    assert sorted(st["diameter_px"]) == pytest.approx([16, 20], rel=0.05)  # ellipse 4x16: area of a 16 px disc
+    assert st["diameter_frac"][0] == pytest.approx(st["diameter_px"][0] / 120)
+    ecc = sorted(st["eccentricity"])
+    assert ecc[0] < 0.2  # the disc
+    assert ecc[1] == pytest.approx(math.sqrt(1 - (4 / 16) ** 2), abs=0.03)  # the 4:16 ellipse
+    assert st["brightness"] == pytest.approx(20, abs=0.6)
+    assert st["sharpness"] == pytest.approx(1.0, abs=0.05)  # same texture, brighter
+    assert st["veil"] == 1.0  # equal outside the mask
+    # a blurred, hazier drop image: lower sharpness, wider edges, veil < 1
+    blurred = rainy.copy()
+    import cv2
+
+    soft = cv2.GaussianBlur(rainy, (0, 0), 2.0)
+    blurred[mask > 0] = soft[mask > 0]
+    hazy = (0.9 * blurred.astype(np.float32) + 10).astype(np.uint8)
+    st2 = RM.image_stats(hazy, clean, mask)
+    assert st2["sharpness"] < 0.5 * st["sharpness"]
+    assert st2["veil"] == pytest.approx(0.9, abs=0.03)
+    # edge width grows with the blur of a step edge
+    step = np.zeros((60, 60, 3), np.uint8)
+    step[:, 30:] = 200
+    m = np.zeros((60, 60), np.uint8)
+    m[:, 30:] = 255
+    widths = [RM.image_stats(cv2.GaussianBlur(step, (0, 0), s) if s else step, step, m)["edge_width"]
+              for s in (0, 1.5, 3.0)]
+    assert widths[0] < widths[1] < widths[2]
+    assert widths[2] == pytest.approx(2.5 * 3.0, rel=0.25)
+
+
+def test_no_drops_gives_nan_not_an_error():
+    img = procedural_image(32, 32, 1)
+    st = RM.image_stats(img, img, np.zeros((32, 32), np.uint8))
+    assert st["drops"] == 0 and st["coverage"] == 0 and math.isnan(st["brightness"]) and st["veil"] == 1.0
+
+
+def test_wasserstein_and_distances():
+    a = np.arange(100.0)
+    assert RM.wasserstein1(a, a) == 0
+    assert RM.wasserstein1(a, a + 5) == pytest.approx(5, abs=1e-9)
+
+
+def test_classifier_tells_different_sets_apart_and_not_equal_ones():
+    rng = np.random.default_rng(1)
+    smooth = [procedural_image(64, 64, i) for i in range(40)]
+    noisy = [np.clip(procedural_image(64, 64, 100 + i).astype(int) + rng.normal(0, 25, (64, 64, 3)), 0, 255)
+             .astype(np.uint8) for i in range(40)]
+    groups_a = [f"a{i // 4}" for i in range(40)]
+    groups_b = [f"b{i // 4}" for i in range(40)]
+    easy = RM.classifier_accuracy(smooth, noisy, groups_a, groups_b, folds=5)
+    assert easy["accuracy"] > 0.9
+    same = RM.classifier_accuracy(smooth[:20] + noisy[:20], smooth[20:] + noisy[20:], groups_a, groups_b, folds=5)
+    assert 0.2 < same["accuracy"] < 0.8
+    few = RM.classifier_accuracy(smooth[:4], noisy[:4], ["g"] * 4, ["h"] * 4, folds=5)
+    assert math.isnan(few["accuracy"])
+
+
+def test_cli_on_generated_real_pairs_and_rendered_set(tmp_path, capsys):
+    pairs = write_pairs(tmp_path / "pairs", groups=6, per_group=2, h=80, w=96, veil=6.0)
+    rendered = write_dataset(tmp_path / "rendered", n=12, h=80, w=96, seed=3)
+    out = tmp_path / "r.json"
+    assert RM.main(["--real-pairs", str(pairs), "--split", "all", "--rendered", str(rendered), "--json", str(out),
+                    "--crops-per-image", "3", "--folds", "3"]) == 0
+    text = capsys.readouterr().out
+    assert "### real (pairs, all): 12 images" in text and "### rendered (rendered): 12 images" in text
+    assert "| drop diameter / image width |" in text and "classifier accuracy" in text
+    r = json.loads(out.read_text())
+    real, rend = r["sets"]
+    assert real["kind"] == "real" and rend["kind"] == "rendered"
+    assert real["brightness"]["median"] > 5  # the generated drops and the +6 offset brighten
+    assert rend["veil"]["median"] == 1.0
+    (sc,) = r["scores"]
+    assert set(sc["distance"]) >= set(RM.DISTANCE_STATS) | {"mean"}
+    assert 0.0 <= sc["classifier"]["accuracy"] <= 1.0 and sc["classifier"]["crops"] == [36, 36]
+    # the default: the train split only (the test split is for evaluating removal)
+    assert RM.main(["--real-pairs", str(pairs)]) == 0
+    assert "### real (pairs, train): 6 images" in capsys.readouterr().out

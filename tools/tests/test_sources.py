@@ -1,0 +1,108 @@
+"""Several training sources with weights: config, sampler, per-source checks (no torch)."""
+
+import numpy as np
+import pytest
+
+from helpers import CONFIGS
+from raindrop_tools.config import ConfigError, config_from_dict, data_sources, dump_config, load_config
+from raindrop_tools.data import DatasetError, MultiSourceDataset, RaindropDataset, WeightedStepBatchSampler, source_counts
+
+
+def test_multi_source_config_parsing(tmp_path):
+    cfg = config_from_dict(
+        {
+            "data": {
+                "sources": [
+                    {"path": "data/train", "weight": 0.7},
+                    {"path": "data/real-train", "weight": 0.3, "split": "train", "check_outside_mask": False},
+                    {"path": "data/more", "weight": 1, "split": ["a", "b"]},
+                ]
+            }
+        }
+    )
+    s = data_sources(cfg)
+    assert [x.path for x in s] == ["data/train", "data/real-train", "data/more"]
+    assert [x.weight for x in s] == [0.7, 0.3, 1.0]
+    assert [x.split for x in s] == [None, ["train"], ["a", "b"]]  # None: data.splits (null = all)
+    assert [x.check_outside_mask for x in s] == [True, False, True]
+    import yaml
+
+    assert config_from_dict(yaml.safe_load(dump_config(cfg))) == cfg
+    # the old single key keeps working: one source, weight 1
+    old = config_from_dict({"data": {"train": "x", "splits": ["train"], "check_outside_mask": False}})
+    assert old.data.sources is None
+    (one,) = data_sources(old)
+    assert (one.path, one.weight, one.split, one.check_outside_mask) == ("x", 1.0, ["train"], False)
+    # bad weights, unknown keys, both forms at once
+    with pytest.raises(ConfigError, match=r"sources\[0\].weight"):
+        config_from_dict({"data": {"sources": [{"path": "a", "weight": 0}]}})
+    with pytest.raises(ConfigError, match=r"data.sources\[0\].wieght"):
+        config_from_dict({"data": {"sources": [{"path": "a", "wieght": 1}]}})
+    f = tmp_path / "c.yaml"
+    f.write_text("data:\n  sources: [{path: a}]\n")
+    assert load_config(f, resolve_paths=False).data.sources[0].path == "a"
+    with pytest.raises(ConfigError, match="both given"):
+        load_config(f, [("data.train", "b")])
+    f.write_text("data:\n  train: t\n  sources: [{path: a}]\n")
+    with pytest.raises(ConfigError, match="both given"):
+        load_config(f)
+    # an override of data.sources replaces the file's data.train; relative paths are resolved like it
+    cfg = load_config(CONFIGS / "smoke.yaml", [("data.sources", [{"path": "rel/a"}, {"path": "/abs/b"}])])
+    assert cfg.data.sources[0].path.endswith("/rel/a") and cfg.data.sources[0].path.startswith("/")
+    assert cfg.data.sources[1].path == "/abs/b"
+
+
+@pytest.mark.parametrize("weights", [[0.7, 0.3], [1, 1, 2], [0.05, 0.95]])
+def test_source_counts_match_the_weights(weights):
+    B = 32
+    counts = np.array([source_counts(weights, B, 5, 1, step) for step in range(2000)])
+    assert (counts.sum(axis=1) == B).all()
+    w = np.asarray(weights, float) / sum(weights)
+    assert np.abs(counts.mean(axis=0) - B * w).max() < 0.05
+    # every batch is within one crop of its quota
+    assert (np.abs(counts - B * w) < 1).all()
+
+
+def test_weighted_sampler_is_a_pure_function_of_seed_stage_step():
+    sizes = [[(40, 50)] * 7, [(64, 64)] * 3]
+    a = WeightedStepBatchSampler(sizes, [0.7, 0.3], 32, 8, seed=3, stage=1, total_steps=40)
+    all_a = list(a)
+    b = WeightedStepBatchSampler(sizes, [0.7, 0.3], 32, 8, seed=3, stage=1, total_steps=40, start_step=25)
+    assert list(b) == all_a[25:]  # resume sees the same batches
+    assert list(WeightedStepBatchSampler(sizes, [0.7, 0.3], 32, 8, 3, 1, 40)) == all_a
+    assert list(WeightedStepBatchSampler(sizes, [0.7, 0.3], 32, 8, 4, 1, 40)) != all_a  # the seed matters
+    assert list(WeightedStepBatchSampler(sizes, [0.7, 0.3], 32, 8, 3, 2, 40)) != all_a  # the stage too
+    keys = [k for batch in all_a for k in batch]
+    share = np.mean([k[0] == 0 for k in keys])
+    assert share == pytest.approx(0.7, abs=0.03)  # 320 crops; source_counts is tested exactly above
+    for s, i, y0, x0, flip in keys:
+        h, w = sizes[s][i]
+        assert 0 <= y0 <= h - 32 and 0 <= x0 <= w - 32 and isinstance(flip, bool)
+    # within a source, samples are used about evenly (without replacement per epoch; a step
+    # that draws fewer crops than the source reserves skips the rest of its positions)
+    for s in (0, 1):
+        used = np.bincount([k[1] for k in keys if k[0] == s], minlength=len(sizes[s]))
+        assert used.min() > 0 and used.max() <= 1.5 * used.min()
+
+
+def test_the_outside_mask_check_is_per_source(tmp_path):
+    from helpers import write_dataset
+    from realpairs_helpers import write_pairs
+
+    from raindrop_tools import realpairs as RP
+
+    rendered = write_dataset(tmp_path / "rendered", n=4, h=48, w=64)
+    real = tmp_path / "real"
+    RP.prepare(write_pairs(tmp_path / "pairs", groups=2, per_group=2), real)
+    with pytest.raises(DatasetError, match="outside the mask"):
+        RaindropDataset(real, crop=32, check_outside_mask=True)
+    cfg = config_from_dict(
+        {"data": {"crop": 32, "sources": [{"path": str(rendered)}, {"path": str(real), "check_outside_mask": False}]}}
+    )
+    parts = [RaindropDataset(s.path, crop=32, splits=s.split, check_outside_mask=s.check_outside_mask)
+             for s in data_sources(cfg)]
+    ds = MultiSourceDataset(parts)
+    assert len(ds) == 8 and ds.names == ["rendered", "real"]
+    item = ds[(1, 0, 3, 4, True)]
+    assert item["id"].startswith("real/") and item["rainy"].shape == (3, 32, 32)
+    assert ds[(0, 2, 0, 0, False)]["id"] == "rendered/" + parts[0].samples[2].id
