@@ -66,7 +66,9 @@ int run(int argc, char** argv) {
   app.add_option("--variants", variants, "Rendered variants per input image")->capture_default_str()->check(CLI::Range(1, 1000));
   app.add_option("--seed", seed, "Run seed; each sample derives its own")->capture_default_str();
   app.add_option("-j,--threads", threads, "Worker threads (0: all cores)")->capture_default_str()->check(CLI::Range(0, 1024));
-  app.add_option("--scene", scene_name, "Preset (paper, full-physics, real-photo) or JSON scene file")->capture_default_str();
+  std::string presets;
+  for (const auto& n : scene_preset_names()) presets += (presets.empty() ? "" : ", ") + n;
+  app.add_option("--scene", scene_name, "Preset (" + presets + ") or JSON scene file")->capture_default_str();
   app.add_option("--size", size_text, "Output WIDTHxHEIGHT (centre-crop to the aspect, then resize), e.g. 512x256; default: input size");
   app.add_option("--limit", limit, "Render only the first N inputs (0: all)")->check(CLI::Range(0, 100000000));
   app.add_option("--png-level", png_level, "PNG zlib level: 1 fastest, 9 smallest (OpenImageIO's default is 6)")
