@@ -261,14 +261,52 @@ TEST_F(RemoveCli, FolderModeFailures) {
   write_file(tmp / "plain", "x");
   r = remove({"batch", "plain"});
   EXPECT_EQ(r.code, 1) << r.describe();
-  // The input folder as the output folder would overwrite the inputs.
+  // The input folder as the output folder would overwrite the inputs: a usage error.
   r = remove({"batch", "batch/"});
-  EXPECT_EQ(r.code, 1) << r.describe();
+  EXPECT_EQ(r.code, 2) << r.describe();
   EXPECT_NE(r.err.find("input folder"), std::string::npos) << r.describe();
   // An empty folder is an error, not a silent success.
   fs::create_directories(tmp / "nothing");
   r = remove({"nothing", "out"});
   EXPECT_EQ(r.code, 1) << r.describe();
+}
+
+
+// Any two of input, output, mask and contact sheet naming one file (or, in folder mode, the
+// mask folder being the input or output folder) would overwrite one with another: refused as
+// a usage error before anything is read or written.
+TEST_F(RemoveCli, CoincidingPathsAreRefused) {
+  write_image(tmp / "batch" / "a.png", make_image(40, 30, 1));
+  write_image(tmp / "batch" / "sub" / "b.png", make_image(17, 33, 2));
+  fs::create_directories(tmp / "results");
+  write_image(tmp / "results" / "a.png", make_image(40, 30, 3));  // an earlier run's output
+  const auto before = std::vector<std::string>{read_file(tmp / "in.png"), read_file(tmp / "batch" / "a.png"),
+                                               read_file(tmp / "batch" / "sub" / "b.png"), read_file(tmp / "results" / "a.png")};
+  for (const std::vector<std::string>& args :
+       {std::vector<std::string>{"in.png", "in.png"}, {"in.png", "./in.png"}, {"./in.png", "sub/../in.png"},
+        {"in.png", "out.png", "--mask", "in.png"}, {"in.png", "out.png", "--mask", "./out.png"},
+        {"in.png", "out.png", "--contact-sheet", "in.png"}, {"in.png", "out.png", "--contact-sheet", "out.png"},
+        {"in.png", "out.png", "--mask", "m.png", "--contact-sheet", "./m.png"}, {"in.png", "out.png", "--mask-dir", "."},
+        {"batch", "results", "--mask-dir", "batch"}, {"batch", "results", "--mask-dir", "./results/"},
+        {"batch", "results", "--mask", "batch/"}, {"batch", "results", "--contact-sheet", "batch/a.png"},
+        {"batch", "results", "--contact-sheet", "results/sub/b.png"}}) {
+    fs::create_directories(tmp / "sub");
+    const RunResult r = remove(args);
+    SCOPED_TRACE(r.command);
+    EXPECT_EQ(r.code, 2) << r.describe();
+    const auto lines = split_lines(r.err);
+    ASSERT_EQ(lines.size(), 1u) << r.describe();
+    EXPECT_EQ(lines[0].rfind(kErrorPrefix, 0), 0u) << r.describe();
+    EXPECT_NE(lines[0].find("are the same"), std::string::npos) << r.describe();
+    EXPECT_FALSE(fs::exists(tmp / "out.png"));
+    EXPECT_FALSE(fs::exists(tmp / "m.png"));
+    EXPECT_FALSE(fs::exists(tmp / "results" / "sub")) << "nothing written";
+    EXPECT_EQ(before, (std::vector<std::string>{read_file(tmp / "in.png"), read_file(tmp / "batch" / "a.png"),
+                                                read_file(tmp / "batch" / "sub" / "b.png"),
+                                                read_file(tmp / "results" / "a.png")}))
+        << "a file was overwritten";
+    EXPECT_TRUE(hidden_temporaries(tmp.path()).empty());
+  }
 }
 
 }  // namespace
