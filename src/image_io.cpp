@@ -1,6 +1,7 @@
 #include "raindrop/image_io.h"
 
 #include <atomic>
+#include <cerrno>
 #include <cmath>
 #include <cstdio>
 #include <cstring>
@@ -200,6 +201,26 @@ void write_image_atomic(const cv::Mat& image, const fs::path& path, int png_leve
     fs::remove(tmp, ec);
     throw Error(quoted(path) + ": cannot move the finished file into place (" + ec.message() + ")");
   }
+}
+
+void check_image_destination(const fs::path& path, bool folder_may_be_created) {
+  std::error_code ec;
+  if (fs::is_directory(path, ec)) throw Error(quoted(path) + ": cannot write (it is a folder)");
+  if (!OIIO::ImageOutput::create(path.string()))
+    throw Error(quoted(path) + ": cannot write this format (" + first_line(OIIO::geterror()) + ")");
+  const fs::path dir = path.has_parent_path() ? path.parent_path() : fs::path(".");
+  if (fs::exists(dir, ec) && !fs::is_directory(dir, ec))
+    throw Error(quoted(path) + ": cannot write (" + quoted(dir) + " is not a folder)");
+  if (!fs::exists(dir, ec)) {
+    if (folder_may_be_created) return;
+    throw Error(quoted(path) + ": cannot write (folder " + quoted(dir) + " does not exist)");
+  }
+  // The file is written beside its final name and renamed over it: the folder must be
+  // writable, and an existing read-only file is not replaced behind its owner's back.
+  if (::access(dir.c_str(), W_OK | X_OK) != 0)
+    throw Error(quoted(path) + ": cannot write (folder " + quoted(dir) + ": " + std::strerror(errno) + ")");
+  if (fs::exists(path, ec) && ::access(path.c_str(), W_OK) != 0)
+    throw Error(quoted(path) + ": cannot write (" + std::strerror(errno) + ")");
 }
 
 void ensure_writable_dir(const fs::path& dir) {

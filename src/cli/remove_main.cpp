@@ -263,18 +263,19 @@ int run(int argc, char** argv) {
     places.push_back({"contact sheet", fs::path(sheet)});
     refuse_coinciding(places, "file");
   }
+  // Every destination is checked before the (slow) inference and the first write, so that a
+  // mask or sheet that cannot be written does not leave the output behind. In folder mode the
+  // output and mask sub-folders are made as the run goes; the formats are the inputs'.
   if (!mask_dir.empty()) ensure_writable_dir(mask_dir);
-  if (batch) {
-    ensure_writable_dir(out_arg);
-  } else {
-    const Job& j = jobs.front();
-    // Fail before the (slow) inference when a destination folder is missing.
-    for (const fs::path& p : {j.output, j.mask.value_or(fs::path()), fs::path(sheet)}) {
-      if (p.empty() || !p.has_parent_path()) continue;
-      if (!fs::is_directory(p.parent_path(), ec))
-        throw Error("'" + p.string() + "': cannot write (folder '" + p.parent_path().string() + "' does not exist)");
+  if (batch) ensure_writable_dir(out_arg);
+  std::set<std::string> checked_formats;
+  for (const Job& j : jobs) {
+    for (const fs::path* p : {&j.output, j.mask ? &*j.mask : nullptr}) {
+      if (p && (!batch || checked_formats.insert(p->extension().string()).second))
+        check_image_destination(*p, batch);
     }
   }
+  if (!sheet.empty()) check_image_destination(sheet);
 
   SessionConfig session;
   session.threads = threads;

@@ -1,5 +1,7 @@
 // raindrop-remove end to end: bad inputs (one line, exit code, nothing written), usage
 // errors, model discovery, formats kept, folder mode.
+#include <unistd.h>
+
 #include "remove_test_util.h"
 
 namespace removetest {
@@ -307,6 +309,41 @@ TEST_F(RemoveCli, CoincidingPathsAreRefused) {
         << "a file was overwritten";
     EXPECT_TRUE(hidden_temporaries(tmp.path()).empty());
   }
+}
+
+
+// Every destination (output, mask, contact sheet) is checked before the first write: a mask
+// or sheet that cannot be written must not leave the output behind.
+TEST_F(RemoveCli, BadMaskOrSheetLeavesNoOutput) {
+  fs::create_directories(tmp / "adir");
+  for (const std::vector<std::string>& args :
+       {std::vector<std::string>{"in.png", "out.png", "--mask", "m.xyz"}, {"in.png", "out.png", "--mask", "adir"},
+        {"in.png", "out.png", "--contact-sheet", "s.xyz"}, {"in.png", "out.png", "--contact-sheet", "adir"},
+        {"in.png", "out.png", "--mask", "mask.png", "--contact-sheet", "s.xyz"}}) {
+    SCOPED_TRACE(args.back());
+    expect_clean_failure(remove(args), args.back());
+  }
+  // Folder mode: no output at all when the sheet cannot be written.
+  write_image(tmp / "batch" / "a.png", make_image(40, 30, 1));
+  const RunResult r = remove({"batch", "results", "-q", "--contact-sheet", "sheet.xyz"});
+  EXPECT_EQ(r.code, 1) << r.describe();
+  EXPECT_NE(r.err.find("sheet.xyz"), std::string::npos) << r.describe();
+  EXPECT_FALSE(fs::exists(tmp / "results" / "a.png")) << "output written before the sheet was found unwritable";
+}
+
+TEST_F(RemoveCli, ReadOnlyMaskOrSheetLeavesNoOutput) {
+  if (::geteuid() == 0) GTEST_SKIP() << "running as root, who may write into read-only folders and files";
+  fs::create_directories(tmp / "ro");
+  fs::permissions(tmp / "ro", fs::perms::owner_read | fs::perms::owner_exec);
+  write_file(tmp / "locked.png", "x");
+  fs::permissions(tmp / "locked.png", fs::perms::owner_read);
+  for (const std::vector<std::string>& args :
+       {std::vector<std::string>{"in.png", "out.png", "--mask", "ro/m.png"}, {"in.png", "out.png", "--mask", "locked.png"},
+        {"in.png", "out.png", "--contact-sheet", "ro/s.png"}, {"in.png", "out.png", "--contact-sheet", "locked.png"}}) {
+    SCOPED_TRACE(args.back());
+    expect_clean_failure(remove(args), args.back());
+  }
+  fs::permissions(tmp / "ro", fs::perms::owner_all);
 }
 
 }  // namespace
