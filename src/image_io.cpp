@@ -86,6 +86,14 @@ std::unique_ptr<OIIO::ImageInput> open_input(const fs::path& path, OIIO::ImageSp
   return in;
 }
 
+// Decodes the whole image. A decoder can report a problem and still return success: libjpeg
+// only warns at a premature end of file and fills the missing rows with grey, which OIIO
+// records as an error on the ImageInput. Any recorded error is a failed decode.
+void read_pixels(OIIO::ImageInput& in, const fs::path& path, int channels, OIIO::TypeDesc type, void* data) {
+  const bool ok = in.read_image(0, 0, 0, channels, type, data);
+  if (!ok || in.has_error()) throw Error(quoted(path) + ": cannot decode (" + first_line(in.geterror()) + ")");
+}
+
 std::string temp_name_for(const fs::path& path) {
   static std::atomic<unsigned> counter{0};
   return "." + path.filename().string() + ".tmp-" + std::to_string(::getpid()) + "-" +
@@ -133,8 +141,7 @@ cv::Mat read_rgb8(const fs::path& path, bool convert, int min_size) {
     // Float files (EXR, HDR) hold linear light: encode with the sRGB transfer curve, as the
     // 8-bit frames the renderer otherwise reads are encoded (alpha stays linear).
     cv::Mat linear(h, w, CV_32FC(nc));
-    if (!in->read_image(0, 0, 0, nc, OIIO::TypeDesc::FLOAT, linear.data))
-      throw Error(quoted(path) + ": cannot decode (" + first_line(in->geterror()) + ")");
+    read_pixels(*in, path, nc, OIIO::TypeDesc::FLOAT, linear.data);
     const int colour = nc == 2 || nc == 4 ? nc - 1 : nc;
     for (int y = 0; y < h; ++y) {
       const float* src = linear.ptr<float>(y);
@@ -145,9 +152,8 @@ cv::Mat read_rgb8(const fs::path& path, bool convert, int min_size) {
         dst[i] = static_cast<std::uint8_t>(std::floor(v * 255.0f + 0.5f));
       }
     }
-  } else if (!in->read_image(0, 0, 0, nc, OIIO::TypeDesc::UINT8, raw.data)) {
-    // OIIO converts 16-bit data to 8 bits with rounding.
-    throw Error(quoted(path) + ": cannot decode (" + first_line(in->geterror()) + ")");
+  } else {
+    read_pixels(*in, path, nc, OIIO::TypeDesc::UINT8, raw.data);  // 16-bit data rounded to 8 bits
   }
   in->close();
   if (nc == 3) return raw;
@@ -168,8 +174,7 @@ cv::Mat read_image_native(const fs::path& path, int min_size) {
   if (nc < 1 || nc > 4) throw Error(quoted(path) + ": " + std::to_string(nc) + " channels are not supported");
   const bool eight = spec.format == OIIO::TypeDesc::UINT8 || spec.format == OIIO::TypeDesc::INT8;
   cv::Mat img(h, w, eight ? CV_8UC(nc) : CV_16UC(nc));
-  if (!in->read_image(0, 0, 0, nc, eight ? OIIO::TypeDesc::UINT8 : OIIO::TypeDesc::UINT16, img.data))
-    throw Error(quoted(path) + ": cannot decode (" + first_line(in->geterror()) + ")");
+  read_pixels(*in, path, nc, eight ? OIIO::TypeDesc::UINT8 : OIIO::TypeDesc::UINT16, img.data);
   in->close();
   return img;
 }

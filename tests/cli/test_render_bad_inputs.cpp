@@ -42,6 +42,22 @@ TEST(RenderBadInput, TruncatedPng) {
   expect_clean_failure(r, tmp / "out", "cut.png");
 }
 
+// libjpeg only warns at a premature end of file and fills the missing rows with grey: an
+// incomplete decode, which must stop the run like a truncated PNG.
+TEST(RenderBadInput, TruncatedJpeg) {
+  TempDir tmp;
+  write_image(tmp / "whole.jpg", make_background(480, 360, 0));
+  const std::string bytes = read_file(tmp / "whole.jpg");
+  ASSERT_GT(bytes.size(), 4000u);
+  write_file(tmp / "cut.jpg", bytes.substr(0, 1000));
+  const auto r = render_one(tmp, "cut.jpg");
+  expect_clean_failure(r, tmp / "out", "cut.jpg");
+  // Past the header check: --keep-going decodes it, and must still fail on it.
+  const auto k = render_one(tmp, "cut.jpg", {"--keep-going"}, "kept");
+  EXPECT_EQ(k.code, 3) << k.describe();
+  EXPECT_TRUE(sample_files(tmp / "kept").empty()) << ::testing::PrintToString(sample_files(tmp / "kept"));
+}
+
 TEST(RenderBadInput, SixteenBitPngRefusedThenConverted) {
   TempDir tmp;
   const cv::Mat rgb = rgb_fixture();

@@ -346,5 +346,20 @@ TEST_F(RemoveCli, ReadOnlyMaskOrSheetLeavesNoOutput) {
   fs::permissions(tmp / "ro", fs::perms::owner_all);
 }
 
+
+// libjpeg only warns at a premature end of file and fills the missing rows with grey; that
+// decode is incomplete and must be an error, whatever the cut.
+TEST_F(RemoveCli, TruncatedJpeg) {
+  write_image(tmp / "whole.jpg", make_image(480, 360, 4));
+  const std::string bytes = read_file(tmp / "whole.jpg");
+  ASSERT_GT(bytes.size(), 4000u);
+  for (size_t cut : {size_t{1000}, bytes.size() / 2, bytes.size() - 2}) {
+    SCOPED_TRACE(cut);
+    write_file(tmp / "cut.jpg", bytes.substr(0, cut));
+    expect_clean_failure(remove({"cut.jpg", "out.png", "--mask", "mask.png"}), "cut.jpg");
+  }
+  ASSERT_EQ(remove({"whole.jpg", "out.png"}).code, 0) << "the whole file decodes";
+}
+
 }  // namespace
 }  // namespace removetest
