@@ -2,11 +2,15 @@
 
 #include <atomic>
 #include <cerrno>
+#include <cctype>
 #include <cmath>
 #include <cstdio>
 #include <cstring>
 #include <fstream>
+#include <map>
 #include <memory>
+#include <set>
+#include <string>
 #include <system_error>
 #include <vector>
 
@@ -21,6 +25,8 @@ namespace raindrop {
 namespace fs = std::filesystem;
 namespace {
 
+constexpr double kMaxPixels = 1 << 28;
+
 std::string quoted(const fs::path& p) { return "'" + p.string() + "'"; }
 
 // First line of an OIIO error message (they can be multi-line).
@@ -30,9 +36,88 @@ std::string first_line(std::string s) {
   return s.empty() ? "unknown error" : s;
 }
 
-// libpng reports malformed files by printing to stderr itself before OIIO sees the error,
-// which would break the one-line-error rule. So a PNG's chunk structure is walked first:
-// IHDR first, every chunk within the file with a valid CRC, IDAT present, IEND at the end.
+std::uint32_t be32(const unsigned char* p) {
+  return (static_cast<std::uint32_t>(p[0]) << 24) | (static_cast<std::uint32_t>(p[1]) << 16) |
+         (static_cast<std::uint32_t>(p[2]) << 8) | p[3];
+}
+
+// The rows of a PNG's filtered image data, in stream order: `count` rows of `bytes` bytes
+// each (the filter-type byte included) per segment; Adam7 has one segment per non-empty pass.
+struct RowRun {
+  std::uint64_t count, bytes;
+};
+
+std::vector<RowRun> png_rows(std::uint32_t width, std::uint32_t height, int bits_per_pixel, bool adam7) {
+  auto row_bytes = [&](std::uint64_t w) { return 1 + (w * bits_per_pixel + 7) / 8; };
+  if (!adam7) return {{height, row_bytes(width)}};
+  static const int kPass[7][4] = {{0, 0, 8, 8}, {4, 0, 8, 8}, {0, 4, 4, 8}, {2, 0, 4, 4},
+                                  {0, 2, 2, 4}, {1, 0, 2, 2}, {0, 1, 1, 2}};  // x0, y0, dx, dy
+  std::vector<RowRun> runs;
+  for (const auto& p : kPass) {
+    const std::uint64_t w = width > static_cast<std::uint32_t>(p[0]) ? (width - p[0] + p[2] - 1) / p[2] : 0;
+    const std::uint64_t h = height > static_cast<std::uint32_t>(p[1]) ? (height - p[1] + p[3] - 1) / p[3] : 0;
+    if (w > 0 && h > 0) runs.push_back({h, row_bytes(w)});
+  }
+  return runs;
+}
+
+// Inflates the image data and checks every row's filter type (0-4) and that the stream holds
+// all rows: what libpng would otherwise find (and print) while decoding.
+void check_png_image_data(const fs::path& path, const std::string& idat, const std::vector<RowRun>& rows) {
+  z_stream z{};
+  if (::inflateInit(&z) != Z_OK) throw Error(quoted(path) + ": cannot check the PNG data (zlib: out of memory)");
+  std::vector<unsigned char> out(1 << 16);
+  size_t fed = 0, run = 0;
+  std::uint64_t row = 0, left_in_row = 0;  // position in the expected rows
+  bool done = rows.empty(), end = false;
+  int ret = Z_OK;
+  while (true) {
+    if (z.avail_in == 0 && fed < idat.size()) {
+      const size_t n = std::min<size_t>(idat.size() - fed, 1u << 30);
+      z.next_in = reinterpret_cast<Bytef*>(const_cast<char*>(idat.data() + fed));
+      z.avail_in = static_cast<uInt>(n);
+      fed += n;
+    }
+    z.next_out = out.data();
+    z.avail_out = static_cast<uInt>(out.size());
+    ret = ::inflate(&z, Z_NO_FLUSH);
+    const size_t produced = out.size() - z.avail_out;
+    for (size_t i = 0; i < produced && !done;) {
+      if (left_in_row == 0) {  // a row starts with its filter type
+        if (out[i] > 4) {
+          ::inflateEnd(&z);
+          throw Error(quoted(path) + ": corrupt PNG (bad filter type " + std::to_string(out[i]) + " in the image data)");
+        }
+        left_in_row = rows[run].bytes;
+      }
+      const std::uint64_t step = std::min<std::uint64_t>(left_in_row, produced - i);
+      i += step;
+      left_in_row -= step;
+      if (left_in_row == 0 && ++row == rows[run].count) {
+        row = 0;
+        done = ++run == rows.size();
+      }
+    }
+    end = ret == Z_STREAM_END;
+    // Stop at the last row, as libpng does (data past it is ignored, and a stream that
+    // inflates far beyond the declared size costs nothing), at the end of the stream, or
+    // when zlib can make no progress (Z_BUF_ERROR: the data ran out) or finds an error.
+    if (done || ret != Z_OK) break;
+  }
+  const std::string why = z.msg ? z.msg : "";
+  ::inflateEnd(&z);
+  if (ret != Z_OK && ret != Z_STREAM_END && ret != Z_BUF_ERROR)
+    throw Error(quoted(path) + ": corrupt PNG (bad compressed image data" + (why.empty() ? "" : ": " + why) + ")");
+  // A stream cut short after the last row is harmless to libpng; fewer rows than declared is not.
+  if (!done) throw Error(quoted(path) + ": truncated PNG (the image data " + (end ? "ends" : "is cut off") +
+                         " before the last row)");
+}
+
+// libpng reports malformed files by printing "libpng error: ..." to stderr itself before
+// OIIO sees the error, which would break the one-line-error rule. So a PNG is checked first:
+// IHDR first and valid, every chunk within the file with a valid CRC, no unknown critical
+// chunk, a palette before the data where needed, IEND at the end, and image data that
+// inflates to every declared row with valid filter types.
 void check_png_structure(const fs::path& path, std::uintmax_t size) {
   std::ifstream f(path, std::ios::binary);
   unsigned char signature[8] = {0};
@@ -41,27 +126,50 @@ void check_png_structure(const fs::path& path, std::uintmax_t size) {
   if (!f || std::memcmp(signature, kPng, 8) != 0) return;  // not a PNG: OIIO decides
   std::vector<unsigned char> data(size - 8);
   f.read(reinterpret_cast<char*>(data.data()), static_cast<std::streamsize>(data.size()));
-  auto be32 = [&](size_t at) {
-    return (static_cast<std::uint32_t>(data[at]) << 24) | (static_cast<std::uint32_t>(data[at + 1]) << 16) |
-           (static_cast<std::uint32_t>(data[at + 2]) << 8) | data[at + 3];
-  };
   size_t at = 0;
-  bool first = true, idat = false;
+  bool first = true, palette = false;
+  std::string idat;
+  std::vector<unsigned char> ihdr;
   while (true) {
     if (at + 12 > data.size()) throw Error(quoted(path) + ": truncated PNG (ends inside a chunk, no IEND)");
-    const std::uint32_t length = be32(at);
+    const std::uint32_t length = be32(&data[at]);
     if (length > data.size() - at - 12) throw Error(quoted(path) + ": truncated PNG (a chunk runs past the end of the file)");
     const std::string type(reinterpret_cast<const char*>(&data[at + 4]), 4);
     const std::uint32_t crc = static_cast<std::uint32_t>(
         ::crc32(::crc32(0L, Z_NULL, 0), &data[at + 4], static_cast<uInt>(4 + length)));
-    if (crc != be32(at + 8 + length)) throw Error(quoted(path) + ": corrupt PNG (CRC error in a " + type + " chunk)");
+    if (crc != be32(&data[at + 8 + length])) throw Error(quoted(path) + ": corrupt PNG (CRC error in a " + type + " chunk)");
     if (first && type != "IHDR") throw Error(quoted(path) + ": corrupt PNG (first chunk is " + type + ", not IHDR)");
+    const bool critical = std::isupper(static_cast<unsigned char>(type[0]));
+    if (critical && type != "IHDR" && type != "PLTE" && type != "IDAT" && type != "IEND")
+      throw Error(quoted(path) + ": corrupt PNG (unknown critical chunk " + type + ")");
+    if (first) ihdr.assign(&data[at + 8], &data[at + 8] + length);
     first = false;
-    idat = idat || type == "IDAT";
+    palette = palette || (type == "PLTE" && idat.empty());
+    if (type == "IDAT") idat.append(reinterpret_cast<const char*>(&data[at + 8]), length);
     if (type == "IEND") break;
     at += 12 + length;
   }
-  if (!idat) throw Error(quoted(path) + ": corrupt PNG (no image data)");
+  if (idat.empty()) throw Error(quoted(path) + ": corrupt PNG (no image data)");
+  const std::string bad_ihdr = quoted(path) + ": corrupt PNG (invalid IHDR: ";
+  if (ihdr.size() != 13) throw Error(bad_ihdr + "length " + std::to_string(ihdr.size()) + ", not 13)");
+  const std::uint32_t width = be32(&ihdr[0]), height = be32(&ihdr[4]);
+  const int depth = ihdr[8], colour = ihdr[9];
+  // libpng's own limits: 2^31 - 1 by the format, 1000000 a side by default (PNG_USER_WIDTH_MAX).
+  if (width == 0 || height == 0 || width > 1000000 || height > 1000000)
+    throw Error(bad_ihdr + "size " + std::to_string(width) + "x" + std::to_string(height) +
+                ", each side must be 1 to 1000000)");
+  static const std::map<int, std::pair<int, std::set<int>>> kColour = {  // channels, allowed depths
+      {0, {1, {1, 2, 4, 8, 16}}}, {2, {3, {8, 16}}}, {3, {1, {1, 2, 4, 8}}}, {4, {2, {8, 16}}}, {6, {4, {8, 16}}}};
+  const auto c = kColour.find(colour);
+  if (c == kColour.end()) throw Error(bad_ihdr + "colour type " + std::to_string(colour) + ")");
+  if (c->second.second.count(depth) == 0)
+    throw Error(bad_ihdr + "bit depth " + std::to_string(depth) + " with colour type " + std::to_string(colour) + ")");
+  if (ihdr[10] != 0 || ihdr[11] != 0 || ihdr[12] > 1)
+    throw Error(bad_ihdr + "compression, filter or interlace method)");
+  if (colour == 3 && !palette) throw Error(quoted(path) + ": corrupt PNG (palette image without a PLTE before its data)");
+  // A declared size past the pixel limit is refused by open_input before anything is inflated.
+  if (static_cast<double>(width) * height > kMaxPixels) return;
+  check_png_image_data(path, idat, png_rows(width, height, c->second.first * depth, ihdr[12] == 1));
 }
 
 std::unique_ptr<OIIO::ImageInput> open_input(const fs::path& path, OIIO::ImageSpec* spec) {
@@ -80,7 +188,7 @@ std::unique_ptr<OIIO::ImageInput> open_input(const fs::path& path, OIIO::ImageSp
   if (spec->width <= 0 || spec->height <= 0 || spec->nchannels <= 0)
     throw Error(quoted(path) + ": image has no pixels");
   // A declared size beyond 2^28 pixels (16384 x 16384) is refused before allocating.
-  if (static_cast<double>(spec->width) * spec->height > (1 << 28))
+  if (static_cast<double>(spec->width) * spec->height > kMaxPixels)
     throw Error(quoted(path) + ": declared size " + std::to_string(spec->width) + "x" +
                 std::to_string(spec->height) + " exceeds the 268 megapixel limit");
   return in;

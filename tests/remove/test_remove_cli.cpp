@@ -1,6 +1,7 @@
 // raindrop-remove end to end: bad inputs (one line, exit code, nothing written), usage
 // errors, model discovery, formats kept, folder mode.
 #include <unistd.h>
+#include <zlib.h>
 
 #include "remove_test_util.h"
 
@@ -359,6 +360,61 @@ TEST_F(RemoveCli, TruncatedJpeg) {
     expect_clean_failure(remove({"cut.jpg", "out.png", "--mask", "mask.png"}), "cut.jpg");
   }
   ASSERT_EQ(remove({"whole.jpg", "out.png"}).code, 0) << "the whole file decodes";
+}
+
+
+// libpng prints its own "libpng error: ..." line on stderr before OpenImageIO reports the
+// error: malformed image data must be caught first, so that the user sees one line, ours.
+TEST_F(RemoveCli, CorruptPngDataIsOneLine) {
+  const auto chunks = png_chunks(read_file(tmp / "in.png"));
+  std::string idat;
+  for (const auto& [type, data] : chunks) {
+    if (type == "IDAT") idat += data;
+  }
+  std::string raw(43 * (1 + 61 * 3), '\0');  // one filter byte and 61 RGB pixels per row
+  uLongf raw_size = raw.size();
+  ASSERT_EQ(::uncompress(reinterpret_cast<Bytef*>(raw.data()), &raw_size,
+                         reinterpret_cast<const Bytef*>(idat.data()), idat.size()), Z_OK);
+  ASSERT_EQ(raw_size, raw.size());
+  auto deflate = [](const std::string& bytes) {
+    std::string out(::compressBound(bytes.size()), '\0');
+    uLongf n = out.size();
+    EXPECT_EQ(::compress(reinterpret_cast<Bytef*>(out.data()), &n, reinterpret_cast<const Bytef*>(bytes.data()),
+                         bytes.size()), Z_OK);
+    out.resize(n);
+    return out;
+  };
+  // The PNG with its image data replaced (header and the other chunks kept).
+  auto with_idat = [&](const std::string& data) {
+    std::vector<std::pair<std::string, std::string>> out;
+    for (const auto& c : chunks) {
+      if (c.first == "IDAT") {
+        if (out.back().first != "IDAT") out.emplace_back("IDAT", data);
+      } else {
+        out.push_back(c);
+      }
+    }
+    return png_from_chunks(out);
+  };
+  std::string bad_stream = idat;
+  for (size_t i = bad_stream.size() / 2; i < bad_stream.size() / 2 + 16; ++i) bad_stream[i] ^= 0x5a;
+  std::string bad_filter = raw;
+  bad_filter[raw.size() / 2 / (1 + 61 * 3) * (1 + 61 * 3)] = 9;  // a row's filter type: 0-4 only
+  auto bad_ihdr = chunks;
+  bad_ihdr[0].second[8] = 3;  // bit depth 3
+  const std::vector<std::pair<std::string, std::string>> cases = {
+      {"short_idat.png", with_idat(deflate(raw.substr(0, raw.size() / 2)))},
+      {"cut_stream.png", with_idat(idat.substr(0, idat.size() / 2))},
+      {"bad_zlib.png", with_idat(bad_stream)},
+      {"bad_filter.png", with_idat(deflate(bad_filter))},
+      {"bad_ihdr.png", png_from_chunks(bad_ihdr)},
+  };
+  for (const auto& [name, bytes] : cases) {
+    SCOPED_TRACE(name);
+    write_file(tmp / name, bytes);
+    expect_clean_failure(remove({name, "out.png", "--mask", "mask.png"}), name);
+  }
+  ASSERT_EQ(remove({"in.png", "out.png"}).code, 0) << "the original decodes";
 }
 
 }  // namespace
