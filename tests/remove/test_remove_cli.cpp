@@ -417,5 +417,18 @@ TEST_F(RemoveCli, CorruptPngDataIsOneLine) {
   ASSERT_EQ(remove({"in.png", "out.png"}).code, 0) << "the original decodes";
 }
 
+
+// An overlap whose double does not fit an int was taken as a small one and ended in an
+// OpenCV assertion (exit 1); it is a bad command line.
+TEST_F(RemoveCli, HugeTileOverlapIsAUsageError) {
+  for (const char* overlap : {"1073741824", "2147483647"}) {
+    const RunResult r = remove({"in.png", "out.png", "--tile", "64", "--tile-overlap", overlap});
+    EXPECT_EQ(r.code, 2) << r.describe();
+    EXPECT_NE(r.err.find("--tile-overlap " + std::string(overlap) + " must be less than half of --tile 64"),
+              std::string::npos) << r.describe();
+    EXPECT_FALSE(fs::exists(tmp / "out.png"));
+  }
+}
+
 }  // namespace
 }  // namespace removetest
