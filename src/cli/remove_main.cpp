@@ -24,6 +24,7 @@
 #include <set>
 #include <string>
 #include <system_error>
+#include <thread>
 #include <vector>
 
 #include <CLI/CLI.hpp>
@@ -198,7 +199,7 @@ int run(int argc, char** argv) {
       ->check(CLI::Range(0.0, 1.0));
   app.add_option("--dilation", dilation, "Mask dilation size k (elliptical k x k; 1: none; default: the models')")
       ->check(CLI::Range(1, 1023));
-  app.add_option("-j,--threads", threads, "CPU threads (0: one per core); with 2 or more, RDN and 3RN run side by side on half each")
+  app.add_option("-j,--threads", threads, "CPU threads (0: one per core; more than the cores: capped, with a warning); with 2 or more, RDN and 3RN run side by side on half each")
       ->capture_default_str()->check(CLI::Range(0, 1024));
   app.add_option("--device", device, "Execution device")->capture_default_str()->check(CLI::IsMember({"cpu", "cuda"}));
   app.add_option("--tile", tile, "Process images larger than N x N in overlapping tiles of at most N x N (0: never)")
@@ -221,6 +222,15 @@ int run(int argc, char** argv) {
   } catch (const Error& e) {
     std::cerr << "raindrop-remove: " << one_line(e.what()) << "\nRun with --help for more information.\n";
     return 2;
+  }
+
+  // More threads than cores only adds contention: ONNX Runtime's spinning workers made
+  // -j 1024 take minutes on a small image.
+  const int cores = static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
+  if (threads > cores) {
+    std::fprintf(stderr, "raindrop-remove: warning: -j %d is more than the %d cores of this machine; using %d\n", threads,
+                 cores, cores);
+    threads = cores;
   }
 
   // Check the inputs before loading the models (which takes a moment).

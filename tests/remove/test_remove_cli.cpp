@@ -1,5 +1,8 @@
 // raindrop-remove end to end: bad inputs (one line, exit code, nothing written), usage
 // errors, model discovery, formats kept, folder mode.
+#include <chrono>
+#include <thread>
+
 #include <unistd.h>
 #include <zlib.h>
 
@@ -428,6 +431,25 @@ TEST_F(RemoveCli, HugeTileOverlapIsAUsageError) {
               std::string::npos) << r.describe();
     EXPECT_FALSE(fs::exists(tmp / "out.png"));
   }
+}
+
+
+// More threads than cores only adds contention (-j 1024 took minutes on a 480x360 image):
+// capped at the cores, with one line saying so.
+TEST_F(RemoveCli, ThreadsAreCappedAtTheCores) {
+  const unsigned cores = std::thread::hardware_concurrency();
+  if (cores == 0 || cores >= 1024) GTEST_SKIP() << "this machine reports " << cores << " cores";
+  const auto start = std::chrono::steady_clock::now();
+  const RunResult r = remove({"in.png", "out.png", "-j", "1024"});
+  const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  ASSERT_EQ(r.code, 0) << r.describe();
+  const auto lines = split_lines(r.err);
+  ASSERT_EQ(lines.size(), 1u) << r.describe();
+  EXPECT_EQ(lines[0], "raindrop-remove: warning: -j 1024 is more than the " + std::to_string(cores) +
+                          " cores of this machine; using " + std::to_string(cores))
+      << r.describe();
+  EXPECT_LT(seconds, 60.0) << "a 61x43 image";
+  EXPECT_TRUE(read_image(tmp / "out.png"));
 }
 
 }  // namespace
