@@ -216,6 +216,8 @@ int run(int argc, char** argv) {
   app.set_version_flag("--version", std::string("raindrop-remove ") + RAINDROP_VERSION + " (" + ort_description() + ")");
   try {
     app.parse(argc, argv);
+    // NaN passes CLI::Range (every comparison with it is false).
+    if (threshold && std::isnan(*threshold)) throw Error("--threshold: nan is not a number between 0 and 1");
     check_tile_options(tile, overlap);
   } catch (const CLI::ParseError& e) {
     return app.exit(e) == 0 ? 0 : 2;

@@ -217,6 +217,20 @@ TEST(RenderBadInput, CommandLineSyntaxErrorsExitWithTwo) {
   }
 }
 
+// The seed is unsigned 64-bit: "-1" used to wrap silently to 2^64 - 1.
+TEST(RenderBadInput, NegativeSeedIsRefused) {
+  TempDir tmp;
+  write_image(tmp / "good.png", rgb_fixture());
+  for (const char* seed : {"-1", "-18446744073709551615"}) {
+    const auto r = run_render({"-i", "good.png", "--out", "out", "--seed", seed}, tmp.path());
+    EXPECT_EQ(r.code, 2) << r.describe();
+    EXPECT_NE(r.err.find("--seed"), std::string::npos) << r.describe();
+    EXPECT_FALSE(fs::exists(tmp / "out")) << "a command-line error must not start rendering";
+  }
+  const auto r = run_render({"-i", "good.png", "--out", "out", "--seed", "18446744073709551615", "-q"}, tmp.path());
+  EXPECT_EQ(r.code, 0) << "the largest seed is fine\n" << r.describe();
+}
+
 // The brief for an error run: one line and no progress bar. Inputs whose problem shows only
 // when the pixels are read (bit depth, channels, size, truncation) pass the header preflight
 // and fail after the progress bar has started.
