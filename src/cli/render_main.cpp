@@ -115,7 +115,7 @@ int run(int argc, char** argv) {
   std::vector<InputImage> inputs;
   if (!cityscapes.empty()) inputs = find_cityscapes(cityscapes, split);
   for (const auto& p : input_paths) {
-    auto more = find_images(p);
+    auto more = find_images(p, options.out_dir);
     inputs.insert(inputs.end(), more.begin(), more.end());
   }
   if (inputs.empty()) demo = true;
