@@ -208,6 +208,18 @@ std::string temp_name_for(const fs::path& path) {
          std::to_string(counter++);
 }
 
+// Renames the finished temporary over `path`; on failure removes it and reports the
+// rename's own error (a clean-up sharing its error_code reported "Success").
+void move_into_place(const fs::path& tmp, const fs::path& path) {
+  std::error_code ec;
+  fs::rename(tmp, path, ec);
+  if (ec) {
+    std::error_code ignored;
+    fs::remove(tmp, ignored);
+    throw Error(quoted(path) + ": cannot move the finished file into place (" + ec.message() + ")");
+  }
+}
+
 }  // namespace
 
 ImageHeader read_header(const fs::path& path) {
@@ -309,11 +321,7 @@ void write_image_atomic(const cv::Mat& image, const fs::path& path, int png_leve
     fs::remove(tmp, ec);
     throw Error(quoted(path) + ": cannot write (" + why + ")");
   }
-  fs::rename(tmp, path, ec);
-  if (ec) {
-    fs::remove(tmp, ec);
-    throw Error(quoted(path) + ": cannot move the finished file into place (" + ec.message() + ")");
-  }
+  move_into_place(tmp, path);
 }
 
 void check_image_destination(const fs::path& path, bool folder_may_be_created) {
@@ -344,8 +352,9 @@ void ensure_writable_dir(const fs::path& dir) {
   {
     std::ofstream f(probe);
     if (!f || !(f << "ok") || !f.flush()) {
+      const int err = errno;  // before the clean-up can change it
       fs::remove(probe, ec);
-      throw Error("output folder " + quoted(dir) + " is not writable");
+      throw Error("output folder " + quoted(dir) + " is not writable (" + std::strerror(err) + ")");
     }
   }
   fs::remove(probe, ec);
@@ -358,15 +367,12 @@ void write_text_atomic(const std::string& text, const fs::path& path) {
   {
     std::ofstream f(tmp, std::ios::binary);
     if (!f || !(f << text) || !f.flush()) {
+      const int err = errno;  // before the clean-up can change it
       fs::remove(tmp, ec);
-      throw Error(quoted(path) + ": cannot write");
+      throw Error(quoted(path) + ": cannot write (" + std::strerror(err) + ")");
     }
   }
-  fs::rename(tmp, path, ec);
-  if (ec) {
-    fs::remove(tmp, ec);
-    throw Error(quoted(path) + ": cannot move the finished file into place (" + ec.message() + ")");
-  }
+  move_into_place(tmp, path);
 }
 
 }  // namespace raindrop
