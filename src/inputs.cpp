@@ -27,11 +27,17 @@ std::string safe_id(std::string s) {
   return s;
 }
 
-std::vector<fs::path> sorted_files(const fs::path& dir, bool recursive) {
+// `skip`: a folder left out of a recursive walk (empty: none).
+std::vector<fs::path> sorted_files(const fs::path& dir, bool recursive, const fs::path& skip = {}) {
   std::vector<fs::path> files;
   std::error_code ec;
   if (recursive) {
+    const fs::path skip_canonical = skip.empty() ? fs::path() : fs::weakly_canonical(fs::absolute(skip));
     for (auto it = fs::recursive_directory_iterator(dir, ec); !ec && it != fs::recursive_directory_iterator(); it.increment(ec)) {
+      if (!skip.empty() && it->is_directory() && fs::weakly_canonical(it->path()) == skip_canonical) {
+        it.disable_recursion_pending();
+        continue;
+      }
       if (it->is_regular_file() && is_image_name(it->path())) files.push_back(it->path());
     }
   } else {
@@ -107,7 +113,7 @@ std::vector<InputImage> find_cityscapes(const fs::path& root, const std::string&
   return out;
 }
 
-std::vector<InputImage> find_images(const fs::path& source) {
+std::vector<InputImage> find_images(const fs::path& source, const fs::path& skip) {
   std::error_code ec;
   if (!fs::exists(source, ec)) throw Error("'" + source.string() + "': no such file or folder");
   std::vector<InputImage> out;
@@ -119,7 +125,7 @@ std::vector<InputImage> find_images(const fs::path& source) {
     out.push_back(std::move(in));
   };
   if (fs::is_directory(source)) {
-    for (const auto& file : sorted_files(source, true)) {
+    for (const auto& file : sorted_files(source, true, skip)) {
       fs::path rel = fs::relative(file, source).replace_extension();
       std::string id = rel.generic_string();
       std::replace(id.begin(), id.end(), '/', '-');

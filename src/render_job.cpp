@@ -3,10 +3,18 @@
 #include <algorithm>
 #include <atomic>
 #include <chrono>
+#include <cctype>
+#include <cerrno>
 #include <cmath>
 #include <cstdio>
+#include <cstring>
 #include <map>
 #include <mutex>
+
+#include <fcntl.h>
+#include <sys/file.h>
+#include <sys/stat.h>
+#include <unistd.h>
 
 #include <nlohmann/json.hpp>
 #include <tbb/global_control.h>
@@ -46,6 +54,60 @@ std::string job_fingerprint(const RenderOptions& o) {
                     "\n" + (o.convert ? "convert" : "strict");
   return hex64(hash_string(key));
 }
+
+// The output folder's lock, held for a run: a second run into the same folder would delete
+// the first's temporaries (remove_stale_temporaries) and interleave their manifests. The
+// kernel's flock() on <out>/.raindrop-render.lock is the lock, so a killed run's lock is
+// released with it (a file left behind is stale and simply taken over); the file holds the
+// owner's pid for the message a second run prints.
+class OutputLock {
+ public:
+  explicit OutputLock(const fs::path& dir) : path_(dir / ".raindrop-render.lock") {
+    while (true) {
+      fd_ = ::open(path_.c_str(), O_RDWR | O_CREAT | O_CLOEXEC, 0644);
+      if (fd_ < 0) throw Error("cannot create the lock file '" + path_.string() + "' (" + std::strerror(errno) + ")");
+      if (::flock(fd_, LOCK_EX | LOCK_NB) != 0) {
+        const int err = errno;
+        char pid[32] = {0};
+        const ssize_t n = ::pread(fd_, pid, sizeof pid - 1, 0);
+        ::close(fd_);
+        std::string owner(pid, n > 0 ? static_cast<size_t>(n) : 0);
+        while (!owner.empty() && std::isspace(static_cast<unsigned char>(owner.back()))) owner.pop_back();
+        if (err == EWOULDBLOCK)
+          throw Error("output folder '" + dir.string() + "' is in use by another raindrop-render" +
+                      (owner.empty() ? std::string() : " (pid " + owner + ")") +
+                      "; wait for it to finish or choose another folder");
+        throw Error("cannot lock '" + path_.string() + "' (" + std::strerror(err) + ")");
+      }
+      // The previous owner unlinks the file when it finishes: if that happened between our
+      // open and flock, we hold a lock on a file no one else will see; start again.
+      struct stat held {}, named {};
+      if (::fstat(fd_, &held) == 0 && ::stat(path_.c_str(), &named) == 0 && held.st_dev == named.st_dev &&
+          held.st_ino == named.st_ino)
+        break;
+      ::close(fd_);
+    }
+    const std::string pid = std::to_string(::getpid()) + "\n";
+    if (::ftruncate(fd_, 0) != 0 || ::pwrite(fd_, pid.data(), pid.size(), 0) != static_cast<ssize_t>(pid.size())) {
+      const int err = errno;
+      release();
+      throw Error("cannot write the lock file '" + path_.string() + "' (" + std::strerror(err) + ")");
+    }
+  }
+  ~OutputLock() { release(); }
+  OutputLock(const OutputLock&) = delete;
+  OutputLock& operator=(const OutputLock&) = delete;
+
+ private:
+  void release() {
+    if (fd_ < 0) return;
+    ::unlink(path_.c_str());  // while still locked: see the inode check above
+    ::close(fd_);
+    fd_ = -1;
+  }
+  fs::path path_;
+  int fd_ = -1;
+};
 
 void remove_stale_temporaries(const fs::path& dir) {
   std::error_code ec;
@@ -149,6 +211,8 @@ RenderSummary render_dataset(const std::vector<InputImage>& inputs, const Render
   const auto start = std::chrono::steady_clock::now();
   if (o.variants < 1) throw Error("--variants must be at least 1");
   check_unique_ids(inputs);
+  ensure_writable_dir(o.out_dir);
+  const OutputLock folder_lock(o.out_dir);  // before anything in the folder is touched
   std::vector<std::string> subs{"", "rainy", "clean", "mask"};
   if (o.scene.lens.enabled) subs.push_back("alpha");
   for (const auto& sub : subs) {

@@ -42,6 +42,12 @@ inline constexpr int kDefaultPngLevel = 3;
 // comes from the extension. Throws raindrop::Error on failure, leaving no file behind.
 void write_image_atomic(const cv::Mat& image, const std::filesystem::path& path, int png_level = kDefaultPngLevel);
 
+// Throws a one-line Error naming `path` if write_image_atomic could not write it: no
+// OpenImageIO writer for its extension, a folder by that name, a parent that is missing (unless
+// `folder_may_be_created`), not a folder or not writable, or an existing read-only file. For
+// checking every destination of a run before its first write.
+void check_image_destination(const std::filesystem::path& path, bool folder_may_be_created = false);
+
 // Creates the folder if needed and proves it is writable; throws a one-line Error if not.
 void ensure_writable_dir(const std::filesystem::path& dir);
 

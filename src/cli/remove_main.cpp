@@ -19,10 +19,12 @@
 #include <cstdio>
 #include <filesystem>
 #include <iostream>
+#include <map>
 #include <optional>
 #include <set>
 #include <string>
 #include <system_error>
+#include <thread>
 #include <vector>
 
 #include <CLI/CLI.hpp>
@@ -56,19 +58,27 @@ bool is_image_name(const fs::path& p) {
   return kExt.count(ext) > 0 && !name.empty() && name[0] != '.';  // hidden: e.g. our own temporaries
 }
 
+// A command line that is well-formed but asks for something impossible (exit code 2, like
+// CLI11's own errors), found after parsing.
+class UsageError : public Error {
+ public:
+  using Error::Error;
+};
+
 bool is_under(const fs::path& p, const fs::path& dir) {
   const auto rel = fs::weakly_canonical(p).lexically_relative(fs::weakly_canonical(dir));
   return !rel.empty() && *rel.begin() != "..";
 }
 
-// Image files under `dir`, recursively, sorted, relative to `dir`; files under `skip` (the
-// output folder, when it lies inside the input folder) are left out.
-std::vector<fs::path> list_images(const fs::path& dir, const fs::path& skip) {
+// Image files under `dir`, recursively, sorted, relative to `dir`; files under the `skip`
+// folders (the output and mask folders, when they lie inside the input folder) are left out.
+std::vector<fs::path> list_images(const fs::path& dir, const std::vector<fs::path>& skip) {
   std::vector<fs::path> files;
   std::error_code ec;
   for (auto it = fs::recursive_directory_iterator(dir, fs::directory_options::skip_permission_denied, ec);
        !ec && it != fs::recursive_directory_iterator(); it.increment(ec)) {
-    if (it->is_directory() && is_under(it->path(), skip)) {
+    if (it->is_directory() &&
+        std::any_of(skip.begin(), skip.end(), [&](const fs::path& s) { return !s.empty() && is_under(it->path(), s); })) {
       it.disable_recursion_pending();
       continue;
     }
@@ -115,6 +125,22 @@ struct Job {
   std::string caption;
   bool make_dirs = false;  // folder mode: create the output's sub-folders
 };
+
+// Refuses a run in which two of the places it reads and writes are one: the later write
+// would silently replace the input (or an earlier output). Paths are compared canonically,
+// so "./a.png", "a.png" and "sub/../a.png" are the same file. Each entry: (role, path).
+void refuse_coinciding(const std::vector<std::pair<std::string, fs::path>>& places, const char* kind) {
+  std::map<fs::path, const std::pair<std::string, fs::path>*> seen;
+  for (const auto& place : places) {
+    if (place.second.empty()) continue;
+    fs::path key = fs::weakly_canonical(fs::absolute(place.second));
+    if (!key.has_filename()) key = key.parent_path();  // "dir/" is "dir"
+    auto [it, fresh] = seen.emplace(key, &place);
+    if (!fresh)
+      throw UsageError("the " + it->second->first + " '" + it->second->second.string() + "' and the " + place.first +
+                       " '" + place.second.string() + "' are the same " + kind + "; choose another one");
+  }
+}
 
 struct Settings {
   RemoveOptions options;
@@ -173,7 +199,7 @@ int run(int argc, char** argv) {
       ->check(CLI::Range(0.0, 1.0));
   app.add_option("--dilation", dilation, "Mask dilation size k (elliptical k x k; 1: none; default: the models')")
       ->check(CLI::Range(1, 1023));
-  app.add_option("-j,--threads", threads, "CPU threads (0: one per core); with 2 or more, RDN and 3RN run side by side on half each")
+  app.add_option("-j,--threads", threads, "CPU threads (0: one per core; more than the cores: capped, with a warning); with 2 or more, RDN and 3RN run side by side on half each")
       ->capture_default_str()->check(CLI::Range(0, 1024));
   app.add_option("--device", device, "Execution device")->capture_default_str()->check(CLI::IsMember({"cpu", "cuda"}));
   app.add_option("--tile", tile, "Process images larger than N x N in overlapping tiles of at most N x N (0: never)")
@@ -190,12 +216,23 @@ int run(int argc, char** argv) {
   app.set_version_flag("--version", std::string("raindrop-remove ") + RAINDROP_VERSION + " (" + ort_description() + ")");
   try {
     app.parse(argc, argv);
+    // NaN passes CLI::Range (every comparison with it is false).
+    if (threshold && std::isnan(*threshold)) throw Error("--threshold: nan is not a number between 0 and 1");
     check_tile_options(tile, overlap);
   } catch (const CLI::ParseError& e) {
     return app.exit(e) == 0 ? 0 : 2;
   } catch (const Error& e) {
     std::cerr << "raindrop-remove: " << one_line(e.what()) << "\nRun with --help for more information.\n";
     return 2;
+  }
+
+  // More threads than cores only adds contention: ONNX Runtime's spinning workers made
+  // -j 1024 take minutes on a small image.
+  const int cores = static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
+  if (threads > cores) {
+    std::fprintf(stderr, "raindrop-remove: warning: -j %d is more than the %d cores of this machine; using %d\n", threads,
+                 cores, cores);
+    threads = cores;
   }
 
   // Check the inputs before loading the models (which takes a moment).
@@ -206,14 +243,13 @@ int run(int argc, char** argv) {
 
   std::vector<Job> jobs;
   if (batch && mask_dir.empty()) std::swap(mask, mask_dir);  // folder mode: --mask is a folder
-  if (!mask_dir.empty()) ensure_writable_dir(mask_dir);
   if (batch) {
     if (fs::exists(out_arg, ec) && !fs::is_directory(out_arg, ec))
       throw Error("input '" + input + "' is a folder, so the output must be a folder too; '" + output + "' is a file");
-    if (fs::weakly_canonical(in_path) == fs::weakly_canonical(out_arg))
-      throw Error("the output folder is the input folder; choose another one (the inputs would be overwritten)");
-    ensure_writable_dir(out_arg);
-    for (const auto& rel : list_images(in_path, out_arg)) {
+    // Masks written into the input or output folder would replace the images there.
+    refuse_coinciding({{"input folder", in_path}, {"output folder", out_arg}, {"mask folder", fs::path(mask_dir)}},
+                      "folder");
+    for (const auto& rel : list_images(in_path, {out_arg, fs::path(mask_dir)})) {
       Job j{in_path / rel, out_arg / rel, std::nullopt, rel.string(), true};
       if (!mask_dir.empty()) j.mask = (fs::path(mask_dir) / rel).replace_extension(".png");
       jobs.push_back(j);
@@ -226,13 +262,32 @@ int run(int argc, char** argv) {
     if (!mask.empty()) j.mask = fs::path(mask);
     if (!mask_dir.empty()) j.mask = (fs::path(mask_dir) / in_path.filename()).replace_extension(".png");
     jobs.push_back(j);
-    // Fail before the (slow) inference when a destination folder is missing.
-    for (const fs::path& p : {j.output, j.mask.value_or(fs::path()), fs::path(sheet)}) {
-      if (p.empty() || !p.has_parent_path()) continue;
-      if (!fs::is_directory(p.parent_path(), ec))
-        throw Error("'" + p.string() + "': cannot write (folder '" + p.parent_path().string() + "' does not exist)");
+  }
+  // Every file read or written, once: no write may land on an input or on another output
+  // (checked before anything is read or written).
+  {
+    std::vector<std::pair<std::string, fs::path>> places;
+    for (const auto& j : jobs) places.push_back({"input", j.input});
+    for (const auto& j : jobs) {
+      places.push_back({"output", j.output});
+      if (j.mask) places.push_back({"mask", *j.mask});
+    }
+    places.push_back({"contact sheet", fs::path(sheet)});
+    refuse_coinciding(places, "file");
+  }
+  // Every destination is checked before the (slow) inference and the first write, so that a
+  // mask or sheet that cannot be written does not leave the output behind. In folder mode the
+  // output and mask sub-folders are made as the run goes; the formats are the inputs'.
+  if (!mask_dir.empty()) ensure_writable_dir(mask_dir);
+  if (batch) ensure_writable_dir(out_arg);
+  std::set<std::string> checked_formats;
+  for (const Job& j : jobs) {
+    for (const fs::path* p : {&j.output, j.mask ? &*j.mask : nullptr}) {
+      if (p && (!batch || checked_formats.insert(p->extension().string()).second))
+        check_image_destination(*p, batch);
     }
   }
+  if (!sheet.empty()) check_image_destination(sheet);
 
   SessionConfig session;
   session.threads = threads;
@@ -292,6 +347,9 @@ int run(int argc, char** argv) {
 int main(int argc, char** argv) {
   try {
     return run(argc, argv);
+  } catch (const UsageError& e) {
+    std::cerr << "raindrop-remove: error: " << one_line(e.what()) << "\n";
+    return 2;
   } catch (const std::exception& e) {
     std::cerr << "raindrop-remove: error: " << one_line(e.what()) << "\n";
     return 1;

@@ -64,7 +64,14 @@ int run(int argc, char** argv) {
   app.add_flag("--demo", demo, "Render the built-in checkerboard and street backgrounds (the default without inputs)");
   app.add_option("-o,--out", out, "Output folder")->capture_default_str();
   app.add_option("--variants", variants, "Rendered variants per input image")->capture_default_str()->check(CLI::Range(1, 1000));
-  app.add_option("--seed", seed, "Run seed; each sample derives its own")->capture_default_str();
+  // Unsigned: without the check "-1" would wrap silently to 2^64 - 1.
+  app.add_option("--seed", seed, "Run seed (0 to 2^64 - 1); each sample derives its own")
+      ->capture_default_str()
+      ->check(CLI::Validator(
+          [](std::string& v) {
+            return v.find('-') == std::string::npos ? std::string() : "'" + v + "' is negative (seeds are 0 to 2^64 - 1)";
+          },
+          "SEED"));
   app.add_option("-j,--threads", threads, "Worker threads (0: all cores)")->capture_default_str()->check(CLI::Range(0, 1024));
   std::string presets;
   for (const auto& n : scene_preset_names()) presets += (presets.empty() ? "" : ", ") + n;
@@ -110,7 +117,7 @@ int run(int argc, char** argv) {
   std::vector<InputImage> inputs;
   if (!cityscapes.empty()) inputs = find_cityscapes(cityscapes, split);
   for (const auto& p : input_paths) {
-    auto more = find_images(p);
+    auto more = find_images(p, options.out_dir);
     inputs.insert(inputs.end(), more.begin(), more.end());
   }
   if (inputs.empty()) demo = true;

@@ -28,7 +28,7 @@ void check_tile_options(int tile, int overlap) {
   if (overlap < 0) throw Error("--tile-overlap must be >= 0, got " + std::to_string(overlap));
   if (tile == 0) return;
   if (tile < 64) throw Error("--tile must be 0 or at least 64, got " + std::to_string(tile));
-  if (2 * overlap >= tile)
+  if (2LL * overlap >= tile)  // in 64 bits: twice a large overlap wraps around in an int
     throw Error("--tile-overlap " + std::to_string(overlap) + " must be less than half of --tile " + std::to_string(tile));
 }
 

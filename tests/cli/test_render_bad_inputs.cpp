@@ -42,6 +42,22 @@ TEST(RenderBadInput, TruncatedPng) {
   expect_clean_failure(r, tmp / "out", "cut.png");
 }
 
+// libjpeg only warns at a premature end of file and fills the missing rows with grey: an
+// incomplete decode, which must stop the run like a truncated PNG.
+TEST(RenderBadInput, TruncatedJpeg) {
+  TempDir tmp;
+  write_image(tmp / "whole.jpg", make_background(480, 360, 0));
+  const std::string bytes = read_file(tmp / "whole.jpg");
+  ASSERT_GT(bytes.size(), 4000u);
+  write_file(tmp / "cut.jpg", bytes.substr(0, 1000));
+  const auto r = render_one(tmp, "cut.jpg");
+  expect_clean_failure(r, tmp / "out", "cut.jpg");
+  // Past the header check: --keep-going decodes it, and must still fail on it.
+  const auto k = render_one(tmp, "cut.jpg", {"--keep-going"}, "kept");
+  EXPECT_EQ(k.code, 3) << k.describe();
+  EXPECT_TRUE(sample_files(tmp / "kept").empty()) << ::testing::PrintToString(sample_files(tmp / "kept"));
+}
+
 TEST(RenderBadInput, SixteenBitPngRefusedThenConverted) {
   TempDir tmp;
   const cv::Mat rgb = rgb_fixture();
@@ -199,6 +215,20 @@ TEST(RenderBadInput, CommandLineSyntaxErrorsExitWithTwo) {
     EXPECT_FALSE(fs::exists(tmp / "out")) << "a command-line error must not start rendering";
     EXPECT_FALSE(fs::exists(tmp / "out" / "render"));
   }
+}
+
+// The seed is unsigned 64-bit: "-1" used to wrap silently to 2^64 - 1.
+TEST(RenderBadInput, NegativeSeedIsRefused) {
+  TempDir tmp;
+  write_image(tmp / "good.png", rgb_fixture());
+  for (const char* seed : {"-1", "-18446744073709551615"}) {
+    const auto r = run_render({"-i", "good.png", "--out", "out", "--seed", seed}, tmp.path());
+    EXPECT_EQ(r.code, 2) << r.describe();
+    EXPECT_NE(r.err.find("--seed"), std::string::npos) << r.describe();
+    EXPECT_FALSE(fs::exists(tmp / "out")) << "a command-line error must not start rendering";
+  }
+  const auto r = run_render({"-i", "good.png", "--out", "out", "--seed", "18446744073709551615", "-q"}, tmp.path());
+  EXPECT_EQ(r.code, 0) << "the largest seed is fine\n" << r.describe();
 }
 
 // The brief for an error run: one line and no progress bar. Inputs whose problem shows only

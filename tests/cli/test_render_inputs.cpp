@@ -163,6 +163,28 @@ TEST(RenderInfo, PresetsInHelpAndListAgreeAndLoad) {
       << "--help's --scene text offers presets that --list-scenes does not have (or misses some)";
 }
 
+// An output folder inside the input folder: a second run must not take the first run's
+// rainy/clean/mask images as inputs (it rendered them, and failed on the grey masks).
+TEST(RenderFolder, OutputFolderInsideTheInputIsNotAnInput) {
+  TempDir tmp;
+  write_image(tmp / "rin" / "a.png", make_background(96, 64, 0));
+  write_image(tmp / "rin" / "sub" / "b.png", make_background(96, 64, 1));
+  for (int run = 0; run < 2; ++run) {
+    SCOPED_TRACE(run);
+    const auto r = run_render({"-i", "rin", "-o", "rin/out", "-j", "2", "-q"}, tmp.path());
+    ASSERT_EQ(r.code, 0) << r.describe();
+    const auto counts = parse_counts(r.err);
+    ASSERT_TRUE(counts) << r.describe();
+    EXPECT_EQ(counts->rendered, run == 0 ? 2 : 0) << r.describe();
+    EXPECT_EQ(counts->skipped, run == 0 ? 0 : 2) << r.describe();
+    EXPECT_EQ(manifest_lines(tmp / "rin" / "out").size(), 2u);
+  }
+  // Also when the two are spelled differently.
+  const auto r = run_render({"-i", "./rin/", "-o", "rin/sub/../out", "-j", "2", "-q"}, tmp.path());
+  ASSERT_EQ(r.code, 0) << r.describe();
+  EXPECT_EQ(manifest_lines(tmp / "rin" / "out").size(), 2u) << r.describe();
+}
+
 TEST(RenderListFile, RendersExactlyTheListedImages) {
   TempDir tmp;
   write_image(tmp / "imgs" / "sub" / "alpha.png", make_background(160, 80, 0));

@@ -247,5 +247,49 @@ TEST(RenderResume, RefusesFolderRenderedWithOtherSettings) {
   EXPECT_TRUE(snapshot(tmp / "out") == before);
 }
 
+
+// Two runs into one folder: the second used to delete the first's temporaries (which then
+// died with "cannot move the finished file into place"). The folder is locked for a run: a
+// second run is refused with one line naming the owner, the first finishes untouched, and a
+// lock file left by a dead run is taken over.
+TEST(RenderLock, SecondRunIntoTheSameFolderIsRefused) {
+  TempDir tmp;
+  make_inputs(tmp.path());
+  const fs::path lock_file = tmp / "out" / ".raindrop-render.lock";
+  {
+    Background first(render_args("out"), tmp.path());
+    ASSERT_TRUE(first.valid()) << "fork failed";
+    const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(120);
+    while (count_newlines(tmp / "out" / "manifest.jsonl") < 1) {
+      ASSERT_TRUE(first.running()) << "the first run ended before its first sample; stderr:\n"
+                                   << read_file(tmp / "_logs" / "background-stderr");
+      ASSERT_LT(std::chrono::steady_clock::now(), deadline) << "no progress within 120 s";
+      std::this_thread::sleep_for(std::chrono::milliseconds(5));
+    }
+    ASSERT_TRUE(first.running()) << "the first run finished before the second could start";
+    const auto second = run_render(render_args("out"), tmp.path());
+    EXPECT_EQ(second.code, 1) << second.describe();
+    const auto lines = second.message_lines();
+    ASSERT_EQ(lines.size(), 1u) << second.describe();
+    EXPECT_EQ(lines[0].rfind("raindrop-render: error: ", 0), 0u) << lines[0];
+    EXPECT_NE(lines[0].find("in use"), std::string::npos) << lines[0];
+    EXPECT_NE(lines[0].find("(pid "), std::string::npos) << lines[0];
+    while (first.running()) {
+      ASSERT_LT(std::chrono::steady_clock::now(), deadline + std::chrono::seconds(120)) << "the first run hangs";
+      std::this_thread::sleep_for(std::chrono::milliseconds(20));
+    }
+    const int status = first.kill_now();  // already reaped: its wait status
+    EXPECT_TRUE(WIFEXITED(status) && WEXITSTATUS(status) == 0)
+        << "the first run failed; stderr:\n" << read_file(tmp / "_logs" / "background-stderr");
+  }
+  EXPECT_EQ(manifest_lines(tmp / "out").size(), static_cast<size_t>(kImages * kVariants));
+  EXPECT_FALSE(fs::exists(lock_file)) << "the lock is released at the end";
+  // A lock file left by a run that died (its pid no longer running) does not block.
+  write_file(lock_file, "999999999\n");
+  const auto after = run_render(render_args("out"), tmp.path());
+  EXPECT_EQ(after.code, 0) << after.describe();
+  EXPECT_FALSE(fs::exists(lock_file));
+}
+
 }  // namespace
 }  // namespace clitest

@@ -186,4 +186,24 @@ inline std::string png_declaring(std::uint32_t width, std::uint32_t height) {
   return sig + png_chunk("IHDR", ihdr) + png_chunk("IDAT", idat) + png_chunk("IEND", "");
 }
 
+// A PNG's chunks in order: (type, data).
+inline std::vector<std::pair<std::string, std::string>> png_chunks(const std::string& png) {
+  std::vector<std::pair<std::string, std::string>> chunks;
+  size_t at = 8;
+  while (at + 12 <= png.size()) {
+    const auto* b = reinterpret_cast<const unsigned char*>(png.data() + at);
+    const std::uint32_t n = (std::uint32_t{b[0]} << 24) | (std::uint32_t{b[1]} << 16) | (std::uint32_t{b[2]} << 8) | b[3];
+    chunks.emplace_back(png.substr(at + 4, 4), png.substr(at + 8, n));
+    at += 12 + n;
+  }
+  return chunks;
+}
+
+// The PNG with the given chunks, CRCs recomputed (so that only the content is wrong).
+inline std::string png_from_chunks(const std::vector<std::pair<std::string, std::string>>& chunks) {
+  std::string png = "\x89PNG\r\n\x1a\n";
+  for (const auto& [type, data] : chunks) png += png_chunk(type, data);
+  return png;
+}
+
 }  // namespace removetest

@@ -1,5 +1,11 @@
 // raindrop-remove end to end: bad inputs (one line, exit code, nothing written), usage
 // errors, model discovery, formats kept, folder mode.
+#include <chrono>
+#include <thread>
+
+#include <unistd.h>
+#include <zlib.h>
+
 #include "remove_test_util.h"
 
 namespace removetest {
@@ -261,14 +267,202 @@ TEST_F(RemoveCli, FolderModeFailures) {
   write_file(tmp / "plain", "x");
   r = remove({"batch", "plain"});
   EXPECT_EQ(r.code, 1) << r.describe();
-  // The input folder as the output folder would overwrite the inputs.
+  // The input folder as the output folder would overwrite the inputs: a usage error.
   r = remove({"batch", "batch/"});
-  EXPECT_EQ(r.code, 1) << r.describe();
+  EXPECT_EQ(r.code, 2) << r.describe();
   EXPECT_NE(r.err.find("input folder"), std::string::npos) << r.describe();
   // An empty folder is an error, not a silent success.
   fs::create_directories(tmp / "nothing");
   r = remove({"nothing", "out"});
   EXPECT_EQ(r.code, 1) << r.describe();
+}
+
+
+// Any two of input, output, mask and contact sheet naming one file (or, in folder mode, the
+// mask folder being the input or output folder) would overwrite one with another: refused as
+// a usage error before anything is read or written.
+TEST_F(RemoveCli, CoincidingPathsAreRefused) {
+  write_image(tmp / "batch" / "a.png", make_image(40, 30, 1));
+  write_image(tmp / "batch" / "sub" / "b.png", make_image(17, 33, 2));
+  fs::create_directories(tmp / "results");
+  write_image(tmp / "results" / "a.png", make_image(40, 30, 3));  // an earlier run's output
+  const auto before = std::vector<std::string>{read_file(tmp / "in.png"), read_file(tmp / "batch" / "a.png"),
+                                               read_file(tmp / "batch" / "sub" / "b.png"), read_file(tmp / "results" / "a.png")};
+  for (const std::vector<std::string>& args :
+       {std::vector<std::string>{"in.png", "in.png"}, {"in.png", "./in.png"}, {"./in.png", "sub/../in.png"},
+        {"in.png", "out.png", "--mask", "in.png"}, {"in.png", "out.png", "--mask", "./out.png"},
+        {"in.png", "out.png", "--contact-sheet", "in.png"}, {"in.png", "out.png", "--contact-sheet", "out.png"},
+        {"in.png", "out.png", "--mask", "m.png", "--contact-sheet", "./m.png"}, {"in.png", "out.png", "--mask-dir", "."},
+        {"batch", "results", "--mask-dir", "batch"}, {"batch", "results", "--mask-dir", "./results/"},
+        {"batch", "results", "--mask", "batch/"}, {"batch", "results", "--contact-sheet", "batch/a.png"},
+        {"batch", "results", "--contact-sheet", "results/sub/b.png"}}) {
+    fs::create_directories(tmp / "sub");
+    const RunResult r = remove(args);
+    SCOPED_TRACE(r.command);
+    EXPECT_EQ(r.code, 2) << r.describe();
+    const auto lines = split_lines(r.err);
+    ASSERT_EQ(lines.size(), 1u) << r.describe();
+    EXPECT_EQ(lines[0].rfind(kErrorPrefix, 0), 0u) << r.describe();
+    EXPECT_NE(lines[0].find("are the same"), std::string::npos) << r.describe();
+    EXPECT_FALSE(fs::exists(tmp / "out.png"));
+    EXPECT_FALSE(fs::exists(tmp / "m.png"));
+    EXPECT_FALSE(fs::exists(tmp / "results" / "sub")) << "nothing written";
+    EXPECT_EQ(before, (std::vector<std::string>{read_file(tmp / "in.png"), read_file(tmp / "batch" / "a.png"),
+                                                read_file(tmp / "batch" / "sub" / "b.png"),
+                                                read_file(tmp / "results" / "a.png")}))
+        << "a file was overwritten";
+    EXPECT_TRUE(hidden_temporaries(tmp.path()).empty());
+  }
+}
+
+
+// Every destination (output, mask, contact sheet) is checked before the first write: a mask
+// or sheet that cannot be written must not leave the output behind.
+TEST_F(RemoveCli, BadMaskOrSheetLeavesNoOutput) {
+  fs::create_directories(tmp / "adir");
+  for (const std::vector<std::string>& args :
+       {std::vector<std::string>{"in.png", "out.png", "--mask", "m.xyz"}, {"in.png", "out.png", "--mask", "adir"},
+        {"in.png", "out.png", "--contact-sheet", "s.xyz"}, {"in.png", "out.png", "--contact-sheet", "adir"},
+        {"in.png", "out.png", "--mask", "mask.png", "--contact-sheet", "s.xyz"}}) {
+    SCOPED_TRACE(args.back());
+    expect_clean_failure(remove(args), args.back());
+  }
+  // Folder mode: no output at all when the sheet cannot be written.
+  write_image(tmp / "batch" / "a.png", make_image(40, 30, 1));
+  const RunResult r = remove({"batch", "results", "-q", "--contact-sheet", "sheet.xyz"});
+  EXPECT_EQ(r.code, 1) << r.describe();
+  EXPECT_NE(r.err.find("sheet.xyz"), std::string::npos) << r.describe();
+  EXPECT_FALSE(fs::exists(tmp / "results" / "a.png")) << "output written before the sheet was found unwritable";
+}
+
+TEST_F(RemoveCli, ReadOnlyMaskOrSheetLeavesNoOutput) {
+  if (::geteuid() == 0) GTEST_SKIP() << "running as root, who may write into read-only folders and files";
+  fs::create_directories(tmp / "ro");
+  fs::permissions(tmp / "ro", fs::perms::owner_read | fs::perms::owner_exec);
+  write_file(tmp / "locked.png", "x");
+  fs::permissions(tmp / "locked.png", fs::perms::owner_read);
+  for (const std::vector<std::string>& args :
+       {std::vector<std::string>{"in.png", "out.png", "--mask", "ro/m.png"}, {"in.png", "out.png", "--mask", "locked.png"},
+        {"in.png", "out.png", "--contact-sheet", "ro/s.png"}, {"in.png", "out.png", "--contact-sheet", "locked.png"}}) {
+    SCOPED_TRACE(args.back());
+    expect_clean_failure(remove(args), args.back());
+  }
+  fs::permissions(tmp / "ro", fs::perms::owner_all);
+}
+
+
+// libjpeg only warns at a premature end of file and fills the missing rows with grey; that
+// decode is incomplete and must be an error, whatever the cut.
+TEST_F(RemoveCli, TruncatedJpeg) {
+  write_image(tmp / "whole.jpg", make_image(480, 360, 4));
+  const std::string bytes = read_file(tmp / "whole.jpg");
+  ASSERT_GT(bytes.size(), 4000u);
+  for (size_t cut : {size_t{1000}, bytes.size() / 2, bytes.size() - 2}) {
+    SCOPED_TRACE(cut);
+    write_file(tmp / "cut.jpg", bytes.substr(0, cut));
+    expect_clean_failure(remove({"cut.jpg", "out.png", "--mask", "mask.png"}), "cut.jpg");
+  }
+  ASSERT_EQ(remove({"whole.jpg", "out.png"}).code, 0) << "the whole file decodes";
+}
+
+
+// libpng prints its own "libpng error: ..." line on stderr before OpenImageIO reports the
+// error: malformed image data must be caught first, so that the user sees one line, ours.
+TEST_F(RemoveCli, CorruptPngDataIsOneLine) {
+  const auto chunks = png_chunks(read_file(tmp / "in.png"));
+  std::string idat;
+  for (const auto& [type, data] : chunks) {
+    if (type == "IDAT") idat += data;
+  }
+  std::string raw(43 * (1 + 61 * 3), '\0');  // one filter byte and 61 RGB pixels per row
+  uLongf raw_size = raw.size();
+  ASSERT_EQ(::uncompress(reinterpret_cast<Bytef*>(raw.data()), &raw_size,
+                         reinterpret_cast<const Bytef*>(idat.data()), idat.size()), Z_OK);
+  ASSERT_EQ(raw_size, raw.size());
+  auto deflate = [](const std::string& bytes) {
+    std::string out(::compressBound(bytes.size()), '\0');
+    uLongf n = out.size();
+    EXPECT_EQ(::compress(reinterpret_cast<Bytef*>(out.data()), &n, reinterpret_cast<const Bytef*>(bytes.data()),
+                         bytes.size()), Z_OK);
+    out.resize(n);
+    return out;
+  };
+  // The PNG with its image data replaced (header and the other chunks kept).
+  auto with_idat = [&](const std::string& data) {
+    std::vector<std::pair<std::string, std::string>> out;
+    for (const auto& c : chunks) {
+      if (c.first == "IDAT") {
+        if (out.back().first != "IDAT") out.emplace_back("IDAT", data);
+      } else {
+        out.push_back(c);
+      }
+    }
+    return png_from_chunks(out);
+  };
+  std::string bad_stream = idat;
+  for (size_t i = bad_stream.size() / 2; i < bad_stream.size() / 2 + 16; ++i) bad_stream[i] ^= 0x5a;
+  std::string bad_filter = raw;
+  bad_filter[raw.size() / 2 / (1 + 61 * 3) * (1 + 61 * 3)] = 9;  // a row's filter type: 0-4 only
+  auto bad_ihdr = chunks;
+  bad_ihdr[0].second[8] = 3;  // bit depth 3
+  const std::vector<std::pair<std::string, std::string>> cases = {
+      {"short_idat.png", with_idat(deflate(raw.substr(0, raw.size() / 2)))},
+      {"cut_stream.png", with_idat(idat.substr(0, idat.size() / 2))},
+      {"bad_zlib.png", with_idat(bad_stream)},
+      {"bad_filter.png", with_idat(deflate(bad_filter))},
+      {"bad_ihdr.png", png_from_chunks(bad_ihdr)},
+  };
+  for (const auto& [name, bytes] : cases) {
+    SCOPED_TRACE(name);
+    write_file(tmp / name, bytes);
+    expect_clean_failure(remove({name, "out.png", "--mask", "mask.png"}), name);
+  }
+  ASSERT_EQ(remove({"in.png", "out.png"}).code, 0) << "the original decodes";
+}
+
+
+// An overlap whose double does not fit an int was taken as a small one and ended in an
+// OpenCV assertion (exit 1); it is a bad command line.
+TEST_F(RemoveCli, HugeTileOverlapIsAUsageError) {
+  for (const char* overlap : {"1073741824", "2147483647"}) {
+    const RunResult r = remove({"in.png", "out.png", "--tile", "64", "--tile-overlap", overlap});
+    EXPECT_EQ(r.code, 2) << r.describe();
+    EXPECT_NE(r.err.find("--tile-overlap " + std::string(overlap) + " must be less than half of --tile 64"),
+              std::string::npos) << r.describe();
+    EXPECT_FALSE(fs::exists(tmp / "out.png"));
+  }
+}
+
+
+// More threads than cores only adds contention (-j 1024 took minutes on a 480x360 image):
+// capped at the cores, with one line saying so.
+TEST_F(RemoveCli, ThreadsAreCappedAtTheCores) {
+  const unsigned cores = std::thread::hardware_concurrency();
+  if (cores == 0 || cores >= 1024) GTEST_SKIP() << "this machine reports " << cores << " cores";
+  const auto start = std::chrono::steady_clock::now();
+  const RunResult r = remove({"in.png", "out.png", "-j", "1024"});
+  const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  ASSERT_EQ(r.code, 0) << r.describe();
+  const auto lines = split_lines(r.err);
+  ASSERT_EQ(lines.size(), 1u) << r.describe();
+  EXPECT_EQ(lines[0], "raindrop-remove: warning: -j 1024 is more than the " + std::to_string(cores) +
+                          " cores of this machine; using " + std::to_string(cores))
+      << r.describe();
+  EXPECT_LT(seconds, 60.0) << "a 61x43 image";
+  EXPECT_TRUE(read_image(tmp / "out.png"));
+}
+
+
+// NaN passes CLI11's range check (every comparison with it is false); it is a bad command
+// line like any other out-of-range threshold, found before the models are loaded.
+TEST_F(RemoveCli, NanThresholdIsAUsageError) {
+  for (const char* value : {"nan", "NaN", "-nan"}) {
+    const RunResult r = remove({"in.png", "out.png", "--threshold", value, "--models", "no-such-models"});
+    EXPECT_EQ(r.code, 2) << r.describe();
+    EXPECT_NE(r.err.find("--threshold"), std::string::npos) << r.describe();
+    EXPECT_EQ(r.err.find("no-such-models"), std::string::npos) << "checked before loading models\n" << r.describe();
+    EXPECT_FALSE(fs::exists(tmp / "out.png"));
+  }
 }
 
 }  // namespace

@@ -178,6 +178,10 @@ TEST(Tiling, OptionChecks) {
   EXPECT_THROW(check_tile_options(32, 0), raindrop::Error);
   EXPECT_THROW(check_tile_options(256, 128), raindrop::Error);
   EXPECT_THROW(check_tile_options(256, -1), raindrop::Error);
+  // 2 * overlap must not wrap around: these are refused, not taken as a small overlap.
+  EXPECT_THROW(check_tile_options(64, 1 << 30), raindrop::Error);
+  EXPECT_THROW(check_tile_options(64, std::numeric_limits<int>::max()), raindrop::Error);
+  EXPECT_THROW(check_tile_options(std::numeric_limits<int>::max(), std::numeric_limits<int>::max()), raindrop::Error);
 }
 
 TEST(Pixels, RoundingAndConversions) {

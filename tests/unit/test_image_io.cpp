@@ -1,5 +1,7 @@
 // Image input conversions that the CLI tests do not reach: float (linear) files.
+#include <cerrno>
 #include <cmath>
+#include <cstring>
 #include <filesystem>
 
 #include <OpenImageIO/imageio.h>
@@ -31,4 +33,32 @@ TEST(ImageIo, FloatInputsAreSrgbEncodedWhenConverted) {
   EXPECT_EQ(rgb.at<cv::Vec3b>(0, 0)[1], 188);  // linear 0.5 is sRGB 0.7354
   EXPECT_EQ(rgb.at<cv::Vec3b>(1, 0)[0], 127);  // linear 0.214 is sRGB 0.4999 (127.47)
   std::filesystem::remove(path);
+}
+
+// A failed rename must report its own error, not that of the clean-up after it (which
+// succeeds, so the message read "(Success)").
+TEST(ImageIo, FailedRenameReportsItsOwnError) {
+  const auto dir = std::filesystem::temp_directory_path() / ("raindrop_rename_" + std::to_string(::getpid()));
+  std::filesystem::create_directories(dir / "taken.png" / "inside");  // a non-empty folder by the final name
+  std::filesystem::create_directories(dir / "taken.txt" / "inside");
+  const cv::Mat img(4, 4, CV_8UC3, cv::Scalar(1, 2, 3));
+  for (int text = 0; text < 2; ++text) {
+    try {
+      if (text) {
+        write_text_atomic("hello\n", dir / "taken.txt");
+      } else {
+        write_image_atomic(img, dir / "taken.png");
+      }
+      ADD_FAILURE() << "writing over a folder succeeded";
+    } catch (const Error& e) {
+      const std::string what = e.what();
+      EXPECT_NE(what.find("cannot move the finished file into place"), std::string::npos) << what;
+      EXPECT_EQ(what.find("Success"), std::string::npos) << what;
+      EXPECT_NE(what.find(std::strerror(EISDIR)), std::string::npos) << what;
+    }
+  }
+  size_t left = 0;
+  for (const auto& e : std::filesystem::directory_iterator(dir)) left += e.path().filename().string()[0] == '.';
+  EXPECT_EQ(left, 0u) << "temporaries left behind";
+  std::filesystem::remove_all(dir);
 }
