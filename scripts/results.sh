@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # Regenerates every figure of docs/RESULTS.md into out/results/ (run after scripts/setup.sh
 # and scripts/setup-tools.sh; needs ../shared/data for the real frames). Sections can be
-# chosen: scripts/results.sh data render stats eval remove tradeoffs sheets
+# chosen: scripts/results.sh data render stats eval remove tradeoffs sheets photoreal
 #
 # Nothing here is committed automatically: images derived from Cityscapes, CamVid or the
 # real raindrop photographs stay under out/ (their licences forbid redistribution).
@@ -12,7 +12,7 @@ py=.venv/bin/python
 out=out/results
 mkdir -p "$out"
 sections=("$@")
-((${#sections[@]})) || sections=(data render stats eval remove tradeoffs sheets)
+((${#sections[@]})) || sections=(data render stats eval remove tradeoffs sheets photoreal)
 want() { [[ " ${sections[*]} " == *" $1 "* ]]; }
 
 if want data; then
@@ -104,4 +104,35 @@ others = sorted(p.name for p in (shared / "real-raindrop").iterdir() if not p.na
 sheet(others[::4], out / "real_other_sheet.png", peer=False)
 print("sheets:", out / "real_qian_sheet.png", out / "real_other_sheet.png")
 PY
+fi
+
+if want photoreal; then
+  # docs/RESULTS.md section 4: the thin-lens presets, their realism against real drops, and
+  # removal on real pairs by models trained on them (models/compact-lens, tools/configs).
+  build/raindrop-bench render --sections lens --frames 2 | tee "$out/bench_lens.md"
+  mkdir -p "$out/cv100"
+  ls "$shared/camvid/val" | head -100 | while read -r f; do ln -sf "$(realpath "$shared/camvid/val/$f")" "$out/cv100/$f"; done
+  for scene in paper real-photo lens-cover windshield-day; do
+    build/raindrop-render -i "$out/cv100" -o "data/val-$scene" --scene "$scene" --size 512x256 --seed 11 -q
+  done
+  $py -m raindrop_tools.realism --real-pairs "$shared/real-pairs" --rendered data/val-paper --rendered data/val-real-photo \
+    --rendered data/val-lens-cover --rendered data/val-windshield-day --limit 100 --json "$out/realism.json" | tee "$out/realism.md"
+  # The training sets of models/compact-lens (renders only) and compact-lens-real (+ real pairs).
+  for scene in lens-cover windshield-day; do
+    build/raindrop-render -i "$shared/camvid/train" -o "data/train-$scene" --scene "$scene" --size 512x256 --variants 4 --seed 7 -q
+  done
+  build/raindrop-render --cityscapes "$shared/cityscapes-mini" --split train -o data/train-cs-lens --scene lens-cover \
+    --size 512x256 --variants 20 --seed 8 -q
+  $py -m raindrop_tools.merge_datasets --out data/train-mix data/train-lens-cover data/train-windshield-day data/train-cs-lens
+  $py -m raindrop_tools.realpairs prepare "$shared/real-pairs" --out data/real-pairs
+  for m in compact compact-lens compact-lens-real; do
+    [[ -d models/$m ]] || continue
+    for split in test all; do
+      $py -m raindrop_tools.evaluate --real-pairs "$shared/real-pairs" --split "$split" --models "models/$m" \
+        --out "$out/real-pairs-$m-$split" --no-sheets
+    done
+    for scene in paper lens-cover windshield-day; do
+      $py -m raindrop_tools.evaluate --data "data/val-$scene" --models "models/$m" --out "$out/val-$scene-$m"
+    done
+  done
 fi

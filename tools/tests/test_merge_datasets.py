@@ -1,0 +1,46 @@
+"""merge_datasets: one manifest over several sets, ids prefixed, images linked."""
+
+import json
+
+import numpy as np
+import pytest
+
+from raindrop_tools.data import read_manifest
+from raindrop_tools.imageio import read_rgb, write_grey, write_rgb
+from raindrop_tools.merge_datasets import main, merge
+
+
+def _set(root, ids, value):
+    lines = []
+    for i in ids:
+        write_rgb(root / "rainy" / f"{i}.png", np.full((8, 8, 3), value, np.uint8))
+        write_rgb(root / "clean" / f"{i}.png", np.full((8, 8, 3), value, np.uint8))
+        write_grey(root / "mask" / f"{i}.png", np.zeros((8, 8), np.uint8))
+        lines.append(json.dumps({"id": i, "rainy": f"rainy/{i}.png", "clean": f"clean/{i}.png",
+                                 "mask": f"mask/{i}.png", "width": 8, "height": 8, "extra": value}))
+    (root / "manifest.jsonl").write_text("\n".join(lines) + "\n")
+
+
+def test_same_ids_from_two_sets_stay_two_samples(tmp_path):
+    for sub in ("rainy", "clean", "mask"):
+        (tmp_path / "train-a" / sub).mkdir(parents=True)
+        (tmp_path / "train-b" / sub).mkdir(parents=True)
+    _set(tmp_path / "train-a", ["x", "y"], 10)
+    _set(tmp_path / "train-b", ["x"], 200)
+    assert merge(tmp_path / "mix", [tmp_path / "train-a", tmp_path / "train-b"]) == 3
+    samples = read_manifest(tmp_path / "mix")
+    assert sorted(s.id for s in samples) == ["a_x", "a_y", "b_x"]
+    lines = [json.loads(x) for x in (tmp_path / "mix" / "manifest.jsonl").read_text().splitlines()]
+    by_id = {r["id"]: r for r in lines}
+    assert by_id["b_x"]["extra"] == 200  # other keys kept
+    # The linked image is the source's, not the other set's same-named one.
+    assert read_rgb(tmp_path / "mix" / by_id["b_x"]["rainy"])[0, 0, 0] == 200
+    assert read_rgb(tmp_path / "mix" / by_id["a_x"]["rainy"])[0, 0, 0] == 10
+
+
+def test_colliding_set_names_are_refused(tmp_path):
+    for name in ("train-a", "a"):
+        for sub in ("rainy", "clean", "mask"):
+            (tmp_path / name / sub).mkdir(parents=True)
+        _set(tmp_path / name, ["x"], 5)
+    assert main(["--out", str(tmp_path / "mix"), str(tmp_path / "train-a"), str(tmp_path / "a")]) == 1
