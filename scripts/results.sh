@@ -125,14 +125,17 @@ if want photoreal; then
     --size 512x256 --variants 20 --seed 8 -q
   $py -m raindrop_tools.merge_datasets --out data/train-mix data/train-lens-cover data/train-windshield-day data/train-cs-lens
   $py -m raindrop_tools.realpairs prepare "$shared/real-pairs" --out data/real-pairs
-  for m in compact compact-lens compact-lens-real; do
-    [[ -d models/$m ]] || continue
+  # models/compact, and the unshipped compact-lens models where trained and exported into
+  # out/models (docs/RESULTS.md 4.3 has the commands).
+  for dir in models/compact out/models/compact-lens out/models/compact-lens-real; do
+    [[ -d $dir ]] || continue
+    m=$(basename "$dir")
     for split in test all; do
-      $py -m raindrop_tools.evaluate --real-pairs "$shared/real-pairs" --split "$split" --models "models/$m" \
+      $py -m raindrop_tools.evaluate --real-pairs "$shared/real-pairs" --split "$split" --models "$dir" \
         --out "$out/real-pairs-$m-$split" --no-sheets
     done
     for scene in paper lens-cover windshield-day; do
-      $py -m raindrop_tools.evaluate --data "data/val-$scene" --models "models/$m" --out "$out/val-$scene-$m"
+      $py -m raindrop_tools.evaluate --data "data/val-$scene" --models "$dir" --out "$out/val-$scene-$m"
     done
   done
 fi
