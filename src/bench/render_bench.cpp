@@ -212,22 +212,28 @@ struct Error8 {
   double rmse = 0, psnr = 0, max_abs = 0;
 };
 
+// Adds the squared 8-bit differences of two renders over `region` (non-zero pixels) to *sq,
+// the values counted to *n, and raises *worst to the largest absolute difference anywhere.
+void add_error(const cv::Mat& test, const cv::Mat& ref, const cv::Mat& region, double* sq, double* n, double* worst) {
+  cv::Mat diff;
+  cv::absdiff(test, ref, diff);
+  diff.convertTo(diff, CV_64FC3);
+  cv::Mat sqd = diff.mul(diff);
+  const cv::Scalar s = cv::sum(sqd.setTo(0, region == 0));
+  *sq += s[0] + s[1] + s[2];
+  *n += 3.0 * cv::countNonZero(region);
+  double lo, hi;
+  cv::minMaxLoc(diff.reshape(1), &lo, &hi);
+  *worst = std::max(*worst, hi);
+}
+
 Error8 compare(const std::vector<RenderedFrame>& test, const std::vector<RenderedFrame>& ref) {
   double sq = 0, n = 0, worst = 0, disagree = 0, ref_px = 0;
   for (size_t i = 0; i < ref.size(); ++i) {
     cv::Mat either = test[i].mask | ref[i].mask, one = test[i].mask ^ ref[i].mask;
     disagree += cv::countNonZero(one);
     ref_px += cv::countNonZero(ref[i].mask);
-    cv::Mat diff;
-    cv::absdiff(test[i].rainy, ref[i].rainy, diff);
-    diff.convertTo(diff, CV_64FC3);
-    cv::Mat sqd = diff.mul(diff);
-    const cv::Scalar s = cv::sum(sqd.setTo(0, either == 0));
-    sq += s[0] + s[1] + s[2];
-    n += 3.0 * cv::countNonZero(either);
-    double lo, hi;
-    cv::minMaxLoc(diff.reshape(1), &lo, &hi);
-    worst = std::max(worst, hi);
+    add_error(test[i].rainy, ref[i].rainy, either, &sq, &n, &worst);
   }
   Error8 e;
   e.mask_disagree = ref_px > 0 ? disagree / ref_px : 0;
@@ -331,17 +337,7 @@ void lens_table(const Input& input, int frames) {
       double sq = 0, n = 0, worst = 0, cov = 0;
       for (size_t i = 0; i < reference.size(); ++i) {
         const cv::Mat inside = (out[i].alpha > 0.01f) | (reference[i].alpha > 0.01f);
-        cv::Mat a, b;
-        out[i].rainy.convertTo(a, CV_64FC3);
-        reference[i].rainy.convertTo(b, CV_64FC3);
-        cv::Mat d = cv::abs(a - b);
-        cv::Mat d2 = d.mul(d);
-        const cv::Scalar s = cv::sum(d2.setTo(0, inside == 0));
-        sq += s[0] + s[1] + s[2];
-        n += 3.0 * cv::countNonZero(inside);
-        double lo, hi;
-        cv::minMaxLoc(d.reshape(1), &lo, &hi);
-        worst = std::max(worst, hi);
+        add_error(out[i].rainy, reference[i].rainy, inside, &sq, &n, &worst);
         cov += cv::mean(cv::abs(out[i].alpha - reference[i].alpha), inside)[0] * cv::countNonZero(inside);
       }
       const double rmse = n > 0 ? std::sqrt(sq / n) : 0;
