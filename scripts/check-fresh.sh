@@ -141,12 +141,16 @@ unpack_root() {
 }
 
 clone_commit() {
-  # A bundle of the commit, cloned with the chroot's own git, as a user clones.
+  # A bundle of HEAD's history, cloned with the chroot's own git as a user clones, then the
+  # commit noted at the start checked out (HEAD may have moved on while debootstrap ran).
+  local git_in=(chroot "$root" /usr/bin/env -i HOME=/root PATH=/usr/bin:/bin git -c advice.detachedHead=false)
   git -C "$repo" bundle create "$root/root/raindrop.bundle" HEAD 2>/dev/null
-  chroot "$root" /usr/bin/env -i HOME=/root PATH=/usr/bin:/bin \
-    git -c advice.detachedHead=false clone -q /root/raindrop.bundle /root/raindrop
+  "${git_in[@]}" clone -q --no-checkout /root/raindrop.bundle /root/raindrop
+  "${git_in[@]}" -C /root/raindrop checkout -q "$commit"
   rm "$root/root/raindrop.bundle"
-  [[ "$(chroot "$root" /usr/bin/env -i PATH=/usr/bin:/bin git -C /root/raindrop rev-parse HEAD)" == "$commit" ]]
+  local got
+  got="$(chroot "$root" /usr/bin/env -i PATH=/usr/bin:/bin git -C /root/raindrop rev-parse HEAD)"
+  [[ "$got" == "$commit" ]] || { echo "check-fresh: the clone is at $got, not $commit" >&2; return 1; }
 }
 
 in_chroot() { unshare --mount --propagation private bash "${BASH_SOURCE[0]}" --in-namespace "$root" "$1"; }
