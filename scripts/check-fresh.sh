@@ -7,6 +7,17 @@
 #
 #   scripts/check-fresh.sh                           setup.sh + test.sh (with PyTorch)
 #   RAINDROP_TEST_NO_TORCH=1 scripts/check-fresh.sh  test.sh without PyTorch (passed through)
+#   scripts/check-fresh.sh --record                  the same, and on PASS write .ci/fresh-checked
+#   scripts/check-fresh.sh --needed                  exit 0 when the set-up files differ from
+#                                                    .ci/fresh-checked (a check is due), else 1
+#   scripts/check-fresh.sh --hash                    print the set-up files' hash
+#
+# The set-up files are what the fresh machine's result depends on: the set-up and test
+# scripts, every CMakeLists.txt, cmake/, deps/, tools/requirements*.txt and
+# tools/pyproject.toml. Their hash is a sha256 over the git blob ids of those files in HEAD.
+# .ci/fresh-checked records the hash of the last commit that passed here; .ci/run runs the
+# check when the hash differs, so a set-up change committed without a passing check is
+# checked by CI, and the developer commits the new record (--record) after a passing run.
 #
 # Environment:
 #   RAINDROP_FRESH_CACHE     cache folder (default /var/cache/raindrop-fresh): the bare root as a
@@ -68,6 +79,33 @@ if [[ "${1:-}" == --in-namespace ]]; then
 fi
 
 # ---- stage 1 ----
+record_file="$repo/.ci/fresh-checked"
+setup_hash() {  # [commit]
+  git -C "$repo" rev-parse -q --verify "${1:-HEAD}^{commit}" >/dev/null \
+    || { echo "check-fresh: $repo has no commit ${1:-HEAD}" >&2; exit 2; }
+  git -C "$repo" ls-tree -r "${1:-HEAD}" | cut -f2- -d' ' | grep -E $'\t(CMakeLists\\.txt|.*/CMakeLists\\.txt|cmake/.*|deps/.*|scripts/(setup|setup-tools|test|fetch-onnxruntime|check-fresh)\\.sh|tools/requirements[^/]*\\.txt|tools/pyproject\\.toml)$' \
+    | sha256sum | cut -d' ' -f1
+}
+recorded_hash() { [[ -f "$record_file" ]] && grep -v '^#' "$record_file" | awk 'NF { h = $1 } END { print h }'; }
+record=0
+case "${1:-}" in
+  --hash) setup_hash; exit 0 ;;
+  --needed)
+    if [[ "$(setup_hash)" == "$(recorded_hash)" ]]; then
+      echo "check-fresh: set-up files unchanged since the last recorded pass (.ci/fresh-checked): not needed"
+      exit 1
+    fi
+    if [[ -f "$record_file" ]]; then
+      echo "check-fresh: set-up files differ from the last recorded pass (.ci/fresh-checked): needed"
+    else
+      echo "check-fresh: no recorded pass (.ci/fresh-checked): needed"
+    fi
+    exit 0 ;;
+  --record) record=1 ;;
+  "") ;;
+  -h|--help) sed -n '2,/^set -euo/p' "${BASH_SOURCE[0]}" | sed '$d' | sed 's/^# \{0,1\}//'; exit 0 ;;
+  *) echo "check-fresh: unknown argument $1 (see --help)" >&2; exit 2 ;;
+esac
 [[ $(id -u) -eq 0 ]] || { echo "check-fresh: must run as root (debootstrap, chroot, mount)" >&2; exit 2; }
 command -v debootstrap >/dev/null || { echo "check-fresh: needs debootstrap (apt-get install debootstrap)" >&2; exit 2; }
 commit="$(git -C "$repo" rev-parse HEAD)"
@@ -160,3 +198,11 @@ step "fresh-copy" unpack_root
 step "clone" clone_commit
 step "setup.sh" in_chroot setup
 step "test.sh" in_chroot test
+if ((record)); then
+  {
+    echo "# sha256 of the set-up files (scripts/check-fresh.sh --hash) at the last commit that passed"
+    echo "# scripts/check-fresh.sh; .ci/run runs the check when they differ. Written by --record."
+    echo "$(setup_hash "$commit") $commit $(date -u +%Y-%m-%d) $torch-torch"
+  } > "$record_file"
+  echo "check-fresh: recorded in .ci/fresh-checked (commit it)" >&2
+fi
