@@ -30,6 +30,9 @@
 #                            everything from the fresh root)
 #   RAINDROP_FRESH_KEEP=1    keep the check's root afterwards (path printed) to look inside
 #
+# Taken from this machine into the root: /etc/resolv.conf, the local certificate authorities
+# (/usr/local/share/ca-certificates) and /etc/pip.conf, the network's set-up, not the project's.
+#
 # Every check starts from a pristine copy of the bare root (unpacked from the tarball), so
 # nothing installed by an earlier check can hide a missing package. The chroot's mounts live in
 # a private mount namespace (unshare) and are unmounted on exit by a trap; the kernel drops them
@@ -176,6 +179,13 @@ unpack_root() {
   root="$(mktemp -d "$cache/check.XXXXXX")"
   tar -C "$root" --numeric-owner -xpf "$bare"
   cp /etc/resolv.conf "$root/etc/resolv.conf"
+  # This machine's network set-up, which a fresh machine on the same network needs as well:
+  # local certificate authorities (such as a TLS-inspecting proxy's; ca-certificates, when
+  # setup.sh installs it, adds them to the system bundle) and pip's site configuration.
+  if [[ -d /usr/local/share/ca-certificates ]]; then
+    cp -r /usr/local/share/ca-certificates/. "$root/usr/local/share/ca-certificates/"
+  fi
+  if [[ -f /etc/pip.conf ]]; then cp /etc/pip.conf "$root/etc/pip.conf"; fi
 }
 
 clone_commit() {
