@@ -131,7 +131,9 @@ finish() {
     elif findmnt -rno TARGET | grep -q "^$root/"; then
       echo "check-fresh: something is still mounted under $root; not deleting it" >&2
     else
+      local t=$(date +%s)
       rm -rf --one-file-system "$root"
+      timings+=("cleanup $(elapsed "$t")")
     fi
   fi
   echo "check-fresh: times: ${timings[*]} total $(elapsed "$t_all")"
