@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
 # Regenerates every figure of docs/RESULTS.md into out/results/ (run after scripts/setup.sh
-# and scripts/setup-tools.sh; needs ../shared/data for the real frames). Sections can be
-# chosen: scripts/results.sh data render stats eval remove tradeoffs sheets photoreal
+# and scripts/setup-tools.sh; needs a folder of real photographs, $RAINDROP_SHARED_DATA
+# (default ../shared/data), for the real frames). Sections can be chosen:
+# scripts/results.sh data render stats eval remove tradeoffs sheets photoreal
 #
 # Nothing here is committed automatically: images derived from Cityscapes, CamVid or the
 # real raindrop photographs stay under out/ (their licences forbid redistribution).
@@ -51,7 +52,7 @@ if want eval; then
   OMP_NUM_THREADS=2 $py -m raindrop_tools.error_split --data data/test --models models/compact --every 10 --threads 2 \
     | tee "$out/error_split_compact.json"
   # The same test frames with the drop density of the authors' released renderer (5-7 drops,
-  # about 1% of the frame; design.md section 1), everything else the paper preset.
+  # about 1% of the frame; docs/DESIGN.md section 1.1), everything else the paper preset.
   sed 's/"name": "paper"/"name": "paper-sparse"/; s/"drop_count": \[50, 70\]/"drop_count": [5, 7]/' scenes/paper.json \
     > "$out/paper-sparse.json"
   build/raindrop-render --input "$shared/camvid/test" --cityscapes "$shared/cityscapes-mini" --split val \

@@ -5,7 +5,7 @@
 #
 # The tools environment includes PyTorch (about 2.8 GB, a minute or two from PyPI) so that the
 # export-parity and training tests run. RAINDROP_TEST_NO_TORCH=1 installs only the light set
-# (numpy, onnxruntime, OpenCV): the tests labelled "torch" then report as skipped.
+# (numpy, onnx, onnxruntime, OpenCV): the tests labelled "torch" then report as skipped.
 set -euo pipefail
 cd "$(dirname "${BASH_SOURCE[0]}")/.."
 

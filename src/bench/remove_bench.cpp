@@ -1,6 +1,6 @@
 // raindrop-bench remove: how long raindrop-remove takes per image, stage by stage, at the
-// paper's 256x512 and at Cityscapes' 1024x2048, with 1 and 2 threads (docs/design.md
-// section 4: mean of 20 runs after warm-up, threads and hardware stated), and the GFLOP/s
+// paper's 256x512 and at Cityscapes' 1024x2048, with 1 and 2 threads (docs/DESIGN.md
+// section 6: mean of 20 runs after warm-up, threads and hardware stated), and the GFLOP/s
 // the networks reach. GFLOPs come from the model folder's export.json (measured by the
 // exporter at 256x512) scaled by the pixels the networks actually ran on (padded tiles,
 // overlaps included).

@@ -1,4 +1,4 @@
-"""Evaluate exported models on a held-out rendered data set (docs/design.md section 4).
+"""Evaluate exported models on a held-out rendered data set (docs/DESIGN.md section 6).
 
     python -m raindrop_tools.evaluate --data data/test --models models/compact --out out/eval-compact
 

@@ -1,4 +1,4 @@
-"""The evaluation protocol (docs/design.md section 4), pinned in one place. No torch.
+"""The evaluation protocol (docs/DESIGN.md section 6), pinned in one place. No torch.
 
 Image quality, on 8-bit images (``pred`` against the clean ground truth):
 

@@ -3,7 +3,7 @@
 // session options raindrop-remove exposes (threads, graph optimisation level, device).
 //
 // The library is ONNX Runtime 1.31 from the PyPI wheel, compiled against the 1.21 headers
-// (docs/design.md section 5). That wheel is CPU-only: asking for CUDA is an error that says
+// (docs/DESIGN.md section 7). That wheel is CPU-only: asking for CUDA is an error that says
 // which providers this build has, instead of a silent fall-back to the CPU.
 #include <string>
 #include <vector>
