@@ -53,11 +53,11 @@ DefocusedFrame composite_layers(const cv::Mat& clean, const TraceResult& traced,
   const cv::Rect frame(0, 0, clean.cols, clean.rows);
   for (size_t d = 0; d < drops.size(); ++d) {
     if (box[d].area() == 0) continue;
-    const double z = scene.glass.point(drops[d].shape().center).z;
-    const double coc = z > 0 ? scene.coc_px(z, camera.fx) : 0.0;
+    const double coc = scene.drop_coc_px(drops[d].shape(), camera.fx);
     // Kernel reach, bounded so that a pathological scene cannot ask for a frame-sized kernel
     // per drop (the blur is then simply as wide as the frame).
-    const double diameter = std::min(coc, 2.0 * std::max(clean.cols, clean.rows));
+    // A drop centred behind the lens (infinite circle) is left sharp, as before.
+    const double diameter = std::isfinite(coc) ? std::min(coc, 2.0 * std::max(clean.cols, clean.rows)) : 0.0;
     const bool blurred = diameter >= kMinVisibleCocPx;
     out.coc_px[d] = blurred ? diameter : 0.0;
     cv::Mat kernel;

@@ -3,10 +3,10 @@
 #include <chrono>
 #include <cmath>
 
+#include <opencv2/core.hpp>
+
 #include "raindrop/blur.h"
 #include "raindrop/defocus.h"
-
-#include <opencv2/core.hpp>
 #include "raindrop/drop_accel.h"
 
 namespace raindrop {
@@ -16,19 +16,10 @@ double ms_since(std::chrono::steady_clock::time_point t0) {
   return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
 }
 
+// The binary mask of a defocused frame: coverage >= the scene's threshold (0/255).
 void finish_mask(const SceneConfig& config, RenderedFrame& frame) {
-  frame.mask = cv::Mat(frame.alpha.size(), CV_8UC1);
-  const float threshold = static_cast<float>(config.lens.mask_threshold);
-  std::int64_t n = 0;
-  for (int y = 0; y < frame.mask.rows; ++y) {
-    const float* a = frame.alpha.ptr<float>(y);
-    auto* m = frame.mask.ptr<std::uint8_t>(y);
-    for (int x = 0; x < frame.mask.cols; ++x) {
-      m[x] = a[x] >= threshold ? 255 : 0;
-      n += m[x] != 0;
-    }
-  }
-  frame.stats.drop_pixels = n;
+  frame.mask = frame.alpha >= static_cast<float>(config.lens.mask_threshold);
+  frame.stats.drop_pixels = cv::countNonZero(frame.mask);
 }
 
 // The thin-lens camera: layered compositing (fast) or aperture sampling (reference).
@@ -50,7 +41,7 @@ RenderedFrame render_defocused(const cv::Mat& clean, const Camera& camera, const
   if (config.lens.method == DefocusMethod::Aperture) {
     out = encode_aperture(wide, trace_aperture(wide, wide_camera, config, scene, accel, config.lens.aperture_samples));
     frame.timings.trace_ms = ms_since(t0);
-    for (const Drop& d : drops) out.coc_px.push_back(scene.coc_px(scene.glass.point(d.shape().center).z, camera.fx));
+    for (const Drop& d : drops) out.coc_px.push_back(scene.drop_coc_px(d.shape(), camera.fx));
   } else {
     const TraceResult traced = trace_drops(wide, wide_camera, config, scene, accel);
     frame.stats = traced.stats;
@@ -91,10 +82,7 @@ RenderedFrame render_frame(const cv::Mat& clean, const Camera& camera, const Sce
     // Skip the lens when no drop's circle of confusion reaches half a pixel: the pinhole
     // render is then what the lens would give, to rounding.
     double largest = 0;
-    for (const Drop& d : drops) {
-      const double z = scene.glass.point(d.shape().center).z;
-      largest = std::max(largest, z > 0 ? scene.coc_px(z, camera.fx) : 1e9);
-    }
+    for (const Drop& d : drops) largest = std::max(largest, scene.drop_coc_px(d.shape(), camera.fx));
     if (largest >= kMinVisibleCocPx) return render_defocused(clean, camera, config, scene, accel, drops, largest, frame);
   }
 

@@ -452,7 +452,7 @@ ApertureResult run_aperture(const cv::Mat& clean, const Camera& camera, const Sc
   const auto spans = candidate_spans(camera, accel);
   double reach = 0;
   for (const Drop& d : accel.drops()) {
-    reach = std::max(reach, 0.5 * scene.coc_px(scene.glass.point(d.shape().center).z, camera.fx));
+    reach = std::max(reach, 0.5 * scene.drop_coc_px(d.shape(), camera.fx));
     glm::dvec3 lo, hi;
     d.bounds(&lo, &hi);
     if (lo.z > 1e-9) reach = std::max(reach, 0.5 * scene.coc_px(lo.z, camera.fx));

@@ -42,6 +42,13 @@ class BackgroundSampler {
     return c + w * (sky_ - c);
   }
 
+  glm::dvec3 pixel(int x, int y) const {
+    const auto* p = img_.ptr<std::uint8_t>(y) + 3 * x;
+    return glm::dvec3(p[0], p[1], p[2]) * (1.0 / 255.0);
+  }
+
+ private:
+  // The frame and its border-mode continuation, bilinear.
   glm::dvec3 sample_frame(double x, double y) const {
     x = fold(x, img_.cols);
     y = fold(y, img_.rows);
@@ -60,12 +67,6 @@ class BackgroundSampler {
     return out;
   }
 
-  glm::dvec3 pixel(int x, int y) const {
-    const auto* p = img_.ptr<std::uint8_t>(y) + 3 * x;
-    return glm::dvec3(p[0], p[1], p[2]) * (1.0 / 255.0);
-  }
-
- private:
   static int clampi(int v, int n) { return v < 0 ? 0 : (v >= n ? n - 1 : v); }
 
   // Maps a coordinate into [0, n - 1] according to the border mode.

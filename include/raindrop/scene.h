@@ -26,6 +26,12 @@ struct SceneSample {
   double coc_px(double z, double fx) const {
     return aperture_cm() * fx * std::abs(1.0 / z - 1.0 / background_distance_cm);
   }
+  // The circle of confusion of a drop, from the depth of its footprint's centre; infinite
+  // for a centre at or behind the lens (only a degenerate scene puts one there).
+  double drop_coc_px(const DropShape& d, double fx) const {
+    const double z = glass.point(d.center).z;
+    return z > 0 ? coc_px(z, fx) : INFINITY;
+  }
   std::vector<DropShape> drops;
   int drops_requested = 0;               // may exceed drops.size() if the glass was too full
 };
