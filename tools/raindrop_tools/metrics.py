@@ -50,6 +50,12 @@ def crop_to_multiple(img: np.ndarray, m: int = CROP_MULTIPLE) -> np.ndarray:
 LUMA_WEIGHTS = np.array([0.299, 0.587, 0.114], dtype=np.float64)
 
 
+def luma_float(rgb: np.ndarray) -> np.ndarray:
+    """Unrounded Y of an HxWx3 RGB image in its own scale, float32 (for masks and statistics,
+    where the pinned 8-bit rounding of ``luma`` would only add quantisation)."""
+    return rgb.astype(np.float32) @ LUMA_WEIGHTS.astype(np.float32)
+
+
 def luma(rgb_u8: np.ndarray) -> np.ndarray:
     """8-bit Y of an HxWx3 uint8 RGB image: ``floor(0.299 R + 0.587 G + 0.114 B + 0.5)`` in
     float64. OpenCV's ``COLOR_RGB2YCrCb`` (what the literature's code calls) computes the same

@@ -61,7 +61,7 @@ import numpy as np
 from . import realpairs as RP
 from .data import DatasetError, read_manifest
 from .imageio import ImageError, read_mask_strict, read_rgb_strict
-from .metrics import LUMA_WEIGHTS
+from .metrics import luma_float
 
 MIN_DROP_AREA = 5
 EDGE_WINDOW = 21
@@ -72,10 +72,6 @@ CROP = 64
 IMAGE_STATS = ("coverage", "drops", "brightness", "sharpness", "edge_width", "veil")
 DROP_STATS = ("diameter_px", "diameter_frac", "eccentricity")
 DISTANCE_STATS = ("coverage", "drops", "diameter_frac", "eccentricity", "brightness", "sharpness", "edge_width", "veil")
-
-
-def _luma(rgb: np.ndarray) -> np.ndarray:
-    return rgb.astype(np.float32) @ LUMA_WEIGHTS.astype(np.float32)
 
 
 def drop_components(mask: np.ndarray) -> tuple[list[float], list[float]]:
@@ -106,7 +102,7 @@ def image_stats(rainy: np.ndarray, clean: np.ndarray, mask: np.ndarray) -> dict:
         raise ValueError(f"sizes differ: rainy {rainy.shape}, clean {clean.shape}, mask {mask.shape}")
     h, w = mask.shape
     m = mask > 0
-    yr, yc = _luma(rainy), _luma(clean)
+    yr, yc = luma_float(rainy), luma_float(clean)
     areas, ecc = drop_components(mask)
     diam = [2.0 * math.sqrt(a / math.pi) for a in areas]
     nan = float("nan")
@@ -200,7 +196,7 @@ def crop_features(rgb: np.ndarray) -> np.ndarray:
     saturation, log mean |Laplacian| and gradient-magnitude histogram (edge sharpness), and
     log energy in 4 radial frequency bands (blur, haze)."""
     x = rgb.astype(np.float32)
-    y = x @ LUMA_WEIGHTS.astype(np.float32)
+    y = luma_float(x)
     f = list(np.percentile(y, [5, 25, 50, 75, 95]) / 255.0)
     f.append(y.std() / 255.0)
     s = x.sum(axis=2) + 1.0

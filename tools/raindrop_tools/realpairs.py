@@ -56,7 +56,7 @@ import cv2
 import numpy as np
 
 from .imageio import ImageError, read_rgb, write_grey, write_rgb
-from .metrics import LUMA_WEIGHTS
+from .metrics import luma_float
 
 IMAGE_EXTENSIONS = (".png", ".jpg", ".jpeg", ".bmp", ".tif", ".tiff")
 RAINY_SUFFIXES = ("_rainy", "_rain")
@@ -201,17 +201,13 @@ def load_pair(pair: Pair) -> tuple[np.ndarray, np.ndarray]:
     return rainy, clean
 
 
-def _luma_f32(rgb_u8: np.ndarray) -> np.ndarray:
-    return rgb_u8.astype(np.float32) @ LUMA_WEIGHTS.astype(np.float32)
-
-
 def _ellipse(k: int) -> np.ndarray:
     return cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (k, k))
 
 
 def luma_difference(rainy: np.ndarray, clean: np.ndarray, blur: int = MaskParams.blur) -> np.ndarray:
     """|blur(Y(rainy)) - blur(Y(clean))| in 8-bit levels, HxW float32."""
-    a, b = _luma_f32(rainy), _luma_f32(clean)
+    a, b = luma_float(rainy), luma_float(clean)
     if blur > 1:
         a = cv2.blur(a, (blur, blur), borderType=cv2.BORDER_REPLICATE)
         b = cv2.blur(b, (blur, blur), borderType=cv2.BORDER_REPLICATE)
