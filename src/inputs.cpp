@@ -126,7 +126,8 @@ std::vector<InputImage> find_images(const fs::path& source, const fs::path& skip
   };
   if (fs::is_directory(source)) {
     for (const auto& file : sorted_files(source, true, skip)) {
-      fs::path rel = fs::relative(file, source).replace_extension();
+      // Lexically: fs::relative resolves symbolic links, naming a linked file after its target.
+      fs::path rel = file.lexically_relative(source).replace_extension();
       std::string id = rel.generic_string();
       std::replace(id.begin(), id.end(), '/', '-');
       add(file, id);

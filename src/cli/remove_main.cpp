@@ -82,7 +82,9 @@ std::vector<fs::path> list_images(const fs::path& dir, const std::vector<fs::pat
       it.disable_recursion_pending();
       continue;
     }
-    if (it->is_regular_file() && is_image_name(it->path())) files.push_back(fs::relative(it->path(), dir));
+    // Lexically: fs::relative resolves symbolic links, which put a linked input's output
+    // beside its target ("out/../elsewhere/a.png") instead of under the output folder.
+    if (it->is_regular_file() && is_image_name(it->path())) files.push_back(it->path().lexically_relative(dir));
   }
   if (ec) throw Error("cannot list '" + dir.string() + "' (" + ec.message() + ")");
   std::sort(files.begin(), files.end());

@@ -185,6 +185,19 @@ TEST(RenderFolder, OutputFolderInsideTheInputIsNotAnInput) {
   EXPECT_EQ(manifest_lines(tmp / "rin" / "out").size(), 2u) << r.describe();
 }
 
+// A folder of symbolic links to images elsewhere (a common way to pick a subset): each is
+// named after its link, not after where it points. Resolving the link made names such as
+// "..-..-data-a_v00.png", hidden files that raindrop-remove's folder mode then skips.
+TEST(RenderFolder, SymlinkedImagesAreNamedAfterTheirLinks) {
+  TempDir tmp;
+  write_image(tmp / "elsewhere" / "a.png", make_background(96, 64, 0));
+  fs::create_directories(tmp / "picked");
+  fs::create_symlink(fs::absolute(tmp / "elsewhere" / "a.png"), tmp / "picked" / "first.png");
+  const auto r = run_render({"-i", "picked", "-o", "out", "-q"}, tmp.path());
+  ASSERT_EQ(r.code, 0) << r.describe();
+  EXPECT_EQ(list_files(tmp / "out" / "rainy"), std::vector<std::string>{"first_v00.png"});
+}
+
 TEST(RenderListFile, RendersExactlyTheListedImages) {
   TempDir tmp;
   write_image(tmp / "imgs" / "sub" / "alpha.png", make_background(160, 80, 0));

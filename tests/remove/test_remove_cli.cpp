@@ -247,6 +247,21 @@ TEST_F(RemoveCli, FolderMode) {
   EXPECT_EQ(remove({"batch/a.png", "a_out.png", "--mask", "x.png", "--mask-dir", "m"}).code, 2);
 }
 
+// A folder of symbolic links to images elsewhere: each output lands under the output folder
+// at its link's name. Resolving the links put the output beside the link's target
+// ("results/../elsewhere/in.png", the input itself, refused as such).
+TEST_F(RemoveCli, FolderOfSymlinksWritesUnderTheOutputFolder) {
+  fs::create_directories(tmp / "picked");
+  fs::create_symlink(fs::absolute(tmp / "in.png"), tmp / "picked" / "first.png");
+  const auto before = read_image(tmp / "in.png");
+  const RunResult r = remove({"picked", "results", "-q"});
+  ASSERT_EQ(r.code, 0) << r.describe();
+  EXPECT_TRUE(read_image(tmp / "results" / "first.png")) << r.describe();
+  const auto after = read_image(tmp / "in.png");
+  ASSERT_TRUE(before && after);
+  EXPECT_EQ(max_abs_diff(before->pixels, after->pixels), 0) << "the link's target is an input, never written";
+}
+
 TEST_F(RemoveCli, FolderModeFailures) {
   write_image(tmp / "batch" / "a.png", make_image(40, 30, 1));
   write_file(tmp / "batch" / "b.png", "broken");
