@@ -17,7 +17,8 @@ add_library(raindrop_remove STATIC
   src/remove/remover.cpp
   src/remove/session.cpp
   src/remove/stage_times.cpp
-  src/remove/tiling.cpp)
+  src/remove/tiling.cpp
+  src/remove/working_scale.cpp)
 target_include_directories(raindrop_remove PUBLIC ${PROJECT_SOURCE_DIR}/include)
 target_link_libraries(raindrop_remove PUBLIC raindrop_render onnxruntime::onnxruntime)
 # Step 4 of the model search: the source tree's models/ (for programs run from the build tree).

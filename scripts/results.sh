@@ -2,7 +2,7 @@
 # Regenerates every figure of docs/RESULTS.md into out/results/ (run after scripts/setup.sh
 # and scripts/setup-tools.sh; needs a folder of real photographs, $RAINDROP_SHARED_DATA
 # (default ../shared/data), for the real frames). Sections can be chosen:
-# scripts/results.sh data render stats eval remove tradeoffs sheets photoreal
+# scripts/results.sh data render stats eval remove tradeoffs sheets photoreal scale
 #
 # Nothing here is committed automatically: images derived from Cityscapes, CamVid or the
 # real raindrop photographs stay under out/ (their licences forbid redistribution).
@@ -13,7 +13,7 @@ py=.venv/bin/python
 out=out/results
 mkdir -p "$out"
 sections=("$@")
-((${#sections[@]})) || sections=(data render stats eval remove tradeoffs sheets photoreal)
+((${#sections[@]})) || sections=(data render stats eval remove tradeoffs sheets photoreal scale)
 want() { [[ " ${sections[*]} " == *" $1 "* ]]; }
 
 if want data; then
@@ -139,4 +139,23 @@ if want photoreal; then
       $py -m raindrop_tools.evaluate --data "data/val-$scene" --models "$dir" --out "$out/val-$scene-$m"
     done
   done
+fi
+
+if want scale; then
+  # raindrop-remove's working scale (docs/RESULTS.md 3.4): the same drops (same seed) rendered
+  # on the 8 real Cityscapes frames at 512x256 and at 2048x1024, removed with the default
+  # model at the default (working) scale and at --scale 1, scored against the clean frames.
+  for scene in paper lens-cover; do
+    for size in 512x256 2048x1024; do
+      set_dir="$out/scale-$scene-$size"
+      build/raindrop-render --cityscapes "$shared/cityscapes-mini" --split all --scene $scene --size $size \
+        --variants 2 --seed 5 --out "$set_dir" -q
+      build/raindrop-remove "$set_dir/rainy" "$set_dir-auto" -q
+      $py -m raindrop_tools.score_outputs --data "$set_dir" --outputs "$set_dir-auto" --label "$scene $size default scale"
+      if [[ $size != 512x256 ]]; then
+        build/raindrop-remove "$set_dir/rainy" "$set_dir-full" -q --scale 1
+        $py -m raindrop_tools.score_outputs --data "$set_dir" --outputs "$set_dir-full" --label "$scene $size --scale 1"
+      fi
+    done
+  done | tee "$out/working_scale.txt"
 fi

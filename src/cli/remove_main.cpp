@@ -164,9 +164,9 @@ std::vector<cv::Mat> process(Remover& remover, const Job& job, const Settings& s
   if (job.mask) write_image_atomic(r.mask, *job.mask);
   if (s.time) {
     const double coverage = 100.0 * cv::countNonZero(r.mask) / static_cast<double>(r.mask.total());
-    std::fprintf(stderr, "raindrop-remove: %s: %dx%d, %d tile%s, mask %.2f%%: %s\n", job.input.string().c_str(),
-                 input.cols, input.rows, r.tiles_x * r.tiles_y, r.tiles_x * r.tiles_y == 1 ? "" : "s", coverage,
-                 r.times.describe().c_str());
+    std::fprintf(stderr, "raindrop-remove: %s: %dx%d at scale %.3g, %d tile%s, mask %.2f%%: %s\n",
+                 job.input.string().c_str(), input.cols, input.rows, r.scale, r.tiles_x * r.tiles_y,
+                 r.tiles_x * r.tiles_y == 1 ? "" : "s", coverage, r.times.describe().c_str());
   }
   if (!want_panels) return {};
   return {sheet_panel(input), sheet_panel(r.mask), sheet_panel(r.image)};
@@ -185,7 +185,7 @@ int run(int argc, char** argv) {
       "Exit codes: 0 success; 1 error (one line on stderr, no partial output); 2 bad command line;\n"
       "3 folder run with --keep-going finished but some images failed.");
   std::string input, output, models_dir, model_config, mask, mask_dir, sheet, device = "cpu", graph_opt = "all";
-  std::optional<double> threshold;
+  std::optional<double> threshold, scale;
   std::optional<int> dilation;
   int threads = 0, tile = kDefaultTile, overlap = kDefaultOverlap;
   bool time = false, quiet = false, keep_going = false;
@@ -201,6 +201,10 @@ int run(int argc, char** argv) {
       ->check(CLI::Range(0.0, 1.0));
   app.add_option("--dilation", dilation, "Mask dilation size k (elliptical k x k; 1: none; default: the models')")
       ->check(CLI::Range(1, 1023));
+  app.add_option("--scale", scale,
+                 "Scale the networks see the image at, in (0, 1] (default: the image's long side brought to the models' "
+                 "working size, 512 for the committed models; never enlarged). Outside the mask the output is the input")
+      ->check(CLI::Range(0.0, 1.0));
   app.add_option("-j,--threads", threads, "CPU threads (0: one per core; more than the cores: capped, with a warning); with 2 or more, RDN and 3RN run side by side on half each")
       ->capture_default_str()->check(CLI::Range(0, 1024));
   app.add_option("--device", device, "Execution device")->capture_default_str()->check(CLI::IsMember({"cpu", "cuda"}));
@@ -220,6 +224,7 @@ int run(int argc, char** argv) {
     app.parse(argc, argv);
     // NaN passes CLI::Range (every comparison with it is false).
     if (threshold && std::isnan(*threshold)) throw Error("--threshold: nan is not a number between 0 and 1");
+    if (scale && !(*scale > 0.0)) throw Error("--scale must be a number in (0, 1]");
     check_tile_options(tile, overlap);
   } catch (const CLI::ParseError& e) {
     return app.exit(e) == 0 ? 0 : 2;
@@ -305,6 +310,7 @@ int run(int argc, char** argv) {
   s.options.dilation = dilation;
   s.options.tile = tile;
   s.options.overlap = overlap;
+  s.options.scale = scale;
   s.time = time;
   if (time) {
     const ModelInfo& mi = remover.info();

@@ -191,6 +191,11 @@ Models::Models(const fs::path& dir, const SessionConfig& config) : dir_(dir), co
   info_.threshold = parse_double(rdn_->file(), "raindrop.threshold", rdn_->metadata().at("raindrop.threshold"));
   info_.dilation = parse_int(rdn_->file(), "raindrop.dilation", rdn_->metadata().at("raindrop.dilation"));
   if (info_.dilation < 1) throw Error(quoted(rdn_->file()) + ": raindrop.dilation must be >= 1");
+  if (const auto it = rdn_->metadata().find("raindrop.working_size"); it != rdn_->metadata().end()) {
+    info_.working_size = parse_int(rdn_->file(), "raindrop.working_size", it->second);
+    if (info_.working_size < 16 || info_.working_size > 65536)
+      throw Error(quoted(rdn_->file()) + ": metadata raindrop.working_size must be between 16 and 65536");
+  }
 }
 
 Network& Models::rdn() {

@@ -28,9 +28,11 @@ Remover& smoke() {
   return r;
 }
 
+// The pipeline at the image's own size (the working-scale tests below set their own scale).
 RemoveOptions with_float() {
   RemoveOptions o;
   o.keep_float = true;
+  o.scale = 1.0;
   return o;
 }
 

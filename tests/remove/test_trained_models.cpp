@@ -65,5 +65,42 @@ TEST(TrainedModels, RemoveRenderedDrops) {
   }
 }
 
+// The working scale makes the models' effect independent of the image size: the same drops
+// rendered at 512x256 and at 2048x1024 (same seed: same drops, four times the pixels) gain
+// within 1 dB of each other, where the full-size run without it lost most of its gain
+// (docs/RESULTS.md 3.4).
+TEST(TrainedModels, GainDoesNotDependOnTheImageSize) {
+  const auto dirs = trained_models();
+  if (dirs.empty()) GTEST_SKIP() << "no trained models in " << (source_dir() / "models");
+  TempDir tmp;
+  for (const char* size : {"512x256", "2048x1024"}) {
+    const RunResult r = run_command(RAINDROP_RENDER_BIN,
+                                    {"--demo", "--size", size, "--seed", "7", "--out", std::string("set-") + size, "-q", "-j", "1"},
+                                    tmp.path());
+    ASSERT_EQ(r.code, 0) << r.describe();
+  }
+  for (const auto& dir : dirs) {
+    const std::string config = dir.filename().string();
+    double gain[2] = {0, 0};
+    int k = 0;
+    for (const std::string size : {"512x256", "2048x1024"}) {
+      const fs::path set = tmp / ("set-" + size), out = tmp / ("out-" + config + "-" + size);
+      const RunResult r = run_remove({(set / "rainy").string(), out.string(), "--models", dir.string(), "-q", "-j", "1"}, tmp.path());
+      ASSERT_EQ(r.code, 0) << r.describe();
+      for (const char* n : {"checkerboard_v00.png", "street_v00.png"}) {
+        const cv::Mat rainy = read_or_fail(set / "rainy" / n), clean = read_or_fail(set / "clean" / n),
+                      removed = read_or_fail(out / n);
+        ASSERT_FALSE(rainy.empty() || clean.empty() || removed.empty());
+        gain[k] += (psnr(removed, clean) - psnr(rainy, clean)) / 2;
+      }
+      ++k;
+    }
+    std::printf("%s: gain %.2f dB at 512x256, %.2f dB at 2048x1024\n", config.c_str(), gain[0], gain[1]);
+    EXPECT_GE(gain[1], kMinGainDb) << config;
+    EXPECT_LE(std::abs(gain[0] - gain[1]), 1.0) << config << ": " << gain[0] << " dB at 512x256, " << gain[1]
+                                                << " dB at 2048x1024";
+  }
+}
+
 }  // namespace
 }  // namespace removetest

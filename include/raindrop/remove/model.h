@@ -27,6 +27,9 @@ struct ModelInfo {
   int pad_multiple = 1;   // lcm of the graphs' raindrop.pad_multiple
   double threshold = 0.5; // raindrop.threshold of rdn.onnx (the training default)
   int dilation = 1;       // raindrop.dilation of rdn.onnx
+  // Optional raindrop.working_size of rdn.onnx: the long side, in pixels, of the frames the
+  // networks were trained on (working_scale.h); 512 when absent (the committed models).
+  int working_size = 512;
 };
 
 // One graph and its session. Inputs and outputs are single images (N = 1) in NCHW float32.

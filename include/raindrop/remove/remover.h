@@ -28,6 +28,7 @@
 #include "raindrop/remove/session.h"
 #include "raindrop/remove/stage_times.h"
 #include "raindrop/remove/tiling.h"
+#include "raindrop/remove/working_scale.h"
 
 namespace raindrop::removal {
 
@@ -37,6 +38,9 @@ struct RemoveOptions {
   int tile = kDefaultTile;          // 0: whole image at once
   int overlap = kDefaultOverlap;
   bool keep_float = false;          // also return the float RGB output (before quantisation)
+  // The scale the networks see the image at, in (0, 1]; default: auto_working_scale
+  // (working_scale.h: the long side brought to the models' working size, never enlarged).
+  std::optional<double> scale;
 };
 
 struct RemoveResult {
@@ -46,6 +50,7 @@ struct RemoveResult {
   StageTimes times;
   int tiles_x = 1, tiles_y = 1;
   double network_pixels = 0;  // pixels each network ran on (sum of the tiles' padded areas)
+  double scale = 1.0;         // the scale the networks saw the image at
 };
 
 class Remover {
@@ -55,12 +60,19 @@ class Remover {
   explicit Remover(const std::filesystem::path& model_dir, const SessionConfig& config = {});
 
   // image: CV_8U, CV_16U or CV_32F with 1-4 channels (see pixels.h), any size >= 1x1.
+  // At a scale below 1 the networks run on a downscaled copy and the correction comes back
+  // as working_scale.h says: pixels outside the mask are the input's own.
   RemoveResult run(const cv::Mat& image, const RemoveOptions& options = {});
 
   const ModelInfo& info() const { return models_.info(); }
   const std::filesystem::path& model_dir() const { return models_.dir(); }
 
  private:
+  // The pipeline at the image's own size (the networks see every pixel).
+  RemoveResult run_native(const cv::Mat& image, const RemoveOptions& options);
+  // The pipeline on a copy at `small`, brought back to the image's size.
+  RemoveResult run_scaled(const cv::Mat& image, const RemoveOptions& options, cv::Size small, double scale);
+
   Models models_;
 };
 

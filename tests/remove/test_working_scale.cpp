@@ -1,0 +1,171 @@
+// The working scale (raindrop/remove/working_scale.h): which scale an image is processed at,
+// how the result comes back to full size, and that pixels outside the mask stay the input's.
+#include <cmath>
+
+#include <opencv2/imgproc.hpp>
+
+#include "raindrop/error.h"
+#include "raindrop/remove/pixels.h"
+#include "raindrop/remove/remover.h"
+#include "raindrop/remove/working_scale.h"
+#include "remove_test_util.h"
+
+namespace removetest {
+namespace {
+
+using namespace raindrop::removal;
+
+Remover& smoke() {
+  static Remover r(smoke_models());
+  return r;
+}
+
+float max_float_diff(const cv::Mat& a, const cv::Mat& b) {
+  double mx = 0;
+  cv::minMaxLoc(cv::abs(a.reshape(1) - b.reshape(1)), nullptr, &mx);
+  return static_cast<float>(mx);
+}
+
+TEST(WorkingScale, LongSideBroughtToTheWorkingSizeNeverEnlarged) {
+  EXPECT_DOUBLE_EQ(auto_working_scale({512, 256}, 512), 1.0);
+  EXPECT_DOUBLE_EQ(auto_working_scale({256, 256}, 512), 1.0);
+  EXPECT_DOUBLE_EQ(auto_working_scale({2048, 1024}, 512), 0.25);
+  EXPECT_DOUBLE_EQ(auto_working_scale({1280, 720}, 512), 0.4);
+  EXPECT_DOUBLE_EQ(auto_working_scale({720, 1280}, 512), 0.4);  // portrait: the long side
+  EXPECT_DOUBLE_EQ(auto_working_scale({2048, 1024}, 1024), 0.5);
+  EXPECT_EQ(scaled_size({2048, 1024}, 0.25), cv::Size(512, 256));
+  EXPECT_EQ(scaled_size({1280, 720}, 0.4), cv::Size(512, 288));
+  EXPECT_EQ(scaled_size({3, 1}, 0.01), cv::Size(1, 1));
+}
+
+// Bands of rows upsample exactly as cv::resize does on the whole image, wherever they start.
+TEST(WorkingScale, BandsUpsampleLikeAWholeImageResize) {
+  const cv::Size full(301, 203), small(77, 51);
+  cv::Mat out_small(small, CV_32FC3), mask_small(small, CV_32F, cv::Scalar(1.0f));
+  cv::randu(out_small, 0.0f, 1.0f);
+  cv::Mat whole;
+  cv::resize(out_small, whole, full, 0, 0, cv::INTER_LINEAR);
+  const cv::Mat input(full, CV_32FC3, cv::Scalar::all(0.5f));
+  for (const int band : {1, 7, 64, 203}) {
+    for (int y0 = 0; y0 < full.height; y0 += band) {
+      const int rows = std::min(band, full.height - y0);
+      cv::Mat alpha;
+      const cv::Mat got = blend_upsampled_rows(input.rowRange(y0, y0 + rows), y0, full, out_small, mask_small, alpha);
+      ASSERT_LE(max_float_diff(got, whole.rowRange(y0, y0 + rows)), 1e-5f) << "band " << band << " at row " << y0;
+      ASSERT_LE(max_float_diff(alpha, cv::Mat(rows, full.width, CV_32F, cv::Scalar(1.0f))), 1e-6f);
+    }
+  }
+}
+
+// The mask weights the blend: 0 keeps the input exactly, 1 takes the upsampled output, and
+// the seam of a half-covered image lies where the small mask's edge projects.
+TEST(WorkingScale, MaskWeightsTheBlend) {
+  const cv::Size full(400, 100), small(100, 25);
+  const cv::Mat out_small(small, CV_32FC3, cv::Scalar::all(1.0f));
+  cv::Mat mask_small(small, CV_32F, cv::Scalar(0.0f));
+  mask_small.colRange(50, 100).setTo(1.0f);
+  cv::Mat input(full, CV_32FC3);
+  cv::randu(input, 0.0f, 0.5f);
+  cv::Mat alpha;
+  const cv::Mat got = blend_upsampled_rows(input, 0, full, out_small, mask_small, alpha);
+  // Small column 49 (alpha 0) covers full columns 196-199; 50 covers 200-203. Bilinear
+  // weights reach 0 at the centre of column 49 (full x = 197.5) and 1 at that of column 50.
+  EXPECT_EQ(max_float_diff(got.colRange(0, 198), input.colRange(0, 198)), 0.0f);
+  EXPECT_EQ(max_float_diff(got.colRange(202, 400), cv::Mat(100, 198, CV_32FC3, cv::Scalar::all(1.0f))), 0.0f);
+  EXPECT_NEAR(alpha.at<float>(50, 199), 0.375f, 1e-6f);  // (199.5 - 197.5) / 4 - 0.125
+  EXPECT_NEAR(alpha.at<float>(50, 200), 0.625f, 1e-6f);
+}
+
+// With an empty mask nothing the networks did comes back: a large image is returned as it
+// was, bit for bit, in every format; at its own scale the refine network changes it.
+TEST(WorkingScale, EmptyMaskReturnsTheInputBitForBit) {
+  const cv::Mat rgb8 = make_image(1100, 600, 41);  // (rgb8 const, the others made below)
+  cv::Mat rgb16, rgba16, grey8;
+  rgb8.convertTo(rgb16, CV_16U, 257.0);
+  rgb16.at<cv::Vec3w>(5, 7) = cv::Vec3w(1, 65534, 30001);  // values that no 8-bit pixel has
+  cv::Mat alpha(rgb8.size(), CV_16U);
+  cv::randu(alpha, 0, 65535);
+  cv::merge(std::vector<cv::Mat>{rgb16, alpha}, rgba16);
+  cv::cvtColor(rgb8, grey8, cv::COLOR_RGB2GRAY);
+  RemoveOptions none;
+  none.threshold = 1.0;  // P > 1 never holds
+  for (const cv::Mat* m : {&rgb8, static_cast<const cv::Mat*>(&rgba16), static_cast<const cv::Mat*>(&grey8)}) {
+    const RemoveResult r = smoke().run(*m, none);
+    EXPECT_NEAR(r.scale, 512.0 / 1100.0, 1e-12);
+    EXPECT_EQ(cv::countNonZero(r.mask), 0);
+    EXPECT_EQ(max_abs_diff(r.image, *m), 0) << "channels " << m->channels();
+  }
+  RemoveOptions native = none;
+  native.scale = 1.0;
+  const RemoveResult r = smoke().run(rgb8, native);
+  EXPECT_EQ(r.scale, 1.0);
+  EXPECT_GT(max_abs_diff(r.image, rgb8), 0) << "the refine network ran on every pixel at scale 1";
+}
+
+// A full mask: the output is the networks' result on the area-downscaled copy, upsampled.
+TEST(WorkingScale, FullMaskIsTheUpsampledResultOfTheSmallCopy) {
+  const cv::Mat img = make_image(1024, 640, 42);
+  RemoveOptions all;
+  all.threshold = -1.0;  // P > -1 always
+  const RemoveResult r = smoke().run(img, all);
+  ASSERT_DOUBLE_EQ(r.scale, 0.5);
+  EXPECT_EQ(cv::countNonZero(r.mask), static_cast<int>(r.mask.total()));
+  cv::Mat small, expected;
+  cv::resize(img, small, {512, 320}, 0, 0, cv::INTER_AREA);
+  RemoveOptions all_native = all;
+  all_native.scale = 1.0;
+  all_native.keep_float = true;
+  const RemoveResult s = smoke().run(small, all_native);
+  cv::resize(s.rgb, expected, img.size(), 0, 0, cv::INTER_LINEAR);
+  cv::Mat expected8;
+  expected.convertTo(expected8, CV_8U, 255.0);
+  EXPECT_LE(max_abs_diff(r.image, expected8), 1);
+}
+
+// A partial mask: every pixel farther than one small pixel from the final mask is the input's.
+TEST(WorkingScale, PixelsAwayFromTheMaskAreTheInputs) {
+  const cv::Mat img = make_image(1536, 768, 43);
+  RemoveOptions o;
+  o.threshold = 0.5;
+  const RemoveResult r = smoke().run(img, o);
+  ASSERT_DOUBLE_EQ(r.scale, 1.0 / 3.0);
+  const int covered = cv::countNonZero(r.mask);
+  ASSERT_GT(covered, 0);
+  ASSERT_LT(covered, static_cast<int>(r.mask.total()));
+  cv::Mat far;
+  cv::distanceTransform(r.mask == 0, far, cv::DIST_L2, 5);
+  const cv::Mat away = far > 3.0f + 1.0f;  // one small pixel is 3 full ones
+  cv::Mat differs;
+  cv::absdiff(r.image, img, differs);
+  cv::cvtColor(differs, differs, cv::COLOR_RGB2GRAY);
+  EXPECT_EQ(cv::countNonZero((differs > 0) & away), 0);
+  EXPECT_GT(cv::countNonZero(differs > 0), 0) << "inside the mask the networks' result comes in";
+}
+
+TEST(WorkingScale, ScaleOutsideTheUnitIntervalIsRefused) {
+  const cv::Mat img = make_image(32, 32, 1);
+  for (const double bad : {0.0, -0.5, 1.5, std::nan("")}) {
+    RemoveOptions o;
+    o.scale = bad;
+    EXPECT_THROW(smoke().run(img, o), raindrop::Error) << bad;
+  }
+}
+
+TEST(WorkingScaleCli, ScaleOptionIsCheckedAndReported) {
+  TempDir tmp;
+  write_image(tmp / "in.png", make_image(1024, 512, 44));
+  for (const char* bad : {"0", "1.5", "nan", "x"}) {
+    const RunResult r = run_remove({"in.png", "out.png", "--models", smoke_models().string(), "--scale", bad}, tmp.path());
+    EXPECT_EQ(r.code, 2) << bad << ": " << r.describe();
+    EXPECT_FALSE(fs::exists(tmp / "out.png"));
+  }
+  RunResult r = run_remove({"in.png", "out.png", "--models", smoke_models().string(), "--time"}, tmp.path());
+  ASSERT_EQ(r.code, 0) << r.describe();
+  EXPECT_NE(r.err.find("1024x512 at scale 0.5,"), std::string::npos) << r.err;
+  r = run_remove({"in.png", "out.png", "--models", smoke_models().string(), "--time", "--scale", "1"}, tmp.path());
+  ASSERT_EQ(r.code, 0) << r.describe();
+  EXPECT_NE(r.err.find("1024x512 at scale 1,"), std::string::npos) << r.err;
+}
+
+}  // namespace
+}  // namespace removetest

@@ -1,0 +1,54 @@
+import json
+
+import numpy as np
+import pytest
+
+from helpers import procedural_image
+from raindrop_tools import metrics
+from raindrop_tools import score_outputs as SO
+from raindrop_tools.imageio import write_rgb
+
+
+def make_set(tmp_path, n=2):
+    data, outs = tmp_path / "set", tmp_path / "out"
+    for d in (data / "rainy", data / "clean", outs):
+        d.mkdir(parents=True)
+    for i in range(n):
+        clean = procedural_image(32, 48, i)
+        clean[8:16, 8:24] = 100
+        rainy = clean.copy()
+        rainy[8:16, 8:24] = 160  # every damaged pixel off by the same amount
+        out = clean.copy()
+        out[8:12, 8:24] = rainy[8:12, 8:24]  # half the damage left
+        write_rgb(data / "clean" / f"{i}.png", clean)
+        write_rgb(data / "rainy" / f"{i}.png", rainy)
+        write_rgb(outs / f"{i}.png", out)
+    return data, outs
+
+
+def test_scores_are_the_protocols_and_the_gain_their_difference(tmp_path):
+    data, outs = make_set(tmp_path)
+    r = SO.score(data, outs)
+    assert r["images"] == 2
+    from raindrop_tools.imageio import read_rgb_strict
+    expect_in = np.mean([metrics.image_metrics(read_rgb_strict(data / "rainy" / f"{i}.png"),
+                                               read_rgb_strict(data / "clean" / f"{i}.png"))["psnr_y"] for i in range(2)])
+    assert r["mean"]["input_psnr_y"] == pytest.approx(expect_in)
+    assert r["mean"]["gain_psnr_y"] == pytest.approx(r["mean"]["output_psnr_y"] - r["mean"]["input_psnr_y"])
+    # Half the damaged pixels left: the squared error halves, +3.01 dB.
+    assert r["mean"]["gain_psnr_y"] == pytest.approx(10 * np.log10(2), abs=0.05)
+
+
+def test_cli_prints_one_line_and_writes_json(tmp_path, capsys):
+    data, outs = make_set(tmp_path, 1)
+    assert SO.main(["--data", str(data), "--outputs", str(outs), "--label", "x", "--json", str(tmp_path / "s.json")]) == 0
+    line = capsys.readouterr().out.strip()
+    assert line.startswith("x: 1 images, PSNR-Y ") and "(gain +3.0" in line
+    assert json.loads((tmp_path / "s.json").read_text())["per_image"][0]["name"] == "0.png"
+
+
+def test_no_matching_outputs_is_an_error(tmp_path):
+    data, outs = make_set(tmp_path, 1)
+    (outs / "0.png").unlink()
+    with pytest.raises(SystemExit, match="no image"):
+        SO.score(data, outs)
