@@ -123,6 +123,11 @@ class TrainConfig:
     # NHWC memory layout for convolutions: about 1.5x faster training steps on CPU with
     # oneDNN (measured on this project's 2-core machine); results equal up to rounding.
     channels_last: bool = False
+    # Keep every BatchNorm in eval mode while training (its running statistics fixed, its
+    # scale and shift still learnt). Needed to fine-tune from an exported model folder, whose
+    # BatchNorms come back folded into identities (onnx_weights.py); a usual choice for small
+    # fine-tuning batches too.
+    freeze_batchnorm: bool = False
 
 
 @dataclass(frozen=True)

@@ -33,7 +33,9 @@ from torch.utils.data import DataLoader
 from tqdm import tqdm
 
 from . import checkpoint as ckpt
+from . import contract as C
 from . import losses
+from . import onnx_weights
 from .config import (
     ConfigError,
     RunConfig,
@@ -302,6 +304,8 @@ class Trainer:
                 "--init-from only starts a run (continue this one with --resume, without --init-from)"
             )
         path = init_checkpoint(source)
+        if path.is_dir():
+            return self._init_from_model_folder(path)
         state = ckpt.load_checkpoint(path, self.device)
         if not isinstance(state, dict) or "models" not in state:
             raise TrainingError(f"--init-from {path}: not a raindrop training checkpoint (no 'models')")
@@ -323,6 +327,37 @@ class Trainer:
             f"config {state.get('config', {}).get('name')}); optimizers start fresh"
         )
         return path
+
+    def _init_from_model_folder(self, folder: Path) -> Path:
+        """Fine-tuning from an exported model folder (models/<config>): the weights come back
+        from the ONNX graphs (onnx_weights.py), BatchNorms folded into identities."""
+        if not self.cfg.train.freeze_batchnorm:
+            raise TrainingError(
+                f"--init-from {folder}: an exported model folder has its BatchNorms folded into the convolutions; "
+                "fine-tune it with train.freeze_batchnorm: true (in the config, or --set train.freeze_batchnorm=true)"
+            )
+        export_info = folder / "export.json"
+        if export_info.is_file():
+            theirs = json.loads(export_info.read_text()).get("network", {})
+            ours = to_dict(self.cfg)["network"]
+            for net_name, fields in theirs.items():
+                for key, value in fields.items():
+                    if net_name in ours and key in ours[net_name] and ours[net_name][key] != value:
+                        raise TrainingError(
+                            f"--init-from {folder}: network.{net_name}.{key} is {ours[net_name][key]!r} here but "
+                            f"{value!r} in the model (its export.json); use the model's network settings"
+                        )
+        try:
+            diffs = onnx_weights.load_model_folder(self.nets, folder)
+        except onnx_weights.OnnxWeightsError as e:
+            raise TrainingError(f"--init-from {e}") from None
+        for net in self.nets.values():
+            net.to(device=self.device, memory_format=self.memory_format)
+        self.log(
+            f"init: network weights from the ONNX graphs of {folder} (largest difference to ONNX Runtime "
+            f"{max(diffs.values()):.2g}); BatchNorm frozen; optimizers start fresh"
+        )
+        return folder
 
     def _budget_exhausted(self) -> bool:
         return self.stop_requested or (self.steps_left is not None and self.steps_left <= 0)
@@ -386,6 +421,10 @@ class Trainer:
             return "stopped"
         for n, net in self.nets.items():
             net.train(n in names)
+            if self.cfg.train.freeze_batchnorm:
+                for m in net.modules():
+                    if isinstance(m, torch.nn.BatchNorm2d):
+                        m.eval()
             net.requires_grad_(n in names)
         dilation = Dilation(self.cfg.pipeline.dilation).to(self.device)
         thr = self.cfg.pipeline.threshold
@@ -470,11 +509,8 @@ def init_checkpoint(source: str | os.PathLike) -> Path:
     if refs:
         s2 = [r for r in refs if r.stage == 2]
         return (s2 or refs)[-1].path
-    if list(p.glob("*.onnx")):
-        raise TrainingError(
-            f"--init-from {p}: an exported model folder (ONNX graphs only); fine-tuning needs the training "
-            "checkpoint the graphs came from (its export.json names it): give that .pt file or its run folder"
-        )
+    if all((p / f).is_file() for f in C.FILES.values()):
+        return p  # an exported model folder: weights from its graphs (onnx_weights.py)
     raise TrainingError(f"--init-from {p}: no checkpoints/stage*_step*.pt there")
 
 

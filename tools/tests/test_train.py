@@ -251,8 +251,39 @@ def test_init_from_loads_the_weights_not_the_optimizer(smoke_run, tmp_path, caps
     capsys.readouterr()
     assert train.main(_args(data, out2, "--resume", "--init-from", str(src_ckpt))) == 2
     assert "drop --init-from" in capsys.readouterr().err
+    # an exported model folder needs frozen BatchNorms (its own are folded into the convolutions)
     assert train.main(_args(data, tmp_path / "ft3", "--init-from", str(smoke_run["models"]))) == 2
-    assert "ONNX graphs only" in capsys.readouterr().err
+    assert "train.freeze_batchnorm: true" in capsys.readouterr().err
     # a network that does not fit is named
     assert train.main(_args(data, tmp_path / "ft4", "--init-from", str(src_ckpt), "--set", "network.rdn.width=4")) == 2
     assert "rdn weights do not fit" in capsys.readouterr().err
+
+
+def test_init_from_an_exported_model_folder_fine_tunes_its_function(smoke_run, tmp_path, capsys):
+    """train --init-from models/<config>: the weights come back from the ONNX graphs, and stage 1
+    leaves RFN (not trained there) computing exactly what rfn.onnx computes."""
+    import onnxruntime as ort
+
+    from raindrop_tools.export import graph_module
+
+    data, models, out = smoke_run["data"], smoke_run["models"], tmp_path / "ft-onnx"
+    frozen = ("--set", "train.freeze_batchnorm=true")
+    assert train.main(_args(data, out, "--init-from", str(models), *frozen, "--max-steps", "2")) == 0
+    assert "BatchNorm frozen" in capsys.readouterr().err
+    assert json.loads((out / "run.json").read_text())["init_from"] == str(models.resolve())
+    state = ckpt.load_checkpoint(ckpt.latest_checkpoint(out).path)
+    nets = train.build_networks(load_config(CONFIGS / "smoke.yaml").network)
+    for k, net in nets.items():
+        net.load_state_dict(state["models"][k])
+    x = torch.rand(1, 3, 40, 56, generator=torch.Generator().manual_seed(3))
+    with torch.no_grad():
+        ours = graph_module("rfn", nets["rfn"].eval())(x).numpy()
+    theirs = ort.InferenceSession(str(models / "rfn.onnx"), providers=["CPUExecutionProvider"]).run(None, {"blend": x.numpy()})[0]
+    assert np.abs(ours - theirs).max() < 1e-4
+    # BatchNorm stayed frozen while RDN trained: its running statistics are the loaded identity
+    bns = [m for m in nets["rdn"].modules() if isinstance(m, torch.nn.BatchNorm2d)]
+    assert bns and all(torch.equal(m.running_mean, torch.zeros_like(m.running_mean)) for m in bns)
+    # a network setting the graphs cannot show (the global residual) is checked against export.json
+    assert train.main(_args(data, tmp_path / "ft5", "--init-from", str(models), *frozen,
+                            "--set", "network.rrn.global_residual=true")) == 2
+    assert "network.rrn.global_residual" in capsys.readouterr().err

@@ -1,0 +1,32 @@
+"""Weights back from the exported graphs (onnx_weights.py), on the committed models."""
+import pytest
+
+pytestmark = pytest.mark.torch
+torch = pytest.importorskip("torch")
+
+from helpers import CONFIGS, REPO  # noqa: E402
+from raindrop_tools import networks  # noqa: E402
+from raindrop_tools import onnx_weights as OW  # noqa: E402
+from raindrop_tools.config import load_config  # noqa: E402
+
+
+@pytest.mark.parametrize("config,folder", [("compact.yaml", "compact"), ("paper-cpu.yaml", "paper")])
+def test_committed_models_come_back_exactly(config, folder):
+    if not (REPO / "models" / folder / "rdn.onnx").is_file():
+        pytest.skip(f"models/{folder} is not in this checkout")
+    nets = networks.build_networks(load_config(CONFIGS / config).network)
+    diffs = OW.load_model_folder(nets, REPO / "models" / folder)
+    assert set(diffs) == {"rdn", "rrn", "rfn"} and max(diffs.values()) < 1e-4
+
+
+def test_a_structure_that_does_not_fit_is_refused():
+    nets = networks.build_networks(load_config(CONFIGS / "compact.yaml", [("network.rdn.blocks", 3)]).network)
+    with pytest.raises(OW.OnnxWeightsError, match="convolutions in the graph"):
+        OW.load_network(nets["rdn"], "rdn", REPO / "models" / "compact" / "rdn.onnx")
+
+
+def test_a_difference_the_structure_hides_is_caught_by_onnxruntime():
+    # paper.yaml has no global residual; models/paper was trained with one (paper-cpu.yaml)
+    nets = networks.build_networks(load_config(CONFIGS / "paper.yaml").network)
+    with pytest.raises(OW.OnnxWeightsError, match="differ from the graph"):
+        OW.load_model_folder(nets, REPO / "models" / "paper")
