@@ -224,6 +224,12 @@ std::string variant_id(const std::string& input_id, int variant) {
   return input_id + buf;
 }
 
+// The input id of a sample id: variant_id appends "_v<digits>" to it.
+std::string input_of(const std::string& sample_id) {
+  const auto v = sample_id.rfind("_v");
+  return v == std::string::npos ? sample_id : sample_id.substr(0, v);
+}
+
 }  // namespace
 
 std::string renderer_version() { return RAINDROP_VERSION; }
@@ -245,18 +251,18 @@ RenderSummary render_dataset(const std::vector<InputImage>& inputs, const Render
     shard_lock.emplace(o.out_dir / (".raindrop-render.shard-" + std::to_string(o.shard.index) + "-of-" +
                                     std::to_string(o.shard.count) + ".lock"),
                        false, "shard " + o.shard.text() + " of " + folder_description(o.out_dir));
-  // The samples this run renders (a shard's: by the hash of their id, shard.h).
+  // The samples this run renders. A shard's: every variant of the inputs whose id hashes to
+  // it (shard.h), so that no two shards decode one image.
   struct Task {
     const InputImage* input;
     std::vector<int> variants;
   };
   std::vector<Task> tasks;
   for (const auto& in : inputs) {
+    if (!o.shard.owns(in.id)) continue;
     Task t{&in, {}};
-    for (int v = 0; v < o.variants; ++v) {
-      if (o.shard.owns(variant_id(in.id, v))) t.variants.push_back(v);
-    }
-    if (!t.variants.empty()) tasks.push_back(std::move(t));
+    for (int v = 0; v < o.variants; ++v) t.variants.push_back(v);
+    tasks.push_back(std::move(t));
   }
   const std::string manifest_file = manifest_name(o.shard);
   std::set<std::string> own_files{manifest_file};
@@ -284,7 +290,7 @@ RenderSummary render_dataset(const std::vector<InputImage>& inputs, const Render
   }
   for (const auto& file : also) {
     for (auto& [id, entry] : read_manifest(file)) {
-      if (o.shard.owns(id)) existing.emplace(id, std::move(entry));
+      if (o.shard.owns(input_of(id))) existing.emplace(id, std::move(entry));
     }
   }
   std::map<std::string, ManifestEntry> kept;
@@ -420,7 +426,9 @@ std::int64_t merge_shards(const fs::path& dir) {
                   std::to_string(shard.count) + " ways; merge needs the parts of one run");
     have.insert(shard.index);
   }
-  for (int k = 0; k < n; ++k) {
+  // After an earlier merge, only the shards rerun since have parts.
+  const bool merged_before = fs::exists(dir / manifest_name(Shard{}));
+  for (int k = 0; k < n && !merged_before; ++k) {
     if (!have.count(k))
       throw Error("'" + (dir / manifest_name(Shard{k, n})).string() + "' is missing: shard " + Shard{k, n}.text() +
                   " has not run; run it, then merge");

@@ -34,7 +34,7 @@ struct RenderOptions {
   bool progress = true;
   int png_level = kDefaultPngLevel;  // zlib level of the PNGs written (0-9)
   int contact_sheet_rows = 0;    // > 0: keep this many samples for a contact sheet
-  // Render only this shard's samples, into manifest.part-K-of-N.jsonl (shard.h); the
+  // Render only this shard's inputs (all their variants), into manifest.part-K-of-N.jsonl (shard.h); the
   // folder is shared with the other shards. A run without shard also takes over the
   // samples of any parts in the folder and merges them into its manifest.jsonl.
   Shard shard;
@@ -66,8 +66,8 @@ RenderSummary render_dataset(const std::vector<InputImage>& inputs, const Render
 
 // Merges the manifest parts of the N shards of a run in `dir` (and a manifest.jsonl there)
 // into manifest.jsonl, byte for byte what one run without --shard writes, and removes the
-// parts. Refuses, touching nothing, a folder in use, a missing part, parts of different N
-// or of different settings. Returns the number of samples in the manifest.
+// parts. Refuses, touching nothing, a folder in use, a missing part (unless an earlier
+// merge's manifest.jsonl is there), parts of different N or of different settings. Returns the number of samples in the manifest.
 std::int64_t merge_shards(const std::filesystem::path& dir);
 
 }  // namespace raindrop

@@ -84,7 +84,7 @@ int run(int argc, char** argv) {
       ->capture_default_str()->check(CLI::Range(0, 9));
   app.add_option("--shard", shard_text,
                  "Render only shard K of N (0 <= K < N, e.g. $SLURM_ARRAY_TASK_ID/$SLURM_ARRAY_TASK_COUNT): the "
-                 "samples whose id hashes to K, into the shared output folder with manifest.part-K-of-N.jsonl");
+                 "inputs whose id hashes to K (all their variants), into the shared output folder with manifest.part-K-of-N.jsonl");
   app.add_option("--merge-shards", merge_dir,
                  "Merge the manifest parts of a sharded run in this folder into its manifest.jsonl, then exit");
   app.add_flag("--convert", convert, "Accept 16-bit, grey and RGBA inputs by converting them to 8-bit RGB");
