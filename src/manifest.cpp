@@ -1,5 +1,9 @@
 #include "raindrop/manifest.h"
 
+#include <algorithm>
+
+#include <cstdio>
+
 #include <nlohmann/json.hpp>
 
 #include "raindrop/error.h"
@@ -36,6 +40,32 @@ std::map<std::string, ManifestEntry> read_manifest(const fs::path& file) {
   return entries;  // a bad last line is an interrupted append: ignored
 }
 
+std::string manifest_name(const Shard& shard) {
+  if (!shard.sharded()) return "manifest.jsonl";
+  return "manifest.part-" + std::to_string(shard.index) + "-of-" + std::to_string(shard.count) + ".jsonl";
+}
+
+std::vector<std::pair<fs::path, Shard>> find_manifest_parts(const fs::path& dir) {
+  std::vector<std::pair<fs::path, Shard>> parts;
+  std::error_code ec;
+  for (auto it = fs::directory_iterator(dir, ec); !ec && it != fs::directory_iterator(); it.increment(ec)) {
+    const std::string name = it->path().filename().string();
+    Shard s;
+    char tail = 0;
+    if (std::sscanf(name.c_str(), "manifest.part-%d-of-%d.jsonl%c", &s.index, &s.count, &tail) == 2 &&
+        s.count > 1 && s.index >= 0 && s.index < s.count && name == manifest_name(s))
+      parts.emplace_back(it->path(), s);
+  }
+  std::sort(parts.begin(), parts.end(), [](const auto& a, const auto& b) { return a.first < b.first; });
+  return parts;
+}
+
+void write_manifest(const std::map<std::string, std::string>& lines_by_id, const fs::path& file) {
+  std::string text;
+  for (const auto& [id, line] : lines_by_id) text += line + "\n";
+  write_text_atomic(text, file);
+}
+
 ManifestWriter::ManifestWriter(const fs::path& file) : file_(file), out_(file, std::ios::app) {
   if (!out_) throw Error("'" + file.string() + "': cannot open for writing");
 }
@@ -54,9 +84,7 @@ void ManifestWriter::finalize(const std::map<std::string, ManifestEntry>& kept) 
   std::map<std::string, std::string> all;
   for (const auto& [id, e] : kept) all[id] = e.line;
   for (const auto& [id, line] : appended_) all[id] = line;
-  std::string text;
-  for (const auto& [id, line] : all) text += line + "\n";
-  write_text_atomic(text, file_);
+  write_manifest(all, file_);
 }
 
 }  // namespace raindrop

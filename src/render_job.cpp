@@ -10,6 +10,8 @@
 #include <cstring>
 #include <map>
 #include <mutex>
+#include <optional>
+#include <set>
 
 #include <fcntl.h>
 #include <sys/file.h>
@@ -60,21 +62,33 @@ std::string job_fingerprint(const RenderOptions& o) {
 // kernel's flock() on <out>/.raindrop-render.lock is the lock, so a killed run's lock is
 // released with it (a file left behind is stale and simply taken over); the file holds the
 // owner's pid for the message a second run prints.
+//
+// Shards (--shard K/N) hold the folder's lock shared, so that they run side by side, and
+// each the exclusive lock of its own shard, <out>/.raindrop-render.shard-K-of-N.lock; a whole
+// run and --merge-shards hold the folder's lock exclusively.
 class OutputLock {
  public:
-  explicit OutputLock(const fs::path& dir) : path_(dir / ".raindrop-render.lock") {
-    while (true) {
+  // `what` names the locked thing in the message ("output folder 'out'").
+  OutputLock(fs::path path, bool shared, const std::string& what) : path_(std::move(path)), shared_(shared) {
+    // A shard can find the file held exclusively for a moment by another shard that is
+    // finishing (release below): it tries again for about a second.
+    for (int attempt = 0;; ++attempt) {
       fd_ = ::open(path_.c_str(), O_RDWR | O_CREAT | O_CLOEXEC, 0644);
       if (fd_ < 0) throw Error("cannot create the lock file '" + path_.string() + "' (" + std::strerror(errno) + ")");
-      if (::flock(fd_, LOCK_EX | LOCK_NB) != 0) {
+      if (::flock(fd_, (shared ? LOCK_SH : LOCK_EX) | LOCK_NB) != 0) {
         const int err = errno;
         char pid[32] = {0};
         const ssize_t n = ::pread(fd_, pid, sizeof pid - 1, 0);
         ::close(fd_);
+        fd_ = -1;
+        if (err == EWOULDBLOCK && shared && attempt < 50) {
+          ::usleep(20000);
+          continue;
+        }
         std::string owner(pid, n > 0 ? static_cast<size_t>(n) : 0);
         while (!owner.empty() && std::isspace(static_cast<unsigned char>(owner.back()))) owner.pop_back();
         if (err == EWOULDBLOCK)
-          throw Error("output folder '" + dir.string() + "' is in use by another raindrop-render" +
+          throw Error(what + " is in use by another raindrop-render" +
                       (owner.empty() ? std::string() : " (pid " + owner + ")") +
                       "; wait for it to finish or choose another folder");
         throw Error("cannot lock '" + path_.string() + "' (" + std::strerror(err) + ")");
@@ -101,19 +115,30 @@ class OutputLock {
  private:
   void release() {
     if (fd_ < 0) return;
-    ::unlink(path_.c_str());  // while still locked: see the inode check above
+    // A shared holder removes the file only when it is the last: when it can take the lock
+    // exclusively.
+    if (!shared_ || ::flock(fd_, LOCK_EX | LOCK_NB) == 0)
+      ::unlink(path_.c_str());  // while still locked: see the inode check above
     ::close(fd_);
     fd_ = -1;
   }
   fs::path path_;
+  bool shared_ = false;
   int fd_ = -1;
 };
 
-void remove_stale_temporaries(const fs::path& dir) {
+fs::path folder_lock_path(const fs::path& dir) { return dir / ".raindrop-render.lock"; }
+std::string folder_description(const fs::path& dir) { return "output folder '" + dir.string() + "'"; }
+
+// `only`: remove just the temporaries of these file names (a shard's own: the other shards
+// may be writing theirs right now); nullptr: all.
+void remove_stale_temporaries(const fs::path& dir, const std::set<std::string>* only = nullptr) {
   std::error_code ec;
   for (auto it = fs::directory_iterator(dir, ec); !ec && it != fs::directory_iterator(); it.increment(ec)) {
     const std::string name = it->path().filename().string();
-    if (!name.empty() && name[0] == '.' && name.find(".tmp-") != std::string::npos) fs::remove(it->path(), ec);
+    const auto tmp = name.find(".tmp-");  // ".<file name>.tmp-<pid>-<n>"
+    if (!name.empty() && name[0] == '.' && tmp != std::string::npos && (!only || only->count(name.substr(1, tmp - 1))))
+      fs::remove(it->path(), ec);
   }
 }
 
@@ -199,6 +224,12 @@ std::string variant_id(const std::string& input_id, int variant) {
   return input_id + buf;
 }
 
+// The input id of a sample id: variant_id appends "_v<digits>" to it.
+std::string input_of(const std::string& sample_id) {
+  const auto v = sample_id.rfind("_v");
+  return v == std::string::npos ? sample_id : sample_id.substr(0, v);
+}
+
 }  // namespace
 
 std::string renderer_version() { return RAINDROP_VERSION; }
@@ -212,16 +243,56 @@ RenderSummary render_dataset(const std::vector<InputImage>& inputs, const Render
   if (o.variants < 1) throw Error("--variants must be at least 1");
   check_unique_ids(inputs);
   ensure_writable_dir(o.out_dir);
-  const OutputLock folder_lock(o.out_dir);  // before anything in the folder is touched
+  const bool sharded = o.shard.sharded();
+  // Before anything in the folder is touched. Shards share the folder, each holding its own part.
+  const OutputLock folder_lock(folder_lock_path(o.out_dir), sharded, folder_description(o.out_dir));
+  std::optional<OutputLock> shard_lock;
+  if (sharded)
+    shard_lock.emplace(o.out_dir / (".raindrop-render.shard-" + std::to_string(o.shard.index) + "-of-" +
+                                    std::to_string(o.shard.count) + ".lock"),
+                       false, "shard " + o.shard.text() + " of " + folder_description(o.out_dir));
+  // The samples this run renders. A shard's: every variant of the inputs whose id hashes to
+  // it (shard.h), so that no two shards decode one image.
+  struct Task {
+    const InputImage* input;
+    std::vector<int> variants;
+  };
+  std::vector<Task> tasks;
+  for (const auto& in : inputs) {
+    if (!o.shard.owns(in.id)) continue;
+    Task t{&in, {}};
+    for (int v = 0; v < o.variants; ++v) t.variants.push_back(v);
+    tasks.push_back(std::move(t));
+  }
+  const std::string manifest_file = manifest_name(o.shard);
+  std::set<std::string> own_files{manifest_file};
+  for (const auto& t : tasks) {
+    for (int v : t.variants) own_files.insert(variant_id(t.input->id, v) + ".png");
+  }
   std::vector<std::string> subs{"", "rainy", "clean", "mask"};
   if (o.scene.lens.enabled) subs.push_back("alpha");
   for (const auto& sub : subs) {
     ensure_writable_dir(o.out_dir / sub);
-    remove_stale_temporaries(o.out_dir / sub);
+    remove_stale_temporaries(o.out_dir / sub, sharded ? &own_files : nullptr);
   }
-  const fs::path manifest_path = o.out_dir / "manifest.jsonl";
+  const fs::path manifest_path = o.out_dir / manifest_file;
   const std::string job = job_fingerprint(o);
-  const auto existing = read_manifest(manifest_path);
+  // A shard resumes from its part and from its samples in a merged manifest.jsonl; a whole
+  // run from manifest.jsonl and every shard's part, which it merges into manifest.jsonl.
+  auto existing = read_manifest(manifest_path);
+  std::vector<std::pair<fs::path, Shard>> parts;
+  std::vector<fs::path> also;
+  if (sharded) {
+    also.push_back(o.out_dir / manifest_name(Shard{}));
+  } else {
+    parts = find_manifest_parts(o.out_dir);
+    for (const auto& part : parts) also.push_back(part.first);
+  }
+  for (const auto& file : also) {
+    for (auto& [id, entry] : read_manifest(file)) {
+      if (o.shard.owns(input_of(id))) existing.emplace(id, std::move(entry));
+    }
+  }
   std::map<std::string, ManifestEntry> kept;
   for (const auto& [id, entry] : existing) {
     if (entry.job != job)
@@ -232,23 +303,15 @@ RenderSummary render_dataset(const std::vector<InputImage>& inputs, const Render
     if (complete) kept[id] = entry;
   }
 
-  struct Task {
-    const InputImage* input;
-    std::vector<int> variants;
-  };
-  std::vector<Task> tasks;
   RenderSummary summary;
-  for (const auto& in : inputs) {
-    Task t{&in, {}};
-    for (int v = 0; v < o.variants; ++v) {
-      if (kept.count(variant_id(in.id, v))) {
-        ++summary.skipped;
-      } else {
-        t.variants.push_back(v);
-      }
-    }
-    if (!t.variants.empty()) tasks.push_back(std::move(t));
+  for (auto& t : tasks) {
+    const auto done = std::remove_if(t.variants.begin(), t.variants.end(),
+                                     [&](int v) { return kept.count(variant_id(t.input->id, v)) > 0; });
+    summary.skipped += static_cast<std::int64_t>(t.variants.end() - done);
+    t.variants.erase(done, t.variants.end());
   }
+  tasks.erase(std::remove_if(tasks.begin(), tasks.end(), [](const Task& t) { return t.variants.empty(); }),
+              tasks.end());
 
   const int threads = o.threads > 0 ? o.threads : static_cast<int>(std::thread::hardware_concurrency());
   // Embree and TBB size their pools from this; the arena bounds our own parallelism.
@@ -341,8 +404,54 @@ RenderSummary render_dataset(const std::vector<InputImage>& inputs, const Render
   });
   progress.finish();
   manifest.finalize(kept);
+  // Their samples are in manifest.jsonl now.
+  for (const auto& part : parts) {
+    std::error_code ec;
+    fs::remove(part.first, ec);
+  }
   summary.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   return summary;
+}
+
+std::int64_t merge_shards(const fs::path& dir) {
+  if (!fs::is_directory(dir)) throw Error("'" + dir.string() + "' is not a folder");
+  const OutputLock folder_lock(folder_lock_path(dir), false, folder_description(dir));
+  const auto parts = find_manifest_parts(dir);
+  if (parts.empty()) throw Error("'" + dir.string() + "' holds no manifest parts (manifest.part-K-of-N.jsonl)");
+  const int n = parts.front().second.count;
+  std::set<int> have;
+  for (const auto& [file, shard] : parts) {
+    if (shard.count != n)
+      throw Error("'" + dir.string() + "' holds the parts of runs split " + std::to_string(n) + " and " +
+                  std::to_string(shard.count) + " ways; merge needs the parts of one run");
+    have.insert(shard.index);
+  }
+  // After an earlier merge, only the shards rerun since have parts.
+  const bool merged_before = fs::exists(dir / manifest_name(Shard{}));
+  for (int k = 0; k < n && !merged_before; ++k) {
+    if (!have.count(k))
+      throw Error("'" + (dir / manifest_name(Shard{k, n})).string() + "' is missing: shard " + Shard{k, n}.text() +
+                  " has not run; run it, then merge");
+  }
+  std::map<std::string, std::string> lines;
+  std::string job;
+  std::vector<fs::path> files{dir / manifest_name(Shard{})};
+  for (const auto& part : parts) files.push_back(part.first);
+  for (const auto& file : files) {
+    for (const auto& [id, entry] : read_manifest(file)) {
+      if (job.empty()) job = entry.job;
+      if (entry.job != job)
+        throw Error("'" + file.string() + "' holds samples rendered with other settings than the rest of '" +
+                    dir.string() + "'");
+      lines[id] = entry.line;
+    }
+  }
+  write_manifest(lines, dir / manifest_name(Shard{}));
+  for (const auto& part : parts) {
+    std::error_code ec;
+    fs::remove(part.first, ec);
+  }
+  return static_cast<std::int64_t>(lines.size());
 }
 
 }  // namespace raindrop

@@ -18,6 +18,7 @@
 #include "raindrop/inputs.h"
 #include "raindrop/renderer.h"
 #include "raindrop/scene_config.h"
+#include "raindrop/shard.h"
 
 namespace raindrop {
 
@@ -33,6 +34,10 @@ struct RenderOptions {
   bool progress = true;
   int png_level = kDefaultPngLevel;  // zlib level of the PNGs written (0-9)
   int contact_sheet_rows = 0;    // > 0: keep this many samples for a contact sheet
+  // Render only this shard's inputs (all their variants), into manifest.part-K-of-N.jsonl (shard.h); the
+  // folder is shared with the other shards. A run without shard also takes over the
+  // samples of any parts in the folder and merges them into its manifest.jsonl.
+  Shard shard;
 };
 
 struct SampleView {  // a finished sample kept for a contact sheet
@@ -58,5 +63,11 @@ std::uint64_t sample_seed(std::uint64_t run_seed, const std::string& input_id, i
 // (unwritable output, a folder rendered with other settings, a bad input header when not
 // keep_going). Per-sample failures are reported in the summary.
 RenderSummary render_dataset(const std::vector<InputImage>& inputs, const RenderOptions& options);
+
+// Merges the manifest parts of the N shards of a run in `dir` (and a manifest.jsonl there)
+// into manifest.jsonl, byte for byte what one run without --shard writes, and removes the
+// parts. Refuses, touching nothing, a folder in use, a missing part (unless an earlier
+// merge's manifest.jsonl is there), parts of different N or of different settings. Returns the number of samples in the manifest.
+std::int64_t merge_shards(const std::filesystem::path& dir);
 
 }  // namespace raindrop

@@ -36,6 +36,7 @@
 #include "raindrop/progress.h"
 #include "raindrop/remove/model_paths.h"
 #include "raindrop/remove/remover.h"
+#include "raindrop/shard.h"
 
 #ifndef RAINDROP_VERSION
 #define RAINDROP_VERSION "unknown"
@@ -184,11 +185,13 @@ int run(int argc, char** argv) {
       "(grey: the networks see it as RGB, the output is its luma 0.299R+0.587G+0.114B; alpha is copied).\n"
       "Exit codes: 0 success; 1 error (one line on stderr, no partial output); 2 bad command line;\n"
       "3 folder run with --keep-going finished but some images failed.");
-  std::string input, output, models_dir, model_config, mask, mask_dir, sheet, device = "cpu", graph_opt = "all";
+  std::string input, output, models_dir, model_config, mask, mask_dir, sheet, device = "cpu", graph_opt = "all",
+      shard_text;
   std::optional<double> threshold, scale;
   std::optional<int> dilation;
   int threads = 0, tile = kDefaultTile, overlap = kDefaultOverlap;
   bool time = false, quiet = false, keep_going = false;
+  Shard shard;
   app.add_option("input", input, "Input image, or folder of images")->required();
   app.add_option("output", output, "Output image (format from the extension), or folder")->required();
   app.add_option("--models", models_dir, "Model folder with rdn.onnx, rrn.onnx, rfn.onnx (default: see below)");
@@ -218,6 +221,9 @@ int run(int argc, char** argv) {
   app.add_flag("--time", time, "Print per-stage timings on stderr");
   app.add_option("--contact-sheet", sheet, "Also write an input | mask | output PNG (folder mode: the first images)");
   app.add_flag("--keep-going", keep_going, "Folder mode: go on after an image fails (exit code 3)");
+  app.add_option("--shard", shard_text,
+                 "Folder mode: process only shard K of N (0 <= K < N, e.g. $SLURM_ARRAY_TASK_ID/$SLURM_ARRAY_TASK_COUNT): "
+                 "the images whose relative name hashes to K");
   app.add_flag("-q,--quiet", quiet, "No progress bar");
   app.set_version_flag("--version", std::string("raindrop-remove ") + RAINDROP_VERSION + " (" + ort_description() + ")");
   try {
@@ -226,6 +232,7 @@ int run(int argc, char** argv) {
     if (threshold && std::isnan(*threshold)) throw Error("--threshold: nan is not a number between 0 and 1");
     if (scale && !(*scale > 0.0)) throw Error("--scale must be a number in (0, 1]");
     check_tile_options(tile, overlap);
+    if (!shard_text.empty()) shard = parse_shard(shard_text);
   } catch (const CLI::ParseError& e) {
     return app.exit(e) == 0 ? 0 : 2;
   } catch (const Error& e) {
@@ -247,6 +254,7 @@ int run(int argc, char** argv) {
   const fs::path in_path(input), out_arg(output);
   if (!fs::exists(in_path, ec)) throw Error("'" + input + "': no such file or folder");
   const bool batch = fs::is_directory(in_path, ec);
+  if (!batch && !shard_text.empty()) throw UsageError("--shard splits a folder run; '" + input + "' is a file");
 
   std::vector<Job> jobs;
   if (batch && mask_dir.empty()) std::swap(mask, mask_dir);  // folder mode: --mask is a folder
@@ -256,12 +264,14 @@ int run(int argc, char** argv) {
     // Masks written into the input or output folder would replace the images there.
     refuse_coinciding({{"input folder", in_path}, {"output folder", out_arg}, {"mask folder", fs::path(mask_dir)}},
                       "folder");
-    for (const auto& rel : list_images(in_path, {out_arg, fs::path(mask_dir)})) {
+    const auto images = list_images(in_path, {out_arg, fs::path(mask_dir)});
+    if (images.empty()) throw Error("no image files (png, jpg, jpeg, tif, tiff, bmp, webp) under '" + input + "'");
+    for (const auto& rel : images) {
+      if (!shard.owns(rel.generic_string())) continue;  // another shard's (shard.h)
       Job j{in_path / rel, out_arg / rel, std::nullopt, rel.string(), true};
       if (!mask_dir.empty()) j.mask = (fs::path(mask_dir) / rel).replace_extension(".png");
       jobs.push_back(j);
     }
-    if (jobs.empty()) throw Error("no image files (png, jpg, jpeg, tif, tiff, bmp, webp) under '" + input + "'");
   } else {
     fs::path out = out_arg;
     if (fs::is_directory(out, ec)) out /= in_path.filename();

@@ -19,6 +19,7 @@
 #include "raindrop/inputs.h"
 #include "raindrop/render_job.h"
 #include "raindrop/scene_config.h"
+#include "raindrop/shard.h"
 
 namespace fs = std::filesystem;
 using namespace raindrop;
@@ -53,7 +54,8 @@ int run(int argc, char** argv) {
   CLI::App app{"raindrop-render: physically based adherent raindrops on street images.\n"
                "Renders rainy/clean/mask triplets and manifest.jsonl (docs/CONTRACTS.md).\n"
                "Without an input it renders the built-in demo backgrounds."};
-  std::string cityscapes, split = "train", out = "out/render", scene_name = "paper", size_text, sheet;
+  std::string cityscapes, split = "train", out = "out/render", scene_name = "paper", size_text, sheet, shard_text,
+      merge_dir;
   std::vector<std::string> input_paths;
   int variants = 1, threads = 0, limit = 0, sheet_rows = 4, png_level = kDefaultPngLevel;
   std::uint64_t seed = 0;
@@ -80,6 +82,11 @@ int run(int argc, char** argv) {
   app.add_option("--limit", limit, "Render only the first N inputs (0: all)")->check(CLI::Range(0, 100000000));
   app.add_option("--png-level", png_level, "PNG zlib level: 1 fastest, 9 smallest (OpenImageIO's default is 6)")
       ->capture_default_str()->check(CLI::Range(0, 9));
+  app.add_option("--shard", shard_text,
+                 "Render only shard K of N (0 <= K < N, e.g. $SLURM_ARRAY_TASK_ID/$SLURM_ARRAY_TASK_COUNT): the "
+                 "inputs whose id hashes to K (all their variants), into the shared output folder with manifest.part-K-of-N.jsonl");
+  app.add_option("--merge-shards", merge_dir,
+                 "Merge the manifest parts of a sharded run in this folder into its manifest.jsonl, then exit");
   app.add_flag("--convert", convert, "Accept 16-bit, grey and RGBA inputs by converting them to 8-bit RGB");
   app.add_flag("--keep-going", keep_going, "Render the remaining inputs after one fails (exit code 3)");
   app.add_option("--contact-sheet", sheet, "Write a clean | rainy | mask PNG of the first samples (default for the demo: <out>/contact_sheet.png)");
@@ -92,6 +99,21 @@ int run(int argc, char** argv) {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
     return app.exit(e) == 0 ? 0 : 2;
+  }
+  Shard shard;
+  try {
+    if (!shard_text.empty()) shard = parse_shard(shard_text);
+    if (!merge_dir.empty() && (!cityscapes.empty() || !input_paths.empty() || demo || !shard_text.empty()))
+      throw Error("--merge-shards only merges; give it no inputs and no --shard");
+  } catch (const Error& e) {
+    std::cerr << "raindrop-render: error: " << e.what() << "\n";
+    return 2;
+  }
+  if (!merge_dir.empty()) {
+    const std::int64_t n = merge_shards(merge_dir);
+    std::fprintf(stderr, "raindrop-render: %lld samples in %s\n", static_cast<long long>(n),
+                 (fs::path(merge_dir) / "manifest.jsonl").string().c_str());
+    return 0;
   }
 
   if (list_scenes) {
@@ -113,6 +135,7 @@ int run(int argc, char** argv) {
   options.keep_going = keep_going;
   options.progress = !quiet;
   options.png_level = png_level;
+  options.shard = shard;
 
   std::vector<InputImage> inputs;
   if (!cityscapes.empty()) inputs = find_cityscapes(cityscapes, split);
@@ -125,7 +148,8 @@ int run(int argc, char** argv) {
     if (!cityscapes.empty() || !input_paths.empty()) throw Error("--demo renders its own backgrounds; drop --cityscapes/--input");
     if (out == "out/render") options.out_dir = "out/demo";
     inputs = make_demo_inputs(options.out_dir);
-    if (sheet.empty()) sheet = (options.out_dir / "contact_sheet.png").string();
+    // Shards would all write the one default sheet.
+    if (sheet.empty() && !shard.sharded()) sheet = (options.out_dir / "contact_sheet.png").string();
   }
   if (limit > 0 && static_cast<int>(inputs.size()) > limit) inputs.resize(limit);
   if (!sheet.empty()) options.contact_sheet_rows = sheet_rows;
@@ -149,8 +173,9 @@ int run(int argc, char** argv) {
   if (s.rendered > 0)
     std::fprintf(stderr, "; mean %.1f drops and %.2f%% of the frame covered per sample",
                  static_cast<double>(s.drops_sum) / s.rendered, 100.0 * s.coverage_sum / s.rendered);
-  std::fprintf(stderr, "\nraindrop-render: data set in %s%s%s\n", options.out_dir.string().c_str(),
-               sheet.empty() ? "" : ", contact sheet ", sheet.c_str());
+  std::fprintf(stderr, "\nraindrop-render: data set in %s%s%s%s\n", options.out_dir.string().c_str(),
+               shard.sharded() ? (" (shard " + shard.text() + ")").c_str() : "", sheet.empty() ? "" : ", contact sheet ",
+               sheet.c_str());
   return s.failed > 0 ? 3 : 0;
 }
 

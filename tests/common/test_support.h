@@ -112,6 +112,37 @@ inline RunResult run_captured(const fs::path& program, const std::vector<std::st
   return r;
 }
 
+// Runs `prefix program args...` once per argument list in `cwd`, all at the same time (in
+// the background of one shell, which waits for them all); the results in the lists' order.
+inline std::vector<RunResult> run_captured_together(const fs::path& program,
+                                                    const std::vector<std::vector<std::string>>& arg_lists,
+                                                    const fs::path& cwd, const std::string& prefix = "") {
+  static int counter = 0;
+  const fs::path logs = cwd / "_logs";
+  fs::create_directories(logs);
+  std::vector<RunResult> results(arg_lists.size());
+  std::vector<fs::path> bases;
+  std::string script = "cd " + shell_quote(cwd.string()) + " && { ";
+  for (size_t i = 0; i < arg_lists.size(); ++i) {
+    const fs::path base = logs / ("together-" + std::to_string(counter++));
+    std::string cmd = prefix + shell_quote(program.string());
+    for (const auto& a : arg_lists[i]) cmd += " " + shell_quote(a);
+    results[i].command = cmd + " &";
+    script += "{ " + cmd + " >" + shell_quote(base.string() + ".out") + " 2>" + shell_quote(base.string() + ".err") +
+              " </dev/null; echo $? >" + shell_quote(base.string() + ".code") + "; } & ";
+    bases.push_back(base);
+  }
+  script += "wait; }";
+  (void)std::system(script.c_str());
+  for (size_t i = 0; i < results.size(); ++i) {
+    const std::string code = read_file(bases[i].string() + ".code");
+    results[i].code = code.empty() ? -1 : std::stoi(code);
+    results[i].out = read_file(bases[i].string() + ".out");
+    results[i].err = read_file(bases[i].string() + ".err");
+  }
+  return results;
+}
+
 // Hidden temporaries left by the atomic writes (".<name>.tmp-<pid>-<n>"), relative to `dir`;
 // none when `dir` does not exist.
 inline std::vector<std::string> hidden_temporaries(const fs::path& dir) {

@@ -1,6 +1,7 @@
 """Reading a rendered data set (CONTRACTS.md section 1) for training and evaluation.
 
-* ``read_manifest`` parses and checks ``manifest.jsonl``;
+* ``read_manifest`` parses and checks ``manifest.jsonl`` (or the parts of a sharded run,
+  ``manifest.part-K-of-N.jsonl``, read as their merge: manifest.py);
 * ``check_files`` checks the images behind it (presence, sizes, mask values, ...);
 * ``RaindropDataset`` serves random crops with the edge map of the full image;
 * ``StepBatchSampler`` draws the crops of every training step as a pure function of
@@ -23,8 +24,8 @@ import numpy as np
 
 from .edge import edge_map_window
 from .imageio import ImageError, png_header, read_mask_strict, read_rgb_strict, to_float
+from .manifest import MANIFEST, manifest_lines
 
-MANIFEST = "manifest.jsonl"
 # Keys the tools use; the contract lists more, and readers must ignore unknown keys.
 REQUIRED_KEYS: dict[str, type] = {
     "id": str,
@@ -50,7 +51,8 @@ class Sample:
     width: int
     height: int
     split: str | None
-    line: int  # 1-based line in manifest.jsonl
+    line: int  # 1-based line in manifest.jsonl (or in `file`)
+    file: str = MANIFEST  # the manifest file: manifest.jsonl or a shard's part
 
 
 def _raise(problems: list[str], what: str) -> None:
@@ -66,17 +68,14 @@ def read_manifest(root: str | os.PathLike, splits: list[str] | None = None) -> l
     duplicate ids."""
     root = Path(root)
     manifest = root / MANIFEST
-    if not manifest.is_file():
+    lines = manifest_lines(root)
+    if not manifest.is_file() and not lines:
         raise DatasetError(f"{root}: not a rendered data set (no {MANIFEST})")
     problems: list[str] = []
     samples: list[Sample] = []
-    seen: dict[str, int] = {}
-    with open(manifest, encoding="utf-8") as f:
-        lines = f.read().split("\n")
-    for lineno, text in enumerate(lines, start=1):
-        if not text.strip():
-            continue  # blank lines (the trailing newline) carry nothing
-        where = f"{manifest}:{lineno}"
+    seen: dict[str, str] = {}
+    for file, lineno, text in lines:
+        where = f"{root / file}:{lineno}"
         try:
             obj = json.loads(text)
         except json.JSONDecodeError as e:
@@ -118,14 +117,14 @@ def read_manifest(root: str | os.PathLike, splits: list[str] | None = None) -> l
         if sid in seen:
             problems.append(f"{where}: duplicate id {sid!r} (first on line {seen[sid]})")
             continue
-        seen[sid] = lineno
+        seen[sid] = str(lineno) if file == MANIFEST else f"{lineno} of {file}"
         split = obj.get("split")
         if splits is not None and split is None:
             problems.append(f"{where}: sample {sid!r} has no 'split' key, but splits {splits} were requested")
             continue
         if splits is None or split in splits:
             samples.append(
-                Sample(sid, paths["rainy"], paths["clean"], paths["mask"], obj["width"], obj["height"], split, lineno)
+                Sample(sid, paths["rainy"], paths["clean"], paths["mask"], obj["width"], obj["height"], split, lineno, file)
             )
     if problems:
         _raise(problems, f"{manifest}")
@@ -156,7 +155,7 @@ def check_files(
         raise ValueError(f"level must be 'full' or 'header', got {level!r}")
     problems: list[str] = []
     for i, s in enumerate(samples):
-        where = f"{manifest}:{s.line} (sample {s.id!r})"
+        where = f"{manifest if s.file == MANIFEST else Path(manifest).parent / s.file}:{s.line} (sample {s.id!r})"
         missing = [str(p) for p in (s.rainy, s.clean, s.mask) if not p.is_file()]
         if missing:
             problems.append(f"{where}: missing file(s) {', '.join(missing)}")

@@ -19,9 +19,11 @@ from pathlib import Path
 
 import numpy as np
 
+from .manifest import manifest_lines
+
 
 def summarize(data_dir: Path) -> dict:
-    records = [json.loads(line) for line in (Path(data_dir) / "manifest.jsonl").read_text().splitlines() if line.strip()]
+    records = [json.loads(text) for _, _, text in manifest_lines(data_dir)]
     if not records:
         raise ValueError(f"{data_dir}: empty manifest")
     drops, coverage, dark, off, diameters = [], [], [], [], []

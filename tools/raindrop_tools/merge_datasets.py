@@ -15,6 +15,8 @@ import json
 import os
 from pathlib import Path
 
+from .manifest import manifest_lines
+
 IMAGE_KEYS = ("rainy", "clean", "mask", "alpha")
 
 
@@ -22,9 +24,10 @@ def merge(out: Path, sources: list[Path]) -> int:
     records = []
     for src in sources:
         tag = src.name.removeprefix("train-")
-        for line in (src / "manifest.jsonl").read_text().splitlines():
-            if not line.strip():
-                continue
+        lines = manifest_lines(src)
+        if not lines:
+            raise ValueError(f"{src}: no manifest.jsonl (nor the parts of a sharded render)")
+        for _, _, line in lines:
             r = json.loads(line)
             r["id"] = f"{tag}_{r['id']}"
             for key in IMAGE_KEYS:

@@ -28,6 +28,7 @@ from onnxruntime.quantization.shape_inference import quant_pre_process
 
 from .contract import EXPORT_INFO, FILES as GRAPH_FILES, NETWORKS, graph_files
 from .imageio import read_rgb
+from .manifest import manifest_lines
 from .reference import RaindropRemover
 
 
@@ -43,7 +44,7 @@ class _Feeds(CalibrationDataReader):
 def calibration_feeds(models_dir: Path, data_dir: Path, count: int, seed: int) -> dict[str, list[dict]]:
     """Inputs of each graph for `count` rainy images of a rendered data set (manifest order,
     a seeded random subset)."""
-    lines = [json.loads(line) for line in (data_dir / "manifest.jsonl").read_text().splitlines() if line.strip()]
+    lines = [json.loads(text) for _, _, text in manifest_lines(data_dir)]
     if not lines:
         raise ValueError(f"{data_dir}: empty manifest")
     random.Random(seed).shuffle(lines)

@@ -1,0 +1,60 @@
+"""The lines of a rendered data set's manifest, whether one run wrote it or N shards did.
+
+One run of ``raindrop-render`` writes ``manifest.jsonl``, sorted by id. The shards of a run
+(``raindrop-render --shard K/N``) write ``manifest.part-K-of-N.jsonl`` each, until
+``raindrop-render --merge-shards DIR`` merges them into the ``manifest.jsonl`` one run would
+have written. A folder whose parts were not merged (yet) reads as if they had been: every
+record of ``manifest.jsonl`` and of the parts, sorted by id, a record found in two files
+(byte-identical) once. Standard library only.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import re
+from pathlib import Path
+
+MANIFEST = "manifest.jsonl"
+PART = re.compile(r"manifest\.part-(\d+)-of-(\d+)\.jsonl")
+
+
+def manifest_files(root: str | os.PathLike) -> list[Path]:
+    """``manifest.jsonl`` (when present), then the shards' parts sorted by name."""
+    root = Path(root)
+    parts = sorted(p for p in root.glob("manifest.part-*-of-*.jsonl") if PART.fullmatch(p.name))
+    whole = [root / MANIFEST] if (root / MANIFEST).is_file() else []
+    return whole + parts
+
+
+def manifest_lines(root: str | os.PathLike) -> list[tuple[str, int, str]]:
+    """The non-blank lines of the data set's manifest as (file name, 1-based line, text).
+
+    Only ``manifest.jsonl``: its lines in file order. With shard parts: the lines of every
+    file sorted by id (lines that are not JSON objects with an id last, in file order), an
+    identical line in two files kept once. Empty when there is no manifest at all."""
+    files = manifest_files(root)
+    lines = [
+        (f.name, n, text)
+        for f in files
+        for n, text in enumerate(f.read_text(encoding="utf-8").split("\n"), start=1)
+        if text.strip()
+    ]
+    if len(files) <= 1:
+        return lines
+
+    def sort_id(text: str) -> tuple[int, str]:
+        try:
+            obj = json.loads(text)
+        except json.JSONDecodeError:
+            return (1, "")
+        sid = obj.get("id") if isinstance(obj, dict) else None
+        return (0, sid) if isinstance(sid, str) else (1, "")
+
+    seen: set[str] = set()
+    unique = []
+    for line in lines:
+        if line[2] not in seen:
+            seen.add(line[2])
+            unique.append(line)
+    return sorted(unique, key=lambda line: sort_id(line[2]))  # stable: unsortable lines keep their order

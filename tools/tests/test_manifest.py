@@ -1,0 +1,57 @@
+"""Sharded manifests (raindrop-render --shard K/N): the parts read as their merge."""
+
+import json
+import shutil
+
+import pytest
+
+from raindrop_tools import dataset_stats
+from raindrop_tools.data import DatasetError, read_manifest
+from raindrop_tools.manifest import manifest_lines
+
+
+def _split_into_parts(root, n):
+    """The folder's manifest.jsonl as the parts n shards would have written (round-robin here:
+    which shard took a sample does not matter to a reader)."""
+    lines = (root / "manifest.jsonl").read_text().splitlines()
+    (root / "manifest.jsonl").unlink()
+    for k in range(n):
+        (root / f"manifest.part-{k}-of-{n}.jsonl").write_text("".join(x + "\n" for x in lines[k::n]))
+    return lines
+
+
+@pytest.mark.filterwarnings("ignore::RuntimeWarning")  # the tiny set's records have no drops
+def test_parts_read_as_the_merged_manifest(tiny_dataset, tmp_path):
+    whole = read_manifest(tiny_dataset)
+    root = tmp_path / "ds"
+    shutil.copytree(tiny_dataset, root)
+    lines = _split_into_parts(root, 3)
+    assert [text for _, _, text in manifest_lines(root)] == sorted(lines, key=lambda x: json.loads(x)["id"])
+    sharded = read_manifest(root)
+    assert [s.id for s in sharded] == sorted(s.id for s in whole)
+    assert {s.file for s in sharded} == {f"manifest.part-{k}-of-3.jsonl" for k in range(3)}
+    assert dataset_stats.summarize(root)["samples"] == dataset_stats.summarize(tiny_dataset)["samples"]
+
+
+def test_a_manifest_and_parts_overlapping_count_once(tiny_dataset, tmp_path):
+    root = tmp_path / "ds"
+    shutil.copytree(tiny_dataset, root)
+    lines = (root / "manifest.jsonl").read_text().splitlines()
+    (root / "manifest.part-0-of-2.jsonl").write_text(lines[0] + "\n" + lines[2] + "\n")
+    assert len(read_manifest(root)) == len(lines)
+
+
+def test_a_different_record_under_one_id_is_refused(tiny_dataset, tmp_path):
+    root = tmp_path / "ds"
+    shutil.copytree(tiny_dataset, root)
+    first = json.loads((root / "manifest.jsonl").read_text().splitlines()[0])
+    first["variant"] = 99
+    (root / "manifest.part-1-of-2.jsonl").write_text(json.dumps(first) + "\n")
+    with pytest.raises(DatasetError, match=f"manifest.part-1-of-2.jsonl:1: duplicate id '{first['id']}'"):
+        read_manifest(root)
+
+
+def test_no_manifest_at_all(tmp_path):
+    assert manifest_lines(tmp_path) == []
+    with pytest.raises(DatasetError, match="no manifest.jsonl"):
+        read_manifest(tmp_path)
