@@ -3,6 +3,15 @@
 from __future__ import annotations
 
 import os
+import sys
+from pathlib import Path
+
+# Test this checkout's raindrop_tools, also in subprocesses (`python -m raindrop_tools...`),
+# even when the environment has it installed (editable) from another checkout, as a .venv
+# shared between git worktrees does.
+_TOOLS = str(Path(__file__).resolve().parents[1])
+sys.path.insert(0, _TOOLS)
+os.environ["PYTHONPATH"] = os.pathsep.join(p for p in (_TOOLS, os.environ.get("PYTHONPATH")) if p)
 
 os.environ.setdefault("OMP_NUM_THREADS", "1")
 os.environ.setdefault("MKL_NUM_THREADS", "1")
@@ -48,3 +57,4 @@ def smoke_run(tmp_path_factory, tiny_dataset):
     assert train.main(args) == 0
     assert export.main(["--run", str(run_dir), "--out", str(models)]) == 0
     return {"run": run_dir, "models": models, "data": tiny_dataset}
+
