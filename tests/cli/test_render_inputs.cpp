@@ -1,5 +1,7 @@
 // End-to-end: where the frames come from (Cityscapes walk with camera intrinsics, list files,
 // the built-in demo) and the informational options.
+#include <algorithm>
+#include <map>
 #include <set>
 
 #include "cli_test_util.h"
@@ -74,6 +76,126 @@ TEST(RenderCityscapes, SplitAllFindsEveryFrame) {
   }
   EXPECT_EQ(per_split, (std::map<std::string, int>{{"train", 6}, {"val", 2}}));
   EXPECT_EQ(sample_files(tmp / "out").size(), 3u * 8);
+}
+
+// The tests above need the real mini set; these run everywhere, on a generated folder in the
+// Cityscapes layout (leftImg8bit/<split>/<city>/<city>_<seq>_000019_leftImg8bit.png, and
+// camera/<split>/<city>/<city>_<seq>_000019_camera.json) with made-up intrinsics, different
+// for every frame, so that each frame must get its own file's.
+struct GeneratedFrame {
+  std::string split, city;
+  int seq;
+  bool has_camera;
+  double fx, fy, u0, v0;  // at the generated 256x128
+  std::string stem() const {
+    char s[64];
+    std::snprintf(s, sizeof s, "%s_%06d_000019", city.c_str(), seq);
+    return s;
+  }
+};
+
+const std::vector<GeneratedFrame> kGeneratedFrames = {
+    {"train", "bochum", 3, true, 301.5, 302.25, 131.75, 62.5},
+    {"train", "bochum", 11, true, 288.0, 289.125, 124.5, 66.25},
+    {"train", "zurich", 0, false, 0, 0, 0, 0},  // no camera file: the default camera
+    {"val", "lindau", 0, true, 279.75, 281.5, 120.25, 60.75},
+    {"val", "lindau", 1, true, 310.25, 309.0, 135.5, 64.0},
+    {"test", "berlin", 7, true, 295.0, 296.5, 126.0, 63.5},
+};
+
+void make_generated_cityscapes(const fs::path& root) {
+  int seed = 0;
+  for (const auto& f : kGeneratedFrames) {
+    write_image(root / "leftImg8bit" / f.split / f.city / (f.stem() + "_leftImg8bit.png"), make_background(256, 128, seed++));
+    if (!f.has_camera) continue;
+    const json cam = {{"extrinsic", {{"baseline", 0.21}, {"pitch", 0.04}, {"roll", 0.0}, {"x", 1.7}, {"y", 0.1}, {"yaw", -0.02}, {"z", 1.2}}},
+                      {"intrinsic", {{"fx", f.fx}, {"fy", f.fy}, {"u0", f.u0}, {"v0", f.v0}}}};
+    const fs::path file = root / "camera" / f.split / f.city / (f.stem() + "_camera.json");
+    fs::create_directories(file.parent_path());
+    write_file(file, cam.dump(4));
+  }
+}
+
+// Checks each record's split, source and camera against the generated frame it names;
+// rendered at 128x64, half the generated size.
+void expect_generated_records(const std::vector<json>& records) {
+  for (const auto& rec : records) {
+    const std::string id = rec.at("id");
+    SCOPED_TRACE(id);
+    const auto f = std::find_if(kGeneratedFrames.begin(), kGeneratedFrames.end(),
+                                [&](const GeneratedFrame& g) { return g.stem() + "_v00" == id; });
+    ASSERT_NE(f, kGeneratedFrames.end()) << "no generated frame has this id";
+    EXPECT_EQ(rec.at("split"), f->split);
+    const std::string source = rec.at("source");
+    EXPECT_NE(source.find("leftImg8bit/" + f->split + "/" + f->city + "/" + f->stem() + "_leftImg8bit.png"),
+              std::string::npos)
+        << source;
+    const json& cam = rec.at("camera");
+    if (!f->has_camera) {
+      EXPECT_EQ(cam.at("origin"), "default");
+      continue;
+    }
+    EXPECT_EQ(cam.at("origin"), "cityscapes-json");
+    // Scaled by 1/2 with pixel centres at integers: c' = (c + 0.5) * s - 0.5.
+    EXPECT_NEAR(cam.at("fx").get<double>(), f->fx / 2, 1e-9);
+    EXPECT_NEAR(cam.at("fy").get<double>(), f->fy / 2, 1e-9);
+    EXPECT_NEAR(cam.at("cx").get<double>(), (f->u0 + 0.5) * 0.5 - 0.5, 1e-9);
+    EXPECT_NEAR(cam.at("cy").get<double>(), (f->v0 + 0.5) * 0.5 - 0.5, 1e-9);
+  }
+}
+
+// The generated folder in <tmp>/cs, its `split` rendered at 128x64 into <tmp>/out: the records.
+std::vector<json> render_generated_cityscapes(const TempDir& tmp, const std::string& split) {
+  make_generated_cityscapes(tmp / "cs");
+  const auto r = run_render({"--cityscapes", "cs", "--split", split, "--size", "128x64", "--out", "out", "-j", "2", "-q"},
+                            tmp.path());
+  EXPECT_EQ(r.code, 0) << r.describe();
+  return read_manifest(tmp / "out");
+}
+
+TEST(RenderCityscapes, GeneratedValSplitUsesEachFramesCameraJson) {
+  TempDir tmp;
+  const auto records = render_generated_cityscapes(tmp, "val");
+  ASSERT_EQ(records.size(), 2u);
+  expect_generated_records(records);
+  for (const auto& rec : records) {
+    for (const char* kind : {"rainy", "clean", "mask"}) {
+      const auto img = read_image(tmp / "out" / rec.at(kind).get<std::string>());
+      ASSERT_TRUE(img) << kind;
+      EXPECT_EQ(img->width, 128);
+      EXPECT_EQ(img->height, 64);
+    }
+  }
+}
+
+TEST(RenderCityscapes, GeneratedSplitAllFindsEveryFrame) {
+  TempDir tmp;
+  const auto records = render_generated_cityscapes(tmp, "all");
+  EXPECT_EQ(records.size(), kGeneratedFrames.size());
+  expect_generated_records(records);
+  std::map<std::string, int> per_split;
+  for (const auto& rec : records) ++per_split[rec.at("split").get<std::string>()];
+  EXPECT_EQ(per_split, (std::map<std::string, int>{{"test", 1}, {"train", 3}, {"val", 2}}));
+}
+
+TEST(RenderCityscapes, BadCameraJsonIsAnErrorNamingTheFile) {
+  const std::vector<std::pair<std::string, std::string>> bad = {
+      {R"({"extrinsic": {}})", "not a Cityscapes camera file"},
+      {R"({"intrinsic": {"fx": 300, "fy": 300, "u0": 128}})", "not a Cityscapes camera file"},
+      {R"({"intrinsic": {"fx": "300", "fy": 300, "u0": 128, "v0": 64}})", "not a Cityscapes camera file"},
+      {R"({"intrinsic": {"fx": -300, "fy": 300, "u0": 128, "v0": 64}})", "focal lengths must be positive"},
+      {"{not json", "not a Cityscapes camera file"}};
+  for (const auto& [text, why] : bad) {
+    SCOPED_TRACE(text);
+    TempDir tmp;
+    make_generated_cityscapes(tmp / "cs");
+    write_file(tmp / "cs" / "camera" / "val" / "lindau" / "lindau_000001_000019_camera.json", text);
+    const auto r = run_render({"--cityscapes", "cs", "--split", "val", "--out", "out", "-q"}, tmp.path());
+    expect_clean_failure(r, tmp / "out", "lindau_000001_000019_camera.json");
+    const auto lines = r.message_lines();
+    ASSERT_EQ(lines.size(), 1u) << r.describe();
+    EXPECT_NE(lines[0].find(why), std::string::npos) << lines[0];
+  }
 }
 
 TEST(RenderCityscapes, MissingLayoutIsAnError) {

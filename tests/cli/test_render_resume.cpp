@@ -207,15 +207,51 @@ TEST(RenderResume, SurvivesTwoKillsAfterATruncatedManifestLine) {
   expect_same_files(tmp / "out", tmp / "reference");
 }
 
-TEST(RenderResume, RefusesFolderRenderedWithOtherSettings) {
-  TempDir tmp;
+// Two small generated inputs in <tmp>/in, rendered once with `args` (2 variants, into out/).
+void render_two_inputs(const TempDir& tmp, const std::vector<std::string>& args) {
   write_image(tmp / "in" / "one.png", make_background(320, 160, 0));
   write_image(tmp / "in" / "two.png", make_background(256, 200, 1));
-  const std::vector<std::string> base = {"-i", "in", "--out", "out", "--variants", "2", "--seed", "4", "-j", "2", "-q"};
-  const auto first = run_render(base, tmp.path());
+  const auto first = run_render(args, tmp.path());
   ASSERT_EQ(first.code, 0) << first.describe();
-  const auto before = snapshot(tmp / "out");
   ASSERT_EQ(manifest_lines(tmp / "out").size(), 4u);
+}
+
+// Resume skips a sample only when the manifest lists it AND its files exist: a finished
+// sample that lost one image (deleted by hand, or a disk cleaned up) is rendered again, to
+// the same bytes, and the samples that are whole are left alone.
+TEST(RenderResume, ASampleMissingAnImageIsRenderedAgain) {
+  TempDir tmp;
+  const std::vector<std::string> args = {"-i", "in", "--out", "out", "--variants", "2", "--seed", "6", "-j", "2", "-q"};
+  render_two_inputs(tmp, args);
+  if (HasFatalFailure()) return;
+  const auto before = snapshot(tmp / "out");
+  for (const char* lost : {"rainy/two_v01.png", "mask/one_v00.png", "clean/two_v00.png"}) {
+    SCOPED_TRACE(lost);
+    ASSERT_TRUE(fs::remove(tmp / "out" / lost)) << "the first run did not write " << lost;
+    const auto again = run_render(args, tmp.path());
+    ASSERT_EQ(again.code, 0) << again.describe();
+    const auto counts = parse_counts(again.err);
+    ASSERT_TRUE(counts) << again.describe();
+    EXPECT_EQ(counts->rendered, 1) << again.describe();
+    EXPECT_EQ(counts->skipped, 3) << again.describe();
+    ASSERT_TRUE(fs::exists(tmp / "out" / lost)) << "not rendered again";
+    // Every image is the first run's, byte for byte (the manifest gains a line).
+    const auto after = snapshot(tmp / "out");
+    for (const auto& [name, bytes] : before) {
+      if (name == "manifest.jsonl") continue;
+      const auto it = after.find(name);
+      ASSERT_NE(it, after.end()) << name;
+      EXPECT_TRUE(it->second == bytes) << name << " differs from the first run";
+    }
+  }
+}
+
+TEST(RenderResume, RefusesFolderRenderedWithOtherSettings) {
+  TempDir tmp;
+  const std::vector<std::string> base = {"-i", "in", "--out", "out", "--variants", "2", "--seed", "4", "-j", "2", "-q"};
+  render_two_inputs(tmp, base);
+  if (HasFatalFailure()) return;
+  const auto before = snapshot(tmp / "out");
 
   const std::vector<std::vector<std::string>> changes = {
       {"--seed", "5"}, {"--scene", "full-physics"}, {"--size", "128x64"}, {"--convert"}};

@@ -154,8 +154,51 @@ TEST(Tiling, LayoutCoversAlignsOverlapsAndStaysWithinTheTile) {
             }
             ASSERT_NEAR(sum, 1.0, 1e-6) << ctx << " x " << x;
           }
+          // The seams are cross-faded, not cut: with an overlap of 4 or more every seam has
+          // pixels where both windows contribute (weights strictly between 0 and 1).
+          if (overlap >= 4) {
+            for (int j = 0; j + 1 < l.count(); ++j) {
+              int blended = 0;
+              for (int x = l.begin[j + 1]; x < l.end[j]; ++x) {
+                const float w = l.weight(j, x);
+                blended += w > 0.0f && w < 1.0f;
+              }
+              EXPECT_GT(blended, 0) << ctx << " seam " << j << ": a hard cut";
+            }
+          }
         }
       }
+    }
+  }
+}
+
+// The seam ramp itself (tiling.h): a raised cosine of half-width overlap/4 centred on the
+// cut, where overlap is the windows' actual overlap. Checked against the formula written out
+// here, on layouts whose windows are roomy enough that no ramp is narrowed by a neighbour.
+TEST(Tiling, SeamsAreRaisedCosineRampsOfAQuarterOfTheOverlap) {
+  struct Case {
+    int length, tile, overlap, align;
+  };
+  for (const Case c : {Case{2048, 1024, 128, 2}, Case{1000, 256, 16, 8}, Case{300, 96, 16, 2}, Case{777, 200, 40, 1}}) {
+    const AxisLayout l = layout_axis(c.length, c.tile, c.overlap, c.align);
+    const std::string ctx = "len " + std::to_string(c.length) + " tile " + std::to_string(c.tile) + " overlap " +
+                            std::to_string(c.overlap) + " align " + std::to_string(c.align);
+    ASSERT_GE(l.count(), 2) << ctx;
+    for (int j = 0; j + 1 < l.count(); ++j) {
+      const int overlap = l.end[j] - l.begin[j + 1];
+      const int cut = (l.begin[j + 1] + l.end[j]) / 2, r = overlap / 4;
+      ASSERT_GE(r, c.overlap / 4) << ctx;
+      EXPECT_EQ(l.cut[j], cut) << ctx;
+      int blended = 0;
+      for (int x = l.begin[j + 1]; x < l.end[j]; ++x) {
+        const double t = (x + 0.5 - (cut - r)) / (2.0 * r);
+        const double want = x < cut - r ? 1.0 : x >= cut + r ? 0.0 : 0.5 + 0.5 * std::cos(M_PI * t);
+        const float left = l.weight(j, x), right = l.weight(j + 1, x);
+        ASSERT_NEAR(left, want, 1e-6) << ctx << " seam " << j << " x " << x;
+        ASSERT_NEAR(right, 1.0 - want, 1e-6) << ctx << " seam " << j << " x " << x;
+        blended += left > 0.0f && left < 1.0f;
+      }
+      EXPECT_EQ(blended, 2 * r) << ctx << " seam " << j;
     }
   }
 }

@@ -1,5 +1,6 @@
 // Defocus blur: the fast row-run implementation equals direct summation, kernels have the
 // closed-form area and variance, only drop pixels change, and constants stay constant.
+#include <algorithm>
 #include <cmath>
 
 #include <gtest/gtest.h>
@@ -166,6 +167,55 @@ TEST(Blur, ReadingOnlyNearTracedSpansGivesTheSameResult) {
       blur_drops(f.clean, f.label, full, d, m);
       blur_drops(f.clean, f.label, near, d, m, &box, &spans);
       EXPECT_LT(max_diff_in_mask(f, full, near), 1e-5) << to_string(m) << " d " << d;
+    }
+  }
+}
+
+// The blur of a single bright drop pixel is the kernel itself, so its footprint shows the
+// disk's diameter (blur.h): for "disk" and "disk-direct" exactly the pixels whose centre is
+// within d / 2 of the point; for "disk-aa" each column holds the area of the disk of
+// diameter d between the column's edges (closed form below), over the disk's area.
+TEST(Blur, APointSpreadsToADiskOfTheGivenDiameter) {
+  constexpr int kSize = 41, kC = kSize / 2;
+  auto blurred_point = [](double d, BlurMethod m) {
+    const cv::Mat clean(kSize, kSize, CV_8UC3, cv::Scalar(0, 0, 0));
+    const cv::Mat label(kSize, kSize, CV_32S, cv::Scalar(0));  // every pixel is a drop pixel
+    cv::Mat color(kSize, kSize, CV_32FC3, cv::Scalar(0, 0, 0));
+    color.at<cv::Vec3f>(kC, kC) = cv::Vec3f(1, 1, 1);
+    blur_drops(clean, label, color, d, m);
+    cv::Mat out;
+    cv::extractChannel(color, out, 1);
+    return out;
+  };
+  // r^2 is kept away from sums of two squares, so no pixel centre lies on the rim.
+  for (double d : {6.2, 9.4, 13.1, 17.6}) {
+    const double r = d / 2;
+    for (BlurMethod m : {BlurMethod::DiskSpan, BlurMethod::DiskDirect}) {
+      const cv::Mat out = blurred_point(d, m);
+      int inside = 0;
+      for (int y = 0; y < kSize; ++y) {
+        for (int x = 0; x < kSize; ++x) {
+          const int dx = x - kC, dy = y - kC;
+          const bool in_disk = dx * dx + dy * dy <= r * r;
+          inside += in_disk;
+          ASSERT_EQ(out.at<float>(y, x) > 0, in_disk) << to_string(m) << " d " << d << " at " << dx << "," << dy;
+        }
+      }
+      EXPECT_NEAR(cv::sum(out)[0], 1.0, 1e-5) << to_string(m) << " d " << d;
+      EXPECT_NEAR(out.at<float>(kC, kC), 1.0 / inside, 1e-6) << to_string(m) << " d " << d;
+    }
+    // Area of the disk left of X: integral of the chord 2 sqrt(r^2 - t^2) from -r to X.
+    auto left_of = [r](double X) {
+      X = std::clamp(X, -r, r);
+      return X * std::sqrt(r * r - X * X) + r * r * std::asin(X / r) + r * r * M_PI / 2;
+    };
+    const cv::Mat aa = blurred_point(d, BlurMethod::DiskAntialiased);
+    for (int x = 0; x < kSize; ++x) {
+      const int dx = x - kC;
+      const double want = (left_of(dx + 0.5) - left_of(dx - 0.5)) / (M_PI * r * r);
+      // 16x16 midpoint rule per rim pixel (blur.cpp) and the normalisation by the summed areas:
+      // a few hundredths of a pixel per column.
+      EXPECT_NEAR(cv::sum(aa.col(x))[0], want, 0.06 / (M_PI * r * r)) << "disk-aa d " << d << " column " << dx;
     }
   }
 }

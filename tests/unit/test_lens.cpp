@@ -18,15 +18,23 @@ namespace {
 
 constexpr double kN = 1.333;  // the paper's index of water
 
+// The cap's geometry from its definition, independently of DropShape: a footprint of radius
+// a cut from a sphere at contact angle tau has sphere radius R = a / sin(tau) and height
+// R (1 - cos(tau)).
 struct Lens {
   GlassPlane glass;
   DropShape shape;
   std::vector<Drop> drops;
-  Lens(double n_cm, double footprint, double tau_deg) : glass(upright_glass(n_cm)), shape(cap(0, 0, footprint, tau_deg)) {
+  double R, height;
+  Lens(double n_cm, double footprint, double tau_deg)
+      : glass(upright_glass(n_cm)),
+        shape(cap(0, 0, footprint, tau_deg)),
+        R(footprint / std::sin(tau_deg * kDegToRad)),
+        height(R * (1 - std::cos(tau_deg * kDegToRad))) {
     drops.emplace_back(shape, glass);
   }
-  double apex_z() const { return glass.distance + shape.height(); }
-  double focal_length() const { return shape.sphere_radius() / (kN - 1); }
+  double apex_z() const { return glass.distance + height; }
+  double focal_length() const { return R / (kN - 1); }
 };
 
 }  // namespace
@@ -51,7 +59,7 @@ TEST_P(LensTest, CollimatedLightFocusesAtRadiusOverNMinusOne) {
   // curved vertex equals f = R / (n - 1) (the back principal plane is at that vertex).
   const Lens lens(30, 0.8, 40);
   const DropAccel accel(lens.drops, GetParam());
-  const double R = lens.shape.sphere_radius();
+  const double R = lens.R;
   const bool exact = GetParam().kind == GeometryOptions::Kind::Exact;
   double previous_focus = 1e300;
   for (double h : {1e-3 * R, 0.05 * R, 0.2 * R, 0.4 * R}) {
@@ -80,7 +88,7 @@ TEST_P(LensTest, CameraSeesAnInvertedImageAtThePredictedMagnification) {
   const double N = 30, T = 1000;
   const Lens lens(N, 0.8, 40);
   const DropAccel accel(lens.drops, GetParam());
-  const double t = lens.shape.height(), f = lens.focal_length();
+  const double t = lens.height, f = lens.focal_length();
   const double theta = 1e-5;
   const double y2 = N * theta + t * theta / kN;
   const double expected_m = (y2 + (T - N - t) * (theta - y2 / f)) / (T * theta);
@@ -108,7 +116,7 @@ TEST_P(LensTest, DarkBandStartsWhereTheCapIsHitBeyondTheCriticalAngle) {
   // for y > R / n. tau = 70 deg so the footprint (R sin tau) reaches past R / n.
   const Lens lens(30, 0.8, 70);
   const DropAccel accel(lens.drops, GetParam());
-  const double R = lens.shape.sphere_radius();
+  const double R = lens.R;
   const double y_critical = R / kN;
   ASSERT_LT(y_critical, lens.shape.footprint_radius);
   const bool exact = GetParam().kind == GeometryOptions::Kind::Exact;
@@ -150,7 +158,7 @@ double projected_silhouette_area(const Drop& drop, const Camera& cam) {
   return cv::contourArea(hull);
 }
 
-double mask_area(const Camera& cam, const GlassPlane& glass, const DropShape& shape, const GeometryOptions& geometry) {
+cv::Mat render_mask(const Camera& cam, const GlassPlane& glass, const DropShape& shape, const GeometryOptions& geometry) {
   SceneConfig config = scene_preset("paper");
   config.blur.enabled = false;
   config.geometry = geometry;
@@ -159,8 +167,11 @@ double mask_area(const Camera& cam, const GlassPlane& glass, const DropShape& sh
   scene.background_distance_cm = 1000;
   scene.drops = {shape};
   const cv::Mat clean(cam.height, cam.width, CV_8UC3, cv::Scalar(90, 120, 150));
-  const RenderedFrame f = render_frame(clean, cam, config, scene);
-  return cv::countNonZero(f.mask);
+  return render_frame(clean, cam, config, scene).mask;
+}
+
+double mask_area(const Camera& cam, const GlassPlane& glass, const DropShape& shape, const GeometryOptions& geometry) {
+  return cv::countNonZero(render_mask(cam, glass, shape, geometry));
 }
 
 }  // namespace
@@ -177,6 +188,47 @@ TEST_P(MaskAreaTest, HeadOnTheMaskIsTheProjectedFootprintCircle) {
   for (const glm::dvec2 c : {glm::dvec2(0, 0), glm::dvec2(8, 3), glm::dvec2(-9, -6)}) {
     const double area = mask_area(cam, upright_glass(N), cap(c.x, c.y, a, 40), GetParam());
     EXPECT_NEAR(area / expected, 1.0, 0.01) << "centre " << c.x << "," << c.y;
+  }
+}
+
+TEST_P(MaskAreaTest, HeadOnTheMaskIsCentredWhereThePinholeProjectsTheDrop) {
+  // The area tests above cannot see a mask in the wrong place. Glass parallel to the image
+  // plane: the mask is the projected footprint, centred on the projection of the footprint
+  // centre (u, v, N), which the pinhole model puts at (fx u / N + cx, fy v / N + cy) with
+  // pixel centres at integer coordinates (camera.h). Sampled at pixel centres, a disc of
+  // ~20 px radius has its centroid up to ~0.05 px off its true centre; that offset is
+  // computed here from the same model (the pixels whose centre's ray, (x - cx) / fx and
+  // (y - cy) / fy at depth N, meets the footprint disc), so the mask's centroid is checked
+  // to 0.02 px. A camera ray off by half a pixel moves it by half a pixel.
+  Camera cam = camera(360, 280, 430);
+  cam.fy = 437.5;  // fx != fy and a principal point off the image centre, so neither is confused
+  cam.cx = 171.37;
+  cam.cy = 146.81;
+  const double N = 30, a = 1.4;
+  for (const glm::dvec2 c : {glm::dvec2(0.113, -0.271), glm::dvec2(7.31, 4.17), glm::dvec2(-8.93, -5.62)}) {
+    SCOPED_TRACE("centre " + std::to_string(c.x) + "," + std::to_string(c.y));
+    const cv::Mat mask = render_mask(cam, upright_glass(N), cap(c.x, c.y, a, 30), GetParam());
+    const cv::Moments m = cv::moments(mask, /*binaryImage=*/true);
+    ASSERT_GT(m.m00, 0);
+    const double got_x = m.m10 / m.m00, got_y = m.m01 / m.m00;
+    const double want_x = cam.fx * c.x / N + cam.cx, want_y = cam.fy * c.y / N + cam.cy;
+    double n = 0, sx = 0, sy = 0;
+    for (int y = 0; y < cam.height; ++y) {
+      for (int x = 0; x < cam.width; ++x) {
+        const double gx = (x - cam.cx) / cam.fx * N - c.x, gy = (y - cam.cy) / cam.fy * N - c.y;
+        if (gx * gx + gy * gy > a * a) continue;
+        n += 1;
+        sx += x;
+        sy += y;
+      }
+    }
+    ASSERT_GT(n, 0);
+    EXPECT_NEAR(sx / n, want_x, 0.06) << "the pixel-centre sampling offset is larger than expected";
+    EXPECT_NEAR(sy / n, want_y, 0.06) << "the pixel-centre sampling offset is larger than expected";
+    EXPECT_NEAR(got_x, sx / n, 0.02) << "projected centre x " << want_x;
+    EXPECT_NEAR(got_y, sy / n, 0.02) << "projected centre y " << want_y;
+    EXPECT_NEAR(got_x, want_x, 0.07);
+    EXPECT_NEAR(got_y, want_y, 0.07);
   }
 }
 

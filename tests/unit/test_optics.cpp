@@ -48,12 +48,20 @@ TEST(Optics, TotalInternalReflectionStartsAtTheCriticalAngle) {
   // Water to air (eta = n): refracts just below, reflects just above.
   EXPECT_TRUE(refract(incident(critical - 1e-9), kNormal, kWaterIndex));
   EXPECT_FALSE(refract(incident(critical + 1e-9), kNormal, kWaterIndex));
-  // Exactly at it the ray leaves tangent to the surface, finite.
-  const auto grazing = refract(incident(critical), kNormal, kWaterIndex);
-  if (grazing) {
-    EXPECT_NEAR(std::abs(grazing->z), 0, 1e-6);
-    EXPECT_TRUE(std::isfinite(grazing->x));
-  }
+  // At it the ray leaves tangent to the surface, finite. asin(1/n) rounds to either side of
+  // the true critical angle: step down by ulps to the largest angle that still refracts,
+  // and check (from Snell's law, outside the function under test) that it is grazing.
+  double at = critical;
+  for (int i = 0; i < 16 && kWaterIndex * std::sin(at) > 1.0; ++i) at = std::nextafter(at, 0.0);
+  const double sin_t = kWaterIndex * std::sin(at);
+  ASSERT_LE(sin_t, 1.0);
+  ASSERT_GT(sin_t, 1.0 - 1e-14) << "not a grazing ray";
+  const auto grazing = refract(incident(at), kNormal, kWaterIndex);
+  ASSERT_TRUE(grazing) << "a ray that refracts, just, was reported as totally reflected";
+  EXPECT_TRUE(std::isfinite(grazing->x) && std::isfinite(grazing->y) && std::isfinite(grazing->z));
+  EXPECT_NEAR(grazing->z, 0, 1e-6);
+  EXPECT_NEAR(grazing->x, 1, 1e-12);
+  EXPECT_NEAR(glm::length(*grazing), 1.0, 1e-12);
   EXPECT_DOUBLE_EQ(fresnel_reflectance(std::cos(critical + 1e-9), kWaterIndex), 1.0);
 }
 

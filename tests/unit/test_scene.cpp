@@ -1,4 +1,5 @@
 // Scene files, presets, sampling and framing.
+#include <algorithm>
 #include <cmath>
 #include <fstream>
 #include <set>
@@ -9,6 +10,7 @@
 #include <gtest/gtest.h>
 #include <tbb/task_arena.h>
 
+#include "raindrop/blur.h"
 #include "raindrop/error.h"
 #include "raindrop/framing.h"
 #include "raindrop/manifest.h"
@@ -201,6 +203,45 @@ TEST(Rendering, RainyEqualsCleanOutsideTheMaskAndThreadsDoNotMatter) {
   cv::Mat not_binary = (one.mask != 0) & (one.mask != 255);
   EXPECT_EQ(cv::countNonZero(not_binary), 0);
   EXPECT_GT(cv::countNonZero(one.mask), 0);
+}
+
+// The renderer blurs the drops with the scene's diameter (at the output resolution, as drawn
+// from diameter_px_2048): its rainy pixels are the traced colours blurred by blur_drops at
+// exactly scene.blur_diameter_px (whose kernel test_blur.cpp pins), rounded to 8 bits.
+TEST(Rendering, DropsAreBlurredWithTheScenesDiameter) {
+  SceneConfig c = scene_preset("paper");
+  ASSERT_TRUE(c.blur.enabled);
+  const Camera cam = camera(256, 128, 283);
+  Rng rng(8);
+  SceneSample scene = sample_scene(c, cam, rng);
+  EXPECT_GE(scene.blur_diameter_px, 7 * 256 / 2048.0);  // the paper's 7-20 px at 2048
+  EXPECT_LE(scene.blur_diameter_px, 20 * 256 / 2048.0);
+  scene.blur_diameter_px = 6.3;  // wide enough that 10% more or less shows in 8 bits
+  cv::Mat clean(cam.height, cam.width, CV_8UC3);
+  cv::randu(clean, 0, 256);
+  const RenderedFrame f = render_frame(clean, cam, c, scene);
+  std::vector<Drop> drops;
+  for (const auto& d : scene.drops) drops.emplace_back(d, scene.glass);
+  const DropAccel accel(drops, c.geometry);
+  auto blurred_at = [&](double d) {
+    TraceResult t = trace_drops(clean, cam, c, scene, accel);
+    blur_drops(clean, t.label, t.color, d, c.blur.method);
+    cv::Mat out = clean.clone();
+    for (int y = 0; y < cam.height; ++y)
+      for (int x = 0; x < cam.width; ++x)
+        if (t.label.at<int>(y, x) >= 0)
+          for (int k = 0; k < 3; ++k)
+            out.at<cv::Vec3b>(y, x)[k] = static_cast<std::uint8_t>(
+                std::floor(std::clamp(t.color.at<cv::Vec3f>(y, x)[k], 0.0f, 1.0f) * 255.0f + 0.5f));
+    return out;
+  };
+  ASSERT_GT(cv::countNonZero(f.mask), 1000);
+  EXPECT_LE(cv::norm(f.rainy, blurred_at(6.3), cv::NORM_INF), 1);
+  for (double other : {5.7, 6.9}) {
+    cv::Mat diff;
+    cv::absdiff(f.rainy, blurred_at(other), diff);
+    EXPECT_GT(cv::countNonZero(diff.reshape(1) > 1), 100) << "diameter " << other << " gives the same image";
+  }
 }
 
 TEST(Manifest, ATruncatedLastLineIsIgnoredAndABadMiddleLineIsAnError) {

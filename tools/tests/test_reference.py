@@ -135,10 +135,10 @@ def test_cli_writes_image_and_mask(tmp_path):
     np.testing.assert_array_equal(m, want.mask * 255)
 
 
-def test_cli_as_a_module_with_options(tmp_path):
+def test_cli_as_a_module_with_options(tmp_path, fixture_remover):
     img = procedural_image(20, 30, 4)
-    src, out = tmp_path / "in.png", tmp_path / "out.png"
-    cv2.imwrite(str(src), img)
+    src, out, mask = tmp_path / "in.png", tmp_path / "out.png", tmp_path / "m.png"
+    cv2.imwrite(str(src), cv2.cvtColor(img, cv2.COLOR_RGB2BGR))
     r = subprocess.run(
         [
             sys.executable,
@@ -152,6 +152,8 @@ def test_cli_as_a_module_with_options(tmp_path):
             "0.3",
             "--dilation",
             "1",
+            "--mask",
+            str(mask),
             "-v",
             "--threads",
             "1",
@@ -162,6 +164,15 @@ def test_cli_as_a_module_with_options(tmp_path):
     assert r.returncode == 0, r.stderr
     assert "20" in r.stdout and "ms" in r.stdout
     assert cv2.imread(str(out)).shape == (20, 30, 3)
+    # The options reach the pipeline: the files are the library's result with the same
+    # non-default threshold and dilation, which differs from the models' defaults (0.2, 3).
+    want = fixture_remover.remove(img, threshold=0.3, dilation=1)
+    default = fixture_remover.remove(img)
+    assert not np.array_equal(want.mask, default.mask)
+    assert not np.array_equal(want.output, default.output)
+    got = cv2.cvtColor(cv2.imread(str(out), cv2.IMREAD_UNCHANGED), cv2.COLOR_BGR2RGB)
+    np.testing.assert_array_equal(got, want.output)
+    np.testing.assert_array_equal(cv2.imread(str(mask), cv2.IMREAD_UNCHANGED), want.mask * 255)
 
 
 def test_errors_are_reported(tmp_path, capsys):
