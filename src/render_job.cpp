@@ -10,6 +10,7 @@
 #include <cstring>
 #include <map>
 #include <mutex>
+#include <optional>
 
 #include <fcntl.h>
 #include <sys/file.h>
@@ -211,13 +212,15 @@ RenderSummary render_dataset(const std::vector<InputImage>& inputs, const Render
   const auto start = std::chrono::steady_clock::now();
   if (o.variants < 1) throw Error("--variants must be at least 1");
   check_unique_ids(inputs);
-  ensure_writable_dir(o.out_dir);
-  const OutputLock folder_lock(o.out_dir);  // before anything in the folder is touched
-  std::vector<std::string> subs{"", "rainy", "clean", "mask"};
-  if (o.scene.lens.enabled) subs.push_back("alpha");
-  for (const auto& sub : subs) {
-    ensure_writable_dir(o.out_dir / sub);
-    remove_stale_temporaries(o.out_dir / sub);
+  // A refused run writes nothing. A folder that exists is locked before its manifest is read
+  // (the lock file goes when the run ends); a new folder is made only once every input's
+  // header has passed (below).
+  std::error_code ec;
+  const bool existed = fs::exists(o.out_dir, ec);
+  std::optional<OutputLock> folder_lock;
+  if (existed) {
+    ensure_writable_dir(o.out_dir);
+    folder_lock.emplace(o.out_dir);
   }
   const fs::path manifest_path = o.out_dir / "manifest.jsonl";
   const std::string job = job_fingerprint(o);
@@ -255,15 +258,15 @@ RenderSummary render_dataset(const std::vector<InputImage>& inputs, const Render
   tbb::global_control limit(tbb::global_control::max_allowed_parallelism, static_cast<size_t>(threads));
   tbb::task_arena arena(threads);
 
-  // Check every input's header before writing anything, so that a bad file in a large run is
-  // reported at once rather than hours in.
+  // Check every input's header (readable, size, depth, channels: all that read_rgb8 refuses
+  // without decoding) before writing anything, so that a refused file in a large run is
+  // reported at once rather than hours in, and leaves no folder, manifest or sample behind.
   if (!o.keep_going) {
     std::vector<std::string> header_errors(tasks.size());
     arena.execute([&] {
       tbb::parallel_for(size_t{0}, tasks.size(), [&](size_t i) {
         try {
-          const ImageHeader h = read_header(tasks[i].input->path);
-          (void)h;
+          check_rgb8_header(tasks[i].input->path, o.convert);
         } catch (const Error& e) {
           header_errors[i] = e.what();
         }
@@ -272,6 +275,20 @@ RenderSummary render_dataset(const std::vector<InputImage>& inputs, const Render
     for (const auto& e : header_errors) {
       if (!e.empty()) throw Error(e);
     }
+  }
+  if (!existed) {
+    ensure_writable_dir(o.out_dir);
+    folder_lock.emplace(o.out_dir);
+    // Another run may have made and filled the folder meanwhile: its manifest was not read.
+    if (fs::exists(manifest_path, ec))
+      throw Error("output folder '" + o.out_dir.string() + "' was created by another run while this one started; run again");
+  }
+  std::vector<std::string> subs{"rainy", "clean", "mask"};
+  if (o.scene.lens.enabled) subs.push_back("alpha");
+  remove_stale_temporaries(o.out_dir);
+  for (const auto& sub : subs) {
+    ensure_writable_dir(o.out_dir / sub);
+    remove_stale_temporaries(o.out_dir / sub);
   }
 
   std::int64_t todo = 0;

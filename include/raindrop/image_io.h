@@ -29,6 +29,12 @@ ImageHeader read_header(const std::filesystem::path& path);
 // Images smaller than `min_size` on a side are refused. Truncated files are errors.
 cv::Mat read_rgb8(const std::filesystem::path& path, bool convert, int min_size = 16);
 
+// Throws the Error read_rgb8 would throw for what the file's header shows (missing, empty,
+// unreadable or structurally broken, too large or too small, a depth or channel count it
+// refuses), without decoding the pixels: cheap enough to check every input of a run before
+// its first write. Damage inside the pixel data is found only by read_rgb8.
+void check_rgb8_header(const std::filesystem::path& path, bool convert, int min_size = 16);
+
 // The image with its own channels (1-4) and depth: CV_8U or CV_16U (float inputs become
 // CV_16U). For raindrop-remove, which keeps size, channels and bit depth.
 cv::Mat read_image_native(const std::filesystem::path& path, int min_size = 1);
