@@ -25,8 +25,6 @@ namespace raindrop {
 namespace fs = std::filesystem;
 namespace {
 
-constexpr double kMaxPixels = 1 << 28;
-
 std::string quoted(const fs::path& p) { return "'" + p.string() + "'"; }
 
 // First line of an OIIO error message (they can be multi-line).
@@ -169,7 +167,7 @@ void check_png_structure(const fs::path& path, std::uintmax_t size, bool check_d
     throw Error(bad_ihdr + "compression, filter or interlace method)");
   if (colour == 3 && !palette) throw Error(quoted(path) + ": corrupt PNG (palette image without a PLTE before its data)");
   // A declared size past the pixel limit is refused by open_input before anything is inflated.
-  if (static_cast<double>(width) * height > kMaxPixels || !check_data) return;
+  if (static_cast<double>(width) * height > kMaxImagePixels || !check_data) return;
   check_png_image_data(path, idat, png_rows(width, height, c->second.first * depth, ihdr[12] == 1));
 }
 
@@ -190,10 +188,10 @@ std::unique_ptr<OIIO::ImageInput> open_input(const fs::path& path, OIIO::ImageSp
   *spec = in->spec();
   if (spec->width <= 0 || spec->height <= 0 || spec->nchannels <= 0)
     throw Error(quoted(path) + ": image has no pixels");
-  // A declared size beyond 2^28 pixels (16384 x 16384) is refused before allocating.
-  if (static_cast<double>(spec->width) * spec->height > kMaxPixels)
-    throw Error(quoted(path) + ": declared size " + std::to_string(spec->width) + "x" +
-                std::to_string(spec->height) + " exceeds the 268 megapixel limit");
+  // From the header, before any pixel is decoded or allocated (image_io.h: kMaxImagePixels).
+  if (static_cast<double>(spec->width) * spec->height > kMaxImagePixels)
+    throw Error(quoted(path) + ": image is " + std::to_string(spec->width) + "x" + std::to_string(spec->height) +
+                ", which exceeds the input limit of 2^26 pixels (67 megapixels, e.g. 8192x8192)");
   return in;
 }
 

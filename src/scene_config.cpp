@@ -2,6 +2,7 @@
 
 #include <cmath>
 #include <fstream>
+#include <iomanip>
 #include <map>
 #include <set>
 #include <sstream>
@@ -255,7 +256,19 @@ SceneConfig parse_scene_json(const std::string& text, const std::string& origin)
 
   if (r.has("quality")) {
     Reader q = r.child("quality");
-    c.geometry = GeometryOptions::parse(q.string("geometry", "exact"));
+    try {
+      c.geometry = GeometryOptions::parse(q.string("geometry", "exact"));
+    } catch (const Error& e) {
+      q.fail(e.what());  // with the file's name
+    }
+    const double mesh_bytes = c.geometry.mesh_bytes_per_drop() * c.drop_count.hi;
+    if (mesh_bytes > kMaxMeshBytes) {
+      std::ostringstream m;
+      m << std::fixed << std::setprecision(1) << "'geometry' = '" << c.geometry.describe() << "' with up to "
+        << static_cast<long long>(c.drop_count.hi) << " drops takes about " << mesh_bytes / (1 << 30) << " GB of mesh a sample, more than the "
+        << kMaxMeshBytes / (1 << 30) << " GB limit; use fewer segments or drops";
+      q.fail(m.str());
+    }
     double spp = c.samples_per_pixel;
     q.number("samples_per_pixel", &spp, 1, 256);
     const int side = static_cast<int>(std::lround(std::sqrt(spp)));

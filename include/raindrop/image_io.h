@@ -5,12 +5,20 @@
 // Writes are atomic: the image goes to a hidden temporary file in the destination folder
 // and is renamed over the final name only when complete, so an interrupted run never leaves
 // a half-written image under a final name.
+#include <cstdint>
 #include <filesystem>
 #include <string>
 
 #include <opencv2/core.hpp>
 
 namespace raindrop {
+
+// The largest image either program reads: 2^26 pixels (67 megapixels, e.g. 8192 x 8192; a
+// 50-megapixel camera's 8160 x 6120 fits). Refused from the header, before anything is
+// decoded: a PNG of a few hundred KB can declare 16000 x 16000, and rendering that took 3 GB
+// (several full-frame copies per worker) and raindrop-remove needs tens of bytes a pixel
+// more. At the limit the renderer needs under 1 GB a worker. The same limit in both programs.
+inline constexpr std::int64_t kMaxImagePixels = std::int64_t{1} << 26;
 
 struct ImageHeader {
   int width = 0, height = 0, channels = 0;
