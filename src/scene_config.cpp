@@ -162,7 +162,8 @@ SceneConfig parse_scene_json(const std::string& text, const std::string& origin)
   json j;
   try {
     j = json::parse(text, nullptr, /*allow_exceptions=*/true, /*ignore_comments=*/true);
-  } catch (const json::parse_error& e) {
+  } catch (const json::exception& e) {
+    // Not only parse_error: a number too large for a double (1e309) is an out_of_range.
     throw Error("scene " + origin + ": not valid JSON (" + std::string(e.what()) + ")");
   }
   Reader r(j, "", origin);

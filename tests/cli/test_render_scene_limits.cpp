@@ -1,5 +1,6 @@
-// End-to-end: scene files that would make raindrop-render run out of memory or time are refused
-// up front with one line naming the file, exit code 1, and nothing written.
+// End-to-end: scene files that would make raindrop-render run out of memory or time, or that
+// the JSON parser cannot hold, are refused up front with one line naming the file, exit code 1,
+// and nothing written.
 #include "cli_test_util.h"
 
 namespace clitest {
@@ -28,6 +29,15 @@ TEST(RenderSceneLimit, MeshMemoryIsBounded) {
       tmp, R"({"name": "many", "drop_count": [100, 500], "quality": {"geometry": "mesh-256-smooth"}})");
   expect_clean_failure(r, tmp / "out", "scene.json");
   EXPECT_NE(r.err.find("GB"), std::string::npos) << r.describe();
+  EXPECT_FALSE(fs::exists(tmp / "out"));
+}
+
+// 1e309 is valid JSON but no double: the parser's out_of_range was printed without the file.
+TEST(RenderSceneLimit, NumberTooLargeNamesTheFile) {
+  TempDir tmp;
+  const auto r = render_with_scene(tmp, R"({"name": "huge", "glass_distance_cm": 1e309})");
+  expect_clean_failure(r, tmp / "out", "scene.json");
+  EXPECT_NE(r.err.find("1e309"), std::string::npos) << r.describe();
   EXPECT_FALSE(fs::exists(tmp / "out"));
 }
 
