@@ -201,7 +201,7 @@ int run(int argc, char** argv) {
   app.add_option("--threshold", threshold, "Detection threshold on the RDN probability (default: the models')")
       ->check(CLI::Range(0.0, 1.0));
   app.add_option("--dilation", dilation, "Mask dilation size k (elliptical k x k; 1: none; default: the models')")
-      ->check(CLI::Range(1, 1023));
+      ->check(CLI::Range(1, kMaxDilation));
   app.add_option("-j,--threads", threads, "CPU threads (0: one per core; more than the cores: capped, with a warning); with 2 or more, RDN and 3RN run side by side on half each")
       ->capture_default_str()->check(CLI::Range(0, 1024));
   app.add_option("--device", device, "Execution device")->capture_default_str()->check(CLI::IsMember({"cpu", "cuda"}));
