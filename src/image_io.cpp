@@ -316,7 +316,7 @@ cv::Mat read_image_native(const fs::path& path, int min_size) {
   return img;
 }
 
-void write_image_atomic(const cv::Mat& image, const fs::path& path, int png_level) {
+std::string write_image_atomic(const cv::Mat& image, const fs::path& path, int png_level) {
   CV_Assert(image.depth() == CV_8U || image.depth() == CV_16U);
   const fs::path dir = path.has_parent_path() ? path.parent_path() : fs::path(".");
   const fs::path tmp = dir / temp_name_for(path);
@@ -329,8 +329,20 @@ void write_image_atomic(const cv::Mat& image, const fs::path& path, int png_leve
   if (data.channels() == 4) spec.alpha_channel = 3;
   spec.attribute("png:compressionLevel", std::min(std::max(png_level, 0), 9));
   if (data.channels() == 4 || data.channels() == 2) spec.attribute("oiio:UnassociatedAlpha", 1);
-  bool ok = out->open(tmp.string(), spec) &&
-            out->write_image(data.depth() == CV_8U ? OIIO::TypeDesc::UINT8 : OIIO::TypeDesc::UINT16, data.data);
+  bool ok = out->open(tmp.string(), spec);
+  // What the format cannot hold, known once its writer has opened: it lowers its own spec's
+  // depth (JPEG, BMP, WebP store 8 bits) and says whether it stores alpha (JPEG does not).
+  std::string lost;
+  if (ok) {
+    const bool depth = out->spec().format.size() < spec.format.size();
+    const bool alpha = (data.channels() == 2 || data.channels() == 4) && !out->supports("alpha");
+    static const char* const kChannels[] = {"", "grey", "grey+alpha", "RGB", "RGBA"};
+    if (depth || alpha)
+      lost = std::string(out->format_name()) + " cannot hold this " + std::to_string(spec.format.size() * 8) + "-bit " +
+             kChannels[data.channels()] + " image: " + (depth ? "rounded to 8 bits" : "") +
+             (depth && alpha ? ", " : "") + (alpha ? "alpha dropped" : "");
+  }
+  ok = ok && out->write_image(spec.format, data.data);
   ok = out->close() && ok;
   std::error_code ec;
   if (!ok) {
@@ -339,6 +351,7 @@ void write_image_atomic(const cv::Mat& image, const fs::path& path, int png_leve
     throw Error(quoted(path) + ": cannot write (" + why + ")");
   }
   move_into_place(tmp, path);
+  return lost;
 }
 
 void check_image_destination(const fs::path& path, bool folder_may_be_created) {

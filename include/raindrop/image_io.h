@@ -54,7 +54,9 @@ inline constexpr int kDefaultPngLevel = 3;
 
 // Writes CV_8U/CV_16U images with 1, 3 or 4 channels (RGB order) atomically; the format
 // comes from the extension. Throws raindrop::Error on failure, leaving no file behind.
-void write_image_atomic(const cv::Mat& image, const std::filesystem::path& path, int png_level = kDefaultPngLevel);
+// Returns what the format could not hold, in a few words (e.g. "jpeg cannot hold this 16-bit
+// RGBA image: rounded to 8 bits, alpha dropped"), or "" when the file keeps the image whole.
+std::string write_image_atomic(const cv::Mat& image, const std::filesystem::path& path, int png_level = kDefaultPngLevel);
 
 // Throws a one-line Error naming `path` if write_image_atomic could not write it: no
 // OpenImageIO writer for its extension, a folder by that name, a parent that is missing (unless

@@ -7,7 +7,8 @@
 //                                                    relative names (masks: --mask-dir DIR)
 //
 // The output keeps the input's size, channel count and bit depth (8/16-bit grey, grey+alpha,
-// RGB, RGBA; alpha is copied through). Models are found without flags (see model_paths.h):
+// RGB, RGBA; alpha is copied through) where the output format can hold them, else a warning
+// (warn_format_loss). Models are found without flags (see model_paths.h):
 // --models DIR, else $RAINDROP_MODELS, else <prefix>/share/raindrop/models/<name>, else the
 // source tree's models/<name>; <name> from --model-config or models/DEFAULT.
 //
@@ -144,6 +145,17 @@ void refuse_coinciding(const std::vector<std::pair<std::string, fs::path>>& plac
   }
 }
 
+// The output keeps the input's depth and channels when its format can hold them; writing a
+// 16-bit RGBA image as .jpg is allowed (the user chose the extension), but not silently. Said
+// once a run, on one line: in folder mode every output has its input's format anyway.
+void warn_format_loss(const fs::path& file, const std::string& lost) {
+  static bool said = false;
+  if (lost.empty() || said) return;
+  said = true;
+  std::fprintf(stderr, "raindrop-remove: warning: '%s': %s (write .png or .tif to keep it whole)\n",
+               file.string().c_str(), lost.c_str());
+}
+
 struct Settings {
   RemoveOptions options;
   bool time = false;
@@ -160,7 +172,7 @@ std::vector<cv::Mat> process(Remover& remover, const Job& job, const Settings& s
         throw Error("cannot create the folder '" + p->parent_path().string() + "' (" + ec.message() + ")");
     }
   }
-  write_image_atomic(r.image, job.output);
+  warn_format_loss(job.output, write_image_atomic(r.image, job.output));
   if (job.mask) write_image_atomic(r.mask, *job.mask);
   if (s.time) {
     const double coverage = 100.0 * cv::countNonZero(r.mask) / static_cast<double>(r.mask.total());
