@@ -172,7 +172,7 @@ SceneConfig parse_scene_json(const std::string& text, const std::string& origin)
   r.range("glass_distance_cm", &c.glass_distance_cm, 1, 1000);
   r.range("background_distance_cm", &c.background_distance_cm, 10, 1e6);
   r.range("tilt_deg", &c.tilt_deg, 15, 90);
-  r.range("drop_count", &c.drop_count, 0, 5000);
+  r.range("drop_count", &c.drop_count, 0, kMaxDropCount);
   if (c.drop_count.lo != std::floor(c.drop_count.lo) || c.drop_count.hi != std::floor(c.drop_count.hi))
     r.fail("'drop_count' must be whole numbers");
   const bool sphere = r.has("sphere_radius_cm"), footprint = r.has("footprint_radius_cm");
