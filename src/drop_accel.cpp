@@ -86,12 +86,13 @@ GeometryOptions GeometryOptions::parse(const std::string& text) {
   int segments = 0;
   char normals[16] = {0};
   if (std::sscanf(text.c_str(), "mesh-%d-%15s", &segments, normals) == 2 && segments >= 4 &&
-      segments <= 4096 && (std::string(normals) == "smooth" || std::string(normals) == "flat")) {
+      segments <= kMaxMeshSegments && (std::string(normals) == "smooth" || std::string(normals) == "flat")) {
     o.segments = segments;
     o.smooth_normals = std::string(normals) == "smooth";
     return o;
   }
-  throw Error("geometry '" + text + "' is not 'exact' or 'mesh-<segments>-smooth|flat' (segments 4..4096)");
+  throw Error("geometry '" + text + "' is not 'exact' or 'mesh-<segments>-smooth|flat' (segments 4.." +
+              std::to_string(kMaxMeshSegments) + ")");
 }
 
 struct DropAccel::Impl {

@@ -25,8 +25,6 @@ namespace raindrop {
 namespace fs = std::filesystem;
 namespace {
 
-constexpr double kMaxPixels = 1 << 28;
-
 std::string quoted(const fs::path& p) { return "'" + p.string() + "'"; }
 
 // First line of an OIIO error message (they can be multi-line).
@@ -117,8 +115,9 @@ void check_png_image_data(const fs::path& path, const std::string& idat, const s
 // OIIO sees the error, which would break the one-line-error rule. So a PNG is checked first:
 // IHDR first and valid, every chunk within the file with a valid CRC, no unknown critical
 // chunk, a palette before the data where needed, IEND at the end, and image data that
-// inflates to every declared row with valid filter types.
-void check_png_structure(const fs::path& path, std::uintmax_t size) {
+// inflates to every declared row with valid filter types (unless `check_data` is false: a
+// header check, which leaves the data to the decode).
+void check_png_structure(const fs::path& path, std::uintmax_t size, bool check_data) {
   std::ifstream f(path, std::ios::binary);
   unsigned char signature[8] = {0};
   f.read(reinterpret_cast<char*>(signature), 8);
@@ -168,17 +167,19 @@ void check_png_structure(const fs::path& path, std::uintmax_t size) {
     throw Error(bad_ihdr + "compression, filter or interlace method)");
   if (colour == 3 && !palette) throw Error(quoted(path) + ": corrupt PNG (palette image without a PLTE before its data)");
   // A declared size past the pixel limit is refused by open_input before anything is inflated.
-  if (static_cast<double>(width) * height > kMaxPixels) return;
+  if (static_cast<double>(width) * height > kMaxImagePixels || !check_data) return;
   check_png_image_data(path, idat, png_rows(width, height, c->second.first * depth, ihdr[12] == 1));
 }
 
-std::unique_ptr<OIIO::ImageInput> open_input(const fs::path& path, OIIO::ImageSpec* spec) {
+// `check_data`: false opens for the header alone (a PNG's image data is then checked by the
+// decode, not here).
+std::unique_ptr<OIIO::ImageInput> open_input(const fs::path& path, OIIO::ImageSpec* spec, bool check_data = true) {
   std::error_code ec;
   if (!fs::exists(path, ec)) throw Error(quoted(path) + ": no such file");
   if (fs::is_directory(path, ec)) throw Error(quoted(path) + ": is a folder, not an image");
   const std::uintmax_t size = fs::file_size(path, ec);
   if (ec || size == 0) throw Error(quoted(path) + ": file is empty");
-  check_png_structure(path, size);
+  check_png_structure(path, size, check_data);
   // Keep colour values as stored when there is alpha (PNG is unassociated).
   OIIO::ImageSpec config;
   config.attribute("oiio:UnassociatedAlpha", 1);
@@ -187,10 +188,10 @@ std::unique_ptr<OIIO::ImageInput> open_input(const fs::path& path, OIIO::ImageSp
   *spec = in->spec();
   if (spec->width <= 0 || spec->height <= 0 || spec->nchannels <= 0)
     throw Error(quoted(path) + ": image has no pixels");
-  // A declared size beyond 2^28 pixels (16384 x 16384) is refused before allocating.
-  if (static_cast<double>(spec->width) * spec->height > kMaxPixels)
-    throw Error(quoted(path) + ": declared size " + std::to_string(spec->width) + "x" +
-                std::to_string(spec->height) + " exceeds the 268 megapixel limit");
+  // From the header, before any pixel is decoded or allocated (image_io.h: kMaxImagePixels).
+  if (static_cast<double>(spec->width) * spec->height > kMaxImagePixels)
+    throw Error(quoted(path) + ": image is " + std::to_string(spec->width) + "x" + std::to_string(spec->height) +
+                ", which exceeds the input limit of 2^26 pixels (67 megapixels, e.g. 8192x8192)");
   return in;
 }
 
@@ -200,6 +201,27 @@ std::unique_ptr<OIIO::ImageInput> open_input(const fs::path& path, OIIO::ImageSp
 void read_pixels(OIIO::ImageInput& in, const fs::path& path, int channels, OIIO::TypeDesc type, void* data) {
   const bool ok = in.read_image(0, 0, 0, channels, type, data);
   if (!ok || in.has_error()) throw Error(quoted(path) + ": cannot decode (" + first_line(in.geterror()) + ")");
+}
+
+// What read_rgb8 refuses, from the header alone: too small, and without `convert` anything
+// but 8-bit RGB; with it, more than 4 channels.
+void check_rgb8_spec(const fs::path& path, const OIIO::ImageSpec& spec, bool convert, int min_size) {
+  const int w = spec.width, h = spec.height, nc = spec.nchannels;
+  if (w < min_size || h < min_size)
+    throw Error(quoted(path) + ": image is " + std::to_string(w) + "x" + std::to_string(h) +
+                ", smaller than the " + std::to_string(min_size) + "x" + std::to_string(min_size) + " minimum");
+  // Before the strict checks: --convert cannot help with more than 4 channels.
+  if (nc < 1 || nc > 4)
+    throw Error(quoted(path) + ": " + std::to_string(nc) + " channels are not supported (grey, grey+alpha, RGB or RGBA)");
+  if (!convert) {
+    if (spec.format != OIIO::TypeDesc::UINT8)
+      throw Error(quoted(path) + ": " + std::to_string(spec.format.size() * 8) +
+                  (spec.format.is_floating_point() ? "-bit float" : "-bit") + " image; only 8-bit RGB is rendered as is (pass --convert to round it to 8 bits)");
+    if (nc != 3)
+      throw Error(quoted(path) + ": " + std::to_string(nc) + "-channel image (" +
+                  (nc == 1 ? "grey" : nc == 4 ? "RGBA" : "grey+alpha") +
+                  "); only RGB is rendered as is (pass --convert to make it RGB)");
+  }
 }
 
 std::string temp_name_for(const fs::path& path) {
@@ -237,23 +259,18 @@ ImageHeader read_header(const fs::path& path) {
   return h;
 }
 
+void check_rgb8_header(const fs::path& path, bool convert, int min_size) {
+  OIIO::ImageSpec spec;
+  auto in = open_input(path, &spec, /*check_data=*/false);
+  check_rgb8_spec(path, spec, convert, min_size);
+  in->close();
+}
+
 cv::Mat read_rgb8(const fs::path& path, bool convert, int min_size) {
   OIIO::ImageSpec spec;
   auto in = open_input(path, &spec);
+  check_rgb8_spec(path, spec, convert, min_size);
   const int w = spec.width, h = spec.height, nc = spec.nchannels;
-  if (w < min_size || h < min_size)
-    throw Error(quoted(path) + ": image is " + std::to_string(w) + "x" + std::to_string(h) +
-                ", smaller than the " + std::to_string(min_size) + "x" + std::to_string(min_size) + " minimum");
-  if (!convert) {
-    if (spec.format != OIIO::TypeDesc::UINT8)
-      throw Error(quoted(path) + ": " + std::to_string(spec.format.size() * 8) +
-                  "-bit image; only 8-bit RGB is rendered as is (pass --convert to round it to 8 bits)");
-    if (nc != 3)
-      throw Error(quoted(path) + ": " + std::to_string(nc) + "-channel image (" +
-                  (nc == 1 ? "grey" : nc == 4 ? "RGBA" : nc == 2 ? "grey+alpha" : "unusual") +
-                  "); only RGB is rendered as is (pass --convert to make it RGB)");
-  }
-  if (nc < 1 || nc > 4) throw Error(quoted(path) + ": " + std::to_string(nc) + " channels are not supported");
   cv::Mat raw(h, w, CV_8UC(nc));
   const bool is_float = spec.format.basetype == OIIO::TypeDesc::FLOAT || spec.format.basetype == OIIO::TypeDesc::HALF ||
                         spec.format.basetype == OIIO::TypeDesc::DOUBLE;
@@ -299,7 +316,7 @@ cv::Mat read_image_native(const fs::path& path, int min_size) {
   return img;
 }
 
-void write_image_atomic(const cv::Mat& image, const fs::path& path, int png_level) {
+std::string write_image_atomic(const cv::Mat& image, const fs::path& path, int png_level) {
   CV_Assert(image.depth() == CV_8U || image.depth() == CV_16U);
   const fs::path dir = path.has_parent_path() ? path.parent_path() : fs::path(".");
   const fs::path tmp = dir / temp_name_for(path);
@@ -312,8 +329,20 @@ void write_image_atomic(const cv::Mat& image, const fs::path& path, int png_leve
   if (data.channels() == 4) spec.alpha_channel = 3;
   spec.attribute("png:compressionLevel", std::min(std::max(png_level, 0), 9));
   if (data.channels() == 4 || data.channels() == 2) spec.attribute("oiio:UnassociatedAlpha", 1);
-  bool ok = out->open(tmp.string(), spec) &&
-            out->write_image(data.depth() == CV_8U ? OIIO::TypeDesc::UINT8 : OIIO::TypeDesc::UINT16, data.data);
+  bool ok = out->open(tmp.string(), spec);
+  // What the format cannot hold, known once its writer has opened: it lowers its own spec's
+  // depth (JPEG, BMP, WebP store 8 bits) and says whether it stores alpha (JPEG does not).
+  std::string lost;
+  if (ok) {
+    const bool depth = out->spec().format.size() < spec.format.size();
+    const bool alpha = (data.channels() == 2 || data.channels() == 4) && !out->supports("alpha");
+    static const char* const kChannels[] = {"", "grey", "grey+alpha", "RGB", "RGBA"};
+    if (depth || alpha)
+      lost = std::string(out->format_name()) + " cannot hold this " + std::to_string(spec.format.size() * 8) + "-bit " +
+             kChannels[data.channels()] + " image: " + (depth ? "rounded to 8 bits" : "") +
+             (depth && alpha ? ", " : "") + (alpha ? "alpha dropped" : "");
+  }
+  ok = ok && out->write_image(spec.format, data.data);
   ok = out->close() && ok;
   std::error_code ec;
   if (!ok) {
@@ -322,6 +351,7 @@ void write_image_atomic(const cv::Mat& image, const fs::path& path, int png_leve
     throw Error(quoted(path) + ": cannot write (" + why + ")");
   }
   move_into_place(tmp, path);
+  return lost;
 }
 
 void check_image_destination(const fs::path& path, bool folder_may_be_created) {

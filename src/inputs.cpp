@@ -1,6 +1,7 @@
 #include "raindrop/inputs.h"
 
 #include <algorithm>
+#include <cstdio>
 #include <fstream>
 #include <map>
 #include <set>
@@ -13,8 +14,15 @@ namespace raindrop {
 namespace fs = std::filesystem;
 namespace {
 
+const std::set<std::string> kExt = {".png", ".jpg", ".jpeg", ".tif", ".tiff", ".exr", ".bmp", ".webp"};
+
+std::string image_extensions() {
+  std::string all;
+  for (const auto& e : kExt) all += (all.empty() ? "" : ", ") + e.substr(1);
+  return all;
+}
+
 bool is_image_name(const fs::path& p) {
-  static const std::set<std::string> kExt = {".png", ".jpg", ".jpeg", ".tif", ".tiff", ".exr", ".bmp", ".webp"};
   std::string ext = p.extension().string();
   std::transform(ext.begin(), ext.end(), ext.begin(), ::tolower);
   return kExt.count(ext) > 0;
@@ -143,6 +151,19 @@ std::vector<InputImage> find_images(const fs::path& source, const fs::path& skip
     int n = 0;
     while (std::getline(list, line)) {
       ++n;
+      // A binary file (a GIF, a video, a misnamed image) would otherwise be read as paths,
+      // and the error would print its bytes as a "file name".
+      const auto binary = std::find_if(line.begin(), line.end(), [](char c) {
+        const auto u = static_cast<unsigned char>(c);
+        return (u < 0x20 && c != '\t' && c != '\r') || u == 0x7f;
+      });
+      if (binary != line.end()) {
+        char byte[8];
+        std::snprintf(byte, sizeof byte, "0x%02x", static_cast<unsigned char>(*binary));
+        throw Error("'" + source.string() + "': not an image by its extension (" + image_extensions() +
+                    ") and not a text list of image paths (line " + std::to_string(n) + " holds the binary byte " +
+                    byte + ")");
+      }
       while (!line.empty() && (line.back() == '\r' || line.back() == ' ')) line.pop_back();
       if (line.empty() || line[0] == '#') continue;
       fs::path p = line;

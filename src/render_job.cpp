@@ -242,15 +242,22 @@ RenderSummary render_dataset(const std::vector<InputImage>& inputs, const Render
   const auto start = std::chrono::steady_clock::now();
   if (o.variants < 1) throw Error("--variants must be at least 1");
   check_unique_ids(inputs);
-  ensure_writable_dir(o.out_dir);
   const bool sharded = o.shard.sharded();
-  // Before anything in the folder is touched. Shards share the folder, each holding its own part.
-  const OutputLock folder_lock(folder_lock_path(o.out_dir), sharded, folder_description(o.out_dir));
-  std::optional<OutputLock> shard_lock;
-  if (sharded)
-    shard_lock.emplace(o.out_dir / (".raindrop-render.shard-" + std::to_string(o.shard.index) + "-of-" +
-                                    std::to_string(o.shard.count) + ".lock"),
-                       false, "shard " + o.shard.text() + " of " + folder_description(o.out_dir));
+  // A refused run writes nothing. A folder that exists is locked before its manifests are read
+  // (the lock files go when the run ends); a new folder is made, and locked, only once every
+  // input's header has passed (below). Shards share the folder, each holding its own part.
+  std::error_code ec;
+  const bool existed = fs::exists(o.out_dir, ec);
+  std::optional<OutputLock> folder_lock, shard_lock;
+  const auto lock_folder = [&] {
+    ensure_writable_dir(o.out_dir);
+    folder_lock.emplace(folder_lock_path(o.out_dir), sharded, folder_description(o.out_dir));
+    if (sharded)
+      shard_lock.emplace(o.out_dir / (".raindrop-render.shard-" + std::to_string(o.shard.index) + "-of-" +
+                                      std::to_string(o.shard.count) + ".lock"),
+                         false, "shard " + o.shard.text() + " of " + folder_description(o.out_dir));
+  };
+  if (existed) lock_folder();
   // The samples this run renders. A shard's: every variant of the inputs whose id hashes to
   // it (shard.h), so that no two shards decode one image.
   struct Task {
@@ -268,12 +275,6 @@ RenderSummary render_dataset(const std::vector<InputImage>& inputs, const Render
   std::set<std::string> own_files{manifest_file};
   for (const auto& t : tasks) {
     for (int v : t.variants) own_files.insert(variant_id(t.input->id, v) + ".png");
-  }
-  std::vector<std::string> subs{"", "rainy", "clean", "mask"};
-  if (o.scene.lens.enabled) subs.push_back("alpha");
-  for (const auto& sub : subs) {
-    ensure_writable_dir(o.out_dir / sub);
-    remove_stale_temporaries(o.out_dir / sub, sharded ? &own_files : nullptr);
   }
   const fs::path manifest_path = o.out_dir / manifest_file;
   const std::string job = job_fingerprint(o);
@@ -318,15 +319,15 @@ RenderSummary render_dataset(const std::vector<InputImage>& inputs, const Render
   tbb::global_control limit(tbb::global_control::max_allowed_parallelism, static_cast<size_t>(threads));
   tbb::task_arena arena(threads);
 
-  // Check every input's header before writing anything, so that a bad file in a large run is
-  // reported at once rather than hours in.
+  // Check every input's header (readable, size, depth, channels: all that read_rgb8 refuses
+  // without decoding) before writing anything, so that a refused file in a large run is
+  // reported at once rather than hours in, and leaves no folder, manifest or sample behind.
   if (!o.keep_going) {
     std::vector<std::string> header_errors(tasks.size());
     arena.execute([&] {
       tbb::parallel_for(size_t{0}, tasks.size(), [&](size_t i) {
         try {
-          const ImageHeader h = read_header(tasks[i].input->path);
-          (void)h;
+          check_rgb8_header(tasks[i].input->path, o.convert);
         } catch (const Error& e) {
           header_errors[i] = e.what();
         }
@@ -335,6 +336,19 @@ RenderSummary render_dataset(const std::vector<InputImage>& inputs, const Render
     for (const auto& e : header_errors) {
       if (!e.empty()) throw Error(e);
     }
+  }
+  if (!existed) {
+    lock_folder();
+    // Another run may have made and filled the folder meanwhile: its manifests were not read.
+    if (fs::exists(manifest_path, ec) || fs::exists(o.out_dir / manifest_name(Shard{}), ec) ||
+        (!sharded && !find_manifest_parts(o.out_dir).empty()))
+      throw Error("output folder '" + o.out_dir.string() + "' was created by another run while this one started; run again");
+  }
+  std::vector<std::string> subs{"", "rainy", "clean", "mask"};
+  if (o.scene.lens.enabled) subs.push_back("alpha");
+  for (const auto& sub : subs) {
+    ensure_writable_dir(o.out_dir / sub);
+    remove_stale_temporaries(o.out_dir / sub, sharded ? &own_files : nullptr);
   }
 
   std::int64_t todo = 0;
@@ -405,10 +419,7 @@ RenderSummary render_dataset(const std::vector<InputImage>& inputs, const Render
   progress.finish();
   manifest.finalize(kept);
   // Their samples are in manifest.jsonl now.
-  for (const auto& part : parts) {
-    std::error_code ec;
-    fs::remove(part.first, ec);
-  }
+  for (const auto& part : parts) fs::remove(part.first, ec);
   summary.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   return summary;
 }

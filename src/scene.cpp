@@ -54,6 +54,15 @@ SceneSample sample_scene(const SceneConfig& config, const Camera& camera, Rng& r
   struct Placed { glm::dvec2 centre; double radius; };
   std::vector<Placed> placed;
   constexpr int kAttempts = 200;
+  // Even with allow_overlap a drop may overlap at most this many placed drops, so no point of
+  // the glass lies under more than kMaxOverlaps + 1 drops. Every ray is traced through the
+  // drops over its pixel, so unbounded piles cost time without use (1000 large overlapping
+  // drops took 50 s on a 128x64 frame, 5000 more than 4 minutes on small ones), and water
+  // drops that touch merge: deep piles are not rain on glass. (Without overlaps the same test
+  // with the gap keeps the old behaviour exactly.)
+  constexpr int kMaxOverlaps = 4;
+  const int overlaps_allowed = config.allow_overlap ? kMaxOverlaps : 0;
+  const double gap = config.allow_overlap ? 0.0 : config.min_gap_cm;
   for (int i = 0; i < s.drops_requested; ++i) {
     DropShape shape;
     const double size = config.size_distribution == SizeDistribution::LogUniform
@@ -74,12 +83,11 @@ SceneSample sample_scene(const SceneConfig& config, const Camera& camera, Rng& r
       const auto t = s.glass.intersect({0, 0, 0}, camera.ray_direction(px, py));
       if (!t) continue;
       shape.center = s.glass.coords(*t * camera.ray_direction(px, py));
-      const bool clear =
-          config.allow_overlap ||
-          std::none_of(placed.begin(), placed.end(), [&](const Placed& p) {
-            return glm::length(p.centre - shape.center) < p.radius + radius + config.min_gap_cm;
-          });
-      if (!clear) continue;
+      int overlaps = 0;
+      for (const Placed& p : placed) {
+        if (glm::length(p.centre - shape.center) < p.radius + radius + gap && ++overlaps > overlaps_allowed) break;
+      }
+      if (overlaps > overlaps_allowed) continue;
       placed.push_back({shape.center, radius});
       s.drops.push_back(shape);
       break;

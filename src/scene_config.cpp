@@ -2,6 +2,7 @@
 
 #include <cmath>
 #include <fstream>
+#include <iomanip>
 #include <map>
 #include <set>
 #include <sstream>
@@ -161,7 +162,8 @@ SceneConfig parse_scene_json(const std::string& text, const std::string& origin)
   json j;
   try {
     j = json::parse(text, nullptr, /*allow_exceptions=*/true, /*ignore_comments=*/true);
-  } catch (const json::parse_error& e) {
+  } catch (const json::exception& e) {
+    // Not only parse_error: a number too large for a double (1e309) is an out_of_range.
     throw Error("scene " + origin + ": not valid JSON (" + std::string(e.what()) + ")");
   }
   Reader r(j, "", origin);
@@ -170,7 +172,7 @@ SceneConfig parse_scene_json(const std::string& text, const std::string& origin)
   r.range("glass_distance_cm", &c.glass_distance_cm, 1, 1000);
   r.range("background_distance_cm", &c.background_distance_cm, 10, 1e6);
   r.range("tilt_deg", &c.tilt_deg, 15, 90);
-  r.range("drop_count", &c.drop_count, 0, 5000);
+  r.range("drop_count", &c.drop_count, 0, kMaxDropCount);
   if (c.drop_count.lo != std::floor(c.drop_count.lo) || c.drop_count.hi != std::floor(c.drop_count.hi))
     r.fail("'drop_count' must be whole numbers");
   const bool sphere = r.has("sphere_radius_cm"), footprint = r.has("footprint_radius_cm");
@@ -255,7 +257,19 @@ SceneConfig parse_scene_json(const std::string& text, const std::string& origin)
 
   if (r.has("quality")) {
     Reader q = r.child("quality");
-    c.geometry = GeometryOptions::parse(q.string("geometry", "exact"));
+    try {
+      c.geometry = GeometryOptions::parse(q.string("geometry", "exact"));
+    } catch (const Error& e) {
+      q.fail(e.what());  // with the file's name
+    }
+    const double mesh_bytes = c.geometry.mesh_bytes_per_drop() * c.drop_count.hi;
+    if (mesh_bytes > kMaxMeshBytes) {
+      std::ostringstream m;
+      m << std::fixed << std::setprecision(1) << "'geometry' = '" << c.geometry.describe() << "' with up to "
+        << static_cast<long long>(c.drop_count.hi) << " drops takes about " << mesh_bytes / (1 << 30) << " GB of mesh a sample, more than the "
+        << kMaxMeshBytes / (1 << 30) << " GB limit; use fewer segments or drops";
+      q.fail(m.str());
+    }
     double spp = c.samples_per_pixel;
     q.number("samples_per_pixel", &spp, 1, 256);
     const int side = static_cast<int>(std::lround(std::sqrt(spp)));

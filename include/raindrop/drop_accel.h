@@ -18,10 +18,23 @@
 
 namespace raindrop {
 
+// The finest mesh: a cap of `segments` takes about segments^2 / 2 triangles, so memory grows
+// with its square ("mesh-4096-flat" passed validation and allocated until the machine killed
+// it). 256 is the unit tests' reference mesh; beyond 128 a mesh is slower than the exact caps
+// and no more accurate (docs/RESULTS.md), so finer meshes have no use.
+inline constexpr int kMaxMeshSegments = 256;
+// The most memory one sample's mesh may take (scene validation refuses more): a scene file must
+// not be able to exhaust the machine with segments x drops.
+inline constexpr double kMaxMeshBytes = 2.0 * (1 << 30);
+
 struct GeometryOptions {
   enum class Kind { Exact, Mesh } kind = Kind::Exact;
   int segments = 32;          // mesh only: triangles around the rim
   bool smooth_normals = true; // mesh only
+
+  // Memory the mesh takes per drop: measured about 70 bytes per segments^2 (vertices, normals,
+  // triangles, Embree's BVH; 4.5 MB a drop at 256); exact caps: a few hundred bytes, 0 here.
+  double mesh_bytes_per_drop() const { return kind == Kind::Mesh ? 72.0 * segments * segments : 0.0; }
 
   std::string describe() const;  // "exact", "mesh-32-smooth", ...
   static GeometryOptions parse(const std::string& text);  // inverse of describe()

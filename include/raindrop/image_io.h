@@ -5,12 +5,20 @@
 // Writes are atomic: the image goes to a hidden temporary file in the destination folder
 // and is renamed over the final name only when complete, so an interrupted run never leaves
 // a half-written image under a final name.
+#include <cstdint>
 #include <filesystem>
 #include <string>
 
 #include <opencv2/core.hpp>
 
 namespace raindrop {
+
+// The largest image either program reads: 2^26 pixels (67 megapixels, e.g. 8192 x 8192; a
+// 50-megapixel camera's 8160 x 6120 fits). Refused from the header, before anything is
+// decoded: a PNG of a few hundred KB can declare 16000 x 16000, and rendering that took 3 GB
+// (several full-frame copies per worker) and raindrop-remove needs tens of bytes a pixel
+// more. At the limit the renderer needs under 1 GB a worker. The same limit in both programs.
+inline constexpr std::int64_t kMaxImagePixels = std::int64_t{1} << 26;
 
 struct ImageHeader {
   int width = 0, height = 0, channels = 0;
@@ -29,6 +37,12 @@ ImageHeader read_header(const std::filesystem::path& path);
 // Images smaller than `min_size` on a side are refused. Truncated files are errors.
 cv::Mat read_rgb8(const std::filesystem::path& path, bool convert, int min_size = 16);
 
+// Throws the Error read_rgb8 would throw for what the file's header shows (missing, empty,
+// unreadable or structurally broken, too large or too small, a depth or channel count it
+// refuses), without decoding the pixels: cheap enough to check every input of a run before
+// its first write. Damage inside the pixel data is found only by read_rgb8.
+void check_rgb8_header(const std::filesystem::path& path, bool convert, int min_size = 16);
+
 // The image with its own channels (1-4) and depth: CV_8U or CV_16U (float inputs become
 // CV_16U). For raindrop-remove, which keeps size, channels and bit depth.
 cv::Mat read_image_native(const std::filesystem::path& path, int min_size = 1);
@@ -40,7 +54,9 @@ inline constexpr int kDefaultPngLevel = 3;
 
 // Writes CV_8U/CV_16U images with 1, 3 or 4 channels (RGB order) atomically; the format
 // comes from the extension. Throws raindrop::Error on failure, leaving no file behind.
-void write_image_atomic(const cv::Mat& image, const std::filesystem::path& path, int png_level = kDefaultPngLevel);
+// Returns what the format could not hold, in a few words (e.g. "jpeg cannot hold this 16-bit
+// RGBA image: rounded to 8 bits, alpha dropped"), or "" when the file keeps the image whole.
+std::string write_image_atomic(const cv::Mat& image, const std::filesystem::path& path, int png_level = kDefaultPngLevel);
 
 // Throws a one-line Error naming `path` if write_image_atomic could not write it: no
 // OpenImageIO writer for its extension, a folder by that name, a parent that is missing (unless

@@ -38,7 +38,8 @@ struct SceneSample {
 
 // Drop centres are uniform per unit area of glass over the region seen through the frame
 // (plus a margin, so drops may be cut by the frame edge); footprints do not overlap unless
-// the config allows it. Deterministic in the Rng state.
+// the config allows it, and then each overlaps at most 4 others (scene.cpp: kMaxOverlaps).
+// Deterministic in the Rng state.
 SceneSample sample_scene(const SceneConfig& config, const Camera& camera, Rng& rng);
 
 }  // namespace raindrop

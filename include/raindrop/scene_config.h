@@ -33,6 +33,12 @@ const char* to_string(TirMode);
 const char* to_string(SizeDistribution);
 const char* to_string(DefocusMethod);
 
+// The most drops a scene may ask for per sample. The presets ask for at most 300 and 1000
+// small drops already crowd a frame; placing each drop tests up to 200 positions against every
+// drop placed before it, and a mesh's memory grows with the count (drop_accel.h), so 5000 drops
+// made placement and rendering slow for no use.
+inline constexpr int kMaxDropCount = 1000;
+
 struct SceneConfig {
   std::string name = "paper";
 

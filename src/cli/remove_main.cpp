@@ -7,7 +7,8 @@
 //                                                    relative names (masks: --mask-dir DIR)
 //
 // The output keeps the input's size, channel count and bit depth (8/16-bit grey, grey+alpha,
-// RGB, RGBA; alpha is copied through). Models are found without flags (see model_paths.h):
+// RGB, RGBA; alpha is copied through) where the output format can hold them, else a warning
+// (warn_format_loss). Models are found without flags (see model_paths.h):
 // --models DIR, else $RAINDROP_MODELS, else <prefix>/share/raindrop/models/<name>, else the
 // source tree's models/<name>; <name> from --model-config or models/DEFAULT.
 //
@@ -145,6 +146,17 @@ void refuse_coinciding(const std::vector<std::pair<std::string, fs::path>>& plac
   }
 }
 
+// The output keeps the input's depth and channels when its format can hold them; writing a
+// 16-bit RGBA image as .jpg is allowed (the user chose the extension), but not silently. Said
+// once a run, on one line: in folder mode every output has its input's format anyway.
+void warn_format_loss(const fs::path& file, const std::string& lost) {
+  static bool said = false;
+  if (lost.empty() || said) return;
+  said = true;
+  std::fprintf(stderr, "raindrop-remove: warning: '%s': %s (write .png or .tif to keep it whole)\n",
+               file.string().c_str(), lost.c_str());
+}
+
 struct Settings {
   RemoveOptions options;
   bool time = false;
@@ -161,7 +173,7 @@ std::vector<cv::Mat> process(Remover& remover, const Job& job, const Settings& s
         throw Error("cannot create the folder '" + p->parent_path().string() + "' (" + ec.message() + ")");
     }
   }
-  write_image_atomic(r.image, job.output);
+  warn_format_loss(job.output, write_image_atomic(r.image, job.output));
   if (job.mask) write_image_atomic(r.mask, *job.mask);
   if (s.time) {
     const double coverage = 100.0 * cv::countNonZero(r.mask) / static_cast<double>(r.mask.total());
@@ -181,8 +193,9 @@ int run(int argc, char** argv) {
   app.footer(
       "Models: --models DIR, else $RAINDROP_MODELS, else <prefix>/share/raindrop/models/<name>, else the source\n"
       "tree's models/<name>; <name> is --model-config or the one line of models/DEFAULT.\n"
-      "Inputs: 8/16-bit grey, grey+alpha, RGB, RGBA of any size; the output keeps size, channels and depth\n"
-      "(grey: the networks see it as RGB, the output is its luma 0.299R+0.587G+0.114B; alpha is copied).\n"
+      "Inputs: 8/16-bit grey, grey+alpha, RGB, RGBA up to 2^26 pixels (e.g. 8192x8192); the output keeps size,\n"
+      "channels and depth (grey: the networks see it as RGB, the output is its luma 0.299R+0.587G+0.114B; alpha\n"
+      "is copied).\n"
       "Exit codes: 0 success; 1 error (one line on stderr, no partial output); 2 bad command line;\n"
       "3 folder run with --keep-going finished but some images failed.");
   std::string input, output, models_dir, model_config, mask, mask_dir, sheet, device = "cpu", graph_opt = "all",
@@ -203,7 +216,7 @@ int run(int argc, char** argv) {
   app.add_option("--threshold", threshold, "Detection threshold on the RDN probability (default: the models')")
       ->check(CLI::Range(0.0, 1.0));
   app.add_option("--dilation", dilation, "Mask dilation size k (elliptical k x k; 1: none; default: the models')")
-      ->check(CLI::Range(1, 1023));
+      ->check(CLI::Range(1, kMaxDilation));
   app.add_option("--scale", scale,
                  "Scale the networks see the image at, in (0, 1] (default: the image's long side brought to the models' "
                  "working size, 512 for the committed models; never enlarged). Outside the mask the output is the input")

@@ -188,9 +188,18 @@ Models::Models(const fs::path& dir, const SessionConfig& config) : dir_(dir), co
     multiple = std::lcm(multiple, m);
   }
   info_.pad_multiple = multiple;
-  info_.threshold = parse_double(rdn_->file(), "raindrop.threshold", rdn_->metadata().at("raindrop.threshold"));
-  info_.dilation = parse_int(rdn_->file(), "raindrop.dilation", rdn_->metadata().at("raindrop.dilation"));
-  if (info_.dilation < 1) throw Error(quoted(rdn_->file()) + ": raindrop.dilation must be >= 1");
+  // Checked here, against the same ranges as --threshold and --dilation, so that a bad value
+  // is blamed on the model file rather than on an option the user did not give.
+  const std::string threshold = rdn_->metadata().at("raindrop.threshold");
+  info_.threshold = parse_double(rdn_->file(), "raindrop.threshold", threshold);
+  if (!(info_.threshold > 0 && info_.threshold < 1))
+    throw Error(quoted(rdn_->file()) + ": metadata raindrop.threshold = " + threshold +
+                " is not a probability strictly between 0 and 1");
+  const std::string dilation = rdn_->metadata().at("raindrop.dilation");
+  info_.dilation = parse_int(rdn_->file(), "raindrop.dilation", dilation);
+  if (info_.dilation < 1 || info_.dilation > kMaxDilation)
+    throw Error(quoted(rdn_->file()) + ": metadata raindrop.dilation = " + dilation + " must be between 1 and " +
+                std::to_string(kMaxDilation));
   if (const auto it = rdn_->metadata().find("raindrop.working_size"); it != rdn_->metadata().end()) {
     info_.working_size = parse_int(rdn_->file(), "raindrop.working_size", it->second);
     if (info_.working_size < 16 || info_.working_size > 65536)

@@ -193,7 +193,9 @@ RemoveResult Remover::run_native(const cv::Mat& image, const RemoveOptions& opt)
   const double threshold = opt.threshold.value_or(info().threshold);
   if (!std::isfinite(threshold)) throw Error("--threshold must be a finite number");
   const int k = opt.dilation.value_or(info().dilation);
-  if (k < 1 || k > 1023) throw Error("--dilation must be between 1 and 1023, got " + std::to_string(k));
+  // The models' own value was checked when they loaded (Models), so a bad k here is the option's.
+  if (k < 1 || k > kMaxDilation)
+    throw Error("--dilation must be between 1 and " + std::to_string(kMaxDilation) + ", got " + std::to_string(k));
 
   const int H = image.rows, W = image.cols, m = info().pad_multiple;
   const int Hp = round_up(H, m), Wp = round_up(W, m);

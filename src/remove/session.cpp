@@ -35,7 +35,11 @@ const char* to_string(GraphOpt g) {
 Ort::Env& ort_env() {
   // Function-local static: created on first use, after main() has started, and destroyed
   // after every session (sessions are owned by objects with shorter lives).
-  static Ort::Env env(ORT_LOGGING_LEVEL_ERROR, "raindrop-remove");
+  // Logging at FATAL only: ONNX Runtime prints every failed operator (an allocation that does
+  // not fit, say) as its own coloured, multi-line log record before returning the same error
+  // as a status, which Network::run turns into our one-line message; at ERROR level the user
+  // saw both. What it reports through the API is unchanged.
+  static Ort::Env env(ORT_LOGGING_LEVEL_FATAL, "raindrop-remove");
   return env;
 }
 

@@ -231,9 +231,9 @@ TEST(RenderBadInput, NegativeSeedIsRefused) {
   EXPECT_EQ(r.code, 0) << "the largest seed is fine\n" << r.describe();
 }
 
-// The brief for an error run: one line and no progress bar. Inputs whose problem shows only
-// when the pixels are read (bit depth, channels, size, truncation) pass the header preflight
-// and fail after the progress bar has started.
+// The brief for an error run: one line and no progress bar. Bit depth, channels and size are
+// refused by the header check before the progress bar starts; only damage in the pixel data
+// (truncation) is found after it has started.
 TEST(RenderBadInput, ErrorRunPrintsNoProgressBar) {
   TempDir tmp;
   cv::Mat grey;

@@ -21,12 +21,17 @@
 
 namespace raindrop::removal {
 
+// The largest mask dilation k (a k x k ellipse), for --dilation and the models'
+// raindrop.dilation alike: the drops the networks see are 10-40 px across, so anything near
+// this is already a mistake, and a k of 99999 would dilate for minutes.
+inline constexpr int kMaxDilation = 1023;
+
 // The raindrop.* metadata the three graphs agree on.
 struct ModelInfo {
   std::string config;     // raindrop.config, e.g. "compact"
   int pad_multiple = 1;   // lcm of the graphs' raindrop.pad_multiple
-  double threshold = 0.5; // raindrop.threshold of rdn.onnx (the training default)
-  int dilation = 1;       // raindrop.dilation of rdn.onnx
+  double threshold = 0.5; // raindrop.threshold of rdn.onnx (the training default), in (0, 1)
+  int dilation = 1;       // raindrop.dilation of rdn.onnx, 1..kMaxDilation
   // Optional raindrop.working_size of rdn.onnx: the long side, in pixels, of the frames the
   // networks were trained on (working_scale.h); 512 when absent (the committed models).
   int working_size = 512;
