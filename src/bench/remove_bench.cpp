@@ -6,13 +6,17 @@
 // overlaps included).
 #include "remove_bench.h"
 
+#include <algorithm>
 #include <cstdio>
+#include <cstdlib>
 #include <filesystem>
 #include <fstream>
 #include <iostream>
 #include <optional>
 #include <string>
 #include <vector>
+
+#include <unistd.h>
 
 #include <CLI/CLI.hpp>
 #include <nlohmann/json.hpp>
@@ -21,6 +25,7 @@
 #include "bench_util.h"
 #include "raindrop/demo.h"
 #include "raindrop/error.h"
+#include "raindrop/image_io.h"
 #include "raindrop/remove/model_paths.h"
 #include "raindrop/remove/remover.h"
 
@@ -49,8 +54,10 @@ std::optional<Gflops> read_gflops(const fs::path& dir) {
 struct Row {
   std::string models, size;
   int threads = 0, tiles = 0, runs = 0;
+  double scale = 1;
   StageTimes mean;
   double wall_mean = 0, wall_median = 0;
+  double first = 0;  // the first Remover::run on this size (ONNX Runtime plans its memory then)
   std::optional<Gflops> gflop;  // for this image (scaled)
 };
 
@@ -58,6 +65,17 @@ std::string fmt(double v, const char* f = "%.1f") {
   char buf[64];
   std::snprintf(buf, sizeof buf, f, v);
   return buf;
+}
+
+// One raindrop-remove process on `input`, from fork to exit, in ms; -1 if it failed.
+double time_process(const fs::path& program, const fs::path& model_dir, const fs::path& input, const fs::path& output,
+                    int threads) {
+  const std::string cmd = "'" + program.string() + "' '" + input.string() + "' '" + output.string() + "' --models '" +
+                          model_dir.string() + "' -q -j " + std::to_string(threads);
+  const double t0 = bench::now_ms();
+  const int rc = std::system(cmd.c_str());
+  const double ms = bench::now_ms() - t0;
+  return rc == 0 ? ms : -1;
 }
 
 }  // namespace
@@ -71,6 +89,8 @@ int remove_bench(int argc, char** argv) {
   int tile = kDefaultTile, overlap = kDefaultOverlap, runs = 0;
   bool quick = false;
   std::vector<std::string> size_texts{"256x512", "1024x2048"};
+  std::optional<double> scale;
+  std::string process_size = "720x1280";
   app.add_option("--models", model_dirs, "Model folder (repeatable: one set of rows per folder; default: the one "
                                          "raindrop-remove finds)");
   app.add_option("--threads", thread_counts, "Thread counts to measure (repeatable)")->capture_default_str()
@@ -82,6 +102,11 @@ int remove_bench(int argc, char** argv) {
   app.add_option("--runs", runs, "Timed runs per row (default 20; 3 with --quick)")->check(CLI::Range(1, 1000));
   app.add_flag("--quick", quick, "3 timed runs after 1 warm-up instead of 20 after 2");
   app.add_option("--size", size_texts, "Image sizes HxW (repeatable)")->capture_default_str();
+  app.add_option("--scale", scale, "Working scale (default: raindrop-remove's, the long side brought to 512; 1: full size)")
+      ->check(CLI::Range(0.0, 1.0));
+  app.add_option("--process-size", process_size,
+                 "HxW of the image for the process-start-to-file rows (raindrop-remove run as a program; empty: none)")
+      ->capture_default_str();
   try {
     app.parse(argc, argv);
     check_tile_options(tile, overlap);
@@ -110,13 +135,23 @@ int remove_bench(int argc, char** argv) {
   RemoveOptions options;
   options.tile = tile;
   options.overlap = overlap;
+  options.scale = scale;
+  if (scale && !(*scale > 0)) {
+    std::cerr << "raindrop-bench remove: --scale must be in (0, 1]\n";
+    return 2;
+  }
 
   std::vector<Row> rows;
+  std::vector<std::pair<std::string, double>> load_ms;  // session creation per model folder and threads
   for (const auto& dir : model_dirs) {
     const auto gflops = read_gflops(dir);
     for (const int threads : thread_counts) {
       session.threads = threads;
+      const double load_t0 = bench::now_ms();
       Remover remover(dir, session);
+      load_ms.push_back({fs::path(dir).filename().string() + ", " + std::to_string(threads) + " thread" +
+                             (threads == 1 ? "" : "s"),
+                         bench::now_ms() - load_t0});
       const std::string name = remover.info().config + " (" + fs::path(dir).filename().string() + ")";
       for (const auto& size : sizes) {
         const cv::Mat image = demo_street(size.width, size.height);
@@ -133,6 +168,8 @@ int remove_bench(int argc, char** argv) {
           const double t0 = bench::now_ms();
           const RemoveResult r = remover.run(image, options);
           const double wall = bench::now_ms() - t0;
+          if (i == 0) row.first = wall;
+          row.scale = r.scale;
           if (i < warmup) continue;
           row.mean += r.times;
           walls.push_back(wall);
@@ -145,8 +182,8 @@ int remove_bench(int argc, char** argv) {
         row.wall_mean = bench::mean(walls);
         row.wall_median = bench::median(walls);
         if (gflops) {
-          const double scale = pixels / (256.0 * 512.0);
-          row.gflop = Gflops{gflops->rdn * scale, gflops->rrn * scale, gflops->rfn * scale};
+          const double ratio = pixels / (256.0 * 512.0);
+          row.gflop = Gflops{gflops->rdn * ratio, gflops->rrn * ratio, gflops->rfn * ratio};
         }
         rows.push_back(row);
       }
@@ -159,13 +196,51 @@ int remove_bench(int argc, char** argv) {
             << "). Mean of " << runs << " runs after " << warmup << " warm-up run" << (warmup == 1 ? "" : "s")
             << ", in ms; input: the built-in street image (8-bit RGB). \"other\": input conversion, tile blending and "
                "quantisation; \"total\": wall time of Remover::run.\n\n";
-  std::cout << "| models | size (HxW) | threads | tiles | edge | RDN | threshold+dilation | 3RN | blend | RFN | other | "
-               "total | median total |\n|---|---|---|---|---|---|---|---|---|---|---|---|---|\n";
+  std::cout << "| models | size (HxW) | scale | threads | tiles | edge | RDN | threshold+dilation | 3RN | blend | RFN | "
+               "other | total | median total | first run |\n|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n";
   for (const auto& r : rows) {
-    std::cout << "| " << r.models << " | " << r.size << " | " << r.threads << " | " << r.tiles << " | " << fmt(r.mean.edge)
+    std::cout << "| " << r.models << " | " << r.size << " | " << fmt(r.scale, "%.3g") << " | " << r.threads << " | "
+              << r.tiles << " | " << fmt(r.mean.edge)
               << " | " << fmt(r.mean.rdn) << " | " << fmt(r.mean.mask) << " | " << fmt(r.mean.rrn) << " | "
               << fmt(r.mean.blend) << " | " << fmt(r.mean.rfn) << " | " << fmt(r.mean.convert + r.mean.output) << " | "
-              << fmt(r.wall_mean) << " | " << fmt(r.wall_median) << " |\n";
+              << fmt(r.wall_mean) << " | " << fmt(r.wall_median) << " | " << fmt(r.first) << " |\n";
+  }
+  std::cout << "\n\"first run\": the first Remover::run on that size with a fresh session (not in the mean): ONNX "
+               "Runtime plans and allocates its buffers for a new input shape then. Session creation (loading and "
+               "optimising the three graphs), ms:";
+  for (const auto& [what, ms] : load_ms) std::cout << " " << what << " " << fmt(ms) << ";";
+  std::cout << "\n";
+  if (!process_size.empty()) {
+    int h = 0, w = 0;
+    char tail = 0;
+    if (std::sscanf(process_size.c_str(), "%dx%d%c", &h, &w, &tail) != 2 || h < 1 || w < 1 || h > 16384 || w > 16384) {
+      std::cerr << "raindrop-bench remove: --process-size '" << process_size << "' must be HEIGHTxWIDTH\n";
+      return 2;
+    }
+    std::error_code ec;
+    const fs::path program = fs::read_symlink("/proc/self/exe", ec).parent_path() / "raindrop-remove";
+    const fs::path tmp = fs::temp_directory_path() / ("raindrop-bench-" + std::to_string(::getpid()));
+    fs::create_directories(tmp);
+    write_image_atomic(demo_street(w, h), tmp / "in.png");
+    const int threads = thread_counts.back();
+    std::cout << "\n## raindrop-remove: process start to file written\n\n"
+              << "`raindrop-remove in.png out.png --models DIR -j " << threads << "` on the built-in street image, "
+              << process_size << " (HxW) PNG, run as a program: process start, model loading, decoding, removal at the "
+                 "default working scale, encoding, exit. \"first\": the first process of the bench for that model "
+                 "folder (files possibly not yet in the page cache); \"warm\": median of the next "
+              << runs << ".\n\n| models | first (ms) | warm median (ms) | warm min (ms) |\n|---|---|---|---|\n";
+    for (const auto& dir : model_dirs) {
+      std::vector<double> warm;
+      const double first = time_process(program, dir, tmp / "in.png", tmp / "out.png", threads);
+      for (int i = 0; i < runs; ++i) warm.push_back(time_process(program, dir, tmp / "in.png", tmp / "out.png", threads));
+      const bool ok = first >= 0 && std::all_of(warm.begin(), warm.end(), [](double v) { return v >= 0; });
+      std::cout << "| " << fs::path(dir).filename().string() << " | "
+                << (ok ? fmt(first) + " | " + fmt(bench::median(warm)) + " | " +
+                             fmt(*std::min_element(warm.begin(), warm.end())) + " |"
+                       : std::string("failed (") + program.string() + ") | | |")
+                << "\n";
+    }
+    fs::remove_all(tmp, ec);
   }
   std::cout << "\n## raindrop-remove: GFLOP/s\n\nGFLOPs from each model folder's export.json (at 256x512), scaled by "
                "the pixels the networks ran on (tiles and their overlaps included).\n\n"

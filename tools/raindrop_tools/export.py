@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import argparse
 import contextlib
+import dataclasses
 import datetime as _dt
 import io
 import json
@@ -231,6 +232,8 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--checkpoint", help="a specific checkpoint file (default: the run's latest)")
     ap.add_argument("--allow-incomplete", action="store_true", help="export before stage 2 has finished")
     ap.add_argument("--threads", type=int, help="torch CPU threads (default: torch's choice)")
+    ap.add_argument("--name", help="configuration name recorded in the graphs and the default folder (default: the "
+                                   "run's; e.g. a fine-tuned model shipped beside the one it started from)")
     args = ap.parse_args(argv)
     if args.threads:
         torch.set_num_threads(args.threads)
@@ -238,6 +241,8 @@ def main(argv: list[str] | None = None) -> int:
         cfg, nets, source = load_run(
             Path(args.run), Path(args.checkpoint) if args.checkpoint else None, args.allow_incomplete
         )
+        if args.name:
+            cfg = dataclasses.replace(cfg, name=args.name)
         out = Path(args.out) if args.out else Path("models") / cfg.name
         info = export_networks(cfg, nets, out, source)
     except (ExportError, OSError) as e:
