@@ -32,6 +32,11 @@ std::optional<cv::Size> parse_size(const std::string& text) {
   char tail = 0;
   if (std::sscanf(text.c_str(), "%dx%d%c", &w, &h, &tail) != 2 || w < 16 || h < 16 || w > 16384 || h > 16384)
     throw Error("--size '" + text + "' must be WIDTHxHEIGHT between 16x16 and 16384x16384, e.g. 512x256");
+  // The output is bounded like the input (image_io.h): a frame raindrop-remove and this
+  // program would refuse to read back is not worth rendering.
+  if (static_cast<std::int64_t>(w) * h > kMaxImagePixels)
+    throw Error("--size '" + text + "' has " + std::to_string(static_cast<std::int64_t>(w) * h) +
+                " pixels, more than the 2^26 (67 megapixels, e.g. 8192x8192) that both programs read");
   return cv::Size(w, h);
 }
 

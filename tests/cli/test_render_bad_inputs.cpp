@@ -191,7 +191,7 @@ TEST(RenderBadInput, UnknownScenePreset) {
 TEST(RenderBadInput, BadSizeValues) {
   TempDir tmp;
   write_image(tmp / "good.png", rgb_fixture());
-  for (const std::string size : {"abc", "512x", "512x256x", "8x8", "512x20000", "-512x256", "512*256"}) {
+  for (const std::string size : {"abc", "512x", "512x256x", "8x8", "512x20000", "-512x256", "512*256", "16384x16384", "8193x8192"}) {
     SCOPED_TRACE("--size " + size);
     const auto r = render_one(tmp, "good.png", {"--size", size});
     expect_clean_failure(r, tmp / "out", "--size");
