@@ -23,6 +23,7 @@ from typing import Callable, Iterator
 import numpy as np
 
 from .edge import edge_map_window
+from .metrics import luma_float
 from .imageio import ImageError, png_header, read_mask_strict, read_rgb_strict, to_float
 from .manifest import MANIFEST, manifest_lines
 
@@ -209,6 +210,15 @@ def check_files(
         _raise(problems, "data set refused")
 
 
+def visible_difference(rainy_u8: np.ndarray, clean_u8: np.ndarray, levels: float) -> np.ndarray:
+    """Where rainy and clean (HxWx3 uint8) visibly differ: |luma difference| after a 5x5 box
+    blur > ``levels`` 8-bit levels, as float32 0/1 (``SourceConfig.visible_levels``)."""
+    import cv2
+
+    d = np.abs(luma_float(rainy_u8) - luma_float(clean_u8)).astype(np.float32)
+    return (cv2.blur(d, (5, 5), borderType=cv2.BORDER_REPLICATE) > levels).astype(np.float32)
+
+
 class RaindropDataset:
     """Random crops (and horizontal flips) of a rendered data set.
 
@@ -231,9 +241,11 @@ class RaindropDataset:
         validate: str = "full",
         check_outside_mask: bool = True,
         log: Callable[[str], None] = print,
+        visible_levels: float = 0.0,
     ):
         self.root = Path(root)
         self.crop = int(crop)
+        self.visible_levels = float(visible_levels)
         self.flip = bool(flip)
         self.samples = read_manifest(self.root, splits)
         self._cache: dict[int, tuple[np.ndarray, np.ndarray, np.ndarray]] | None = None
@@ -289,6 +301,8 @@ class RaindropDataset:
         r = rainy_f[y0 : y0 + c, x0 : x0 + c]
         g = to_float(clean[y0 : y0 + c, x0 : x0 + c])
         m = (mask[y0 : y0 + c, x0 : x0 + c] > 127).astype(np.float32)
+        if self.visible_levels > 0:
+            m *= visible_difference(rainy[y0 : y0 + c, x0 : x0 + c], clean[y0 : y0 + c, x0 : x0 + c], self.visible_levels)
         if flip:
             r, g, m, edge = r[:, ::-1], g[:, ::-1], m[:, ::-1], edge[:, ::-1]
         return {

@@ -197,6 +197,7 @@ class Trainer:
                         validate=d.validate,
                         check_outside_mask=src.check_outside_mask,
                         log=self.log,
+                        visible_levels=src.visible_levels,
                     )
                 )
             self._dataset = MultiSourceDataset(parts) if d.sources else parts[0]

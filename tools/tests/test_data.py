@@ -212,3 +212,39 @@ def test_lists_every_problem(tiny_dataset, tmp_path):
         (root / json.loads(_lines(root)[i])["rainy"]).unlink()
     msg = _refused(root, "2 problem(s)", "manifest.jsonl:2", "manifest.jsonl:5")
     assert msg.count("missing file") == 2
+
+
+def test_visible_difference_keeps_what_a_drop_visibly_changes():
+    from raindrop_tools.data import visible_difference
+
+    clean = np.full((40, 40, 3), 100, np.uint8)
+    rainy = clean.copy()
+    rainy[10:30, 10:20] = 130  # +30 levels: visible
+    rainy[10:30, 25:35] = 103  # +3 levels: a faint halo
+    v = visible_difference(rainy, clean, 6)
+    assert v.dtype == np.float32 and set(np.unique(v)) <= {0.0, 1.0}
+    assert v[20, 15] == 1 and v[20, 30] == 0 and v[5, 5] == 0
+    # the 5x5 box blur widens it where the averaged difference still exceeds 6 levels:
+    # 2 of 5 columns at +30 average +12 (x = 9), 1 of 5 only +6 (x = 8)
+    assert v[20, 9] == 1 and v[20, 8] == 0
+
+
+def test_visible_levels_narrow_the_training_mask_to_visible_pixels(tmp_path):
+    from raindrop_tools.data import visible_difference
+
+    root = write_dataset(tmp_path / "d", n=2, h=48, w=64)
+    plain = RaindropDataset(root, crop=48, flip=False)
+    visible = RaindropDataset(root, crop=48, flip=False, visible_levels=6)
+    a, b = plain[(0, 0, 0, False)], visible[(0, 0, 0, False)]
+    rainy, clean, _ = plain.load(0)
+    expect = a["mask"][0] * visible_difference(rainy[:, :48], clean[:, :48], 6)
+    assert np.array_equal(b["mask"][0], expect)
+    assert b["mask"].sum() <= a["mask"].sum()
+    assert np.array_equal(a["rainy"], b["rainy"]) and np.array_equal(a["clean"], b["clean"])
+
+
+def test_visible_levels_are_validated():
+    from raindrop_tools.config import ConfigError, config_from_dict
+
+    with pytest.raises(ConfigError, match="visible_levels"):
+        config_from_dict({"data": {"sources": [{"path": "x", "visible_levels": -1}]}})
