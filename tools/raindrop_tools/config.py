@@ -76,11 +76,11 @@ class SourceConfig:
     # rainy == clean outside the mask; null = data.check_outside_mask. Real pairs: false.
     check_outside_mask: bool | None = None
     # Training targets: keep only mask pixels where the drop visibly changes the image, i.e.
-    # where |luma(rainy) - luma(clean)| after a 5x5 box blur exceeds this many 8-bit levels
-    # (0: the mask as written). Thin-lens masks (coverage >= 0.1) include faint halos and
-    # drops invisible over smooth backgrounds; learnt as they are, the detector flagged flat
-    # road and wall as drops (docs/RESULTS.md 4.4). Real pairs' rough masks use the same rule
-    # at 12 levels.
+    # where |luma(rainy) - luma(clean)|, box-blurred 5x5, exceeds this many 8-bit levels
+    # (0: the mask as written; data.visible_difference). Thin-lens masks (coverage >= 0.1)
+    # include faint halos and drops invisible over smooth backgrounds; learnt as they are, the
+    # detector flagged flat road and wall as drops (docs/RESULTS.md 4.4). Real pairs' rough
+    # masks threshold a similar difference (each image blurred first) at 12 levels.
     visible_levels: float = 0.0
 
 

@@ -23,7 +23,6 @@ from typing import Callable, Iterator
 import numpy as np
 
 from .edge import edge_map_window
-from .metrics import luma_float
 from .imageio import ImageError, png_header, read_mask_strict, read_rgb_strict, to_float
 from .manifest import MANIFEST, manifest_lines
 
@@ -211,11 +210,16 @@ def check_files(
 
 
 def visible_difference(rainy_u8: np.ndarray, clean_u8: np.ndarray, levels: float) -> np.ndarray:
-    """Where rainy and clean (HxWx3 uint8) visibly differ: |luma difference| after a 5x5 box
-    blur > ``levels`` 8-bit levels, as float32 0/1 (``SourceConfig.visible_levels``)."""
+    """Where rainy and clean (HxWx3 uint8) visibly differ: the 5x5 box blur of the absolute
+    luma difference > ``levels`` 8-bit levels, as float32 0/1 (``SourceConfig.visible_levels``).
+    Unlike the real pairs' rough masks (``realpairs.rough_mask``), which blur each image before
+    differencing, the absolute difference is blurred, so that a drop's bright rim and dark band
+    side by side do not cancel."""
     import cv2
 
-    d = np.abs(luma_float(rainy_u8) - luma_float(clean_u8)).astype(np.float32)
+    from .realpairs import luma_difference  # (imports cv2, which this module loads lazily)
+
+    d = luma_difference(rainy_u8, clean_u8, blur=1)
     return (cv2.blur(d, (5, 5), borderType=cv2.BORDER_REPLICATE) > levels).astype(np.float32)
 
 
