@@ -57,7 +57,7 @@ struct Row {
   double scale = 1;
   StageTimes mean;
   double wall_mean = 0, wall_median = 0;
-  double first = 0;  // the first Remover::run on this size (ONNX Runtime plans its memory then)
+  double first = 0;  // the first Remover::run on this size (ONNX Runtime's first run on a new shape)
   std::optional<Gflops> gflop;  // for this image (scaled)
 };
 
@@ -65,6 +65,15 @@ std::string fmt(double v, const char* f = "%.1f") {
   char buf[64];
   std::snprintf(buf, sizeof buf, f, v);
   return buf;
+}
+
+// "HxW" (the bench's order), each side 1-16384, as a cv::Size (W x H); nullopt if malformed.
+std::optional<cv::Size> parse_height_width(const std::string& text) {
+  int h = 0, w = 0;
+  char tail = 0;
+  if (std::sscanf(text.c_str(), "%dx%d%c", &h, &w, &tail) != 2 || h < 1 || w < 1 || h > 16384 || w > 16384)
+    return std::nullopt;
+  return cv::Size(w, h);
 }
 
 // One raindrop-remove process on `input`, from fork to exit, in ms; -1 if it failed.
@@ -122,13 +131,18 @@ int remove_bench(int argc, char** argv) {
 
   std::vector<cv::Size> sizes;  // W x H; named H x W below
   for (const auto& text : size_texts) {
-    int h = 0, w = 0;
-    char tail = 0;
-    if (std::sscanf(text.c_str(), "%dx%d%c", &h, &w, &tail) != 2 || h < 1 || w < 1 || h > 16384 || w > 16384) {
+    const auto size = parse_height_width(text);
+    if (!size) {
       std::cerr << "raindrop-bench remove: --size '" << text << "' must be HEIGHTxWIDTH, e.g. 256x512\n";
       return 2;
     }
-    sizes.emplace_back(w, h);
+    sizes.push_back(*size);
+  }
+  // Checked before the (minutes of) rows above it in the output are measured.
+  std::optional<cv::Size> process;
+  if (!process_size.empty() && !(process = parse_height_width(process_size))) {
+    std::cerr << "raindrop-bench remove: --process-size '" << process_size << "' must be HEIGHTxWIDTH\n";
+    return 2;
   }
   SessionConfig session;
   session.graph_opt = parse_graph_opt(graph_opt);
@@ -206,22 +220,17 @@ int remove_bench(int argc, char** argv) {
               << fmt(r.wall_mean) << " | " << fmt(r.wall_median) << " | " << fmt(r.first) << " |\n";
   }
   std::cout << "\n\"first run\": the first Remover::run on that size with a fresh session (not in the mean): ONNX "
-               "Runtime plans and allocates its buffers for a new input shape then. Session creation (loading and "
+               "Runtime's first run on a new input shape is slower (not because of its memory planning: "
+               "docs/RESULTS.md 3.5). Session creation (loading and "
                "optimising the three graphs), ms:";
   for (const auto& [what, ms] : load_ms) std::cout << " " << what << " " << fmt(ms) << ";";
   std::cout << "\n";
-  if (!process_size.empty()) {
-    int h = 0, w = 0;
-    char tail = 0;
-    if (std::sscanf(process_size.c_str(), "%dx%d%c", &h, &w, &tail) != 2 || h < 1 || w < 1 || h > 16384 || w > 16384) {
-      std::cerr << "raindrop-bench remove: --process-size '" << process_size << "' must be HEIGHTxWIDTH\n";
-      return 2;
-    }
+  if (process) {
     std::error_code ec;
     const fs::path program = fs::read_symlink("/proc/self/exe", ec).parent_path() / "raindrop-remove";
     const fs::path tmp = fs::temp_directory_path() / ("raindrop-bench-" + std::to_string(::getpid()));
     fs::create_directories(tmp);
-    write_image_atomic(demo_street(w, h), tmp / "in.png");
+    write_image_atomic(demo_street(process->width, process->height), tmp / "in.png");
     const int threads = thread_counts.back();
     std::cout << "\n## raindrop-remove: process start to file written\n\n"
               << "`raindrop-remove in.png out.png --models DIR -j " << threads << "` on the built-in street image, "
