@@ -21,7 +21,7 @@ if [[ ! -f "$build/CMakeCache.txt" ]]; then
   if [[ -n "${ONNXRUNTIME_ROOT:-}" ]]; then configure+=("-DONNXRUNTIME_ROOT=$ONNXRUNTIME_ROOT"); fi
   "${configure[@]}" >&2
 fi
-cmake --build "$build" --parallel "$jobs" --target raindrop_unit_tests raindrop_cli_tests raindrop_remove_tests >&2
+cmake --build "$build" --parallel "$jobs" --target raindrop_common_tests raindrop_render_tests raindrop_cli_tests raindrop_remove_tests >&2
 
 # halt_on_error: the first report fails the test. Leaks are not checked by default: the one
 # leak found (inside OpenImageIO, scripts/lsan-suppressions.txt) is only suppressible with full

@@ -23,9 +23,9 @@
 #include <opencv2/core.hpp>
 
 #include "bench_util.h"
-#include "raindrop/demo.h"
-#include "raindrop/error.h"
-#include "raindrop/image_io.h"
+#include "raindrop/render/demo.h"
+#include "raindrop/common/error.h"
+#include "raindrop/common/image_io.h"
 #include "raindrop/remove/model_paths.h"
 #include "raindrop/remove/remover.h"
 

@@ -20,14 +20,14 @@
 #include <tbb/task_arena.h>
 
 #include "bench_util.h"
-#include "raindrop/demo.h"
-#include "raindrop/error.h"
-#include "raindrop/framing.h"
-#include "raindrop/image_io.h"
-#include "raindrop/inputs.h"
-#include "raindrop/renderer.h"
-#include "raindrop/rng.h"
-#include "raindrop/scene.h"
+#include "raindrop/render/demo.h"
+#include "raindrop/common/error.h"
+#include "raindrop/render/framing.h"
+#include "raindrop/common/image_io.h"
+#include "raindrop/render/inputs.h"
+#include "raindrop/render/renderer.h"
+#include "raindrop/common/rng.h"
+#include "raindrop/render/scene.h"
 
 namespace raindrop {
 namespace fs = std::filesystem;

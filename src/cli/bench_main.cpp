@@ -9,7 +9,7 @@
 #ifdef RAINDROP_HAVE_REMOVE_BENCH
 #include "../bench/remove_bench.h"
 #endif
-#include "raindrop/error.h"
+#include "raindrop/common/error.h"
 
 int main(int argc, char** argv) {
   const char* usage =

@@ -31,17 +31,15 @@
 #include <CLI/CLI.hpp>
 #include <opencv2/imgproc.hpp>
 
-#include "raindrop/contact_sheet.h"
-#include "raindrop/error.h"
-#include "raindrop/image_io.h"
-#include "raindrop/progress.h"
+#include "raindrop/common/contact_sheet.h"
+#include "raindrop/common/error.h"
+#include "raindrop/common/image_files.h"
+#include "raindrop/common/image_io.h"
+#include "raindrop/common/progress.h"
 #include "raindrop/remove/model_paths.h"
 #include "raindrop/remove/remover.h"
-#include "raindrop/shard.h"
-
-#ifndef RAINDROP_VERSION
-#define RAINDROP_VERSION "unknown"
-#endif
+#include "raindrop/common/shard.h"
+#include "raindrop/common/version.h"
 
 namespace fs = std::filesystem;
 using namespace raindrop;
@@ -52,14 +50,6 @@ namespace {
 constexpr int kSheetRows = 4;  // images on a batch run's contact sheet
 constexpr int kPanelWidth = 512;
 
-bool is_image_name(const fs::path& p) {
-  static const std::set<std::string> kExt = {".png", ".jpg", ".jpeg", ".tif", ".tiff", ".bmp", ".webp"};
-  std::string ext = p.extension().string();
-  std::transform(ext.begin(), ext.end(), ext.begin(), [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
-  const std::string name = p.filename().string();
-  return kExt.count(ext) > 0 && !name.empty() && name[0] != '.';  // hidden: e.g. our own temporaries
-}
-
 // A command line that is well-formed but asks for something impossible (exit code 2, like
 // CLI11's own errors), found after parsing.
 class UsageError : public Error {
@@ -67,52 +57,20 @@ class UsageError : public Error {
   using Error::Error;
 };
 
-bool is_under(const fs::path& p, const fs::path& dir) {
-  const auto rel = fs::weakly_canonical(p).lexically_relative(fs::weakly_canonical(dir));
-  return !rel.empty() && *rel.begin() != "..";
-}
-
 // Image files under `dir`, recursively, sorted, relative to `dir`; files under the `skip`
 // folders (the output and mask folders, when they lie inside the input folder) are left out.
 std::vector<fs::path> list_images(const fs::path& dir, const std::vector<fs::path>& skip) {
-  std::vector<fs::path> files;
-  std::error_code ec;
-  for (auto it = fs::recursive_directory_iterator(dir, fs::directory_options::skip_permission_denied, ec);
-       !ec && it != fs::recursive_directory_iterator(); it.increment(ec)) {
-    if (it->is_directory() &&
-        std::any_of(skip.begin(), skip.end(), [&](const fs::path& s) { return !s.empty() && is_under(it->path(), s); })) {
-      it.disable_recursion_pending();
-      continue;
-    }
-    // Lexically: fs::relative resolves symbolic links, which put a linked input's output
-    // beside its target ("out/../elsewhere/a.png") instead of under the output folder.
-    if (it->is_regular_file() && is_image_name(it->path())) files.push_back(it->path().lexically_relative(dir));
-  }
-  if (ec) throw Error("cannot list '" + dir.string() + "' (" + ec.message() + ")");
-  std::sort(files.begin(), files.end());
+  std::vector<fs::path> files = list_image_files(dir, true, skip);
+  // Lexically: fs::relative resolves symbolic links, which put a linked input's output
+  // beside its target ("out/../elsewhere/a.png") instead of under the output folder.
+  for (auto& f : files) f = f.lexically_relative(dir);
   return files;
 }
 
 // An 8-bit RGB view of any image we handle, for the contact sheet (alpha dropped).
 cv::Mat sheet_panel(const cv::Mat& img) {
-  cv::Mat eight;
-  if (img.depth() == CV_16U) {
-    img.convertTo(eight, CV_8U, 1.0 / 257.0);
-  } else {
-    eight = img;
-  }
-  cv::Mat rgb;
-  switch (eight.channels()) {
-    case 1: cv::cvtColor(eight, rgb, cv::COLOR_GRAY2RGB); break;
-    case 2: {
-      cv::Mat grey;
-      cv::extractChannel(eight, grey, 0);
-      cv::cvtColor(grey, rgb, cv::COLOR_GRAY2RGB);
-      break;
-    }
-    case 4: cv::cvtColor(eight, rgb, cv::COLOR_RGBA2RGB); break;
-    default: rgb = eight.clone();
-  }
+  cv::Mat rgb = to_rgb8(img);
+  if (rgb.data == img.data) rgb = rgb.clone();  // kept for the sheet; the image's buffer is not ours
   // Keep the sheet's memory small in batch runs: panels are shown kPanelWidth wide anyway.
   if (rgb.cols > kPanelWidth) {
     cv::Mat small;
@@ -238,7 +196,7 @@ int run(int argc, char** argv) {
                  "Folder mode: process only shard K of N (0 <= K < N, e.g. $SLURM_ARRAY_TASK_ID/$SLURM_ARRAY_TASK_COUNT): "
                  "the images whose relative name hashes to K");
   app.add_flag("-q,--quiet", quiet, "No progress bar");
-  app.set_version_flag("--version", std::string("raindrop-remove ") + RAINDROP_VERSION + " (" + ort_description() + ")");
+  app.set_version_flag("--version", std::string("raindrop-remove ") + kVersion + " (" + ort_description() + ")");
   try {
     app.parse(argc, argv);
     // NaN passes CLI::Range (every comparison with it is false).
@@ -278,7 +236,7 @@ int run(int argc, char** argv) {
     refuse_coinciding({{"input folder", in_path}, {"output folder", out_arg}, {"mask folder", fs::path(mask_dir)}},
                       "folder");
     const auto images = list_images(in_path, {out_arg, fs::path(mask_dir)});
-    if (images.empty()) throw Error("no image files (png, jpg, jpeg, tif, tiff, bmp, webp) under '" + input + "'");
+    if (images.empty()) throw Error("no image files (" + image_extensions() + ") under '" + input + "'");
     for (const auto& rel : images) {
       if (!shard.owns(rel.generic_string())) continue;  // another shard's (shard.h)
       Job j{in_path / rel, out_arg / rel, std::nullopt, rel.string(), true};

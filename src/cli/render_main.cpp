@@ -12,14 +12,14 @@
 
 #include <CLI/CLI.hpp>
 
-#include "raindrop/contact_sheet.h"
-#include "raindrop/demo.h"
-#include "raindrop/error.h"
-#include "raindrop/image_io.h"
-#include "raindrop/inputs.h"
-#include "raindrop/render_job.h"
-#include "raindrop/scene_config.h"
-#include "raindrop/shard.h"
+#include "raindrop/common/contact_sheet.h"
+#include "raindrop/render/demo.h"
+#include "raindrop/common/error.h"
+#include "raindrop/common/image_io.h"
+#include "raindrop/render/inputs.h"
+#include "raindrop/render/render_job.h"
+#include "raindrop/render/scene_config.h"
+#include "raindrop/common/shard.h"
 
 namespace fs = std::filesystem;
 using namespace raindrop;

@@ -2,7 +2,7 @@
 
 #include <opencv2/imgproc.hpp>
 
-#include "raindrop/error.h"
+#include "raindrop/common/error.h"
 
 namespace raindrop::removal {
 

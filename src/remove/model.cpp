@@ -6,7 +6,7 @@
 #include <system_error>
 #include <thread>
 
-#include "raindrop/error.h"
+#include "raindrop/common/error.h"
 
 namespace raindrop::removal {
 namespace fs = std::filesystem;
@@ -32,8 +32,6 @@ const Contract& contract_for(const std::string& name) {
 
 const char* const kMetaKeys[] = {"raindrop.pad_multiple", "raindrop.config", "raindrop.network",
                                  "raindrop.threshold", "raindrop.dilation"};
-
-std::string quoted(const fs::path& p) { return "'" + p.string() + "'"; }
 
 std::string join(const std::vector<std::string>& v) {
   std::string s = "[";

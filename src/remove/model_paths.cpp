@@ -4,7 +4,7 @@
 #include <fstream>
 #include <system_error>
 
-#include "raindrop/error.h"
+#include "raindrop/common/error.h"
 
 #ifndef RAINDROP_SOURCE_MODELS_DIR
 #define RAINDROP_SOURCE_MODELS_DIR ""

@@ -5,7 +5,7 @@
 #include <string>
 #include <vector>
 
-#include "raindrop/error.h"
+#include "raindrop/common/error.h"
 
 namespace raindrop::removal {
 namespace {

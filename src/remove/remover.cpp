@@ -1,6 +1,5 @@
 #include "raindrop/remove/remover.h"
 
-#include <chrono>
 #include <cstring>
 #include <cmath>
 #include <exception>
@@ -10,7 +9,8 @@
 #include <string>
 #include <vector>
 
-#include "raindrop/error.h"
+#include "raindrop/common/error.h"
+#include "raindrop/common/stopwatch.h"
 #include "raindrop/remove/edge_map.h"
 #include "raindrop/remove/mask.h"
 #include "raindrop/remove/pixels.h"
@@ -19,15 +19,6 @@
 
 namespace raindrop::removal {
 namespace {
-
-using Clock = std::chrono::steady_clock;
-
-double ms_since(Clock::time_point& t) {
-  const auto now = Clock::now();
-  const double ms = std::chrono::duration<double, std::milli>(now - t).count();
-  t = now;
-  return ms;
-}
 
 int round_up(int v, int a) { return (v + a - 1) / a * a; }
 
@@ -47,9 +38,9 @@ TileInputs build_inputs(const cv::Mat& image, int y0, int y1, int x0, int x1, St
   const int ry0 = std::max(0, y0 - 1), ry1 = std::min(H, y1 + 1);
   const int rx0 = std::max(0, x0 - 1), rx1 = std::min(W, x1 + 1);
   const cv::Mat rgb = to_rgb_float(image, cv::Rect(rx0, ry0, rx1 - rx0, ry1 - ry0));
-  t.convert += ms_since(clock);
+  t.convert += lap_ms(clock);
   const cv::Mat edge = edge_map(rgb);
-  t.edge += ms_since(clock);
+  t.edge += lap_ms(clock);
   TileInputs in;
   in.h = y1 - y0;
   in.w = x1 - x0;
@@ -75,7 +66,7 @@ TileInputs build_inputs(const cv::Mat& image, int y0, int y1, int x0, int x1, St
       e[x] = esrc[cx];
     }
   }
-  t.convert += ms_since(clock);
+  t.convert += lap_ms(clock);
   return in;
 }
 
@@ -110,9 +101,9 @@ void detect(Network& rdn, const TileInputs& in, const cv::Rect& owned, double th
   auto clock = Clock::now();
   std::vector<float> prob(static_cast<size_t>(in.h) * in.w);
   rdn.run({in.r.data()}, in.h, in.w, prob.data());
-  t.rdn += ms_since(clock);
+  t.rdn += lap_ms(clock);
   threshold_mask(cv::Mat(in.h, in.w, CV_32F, prob.data())(owned), threshold, dst);
-  t.mask += ms_since(clock);
+  t.mask += lap_ms(clock);
 }
 
 // 3RN on one tile's inputs, clamped to [0, 1].
@@ -121,7 +112,7 @@ std::vector<float> reconstruct(Network& rrn, const TileInputs& in, StageTimes& t
   std::vector<float> ihat(3 * static_cast<size_t>(in.h) * in.w);
   rrn.run({in.r.data(), in.e.data()}, in.h, in.w, ihat.data());
   clamp_all(ihat);
-  t.rrn += ms_since(clock);
+  t.rrn += lap_ms(clock);
   return ihat;
 }
 
@@ -145,7 +136,7 @@ RemoveResult Remover::run_scaled(const cv::Mat& image, const RemoveOptions& opt,
   // Area averaging: every input pixel counts once (no aliasing of fine texture).
   cv::Mat small_native;
   cv::resize(image, small_native, small, 0, 0, cv::INTER_AREA);
-  const double t_down = ms_since(clock);
+  const double t_down = lap_ms(clock);
   RemoveOptions sub = opt;
   sub.scale = 1.0;
   sub.keep_float = true;
@@ -185,7 +176,7 @@ RemoveResult Remover::run_scaled(const cv::Mat& image, const RemoveOptions& opt,
   res.image = out;
   res.mask = mask;
   res.rgb = rgb;
-  t.output += ms_since(clock);
+  t.output += lap_ms(clock);
   return res;
 }
 
@@ -244,7 +235,7 @@ RemoveResult Remover::run_native(const cv::Mat& image, const RemoveOptions& opt)
   auto clock = Clock::now();
   const cv::Mat mask = dilate_mask(mask0, k);
   mask0.release();
-  t.mask += ms_since(clock);
+  t.mask += lap_ms(clock);
 
   // Pass 2: reconstruction, blend, refinement; tile outputs blended into a strip of rows
   // that is finished (quantised into the output) as soon as no later tile row reaches it.
@@ -263,7 +254,7 @@ RemoveResult Remover::run_native(const cv::Mat& image, const RemoveOptions& opt)
       }
       strip = next;
       strip_y0 = y0;
-      t.output += ms_since(clock);
+      t.output += lap_ms(clock);
     }
     std::vector<float> wy(y1 - y0);
     for (int y = y0; y < y1; ++y) wy[y - y0] = ly.weight(iy, y);
@@ -287,11 +278,11 @@ RemoveResult Remover::run_native(const cv::Mat& image, const RemoveOptions& opt)
           }
         }
       }
-      t.blend += ms_since(clock);
+      t.blend += lap_ms(clock);
       std::vector<float> out(3 * plane);
       models_.rfn().run({blend.data()}, in.h, in.w, out.data());
       clamp_all(out);
-      t.rfn += ms_since(clock);
+      t.rfn += lap_ms(clock);
       std::vector<float> wx(in.w);
       for (int x = x0; x < x1; ++x) wx[x - x0] = lx.weight(ix, x);
       for (int y = 0; y < in.h; ++y) {
@@ -304,7 +295,7 @@ RemoveResult Remover::run_native(const cv::Mat& image, const RemoveOptions& opt)
           for (int c = 0; c < 3; ++c) dst[3 * x + c] += w * out[c * plane + row + x];
         }
       }
-      t.output += ms_since(clock);
+      t.output += lap_ms(clock);
     }
     // Rows before the next tile row's first row are final.
     clock = Clock::now();
@@ -321,13 +312,13 @@ RemoveResult Remover::run_native(const cv::Mat& image, const RemoveOptions& opt)
         }
       }
     }
-    t.output += ms_since(clock);
+    t.output += lap_ms(clock);
   }
   clock = Clock::now();
   copy_alpha(image, res.image);
   for (const StageTimes& w : worker_times) t += w;  // busy time of the side-by-side work
   res.mask = mask(cv::Rect(0, 0, W, H)) * 255;
-  t.output += ms_since(clock);
+  t.output += lap_ms(clock);
   return res;
 }
 

@@ -2,7 +2,7 @@
 
 #include <algorithm>
 
-#include "raindrop/error.h"
+#include "raindrop/common/error.h"
 
 namespace raindrop::removal {
 

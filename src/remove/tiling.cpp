@@ -4,7 +4,7 @@
 #include <cmath>
 #include <string>
 
-#include "raindrop/error.h"
+#include "raindrop/common/error.h"
 
 namespace raindrop::removal {
 namespace {

@@ -21,8 +21,9 @@
 #include <opencv2/core.hpp>
 #include <opencv2/imgproc.hpp>
 
+#include "../common/test_images.h"
 #include "../common/test_support.h"
-#include "raindrop/demo.h"
+#include "raindrop/render/demo.h"
 
 #ifndef RAINDROP_RENDER_BIN
 #error "RAINDROP_RENDER_BIN must name the raindrop-render binary"
@@ -70,66 +71,9 @@ inline RunResult run_render(const std::vector<std::string>& args, const fs::path
 // ---------------------------------------------------------------------------------------
 // Images through OpenImageIO.
 
-struct Image {
-  int width = 0, height = 0, channels = 0;
-  OIIO::TypeDesc format;  // stored per-channel format
-  cv::Mat pixels;         // CV_8UC(channels) (converted to 8 bits if stored deeper)
-};
-
-// Decodes the whole file; std::nullopt (and *why) if it cannot be opened or fully decoded.
-inline std::optional<Image> read_image(const fs::path& p, std::string* why = nullptr) {
-  auto in = OIIO::ImageInput::open(p.string());
-  if (!in) {
-    if (why) *why = OIIO::geterror();
-    return std::nullopt;
-  }
-  const OIIO::ImageSpec& spec = in->spec();
-  Image img;
-  img.width = spec.width;
-  img.height = spec.height;
-  img.channels = spec.nchannels;
-  img.format = spec.format;
-  if (img.width <= 0 || img.height <= 0 || img.channels < 1 || img.channels > 4) {
-    if (why) *why = "unexpected geometry";
-    return std::nullopt;
-  }
-  img.pixels.create(img.height, img.width, CV_8UC(img.channels));
-  // Decode in the stored format (catches truncation), then convert for the caller.
-  std::vector<unsigned char> native(spec.image_bytes());
-  if (!in->read_image(0, 0, 0, img.channels, spec.format, native.data())) {
-    if (why) *why = in->geterror();
-    return std::nullopt;
-  }
-  in->close();
-  if (spec.format == OIIO::TypeDesc::UINT8) {
-    std::memcpy(img.pixels.data, native.data(), native.size());
-  } else if (spec.format == OIIO::TypeDesc::UINT16) {
-    const auto* v = reinterpret_cast<const std::uint16_t*>(native.data());
-    for (size_t i = 0; i < img.pixels.total() * img.channels; ++i)
-      img.pixels.data[i] = static_cast<unsigned char>((v[i] + 128) / 257);
-  } else {
-    if (why) *why = "unexpected pixel format " + std::string(spec.format.c_str());
-    return std::nullopt;
-  }
-  return img;
-}
-
-// Writes an 8-bit (CV_8U) or 16-bit (CV_16U) image with 1, 3 or 4 channels in RGB(A) order.
-inline void write_image(const fs::path& p, const cv::Mat& m) {
-  fs::create_directories(p.parent_path());
-  auto out = OIIO::ImageOutput::create(p.string());
-  ASSERT_TRUE(out) << OIIO::geterror();
-  const OIIO::TypeDesc type = m.depth() == CV_16U ? OIIO::TypeDesc::UINT16 : OIIO::TypeDesc::UINT8;
-  OIIO::ImageSpec spec(m.cols, m.rows, m.channels(), type);
-  if (m.channels() == 4) {
-    spec.alpha_channel = 3;
-    spec.attribute("oiio:UnassociatedAlpha", 1);
-  }
-  const cv::Mat data = m.isContinuous() ? m : m.clone();
-  ASSERT_TRUE(out->open(p.string(), spec)) << out->geterror();
-  ASSERT_TRUE(out->write_image(type, data.data)) << out->geterror();
-  ASSERT_TRUE(out->close()) << out->geterror();
-}
+using testsupport::Image;
+using testsupport::read_image;
+using testsupport::write_image;
 
 // Distinct 8-bit RGB backgrounds: the demo street or checkerboard, tinted and with a few
 // seeded discs (compressible, so PNG encoding stays fast).

@@ -4,7 +4,7 @@
 #include <set>
 
 #include "cli_test_util.h"
-#include "raindrop/render_job.h"
+#include "raindrop/render/render_job.h"
 
 namespace clitest {
 namespace {

@@ -19,8 +19,9 @@
 #include <opencv2/core.hpp>
 #include <opencv2/imgproc.hpp>
 
+#include "../common/test_images.h"
 #include "../common/test_support.h"
-#include "raindrop/demo.h"
+#include "raindrop/render/demo.h"
 
 #ifndef RAINDROP_REMOVE_BIN
 #error "RAINDROP_REMOVE_BIN must name the raindrop-remove binary"
@@ -85,51 +86,9 @@ inline RunResult run_remove(const std::vector<std::string>& args, const fs::path
 // ---------------------------------------------------------------------------------------
 // Images through OpenImageIO.
 
-struct Image {
-  int width = 0, height = 0, channels = 0;
-  OIIO::TypeDesc format;
-  cv::Mat pixels;  // CV_8UC(n) or CV_16UC(n), as stored
-};
-
-inline std::optional<Image> read_image(const fs::path& p, std::string* why = nullptr) {
-  OIIO::ImageSpec config;
-  config.attribute("oiio:UnassociatedAlpha", 1);
-  auto in = OIIO::ImageInput::open(p.string(), &config);
-  if (!in) {
-    if (why) *why = OIIO::geterror();
-    return std::nullopt;
-  }
-  const OIIO::ImageSpec& spec = in->spec();
-  Image img;
-  img.width = spec.width;
-  img.height = spec.height;
-  img.channels = spec.nchannels;
-  img.format = spec.format;
-  const bool sixteen = spec.format == OIIO::TypeDesc::UINT16;
-  img.pixels.create(img.height, img.width, sixteen ? CV_16UC(img.channels) : CV_8UC(img.channels));
-  if (!in->read_image(0, 0, 0, img.channels, sixteen ? OIIO::TypeDesc::UINT16 : OIIO::TypeDesc::UINT8, img.pixels.data)) {
-    if (why) *why = in->geterror();
-    return std::nullopt;
-  }
-  return img;
-}
-
-// 8/16-bit, 1-4 channels, RGB(A) order.
-inline void write_image(const fs::path& p, const cv::Mat& m) {
-  if (p.has_parent_path()) fs::create_directories(p.parent_path());
-  auto out = OIIO::ImageOutput::create(p.string());
-  ASSERT_TRUE(out) << OIIO::geterror();
-  const OIIO::TypeDesc type = m.depth() == CV_16U ? OIIO::TypeDesc::UINT16 : OIIO::TypeDesc::UINT8;
-  OIIO::ImageSpec spec(m.cols, m.rows, m.channels(), type);
-  if (m.channels() == 4 || m.channels() == 2) {
-    spec.alpha_channel = m.channels() - 1;
-    spec.attribute("oiio:UnassociatedAlpha", 1);
-  }
-  const cv::Mat data = m.isContinuous() ? m : m.clone();
-  ASSERT_TRUE(out->open(p.string(), spec)) << out->geterror();
-  ASSERT_TRUE(out->write_image(type, data.data)) << out->geterror();
-  ASSERT_TRUE(out->close()) << out->geterror();
-}
+using testsupport::Image;
+using testsupport::read_image;
+using testsupport::write_image;
 
 // A deterministic 8-bit RGB test image of any size: the demo street (structure, edges)
 // with seeded bright discs (drop-like blobs) and a little noise.

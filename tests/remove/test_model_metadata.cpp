@@ -1,6 +1,6 @@
 // Model metadata out of range (rdn.onnx's raindrop.threshold and raindrop.dilation): refused
 // when the models load, with one line that blames the model file's metadata, not an option.
-#include "raindrop/error.h"
+#include "raindrop/common/error.h"
 #include "raindrop/remove/model.h"
 #include "remove_test_util.h"
 

@@ -4,7 +4,7 @@
 #include <limits>
 #include <memory>
 
-#include "raindrop/error.h"
+#include "raindrop/common/error.h"
 #include "raindrop/remove/edge_map.h"
 #include "raindrop/remove/model.h"
 #include "raindrop/remove/pixels.h"

@@ -26,7 +26,7 @@ class RemoveShards : public ::testing::Test {
   // Every file under out/ and out-masks/: relative path -> bytes.
   std::map<std::string, std::string> files(const std::string& out) {
     std::map<std::string, std::string> all;
-    for (const std::string dir : {out, out + "-masks"}) {
+    for (const std::string& dir : {out, out + "-masks"}) {
       if (!fs::exists(tmp / dir)) continue;
       for (const auto& e : fs::recursive_directory_iterator(tmp / dir)) {
         if (e.is_regular_file())

@@ -5,7 +5,7 @@
 
 #include <opencv2/imgproc.hpp>
 
-#include "raindrop/error.h"
+#include "raindrop/common/error.h"
 #include "raindrop/remove/edge_map.h"
 #include "raindrop/remove/mask.h"
 #include "raindrop/remove/model_paths.h"

@@ -4,7 +4,7 @@
 
 #include <opencv2/imgproc.hpp>
 
-#include "raindrop/error.h"
+#include "raindrop/common/error.h"
 #include "raindrop/remove/pixels.h"
 #include "raindrop/remove/remover.h"
 #include "raindrop/remove/working_scale.h"

@@ -1,0 +1,28 @@
+#pragma once
+// Which files are images, and finding them in folders: one rule for raindrop-render's and
+// raindrop-remove's folder inputs, so that a folder one program accepts the other does too.
+#include <filesystem>
+#include <string>
+#include <vector>
+
+namespace raindrop {
+
+// A known image extension (any case): how a file named on the command line is told from a
+// list of files.
+bool has_image_extension(const std::filesystem::path& p);
+
+// An image found in a folder: a known extension and not hidden (".name": our own
+// temporaries, editors' and file managers' files).
+bool is_image_name(const std::filesystem::path& p);
+
+// The known extensions for messages: "bmp, exr, jpeg, jpg, png, tif, tiff, webp".
+std::string image_extensions();
+
+// Image files in `dir` (recursively or not), sorted, each as `dir / relative name` (lexically:
+// a symbolic link keeps its own name). Folders in `skip` (and what lies under them) are left
+// out: an output folder inside the input folder, whose files are not inputs. Throws
+// raindrop::Error if `dir` cannot be listed.
+std::vector<std::filesystem::path> list_image_files(const std::filesystem::path& dir, bool recursive,
+                                                    const std::vector<std::filesystem::path>& skip = {});
+
+}  // namespace raindrop

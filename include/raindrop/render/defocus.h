@@ -1,0 +1,42 @@
+#pragma once
+// The thin-lens camera's fast path: layered compositing. The drops are traced once through
+// the centre of the aperture (the pinhole render: each drop's radiance R_d and its coverage
+// a_d, 1 on its image and 0 elsewhere); each drop's layer is then spread by the disk of its
+// own circle of confusion (from the depth of its centre on the glass), and the layers are
+// composited over the clean frame in linear light:
+//     A = sum_d blur_d(a_d),   I = (1 - A) B + sum_d blur_d(a_d R_d)
+// (A clamped to 1 where blurred drops overlap). A drop smaller than its circle of confusion
+// so never reaches A = 1: it is semi-transparent, and its image spreads beyond its outline,
+// as in real photographs. What this ignores, against the aperture reference (aperture.h):
+// the parallax of the drop's view across the aperture and the blur's variation inside one
+// drop; the accuracy/time table measures the difference.
+#include <vector>
+
+#include <opencv2/core.hpp>
+
+#include "raindrop/render/camera.h"
+#include "raindrop/render/drop.h"
+#include "raindrop/render/scene.h"
+#include "raindrop/render/tracer.h"
+
+namespace raindrop {
+
+struct DefocusedFrame {
+  cv::Mat rainy;              // CV_8UC3: equal to the clean bytes wherever coverage is 0
+  cv::Mat coverage;           // CV_32F in [0, 1]: the fraction of the aperture that sees a drop
+  std::vector<double> coc_px; // per drop: circle-of-confusion diameter used (0: not blurred)
+};
+
+// Drops whose circle of confusion is below this many pixels are not blurred: the blur would
+// change no pixel by more than rounding (the `auto` rule of the thin-lens camera).
+inline constexpr double kMinVisibleCocPx = 0.5;
+
+// `traced`: the pinhole trace of `drops` over `clean` (CV_8UC3 RGB).
+DefocusedFrame composite_layers(const cv::Mat& clean, const TraceResult& traced, const Camera& camera,
+                                const SceneSample& scene, const std::vector<Drop>& drops);
+
+// The reference's result in the same form: linear radiance where coverage > 0, the clean
+// bytes elsewhere.
+DefocusedFrame encode_aperture(const cv::Mat& clean, const ApertureResult& reference);
+
+}  // namespace raindrop

@@ -1,0 +1,86 @@
+#pragma once
+// Embree 3 acceleration structure over the drops of one frame, answering "which drop
+// surface does this ray meet first". Two representations, the accuracy/time knob:
+//  - exact:  one Embree user-geometry primitive per drop; the intersection callback solves
+//            the cap analytically in double precision (raindrop::Drop::intersect);
+//  - mesh:   each cap tessellated into triangles (`segments` around, segments/4 rings from
+//            the apex to the rim) plus a triangle fan for the base; normals either flat
+//            (the triangle's) or smooth (vertex normals of the true surface, interpolated).
+#include <limits>
+#include <memory>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include <glm/vec3.hpp>
+
+#include "raindrop/render/drop.h"
+
+namespace raindrop {
+
+// The finest mesh: a cap of `segments` takes about segments^2 / 2 triangles, so memory grows
+// with its square ("mesh-4096-flat" passed validation and allocated until the machine killed
+// it). 256 is the unit tests' reference mesh; beyond 128 a mesh is slower than the exact caps
+// and no more accurate (docs/RESULTS.md), so finer meshes have no use.
+inline constexpr int kMaxMeshSegments = 256;
+// The most memory one sample's mesh may take (scene validation refuses more): a scene file must
+// not be able to exhaust the machine with segments x drops.
+inline constexpr double kMaxMeshBytes = 2.0 * (1 << 30);
+
+struct GeometryOptions {
+  enum class Kind { Exact, Mesh } kind = Kind::Exact;
+  int segments = 32;          // mesh only: triangles around the rim
+  bool smooth_normals = true; // mesh only
+
+  // Memory the mesh takes per drop: measured about 70 bytes per segments^2 (vertices, normals,
+  // triangles, Embree's BVH; 4.5 MB a drop at 256); exact caps: a few hundred bytes, 0 here.
+  double mesh_bytes_per_drop() const { return kind == Kind::Mesh ? 72.0 * segments * segments : 0.0; }
+
+  std::string describe() const;  // "exact", "mesh-32-smooth", ...
+  static GeometryOptions parse(const std::string& text);  // inverse of describe()
+};
+
+struct DropHit {
+  double t = 0;
+  int drop = -1;
+  DropSurface surface = DropSurface::Base;
+  glm::dvec3 normal{0, 0, 0};  // unit, pointing out of the water
+};
+
+class DropAccel {
+ public:
+  DropAccel(const std::vector<Drop>& drops, const GeometryOptions& options);
+  ~DropAccel();
+  DropAccel(const DropAccel&) = delete;
+  DropAccel& operator=(const DropAccel&) = delete;
+
+  // First drop surface met by origin + t * dir with t in (t_min, t_max). `from` is the hit
+  // the ray starts at, if any, so that the ray does not find its own starting point again.
+  std::optional<DropHit> intersect(const glm::dvec3& origin, const glm::dvec3& dir,
+                                   const DropHit* from = nullptr, double t_min = 0.0,
+                                   double t_max = std::numeric_limits<double>::infinity()) const;
+
+  // The first surface met by a ray that is inside the water of drop `from.drop`. When drops
+  // are disjoint (`set_disjoint`; footprints apart, so caps apart) and caps are exact, the
+  // ray can only leave through that drop's own surface: answered analytically, no Embree
+  // query. Otherwise the same as intersect().
+  std::optional<DropHit> intersect_inside(const glm::dvec3& origin, const glm::dvec3& dir, const DropHit& from,
+                                          double t_max = std::numeric_limits<double>::infinity()) const;
+  void set_disjoint(bool disjoint) { disjoint_ = disjoint; }
+
+  // Every drop lies between the glass plane and this height above it (cm).
+  double max_height() const { return max_height_; }
+
+  const std::vector<Drop>& drops() const { return drops_; }
+  const GeometryOptions& options() const { return options_; }
+
+ private:
+  struct Impl;
+  std::vector<Drop> drops_;
+  GeometryOptions options_;
+  double max_height_ = 0;
+  bool disjoint_ = false;
+  std::unique_ptr<Impl> impl_;
+};
+
+}  // namespace raindrop

@@ -1,0 +1,133 @@
+#pragma once
+// What a scene asks for: parameter ranges of the imaging model and the effects to simulate.
+// Loaded from a JSON scene file (see scenes/*.json and docs/SCENES.md); an effect that the
+// file does not name is off, and an effect that is off is never built into the render.
+//
+// Units: lengths in centimetres on the glass and along the optical axis, angles in degrees
+// in the file (radians inside), blur diameters in pixels at a 2048-pixel-wide frame.
+#include <filesystem>
+#include <string>
+#include <vector>
+
+#include <glm/vec3.hpp>
+
+#include "raindrop/render/drop_accel.h"
+
+namespace raindrop {
+
+struct Range {
+  double lo = 0, hi = 0;
+};
+
+enum class DropSizeParam { SphereRadius, FootprintRadius };
+enum class BorderMode { Clamp, Mirror };
+enum class BlurMethod { DiskSpan, DiskDirect, DiskAntialiased, Gaussian };
+enum class TirMode { Black, Trace };
+enum class SizeDistribution { Uniform, LogUniform };
+// How a thin-lens camera's defocus of the drops is rendered (see defocus.h, aperture.h).
+enum class DefocusMethod { Layered, Aperture };
+
+const char* to_string(BorderMode);
+const char* to_string(BlurMethod);
+const char* to_string(TirMode);
+const char* to_string(SizeDistribution);
+const char* to_string(DefocusMethod);
+
+// The most drops a scene may ask for per sample. The presets ask for at most 300 and 1000
+// small drops already crowd a frame; placing each drop tests up to 200 positions against every
+// drop placed before it, and a mesh's memory grows with the count (drop_accel.h), so 5000 drops
+// made placement and rendering slow for no use.
+inline constexpr int kMaxDropCount = 1000;
+
+struct SceneConfig {
+  std::string name = "paper";
+
+  // Imaging model (paper section 3 ranges by default).
+  Range glass_distance_cm{20, 40};        // N
+  Range background_distance_cm{800, 1500};  // T
+  Range tilt_deg{30, 45};                 // psi
+  Range drop_count{50, 70};               // integers, inclusive
+  DropSizeParam size_param = DropSizeParam::SphereRadius;
+  Range drop_size_cm{0.8, 1.5};           // r (sphere) or a (footprint), per size_param
+  // Uniform as in the paper; log-uniform gives many small drops and few large ones, as on
+  // real glass.
+  SizeDistribution size_distribution = SizeDistribution::Uniform;
+  Range contact_angle_deg{30, 45};        // tau
+  double refractive_index = 1.333;
+  bool allow_overlap = false;             // false: footprints never overlap (real drops merge)
+  double min_gap_cm = 0.05;               // gap kept between footprints when !allow_overlap
+
+  // Dark band: what a totally internally reflected ray shows. Black as in the paper, or
+  // traced on through the drop (its escape into the car shows `interior_rgb`).
+  TirMode tir = TirMode::Black;
+
+  // Effects. The paper's: refraction and the dark band (always), blur. Beyond the paper:
+  // fresnel, dispersion, gravity.
+  struct Blur {
+    bool enabled = true;
+    Range diameter_px_2048{7, 20};  // disk diameter at 2048 px wide, scaled with the width
+    BlurMethod method = BlurMethod::DiskSpan;
+  } blur;
+  struct Fresnel {
+    bool enabled = false;
+    glm::dvec3 interior_rgb{0.03, 0.03, 0.03};  // radiance reflected in from the car side
+  } fresnel;
+  struct Dispersion {
+    bool enabled = false;
+    glm::dvec3 wavelength_nm{620, 540, 460};  // where red, green, blue are traced
+  } dispersion;
+  struct Gravity {
+    bool enabled = false;
+    Range elongation{1.0, 1.3};  // downhill footprint stretch
+    Range flattening{0.6, 1.0};  // height relative to the spherical cap
+  } gravity;
+
+  // A thin-lens camera (optional). Without it the camera is a pinhole and the drops get the
+  // paper's disk blur (effects.blur). With it, drops are defocused as a real lens focused on
+  // the street sees them: each drop spreads over its circle of confusion and becomes
+  // semi-transparent where it is smaller than that circle. The lens' aperture in cm is
+  // focal_length / f_number; the circle of confusion of a point at depth z, with focus on
+  // the background at S, is aperture * fx_px * |1/z - 1/S| pixels.
+  struct Lens {
+    bool enabled = false;
+    Range f_number{2, 8};
+    Range focal_length_mm{5, 5};  // physical focal length (Cityscapes: fx 2262 px x 2.2 um ~ 5 mm)
+    DefocusMethod method = DefocusMethod::Layered;
+    int aperture_samples = 16;    // per pixel, for method Aperture (square number)
+    double mask_threshold = 0.1;  // binary mask = coverage >= this
+  } lens;
+
+  // What refracted rays see above the frame: the sky (its colour estimated from the brightest
+  // part of the frame's top third) instead of a mirrored copy of the frame. A drop is a
+  // wide-angle lens whose lower half looks up into the sky: this is why real drops are bright.
+  struct Sky {
+    bool enabled = false;
+    double fade_rows = 0.15;  // fraction of the frame height over which the mirror fades into the sky
+    double gain = 1.0;        // sky radiance relative to the estimate (overcast ~1, sunny >1)
+  } sky;
+
+  // Quality: the accuracy/time knobs.
+  GeometryOptions geometry;
+  int samples_per_pixel = 1;      // 1, 4, 16, 64 (square numbers: stratified grid)
+  bool supersample_edges_only = true;
+  BorderMode border = BorderMode::Mirror;
+
+  // Effects that will run, in a fixed order, for the manifest and logs.
+  std::vector<std::string> effect_names() const;
+  glm::dvec3 channel_indices() const;  // refractive index per colour channel
+};
+
+// Built-in presets: "paper", "real-photo", "full-physics". Throws raindrop::Error otherwise.
+SceneConfig scene_preset(const std::string& name);
+std::vector<std::string> scene_preset_names();
+
+// A preset name or a path to a JSON scene file. Throws raindrop::Error with a one-line
+// message naming the file and the offending key.
+SceneConfig load_scene(const std::string& name_or_path);
+SceneConfig parse_scene_json(const std::string& text, const std::string& origin);
+
+// The config as a JSON scene file (canonical: keys sorted, every field present); parsing it
+// back gives the same config. Used for --print-scene and for the job fingerprint.
+std::string scene_to_json(const SceneConfig& config);
+
+}  // namespace raindrop

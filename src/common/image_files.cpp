@@ -1,0 +1,67 @@
+#include "raindrop/common/image_files.h"
+
+#include <algorithm>
+#include <array>
+#include <cctype>
+#include <string_view>
+
+#include "raindrop/common/error.h"
+
+namespace raindrop {
+namespace fs = std::filesystem;
+namespace {
+
+// What OpenImageIO reads and both programs handle, sorted (image_extensions lists them so).
+constexpr std::array<std::string_view, 8> kExtensions = {".bmp", ".exr",  ".jpeg", ".jpg",
+                                                         ".png", ".tif", ".tiff", ".webp"};
+
+bool is_under(const fs::path& p, const fs::path& dir) {
+  const auto rel = fs::weakly_canonical(p).lexically_relative(fs::weakly_canonical(dir));
+  return !rel.empty() && *rel.begin() != "..";
+}
+
+}  // namespace
+
+bool has_image_extension(const fs::path& p) {
+  std::string ext = p.extension().string();
+  std::transform(ext.begin(), ext.end(), ext.begin(), [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
+  return std::find(kExtensions.begin(), kExtensions.end(), ext) != kExtensions.end();
+}
+
+bool is_image_name(const fs::path& p) {
+  const std::string name = p.filename().string();
+  return !name.empty() && name[0] != '.' && has_image_extension(p);
+}
+
+std::string image_extensions() {
+  std::string all;
+  for (const auto e : kExtensions) all += (all.empty() ? "" : ", ") + std::string(e.substr(1));
+  return all;
+}
+
+std::vector<fs::path> list_image_files(const fs::path& dir, bool recursive, const std::vector<fs::path>& skip) {
+  std::vector<fs::path> files;
+  std::error_code ec;
+  const auto skipped = [&](const fs::path& p) {
+    return std::any_of(skip.begin(), skip.end(), [&](const fs::path& s) { return !s.empty() && is_under(p, s); });
+  };
+  if (recursive) {
+    for (auto it = fs::recursive_directory_iterator(dir, fs::directory_options::skip_permission_denied, ec);
+         !ec && it != fs::recursive_directory_iterator(); it.increment(ec)) {
+      if (it->is_directory() && skipped(it->path())) {
+        it.disable_recursion_pending();
+        continue;
+      }
+      if (it->is_regular_file() && is_image_name(it->path())) files.push_back(it->path());
+    }
+  } else {
+    for (auto it = fs::directory_iterator(dir, ec); !ec && it != fs::directory_iterator(); it.increment(ec)) {
+      if (it->is_regular_file() && is_image_name(it->path())) files.push_back(it->path());
+    }
+  }
+  if (ec) throw Error("cannot list " + quoted(dir) + " (" + ec.message() + ")");
+  std::sort(files.begin(), files.end());
+  return files;
+}
+
+}  // namespace raindrop

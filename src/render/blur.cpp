@@ -1,0 +1,340 @@
+#include "raindrop/render/blur.h"
+
+#include <algorithm>
+#include <cmath>
+#include <memory>
+#include <vector>
+
+#include <opencv2/imgproc.hpp>
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
+
+#include "raindrop/render/spans.h"
+
+namespace raindrop {
+namespace {
+
+// Area of the unit pixel [x-0.5,x+0.5]x[y-0.5,y+0.5] inside the disk of radius r, by a
+// 16x16 midpoint rule (exact for pixels entirely in or out; error < 1/256 of a pixel on the
+// rim, far below 8-bit resolution after normalisation).
+double pixel_area_in_disk(int x, int y, double r) {
+  // Entirely inside (farthest corner within r) or outside (nearest point beyond r): exact.
+  const double fx = std::abs(x) + 0.5, fy = std::abs(y) + 0.5;
+  if (fx * fx + fy * fy <= r * r) return 1.0;
+  const double nx = std::max(std::abs(x) - 0.5, 0.0), ny = std::max(std::abs(y) - 0.5, 0.0);
+  if (nx * nx + ny * ny >= r * r) return 0.0;
+  constexpr int kSub = 16;
+  int inside = 0;
+  for (int j = 0; j < kSub; ++j) {
+    const double yy = y - 0.5 + (j + 0.5) / kSub;
+    for (int i = 0; i < kSub; ++i) {
+      const double xx = x - 0.5 + (i + 0.5) / kSub;
+      inside += xx * xx + yy * yy <= r * r;
+    }
+  }
+  return static_cast<double>(inside) / (kSub * kSub);
+}
+
+// A kernel row: pixels [run_lo, run_hi] have weight 1, `taps` are the others.
+struct KernelRow {
+  int dy = 0;
+  int run_lo = 1, run_hi = 0;  // empty when run_lo > run_hi
+  std::vector<std::pair<int, float>> taps;
+};
+
+std::vector<KernelRow> disk_rows(double diameter, bool antialiased, bool split_runs) {
+  const double r = 0.5 * diameter;
+  const int R = static_cast<int>(std::ceil(r + 0.5));
+  std::vector<KernelRow> rows;
+  if (r <= 0.5) {
+    // The disk lies inside the centre pixel: the exact kernel is the identity (a midpoint
+    // rule would miss a tiny disk entirely and leave no weight at all).
+    KernelRow row;
+    if (split_runs) {
+      row.run_lo = row.run_hi = 0;
+    } else {
+      row.taps.push_back({0, 1.0f});
+    }
+    rows.push_back(row);
+    return rows;
+  }
+  for (int dy = -R; dy <= R; ++dy) {
+    KernelRow row;
+    row.dy = dy;
+    for (int dx = -R; dx <= R; ++dx) {
+      const double w = antialiased ? pixel_area_in_disk(dx, dy, r) : (dx * dx + dy * dy <= r * r ? 1.0 : 0.0);
+      if (w <= 0) continue;
+      if (split_runs && w >= 1.0 && (row.run_lo > row.run_hi || dx == row.run_hi + 1)) {
+        if (row.run_lo > row.run_hi) row.run_lo = dx;
+        row.run_hi = dx;
+      } else {
+        row.taps.push_back({dx, static_cast<float>(w)});
+      }
+    }
+    if (row.run_lo <= row.run_hi || !row.taps.empty()) rows.push_back(std::move(row));
+  }
+  return rows;
+}
+
+using Spans = std::vector<std::vector<std::pair<int, int>>>;
+
+// Four floats (RGB and a pad) as one SIMD register: GCC/Clang vector extension.
+typedef float f4 __attribute__((vector_size(16)));
+
+// A buffer of f4 left uninitialised: every element is written before it is read, and
+// zeroing tens of megabytes per frame would cost more than the blur of small drops.
+class F4Buffer {
+ public:
+  F4Buffer() = default;
+  explicit F4Buffer(size_t n) : data_(new f4[n]), size_(n) {}
+  f4* data() { return data_.get(); }
+  const f4* data() const { return data_.get(); }
+  bool empty() const { return size_ == 0; }
+  f4& operator[](size_t i) { return data_[i]; }
+  const f4& operator[](size_t i) const { return data_[i]; }
+
+ private:
+  std::unique_ptr<f4[]> data_;
+  size_t size_ = 0;
+};
+
+// The window of the frame the blur reads: the traced colour inside drops, the clean pixel
+// outside, and per-row prefix sums of it (prefix[y][x] = sum of rgb[y][0..x-1]).
+struct Source {
+  int x0, y0, w, h;
+  F4Buffer rgb;     // h x w, filled only inside `intervals`
+  F4Buffer prefix;  // h x (w + 1): prefix sums restarting at each interval's start
+  // Per row, the x-intervals (absolute, inclusive) the blur can read: lookups for a drop
+  // pixel never leave the interval that holds it.
+  std::vector<std::vector<std::pair<int, int>>> intervals;
+  const f4* rgb_row(int y) const { return rgb.data() + static_cast<size_t>(y - y0) * w - x0; }
+  // prefix_row(y)[x] = sum of rgb over columns x0 .. x-1 (valid for x0 <= x <= x0 + w).
+  const f4* prefix_row(int y) const { return prefix.data() + static_cast<size_t>(y - y0) * (w + 1) - x0; }
+};
+
+// The part of row y that the blur of drop pixels can read: the traced spans of the rows
+// within `reach`, widened by `reach` and clipped to the box, merged. Without spans: the row.
+std::vector<std::pair<int, int>> read_intervals(const Spans* spans, int y, int reach, const cv::Rect& box) {
+  const int lo = box.x, hi = box.x + box.width - 1;
+  if (!spans) return {{lo, hi}};
+  std::vector<std::pair<int, int>> in;
+  for (int yy = std::max(0, y - reach); yy <= std::min(static_cast<int>(spans->size()) - 1, y + reach); ++yy) {
+    for (const auto& [a, b] : (*spans)[yy]) {
+      const int ia = std::max(lo, a - reach), ib = std::min(hi, b + reach);
+      if (ia <= ib) in.push_back({ia, ib});
+    }
+  }
+  merge_spans(in);
+  return in;
+}
+
+Source make_source(const cv::Mat& clean, const cv::Mat& label, const cv::Mat& color, const cv::Rect& box,
+                   bool prefix, const Spans* spans, int reach) {
+  Source s{box.x, box.y, box.width, box.height, F4Buffer(static_cast<size_t>(box.width) * box.height), {}, {}};
+  if (prefix) s.prefix = F4Buffer(static_cast<size_t>(box.width + 1) * box.height);
+  s.intervals.resize(box.height);
+  tbb::parallel_for(tbb::blocked_range<int>(0, box.height, 16), [&](const tbb::blocked_range<int>& r) {
+    for (int j = r.begin(); j < r.end(); ++j) {
+      const int y = box.y + j;
+      s.intervals[j] = read_intervals(spans, y, reach, box);
+      const auto* c8 = clean.ptr<cv::Vec3b>(y);
+      const int* lab = label.ptr<int>(y);
+      const auto* col = color.ptr<cv::Vec3f>(y);
+      f4* dst = s.rgb.data() + static_cast<size_t>(j) * box.width - box.x;
+      f4* p = prefix ? s.prefix.data() + static_cast<size_t>(j) * (box.width + 1) - box.x : nullptr;
+      constexpr float k = 1.0f / 255.0f;
+      for (const auto& [a, b] : s.intervals[j]) {
+        for (int x = a; x <= b; ++x) {
+          dst[x] = lab[x] >= 0 ? f4{col[x][0], col[x][1], col[x][2], 0.f}
+                               : f4{c8[x][0] * k, c8[x][1] * k, c8[x][2] * k, 0.f};
+        }
+        if (p) {
+          p[a] = f4{0, 0, 0, 0};
+          for (int x = a; x <= b; ++x) p[x + 1] = p[x] + dst[x];
+        }
+      }
+    }
+  });
+  return s;
+}
+
+// Writes `out` (one f4 per mask_box pixel, drop pixels only) back into `color`.
+void store(const F4Buffer& out, const cv::Mat& label, cv::Mat& color, const cv::Rect& mask_box) {
+  for (int j = 0; j < mask_box.height; ++j) {
+    const int y = mask_box.y + j;
+    const int* lab = label.ptr<int>(y) + mask_box.x;
+    const f4* o = out.data() + static_cast<size_t>(j) * mask_box.width;
+    auto* c = color.ptr<cv::Vec3f>(y) + mask_box.x;
+    for (int i = 0; i < mask_box.width; ++i) {
+      if (lab[i] >= 0) c[i] = cv::Vec3f(o[i][0], o[i][1], o[i][2]);
+    }
+  }
+}
+
+void blur_rows(const Source& src, const cv::Mat& label, cv::Mat& color, const cv::Rect& mask_box,
+               const std::vector<KernelRow>& kernel) {
+  const int W = label.cols, H = label.rows;
+  // The kernel flattened for the inner loop: full-weight runs (prefix-sum differences) and
+  // partial taps, each with the index of its kernel row.
+  struct Run { int row, lo, hi; };
+  struct Tap { int row, dx; float w; };
+  std::vector<Run> runs;
+  std::vector<Tap> taps;
+  int reach_x = 0, reach_y = 0;
+  float total = 0;
+  for (size_t k = 0; k < kernel.size(); ++k) {
+    const KernelRow& row = kernel[k];
+    reach_y = std::max(reach_y, std::abs(row.dy));
+    if (row.run_lo <= row.run_hi) {
+      runs.push_back({static_cast<int>(k), row.run_lo, row.run_hi + 1});
+      reach_x = std::max({reach_x, std::abs(row.run_lo), std::abs(row.run_hi)});
+      total += static_cast<float>(row.run_hi - row.run_lo + 1);
+    }
+    for (const auto& [dx, w] : row.taps) {
+      taps.push_back({static_cast<int>(k), dx, w});
+      reach_x = std::max(reach_x, std::abs(dx));
+      total += w;
+    }
+  }
+  const float inv_total = 1.0f / total;
+  // Results go straight into `color`: the blur reads only `src`, a copy.
+  tbb::parallel_for(tbb::blocked_range<int>(0, mask_box.height, 4), [&](const tbb::blocked_range<int>& r) {
+    std::vector<const f4*> prefix_rows(kernel.size()), rgb_rows(kernel.size());
+    for (int j = r.begin(); j < r.end(); ++j) {
+      const int y = mask_box.y + j;
+      const int* lab = label.ptr<int>(y);
+      auto* dst = color.ptr<cv::Vec3f>(y);
+      const bool rows_inside = y - reach_y >= 0 && y + reach_y < H;
+      for (size_t k = 0; k < kernel.size(); ++k) {
+        const int yy = y + kernel[k].dy;
+        const bool valid = yy >= 0 && yy < H;
+        prefix_rows[k] = valid && !src.prefix.empty() ? src.prefix_row(yy) : nullptr;
+        rgb_rows[k] = valid ? src.rgb_row(yy) : nullptr;
+      }
+      for (int x = mask_box.x; x < mask_box.x + mask_box.width; ++x) {
+        if (lab[x] < 0) continue;
+        f4 sum{0, 0, 0, 0};
+        if (rows_inside && x - reach_x >= 0 && x + reach_x < W) {
+          // Fast path, away from the frame border: no clipping, constant weight.
+          for (const Run& run : runs) sum += prefix_rows[run.row][x + run.hi] - prefix_rows[run.row][x + run.lo];
+          for (const Tap& tap : taps) sum += tap.w * rgb_rows[tap.row][x + tap.dx];
+          sum *= inv_total;
+        } else {
+          // Near the border: taps outside the frame are dropped and the rest renormalised.
+          float weight = 0;
+          for (const Run& run : runs) {
+            if (!rgb_rows[run.row]) continue;
+            const int lo = std::max(x + run.lo, 0), hi = std::min(x + run.hi, W);
+            if (lo < hi) {
+              sum += prefix_rows[run.row][hi] - prefix_rows[run.row][lo];
+              weight += static_cast<float>(hi - lo);
+            }
+          }
+          for (const Tap& tap : taps) {
+            const int xx = x + tap.dx;
+            if (!rgb_rows[tap.row] || xx < 0 || xx >= W) continue;
+            sum += tap.w * rgb_rows[tap.row][xx];
+            weight += tap.w;
+          }
+          sum = weight > 0 ? sum * (1.0f / weight) : src.rgb_row(y)[x];
+        }
+        dst[x] = cv::Vec3f(sum[0], sum[1], sum[2]);
+      }
+    }
+  });
+}
+
+void blur_gaussian(const Source& src, const cv::Mat& label, cv::Mat& color, const cv::Rect& mask_box,
+                   double diameter) {
+  const double sigma = std::max(diameter / 4.0, 1e-6);
+  const int R = static_cast<int>(std::ceil(3 * sigma));
+  std::vector<float> g(2 * R + 1);
+  for (int i = -R; i <= R; ++i) g[i + R] = static_cast<float>(std::exp(-0.5 * i * i / (sigma * sigma)));
+  // Horizontal pass over every source row (its weight in the pad lane, for renormalising at
+  // the frame border), vertical pass at drop pixels only.
+  F4Buffer horiz(static_cast<size_t>(src.w) * src.h);
+  tbb::parallel_for(tbb::blocked_range<int>(0, src.h, 8), [&](const tbb::blocked_range<int>& r) {
+    for (int j = r.begin(); j < r.end(); ++j) {
+      const f4* s = src.rgb.data() + static_cast<size_t>(j) * src.w - src.x0;
+      f4* h = horiz.data() + static_cast<size_t>(j) * src.w - src.x0;
+      for (const auto& [a, b] : src.intervals[j]) {
+        for (int x = a; x <= b; ++x) {
+          f4 sum{0, 0, 0, 0};
+          for (int k = std::max(-R, a - x); k <= std::min(R, b - x); ++k) {
+            sum += g[k + R] * s[x + k];
+            sum[3] += g[k + R];
+          }
+          h[x] = sum;
+        }
+      }
+    }
+  });
+  F4Buffer out(static_cast<size_t>(mask_box.width) * mask_box.height);
+  tbb::parallel_for(tbb::blocked_range<int>(0, mask_box.height, 4), [&](const tbb::blocked_range<int>& r) {
+    for (int j = r.begin(); j < r.end(); ++j) {
+      const int y = mask_box.y + j;
+      const int* lab = label.ptr<int>(y);
+      f4* dst = out.data() + static_cast<size_t>(j) * mask_box.width;
+      for (int i = 0; i < mask_box.width; ++i) {
+        const int x = mask_box.x + i;
+        if (lab[x] < 0) continue;
+        f4 sum{0, 0, 0, 0};
+        float wsum = 0;
+        for (int k = -R; k <= R; ++k) {
+          const int sy = y + k - src.y0;
+          if (sy < 0 || sy >= src.h) continue;
+          const f4 h = horiz[static_cast<size_t>(sy) * src.w + (x - src.x0)];
+          sum += g[k + R] * h;
+          wsum += g[k + R] * h[3];
+        }
+        dst[i] = sum * (1.0f / wsum);
+      }
+    }
+  });
+  store(out, label, color, mask_box);
+}
+
+int kernel_reach(double diameter, BlurMethod method) {
+  if (method == BlurMethod::Gaussian) return static_cast<int>(std::ceil(3 * std::max(diameter / 4.0, 1e-6)));
+  return static_cast<int>(std::ceil(0.5 * diameter + 0.5));
+}
+
+}  // namespace
+
+void blur_drops(const cv::Mat& clean, const cv::Mat& label, cv::Mat& color, double diameter_px,
+                BlurMethod method, const cv::Rect* drop_box, const Spans* spans) {
+  if (!(diameter_px > 0)) return;
+  // Bounding box of the mask, then of everything the kernel reads.
+  const cv::Rect mask_box = drop_box ? *drop_box : cv::boundingRect(cv::Mat(label >= 0));
+  if (mask_box.empty()) return;
+  const int reach = kernel_reach(diameter_px, method);
+  const cv::Rect read_box = cv::Rect(mask_box.x - reach, mask_box.y - reach, mask_box.width + 2 * reach,
+                                     mask_box.height + 2 * reach) &
+                            cv::Rect(0, 0, label.cols, label.rows);
+  const bool runs = method == BlurMethod::DiskSpan || method == BlurMethod::DiskAntialiased;
+  const Source src = make_source(clean, label, color, read_box, runs, spans, reach);
+  if (method == BlurMethod::Gaussian) {
+    blur_gaussian(src, label, color, mask_box, diameter_px);
+    return;
+  }
+  const bool aa = method == BlurMethod::DiskAntialiased;
+  blur_rows(src, label, color, mask_box, disk_rows(diameter_px, aa, runs));
+}
+
+cv::Mat blur_kernel(double diameter_px, BlurMethod method) {
+  const int R = kernel_reach(diameter_px, method);
+  cv::Mat k(2 * R + 1, 2 * R + 1, CV_64F, cv::Scalar(0));
+  if (method == BlurMethod::Gaussian) {
+    const double sigma = std::max(diameter_px / 4.0, 1e-6);
+    for (int y = -R; y <= R; ++y)
+      for (int x = -R; x <= R; ++x) k.at<double>(y + R, x + R) = std::exp(-0.5 * (x * x + y * y) / (sigma * sigma));
+  } else {
+    for (const KernelRow& row : disk_rows(diameter_px, method == BlurMethod::DiskAntialiased, true)) {
+      for (int x = row.run_lo; x <= row.run_hi; ++x) k.at<double>(row.dy + R, x + R) = 1.0;
+      for (const auto& [dx, w] : row.taps) k.at<double>(row.dy + R, dx + R) = w;
+    }
+  }
+  return k / cv::sum(k)[0];
+}
+
+}  // namespace raindrop

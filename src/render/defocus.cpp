@@ -1,0 +1,122 @@
+#include "raindrop/render/defocus.h"
+
+#include <algorithm>
+#include <cmath>
+
+#include <opencv2/imgproc.hpp>
+
+#include "raindrop/render/blur.h"
+#include "raindrop/render/srgb.h"
+
+namespace raindrop {
+namespace {
+
+// Below this, a pixel's coverage is rounding noise of the convolution, not light.
+constexpr float kNoCoverage = 1e-5f;
+
+// Writes linear radiance where coverage > kNoCoverage, the clean bytes elsewhere.
+cv::Mat encode(const cv::Mat& clean, const cv::Mat& linear, const cv::Mat& coverage) {
+  cv::Mat rainy = clean.clone();
+  for (int y = 0; y < clean.rows; ++y) {
+    const float* a = coverage.ptr<float>(y);
+    const auto* rgb = linear.ptr<cv::Vec3f>(y);
+    auto* out = rainy.ptr<cv::Vec3b>(y);
+    for (int x = 0; x < clean.cols; ++x) {
+      if (!(a[x] > kNoCoverage)) continue;
+      for (int c = 0; c < 3; ++c) out[x][c] = linear_to_srgb8(rgb[x][c]);
+    }
+  }
+  return rainy;
+}
+
+}  // namespace
+
+DefocusedFrame composite_layers(const cv::Mat& clean, const TraceResult& traced, const Camera& camera,
+                                const SceneSample& scene, const std::vector<Drop>& drops) {
+  CV_Assert(clean.type() == CV_8UC3 && traced.label.size() == clean.size());
+  const auto& lin = srgb8_to_linear_table();
+  DefocusedFrame out;
+  out.coc_px.assign(drops.size(), 0.0);
+  // Each drop's pixel box in the pinhole render.
+  std::vector<cv::Rect> box(drops.size());
+  const cv::Rect all = traced.drop_box;
+  for (int y = all.y; y < all.y + all.height; ++y) {
+    const int* label = traced.label.ptr<int>(y);
+    for (int x = all.x; x < all.x + all.width; ++x) {
+      const int d = label[x];
+      if (d < 0) continue;
+      box[d] = box[d].area() == 0 ? cv::Rect(x, y, 1, 1) : (box[d] | cv::Rect(x, y, 1, 1));
+    }
+  }
+  cv::Mat A(clean.size(), CV_32F, cv::Scalar(0));
+  cv::Mat C(clean.size(), CV_32FC3, cv::Scalar::all(0));
+  const cv::Rect frame(0, 0, clean.cols, clean.rows);
+  for (size_t d = 0; d < drops.size(); ++d) {
+    if (box[d].area() == 0) continue;
+    const double coc = scene.drop_coc_px(drops[d].shape(), camera.fx);
+    // Kernel reach, bounded so that a pathological scene cannot ask for a frame-sized kernel
+    // per drop (the blur is then simply as wide as the frame).
+    // A drop centred behind the lens (infinite circle) is left sharp, as before.
+    const double diameter = std::isfinite(coc) ? std::min(coc, 2.0 * std::max(clean.cols, clean.rows)) : 0.0;
+    const bool blurred = diameter >= kMinVisibleCocPx;
+    out.coc_px[d] = blurred ? diameter : 0.0;
+    cv::Mat kernel;
+    int reach = 0;
+    if (blurred) {
+      blur_kernel(diameter, BlurMethod::DiskAntialiased).convertTo(kernel, CV_32F);
+      reach = kernel.rows / 2;
+    }
+    const cv::Rect region = cv::Rect(box[d].x - reach, box[d].y - reach, box[d].width + 2 * reach,
+                                     box[d].height + 2 * reach) & frame;
+    cv::Mat a(region.size(), CV_32F, cv::Scalar(0)), aR(region.size(), CV_32FC3, cv::Scalar::all(0));
+    for (int y = box[d].y; y < box[d].y + box[d].height; ++y) {
+      const int* label = traced.label.ptr<int>(y);
+      const auto* rgb = traced.color.ptr<cv::Vec3f>(y);
+      for (int x = box[d].x; x < box[d].x + box[d].width; ++x) {
+        if (label[x] != static_cast<int>(d)) continue;
+        a.at<float>(y - region.y, x - region.x) = 1.0f;
+        cv::Vec3f r;
+        for (int c = 0; c < 3; ++c) {
+          const float v = std::isfinite(rgb[x][c]) ? std::min(std::max(rgb[x][c], 0.0f), 1.0f) : 0.0f;
+          r[c] = static_cast<float>(srgb_to_linear(v));
+        }
+        aR.at<cv::Vec3f>(y - region.y, x - region.x) = r;
+      }
+    }
+    if (blurred) {
+      cv::filter2D(a, a, -1, kernel, cv::Point(-1, -1), 0, cv::BORDER_CONSTANT);
+      cv::filter2D(aR, aR, -1, kernel, cv::Point(-1, -1), 0, cv::BORDER_CONSTANT);
+    }
+    A(region) += a;
+    C(region) += aR;
+  }
+  // Composite: where blurred drops overlap past full coverage, they share it.
+  cv::Mat linear(clean.size(), CV_32FC3, cv::Scalar::all(0));
+  for (int y = 0; y < clean.rows; ++y) {
+    float* a = A.ptr<float>(y);
+    const auto* c = C.ptr<cv::Vec3f>(y);
+    const auto* b = clean.ptr<cv::Vec3b>(y);
+    auto* o = linear.ptr<cv::Vec3f>(y);
+    for (int x = 0; x < clean.cols; ++x) {
+      if (!(a[x] > kNoCoverage)) {
+        a[x] = 0;
+        continue;
+      }
+      const float scale = a[x] > 1.0f ? 1.0f / a[x] : 1.0f;
+      a[x] = std::min(a[x], 1.0f);
+      for (int k = 0; k < 3; ++k) o[x][k] = (1.0f - a[x]) * lin[b[x][k]] + scale * c[x][k];
+    }
+  }
+  out.rainy = encode(clean, linear, A);
+  out.coverage = A;
+  return out;
+}
+
+DefocusedFrame encode_aperture(const cv::Mat& clean, const ApertureResult& reference) {
+  DefocusedFrame out;
+  out.rainy = encode(clean, reference.linear, reference.coverage);
+  out.coverage = reference.coverage.clone();
+  return out;
+}
+
+}  // namespace raindrop

@@ -1,0 +1,265 @@
+#include "raindrop/render/drop_accel.h"
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <limits>
+
+#include <embree3/rtcore.h>
+#include <glm/geometric.hpp>
+
+#include "raindrop/common/error.h"
+
+namespace raindrop {
+namespace {
+
+// One Embree device for the process: creating one costs milliseconds, queries on committed
+// scenes are thread-safe.
+RTCDevice shared_device() {
+  static RTCDevice device = [] {
+    RTCDevice d = rtcNewDevice("verbose=0");
+    if (!d) throw Error("could not create an Embree device");
+    return d;
+  }();
+  return device;
+}
+
+// Intersect context extended with the double-precision ray (Embree's ray is float) and the
+// surface the ray starts on, as in Embree's tutorials on extended contexts.
+struct ExactContext {
+  RTCIntersectContext base;
+  const std::vector<Drop>* drops;
+  glm::dvec3 origin, dir;
+  double t_min;  // the query's lower bound in double (Embree's is a float)
+  const DropHit* from;
+  DropHit best;  // the last accepted hit is the nearest
+};
+
+void exact_bounds(const RTCBoundsFunctionArguments* args) {
+  const auto* drops = static_cast<const std::vector<Drop>*>(args->geometryUserPtr);
+  glm::dvec3 lo, hi;
+  (*drops)[args->primID].bounds(&lo, &hi);
+  // Pad by a relative epsilon so that float rounding never clips the true cap.
+  const glm::dvec3 pad = 1e-5 * (glm::abs(lo) + glm::abs(hi)) + 1e-6;
+  lo -= pad;
+  hi += pad;
+  args->bounds_o->lower_x = static_cast<float>(lo.x);
+  args->bounds_o->lower_y = static_cast<float>(lo.y);
+  args->bounds_o->lower_z = static_cast<float>(lo.z);
+  args->bounds_o->upper_x = static_cast<float>(hi.x);
+  args->bounds_o->upper_y = static_cast<float>(hi.y);
+  args->bounds_o->upper_z = static_cast<float>(hi.z);
+}
+
+void exact_intersect(const RTCIntersectFunctionNArguments* args) {
+  if (!args->valid[0]) return;
+  auto* ctx = reinterpret_cast<ExactContext*>(args->context);
+  RTCRayHit* rayhit = reinterpret_cast<RTCRayHit*>(args->rayhit);  // N == 1: rtcIntersect1
+  const unsigned prim = args->primID;
+  std::optional<DropSurface> start;
+  if (ctx->from && ctx->from->drop == static_cast<int>(prim)) start = ctx->from->surface;
+  const auto hit = (*ctx->drops)[prim].intersect(ctx->origin, ctx->dir, ctx->t_min,
+                                                 static_cast<double>(rayhit->ray.tfar), start);
+  if (!hit) return;
+  rayhit->ray.tfar = static_cast<float>(hit->t);
+  rayhit->hit.Ng_x = static_cast<float>(hit->normal.x);
+  rayhit->hit.Ng_y = static_cast<float>(hit->normal.y);
+  rayhit->hit.Ng_z = static_cast<float>(hit->normal.z);
+  rayhit->hit.u = rayhit->hit.v = 0.f;
+  rayhit->hit.primID = prim;
+  rayhit->hit.geomID = args->geomID;
+  rayhit->hit.instID[0] = RTC_INVALID_GEOMETRY_ID;
+  ctx->best = DropHit{hit->t, static_cast<int>(prim), hit->surface, hit->normal};
+}
+
+}  // namespace
+
+std::string GeometryOptions::describe() const {
+  if (kind == Kind::Exact) return "exact";
+  return "mesh-" + std::to_string(segments) + (smooth_normals ? "-smooth" : "-flat");
+}
+
+GeometryOptions GeometryOptions::parse(const std::string& text) {
+  GeometryOptions o;
+  if (text == "exact") return o;
+  o.kind = Kind::Mesh;
+  int segments = 0;
+  char normals[16] = {0};
+  if (std::sscanf(text.c_str(), "mesh-%d-%15s", &segments, normals) == 2 && segments >= 4 &&
+      segments <= kMaxMeshSegments && (std::string(normals) == "smooth" || std::string(normals) == "flat")) {
+    o.segments = segments;
+    o.smooth_normals = std::string(normals) == "smooth";
+    return o;
+  }
+  throw Error("geometry '" + text + "' is not 'exact' or 'mesh-<segments>-smooth|flat' (segments 4.." +
+              std::to_string(kMaxMeshSegments) + ")");
+}
+
+struct DropAccel::Impl {
+  RTCScene scene = nullptr;
+  // Mesh only: per triangle, its drop and surface; per vertex, the true surface normal.
+  std::vector<int> tri_drop;
+  std::vector<DropSurface> tri_surface;
+  std::vector<glm::vec3> vertex_normal;
+  std::vector<unsigned> indices;
+  ~Impl() {
+    if (scene) rtcReleaseScene(scene);
+  }
+};
+
+DropAccel::DropAccel(const std::vector<Drop>& drops, const GeometryOptions& options)
+    : drops_(drops), options_(options), impl_(std::make_unique<Impl>()) {
+  for (const Drop& d : drops_) max_height_ = std::max(max_height_, d.shape().height());
+  RTCDevice device = shared_device();
+  impl_->scene = rtcNewScene(device);
+  rtcSetSceneFlags(impl_->scene, RTC_SCENE_FLAG_ROBUST);
+  if (options.kind == GeometryOptions::Kind::Exact) {
+    RTCGeometry geom = rtcNewGeometry(device, RTC_GEOMETRY_TYPE_USER);
+    rtcSetGeometryUserPrimitiveCount(geom, static_cast<unsigned>(drops_.size()));
+    rtcSetGeometryUserData(geom, &drops_);
+    rtcSetGeometryBoundsFunction(geom, exact_bounds, &drops_);
+    rtcSetGeometryIntersectFunction(geom, exact_intersect);
+    rtcCommitGeometry(geom);
+    rtcAttachGeometry(impl_->scene, geom);
+    rtcReleaseGeometry(geom);
+  } else {
+    const int segs = options.segments;
+    const int rings = std::max(2, segs / 4);
+    std::vector<glm::vec3> verts;
+    auto& idx = impl_->indices;
+    for (int d = 0; d < static_cast<int>(drops_.size()); ++d) {
+      const Drop& drop = drops_[d];
+      const double tau = drop.shape().contact_angle;
+      // Cap: apex vertex, then `rings` rings down to the rim (the last ring is the rim).
+      const unsigned apex = static_cast<unsigned>(verts.size());
+      verts.push_back(glm::vec3(drop.cap_point(0, 0)));
+      impl_->vertex_normal.push_back(glm::vec3(drop.cap_normal(drop.cap_point(0, 0))));
+      for (int r = 1; r <= rings; ++r) {
+        for (int s = 0; s < segs; ++s) {
+          const glm::dvec3 p = drop.cap_point(tau * r / rings, 2 * M_PI * s / segs);
+          verts.push_back(glm::vec3(p));
+          impl_->vertex_normal.push_back(glm::vec3(drop.cap_normal(p)));
+        }
+      }
+      auto ring_vertex = [&](int r, int s) { return apex + 1 + (r - 1) * segs + (s % segs); };
+      auto add = [&](unsigned a, unsigned b, unsigned c, DropSurface surface) {
+        idx.insert(idx.end(), {a, b, c});
+        impl_->tri_drop.push_back(d);
+        impl_->tri_surface.push_back(surface);
+      };
+      for (int s = 0; s < segs; ++s) add(apex, ring_vertex(1, s), ring_vertex(1, s + 1), DropSurface::Cap);
+      for (int r = 1; r < rings; ++r) {
+        for (int s = 0; s < segs; ++s) {
+          add(ring_vertex(r, s), ring_vertex(r + 1, s), ring_vertex(r + 1, s + 1), DropSurface::Cap);
+          add(ring_vertex(r, s), ring_vertex(r + 1, s + 1), ring_vertex(r, s + 1), DropSurface::Cap);
+        }
+      }
+      // Base: fan from the footprint centre over its own copy of the rim ring. The copy
+      // carries the flat base's normal; sharing the cap's rim vertices would blend the cap's
+      // rim normals into the base under smooth shading.
+      const unsigned centre = static_cast<unsigned>(verts.size());
+      verts.push_back(glm::vec3(0.5 * (drop.cap_point(tau, 0) + drop.cap_point(tau, M_PI))));
+      impl_->vertex_normal.push_back(glm::vec3(drop.base_normal()));
+      for (int s = 0; s < segs; ++s) {
+        verts.push_back(verts[ring_vertex(rings, s)]);
+        impl_->vertex_normal.push_back(glm::vec3(drop.base_normal()));
+      }
+      for (int s = 0; s < segs; ++s) add(centre, centre + 1 + (s + 1) % segs, centre + 1 + s, DropSurface::Base);
+    }
+    RTCGeometry geom = rtcNewGeometry(device, RTC_GEOMETRY_TYPE_TRIANGLE);
+    auto* vb = static_cast<float*>(rtcSetNewGeometryBuffer(geom, RTC_BUFFER_TYPE_VERTEX, 0,
+                                                           RTC_FORMAT_FLOAT3, 3 * sizeof(float),
+                                                           verts.size()));
+    for (size_t i = 0; i < verts.size(); ++i) {
+      vb[3 * i] = verts[i].x;
+      vb[3 * i + 1] = verts[i].y;
+      vb[3 * i + 2] = verts[i].z;
+    }
+    auto* ib = static_cast<unsigned*>(rtcSetNewGeometryBuffer(geom, RTC_BUFFER_TYPE_INDEX, 0,
+                                                              RTC_FORMAT_UINT3, 3 * sizeof(unsigned),
+                                                              idx.size() / 3));
+    std::copy(idx.begin(), idx.end(), ib);
+    rtcCommitGeometry(geom);
+    rtcAttachGeometry(impl_->scene, geom);
+    rtcReleaseGeometry(geom);
+  }
+  rtcCommitScene(impl_->scene);
+  if (rtcGetDeviceError(device) != RTC_ERROR_NONE) throw Error("Embree failed to build the drop scene");
+}
+
+DropAccel::~DropAccel() = default;
+
+std::optional<DropHit> DropAccel::intersect_inside(const glm::dvec3& origin, const glm::dvec3& dir,
+                                                   const DropHit& from, double t_max) const {
+  if (!disjoint_ || options_.kind != GeometryOptions::Kind::Exact) return intersect(origin, dir, &from, 0.0, t_max);
+  const auto hit = drops_[from.drop].intersect(origin, dir, 0.0, t_max, from.surface);
+  if (!hit) return std::nullopt;
+  return DropHit{hit->t, from.drop, hit->surface, hit->normal};
+}
+
+std::optional<DropHit> DropAccel::intersect(const glm::dvec3& origin, const glm::dvec3& dir,
+                                            const DropHit* from, double t_min, double t_max) const {
+  RTCRayHit rh;
+  rh.ray.org_x = static_cast<float>(origin.x);
+  rh.ray.org_y = static_cast<float>(origin.y);
+  rh.ray.org_z = static_cast<float>(origin.z);
+  rh.ray.dir_x = static_cast<float>(dir.x);
+  rh.ray.dir_y = static_cast<float>(dir.y);
+  rh.ray.dir_z = static_cast<float>(dir.z);
+  rh.ray.time = 0.f;
+  // Float bounds widened by a relative 1e-6 (about 8 float ulps) so the float traversal never
+  // clips the double-precision query.
+  const float inf = std::numeric_limits<float>::infinity();
+  rh.ray.tfar = std::isfinite(t_max) ? static_cast<float>(t_max * (1 + 1e-6) + 1e-6) : inf;
+  const float tnear = static_cast<float>(std::max(0.0, t_min * (1 - 1e-6) - 1e-6));
+  rh.ray.mask = 0xFFFFFFFFu;
+  rh.ray.id = 0;
+  rh.ray.flags = 0;
+  rh.hit.geomID = RTC_INVALID_GEOMETRY_ID;
+  rh.hit.instID[0] = RTC_INVALID_GEOMETRY_ID;
+
+  if (options_.kind == GeometryOptions::Kind::Exact) {
+    ExactContext ctx;
+    rtcInitIntersectContext(&ctx.base);
+    ctx.drops = &drops_;
+    ctx.origin = origin;
+    ctx.dir = dir;
+    ctx.from = from;
+    ctx.t_min = t_min;
+    rh.ray.tnear = std::max(tnear, 0.f);
+    rtcIntersect1(impl_->scene, &ctx.base, &rh);
+    if (rh.hit.geomID == RTC_INVALID_GEOMETRY_ID) return std::nullopt;
+    return ctx.best;
+  }
+
+  // Mesh: the starting triangle is avoided with a small offset along the ray, 1e-4 of the
+  // direction's length in cm (1 um for a unit direction), far below a drop's size and far
+  // above float rounding at these distances.
+  RTCIntersectContext ctx;
+  rtcInitIntersectContext(&ctx);
+  rh.ray.tnear = std::max(std::max(tnear, 0.f), from ? static_cast<float>(1e-4 / glm::length(dir)) : 0.f);
+  rtcIntersect1(impl_->scene, &ctx, &rh);
+  if (rh.hit.geomID == RTC_INVALID_GEOMETRY_ID) return std::nullopt;
+  const unsigned tri = rh.hit.primID;
+  DropHit hit;
+  hit.t = rh.ray.tfar;
+  hit.drop = impl_->tri_drop[tri];
+  hit.surface = impl_->tri_surface[tri];
+  const float u = rh.hit.u, v = rh.hit.v;
+  const unsigned* t = &impl_->indices[3 * tri];
+  const glm::dvec3 smooth((1 - u - v) * impl_->vertex_normal[t[0]] +
+                          u * impl_->vertex_normal[t[1]] + v * impl_->vertex_normal[t[2]]);
+  if (options_.smooth_normals) {
+    hit.normal = smooth;
+  } else {
+    // The facet's own normal, turned to the outside (the side of the true normals) so the
+    // result does not depend on the winding convention.
+    hit.normal = glm::dvec3(rh.hit.Ng_x, rh.hit.Ng_y, rh.hit.Ng_z);
+    if (glm::dot(hit.normal, smooth) < 0) hit.normal = -hit.normal;
+  }
+  const double len = glm::length(hit.normal);
+  hit.normal = len > 0 ? hit.normal / len : drops_[hit.drop].base_normal();
+  return hit;
+}
+
+}  // namespace raindrop

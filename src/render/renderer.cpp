@@ -1,0 +1,118 @@
+#include "raindrop/render/renderer.h"
+
+#include <cmath>
+
+#include <opencv2/core.hpp>
+
+#include "raindrop/common/stopwatch.h"
+#include "raindrop/render/blur.h"
+#include "raindrop/render/defocus.h"
+#include "raindrop/render/drop_accel.h"
+
+namespace raindrop {
+namespace {
+
+// The binary mask of a defocused frame: coverage >= the scene's threshold (0/255).
+void finish_mask(const SceneConfig& config, RenderedFrame& frame) {
+  frame.mask = frame.alpha >= static_cast<float>(config.lens.mask_threshold);
+  frame.stats.drop_pixels = cv::countNonZero(frame.mask);
+}
+
+// The thin-lens camera: layered compositing (fast) or aperture sampling (reference).
+// A drop just outside the frame still spreads light into it, so both run on the frame
+// widened by the largest circle's radius (the clean frame mirrored into the margin, as the
+// border mode continues it) and are cropped back.
+RenderedFrame render_defocused(const cv::Mat& clean, const Camera& camera, const SceneConfig& config,
+                               const SceneSample& scene, const DropAccel& accel, const std::vector<Drop>& drops,
+                               double largest_coc_px, RenderedFrame frame) {
+  frame.defocused = true;
+  const int pad = static_cast<int>(std::ceil(std::min(0.5 * largest_coc_px, 0.5 * std::max(clean.cols, clean.rows)))) + 1;
+  cv::Mat wide;
+  cv::copyMakeBorder(clean, wide, pad, pad, pad, pad,
+                     config.border == BorderMode::Clamp ? cv::BORDER_REPLICATE : cv::BORDER_REFLECT);
+  const Camera wide_camera = camera.cropped(-pad, -pad, clean.cols + 2 * pad, clean.rows + 2 * pad);
+  const cv::Rect inner(pad, pad, clean.cols, clean.rows);
+  auto t0 = Clock::now();
+  DefocusedFrame out;
+  if (config.lens.method == DefocusMethod::Aperture) {
+    out = encode_aperture(wide, trace_aperture(wide, wide_camera, config, scene, accel, config.lens.aperture_samples));
+    frame.timings.trace_ms = ms_since(t0);
+    for (const Drop& d : drops) out.coc_px.push_back(scene.drop_coc_px(d.shape(), camera.fx));
+  } else {
+    const TraceResult traced = trace_drops(wide, wide_camera, config, scene, accel);
+    frame.stats = traced.stats;
+    frame.timings.trace_ms = ms_since(t0);
+    t0 = Clock::now();
+    out = composite_layers(wide, traced, wide_camera, scene, drops);
+    frame.timings.blur_ms = ms_since(t0);
+  }
+  t0 = Clock::now();
+  frame.rainy = out.rainy(inner).clone();
+  frame.alpha = out.coverage(inner).clone();
+  frame.coc_px = std::move(out.coc_px);
+  finish_mask(config, frame);
+  frame.timings.compose_ms = ms_since(t0);
+  return frame;
+}
+
+}  // namespace
+
+double RenderedFrame::coverage() const {
+  return mask.empty() ? 0.0 : static_cast<double>(stats.drop_pixels) / (mask.total());
+}
+
+RenderedFrame render_frame(const cv::Mat& clean, const Camera& camera, const SceneConfig& config,
+                           const SceneSample& scene) {
+  RenderedFrame frame;
+  auto t0 = Clock::now();
+  std::vector<Drop> drops;
+  drops.reserve(scene.drops.size());
+  for (const DropShape& shape : scene.drops) drops.emplace_back(shape, scene.glass);
+  DropAccel accel(drops, config.geometry);
+  // Non-overlapping footprints mean non-overlapping caps (a cap never reaches past its
+  // footprint for contact angles up to 90 degrees).
+  accel.set_disjoint(!config.allow_overlap);
+  frame.timings.accel_ms = ms_since(t0);
+
+  if (config.lens.enabled && scene.aperture_cm() > 0) {
+    // Skip the lens when no drop's circle of confusion reaches half a pixel: the pinhole
+    // render is then what the lens would give, to rounding.
+    double largest = 0;
+    for (const Drop& d : drops) largest = std::max(largest, scene.drop_coc_px(d.shape(), camera.fx));
+    if (largest >= kMinVisibleCocPx) return render_defocused(clean, camera, config, scene, accel, drops, largest, frame);
+  }
+
+  t0 = Clock::now();
+  TraceResult traced = trace_drops(clean, camera, config, scene, accel);
+  frame.timings.trace_ms = ms_since(t0);
+  frame.stats = traced.stats;
+
+  t0 = Clock::now();
+  if (config.blur.enabled) {
+    blur_drops(clean, traced.label, traced.color, scene.blur_diameter_px, config.blur.method, &traced.drop_box, &traced.spans);
+  }
+  frame.timings.blur_ms = ms_since(t0);
+
+  // Only drop pixels are written: everywhere else the rainy image is the clean bytes.
+  t0 = Clock::now();
+  frame.rainy = clean.clone();
+  frame.mask = cv::Mat(clean.size(), CV_8UC1, cv::Scalar(0));
+  for (int y = 0; y < clean.rows; ++y) {
+    const int* label = traced.label.ptr<int>(y);
+    const auto* rgb = traced.color.ptr<cv::Vec3f>(y);
+    auto* out = frame.rainy.ptr<cv::Vec3b>(y);
+    auto* m = frame.mask.ptr<std::uint8_t>(y);
+    for (const auto& [x0, x1] : traced.spans[y]) for (int x = x0; x <= x1; ++x) {
+      if (label[x] < 0) continue;
+      m[x] = 255;
+      for (int c = 0; c < 3; ++c) {
+        const float v = std::isfinite(rgb[x][c]) ? rgb[x][c] : 0.0f;
+        out[x][c] = static_cast<std::uint8_t>(std::floor(std::min(std::max(v, 0.0f), 1.0f) * 255.0f + 0.5f));
+      }
+    }
+  }
+  frame.timings.compose_ms = ms_since(t0);
+  return frame;
+}
+
+}  // namespace raindrop

@@ -1,0 +1,355 @@
+#include "raindrop/render/scene_config.h"
+
+#include <cmath>
+#include <fstream>
+#include <iomanip>
+#include <map>
+#include <set>
+#include <sstream>
+
+#include <nlohmann/json.hpp>
+
+#include "raindrop/common/error.h"
+#include "raindrop/render/optics.h"
+
+namespace raindrop {
+namespace {
+
+using json = nlohmann::json;
+
+// scenes/*.json, embedded at build time (see CMakeLists.txt) so that the presets and the
+// files users copy from are the same text.
+#include "scene_presets.inc"
+
+class Reader {
+ public:
+  Reader(const json& j, std::string where, std::string origin)
+      : j_(j), where_(std::move(where)), origin_(std::move(origin)) {
+    if (!j_.is_object()) fail("must be a JSON object");
+  }
+
+  [[noreturn]] void fail(const std::string& what) const {
+    throw Error("scene " + origin_ + ": " + (where_.empty() ? "" : where_ + ": ") + what);
+  }
+
+  bool has(const std::string& key) {
+    seen_.insert(key);
+    return j_.contains(key);
+  }
+
+  // A number (fixed value) or [lo, hi] with lo <= hi, both inside [min, max].
+  void range(const std::string& key, Range* out, double min, double max) {
+    if (!has(key)) return;
+    const json& v = j_.at(key);
+    Range r;
+    if (v.is_number()) {
+      r.lo = r.hi = v.get<double>();
+    } else if (v.is_array() && v.size() == 2 && v[0].is_number() && v[1].is_number()) {
+      r.lo = v[0].get<double>();
+      r.hi = v[1].get<double>();
+    } else {
+      fail("'" + key + "' must be a number or [lo, hi]");
+    }
+    if (!(r.lo <= r.hi) || !(r.lo >= min) || !(r.hi <= max)) {
+      std::ostringstream s;
+      s << "'" << key << "' = [" << r.lo << ", " << r.hi << "] must satisfy " << min
+        << " <= lo <= hi <= " << max;
+      fail(s.str());
+    }
+    *out = r;
+  }
+
+  void number(const std::string& key, double* out, double min, double max) {
+    Range r{*out, *out};
+    range(key, &r, min, max);
+    if (r.lo != r.hi) fail("'" + key + "' must be a single number");
+    *out = r.lo;
+  }
+
+  void boolean(const std::string& key, bool* out) {
+    if (!has(key)) return;
+    if (!j_.at(key).is_boolean()) fail("'" + key + "' must be true or false");
+    *out = j_.at(key).get<bool>();
+  }
+
+  std::string string(const std::string& key, const std::string& fallback) {
+    if (!has(key)) return fallback;
+    if (!j_.at(key).is_string()) fail("'" + key + "' must be a string");
+    return j_.at(key).get<std::string>();
+  }
+
+  void vec3(const std::string& key, glm::dvec3* out, double min, double max) {
+    if (!has(key)) return;
+    const json& v = j_.at(key);
+    if (!v.is_array() || v.size() != 3) fail("'" + key + "' must be [r, g, b]");
+    for (int i = 0; i < 3; ++i) {
+      if (!v[i].is_number()) fail("'" + key + "' must be [r, g, b]");
+      const double x = v[i].get<double>();
+      if (!(x >= min && x <= max)) fail("'" + key + "' values must lie in [" + std::to_string(min) + ", " + std::to_string(max) + "]");
+      (*out)[i] = x;
+    }
+  }
+
+  Reader child(const std::string& key) {
+    seen_.insert(key);
+    return Reader(j_.at(key), where_.empty() ? key : where_ + "." + key, origin_);
+  }
+
+  // Unknown keys are errors: a misspelt effect must not silently turn into "effect off".
+  void reject_unknown() const {
+    for (auto it = j_.begin(); it != j_.end(); ++it) {
+      if (!seen_.count(it.key())) fail("unknown key '" + it.key() + "'");
+    }
+  }
+
+ private:
+  const json& j_;
+  std::string where_, origin_;
+  std::set<std::string> seen_;
+};
+
+template <class Enum>
+Enum parse_enum(Reader& r, const std::string& key, Enum fallback,
+                const std::map<std::string, Enum>& names) {
+  const std::string text = r.string(key, "");
+  if (text.empty()) return fallback;
+  const auto it = names.find(text);
+  if (it == names.end()) {
+    std::string options;
+    for (const auto& [name, value] : names) options += (options.empty() ? "" : ", ") + name;
+    r.fail("'" + key + "' = '" + text + "' is not one of: " + options);
+  }
+  return it->second;
+}
+
+}  // namespace
+
+const char* to_string(BorderMode m) { return m == BorderMode::Clamp ? "clamp" : "mirror"; }
+const char* to_string(TirMode m) { return m == TirMode::Black ? "black" : "trace"; }
+const char* to_string(SizeDistribution d) { return d == SizeDistribution::Uniform ? "uniform" : "log-uniform"; }
+const char* to_string(DefocusMethod m) { return m == DefocusMethod::Layered ? "layered" : "aperture"; }
+const char* to_string(BlurMethod m) {
+  switch (m) {
+    case BlurMethod::DiskSpan: return "disk";
+    case BlurMethod::DiskDirect: return "disk-direct";
+    case BlurMethod::DiskAntialiased: return "disk-aa";
+    case BlurMethod::Gaussian: return "gaussian";
+  }
+  return "?";
+}
+
+std::vector<std::string> SceneConfig::effect_names() const {
+  std::vector<std::string> names{"refraction", tir == TirMode::Black ? "dark_band" : "internal_reflection"};
+  if (blur.enabled) names.push_back("blur");
+  if (lens.enabled) names.push_back(std::string("defocus-") + to_string(lens.method));
+  if (sky.enabled) names.push_back("sky");
+  if (fresnel.enabled) names.push_back("fresnel");
+  if (dispersion.enabled) names.push_back("dispersion");
+  if (gravity.enabled) names.push_back("gravity");
+  return names;
+}
+
+glm::dvec3 SceneConfig::channel_indices() const {
+  if (!dispersion.enabled) return glm::dvec3(refractive_index);
+  // Keep the configured index at the D line and add water's dispersion around it.
+  const double shift = refractive_index - water_index(0.5893);
+  glm::dvec3 n;
+  for (int c = 0; c < 3; ++c) n[c] = water_index(dispersion.wavelength_nm[c] / 1000.0) + shift;
+  return n;
+}
+
+SceneConfig parse_scene_json(const std::string& text, const std::string& origin) {
+  json j;
+  try {
+    j = json::parse(text, nullptr, /*allow_exceptions=*/true, /*ignore_comments=*/true);
+  } catch (const json::exception& e) {
+    // Not only parse_error: a number too large for a double (1e309) is an out_of_range.
+    throw Error("scene " + origin + ": not valid JSON (" + std::string(e.what()) + ")");
+  }
+  Reader r(j, "", origin);
+  SceneConfig c;
+  c.name = r.string("name", std::filesystem::path(origin).stem().string());
+  r.range("glass_distance_cm", &c.glass_distance_cm, 1, 1000);
+  r.range("background_distance_cm", &c.background_distance_cm, 10, 1e6);
+  r.range("tilt_deg", &c.tilt_deg, 15, 90);
+  r.range("drop_count", &c.drop_count, 0, kMaxDropCount);
+  if (c.drop_count.lo != std::floor(c.drop_count.lo) || c.drop_count.hi != std::floor(c.drop_count.hi))
+    r.fail("'drop_count' must be whole numbers");
+  const bool sphere = r.has("sphere_radius_cm"), footprint = r.has("footprint_radius_cm");
+  if (sphere && footprint) r.fail("give either 'sphere_radius_cm' or 'footprint_radius_cm', not both");
+  if (footprint) {
+    c.size_param = DropSizeParam::FootprintRadius;
+    r.range("footprint_radius_cm", &c.drop_size_cm, 1e-3, 50);
+  } else {
+    r.range("sphere_radius_cm", &c.drop_size_cm, 1e-3, 50);
+  }
+  c.size_distribution = parse_enum<SizeDistribution>(
+      r, "size_distribution", c.size_distribution,
+      {{"uniform", SizeDistribution::Uniform}, {"log-uniform", SizeDistribution::LogUniform}});
+  r.range("contact_angle_deg", &c.contact_angle_deg, 1, 90);
+  r.number("refractive_index", &c.refractive_index, 1.0, 3.0);
+  r.boolean("allow_overlap", &c.allow_overlap);
+  r.number("min_gap_cm", &c.min_gap_cm, 0, 10);
+  c.tir = parse_enum<TirMode>(r, "dark_band", c.tir, {{"black", TirMode::Black}, {"trace", TirMode::Trace}});
+
+  if (r.has("camera")) {
+    Reader l = r.child("camera");
+    c.lens.enabled = true;
+    l.range("f_number", &c.lens.f_number, 0.5, 1e6);
+    l.range("focal_length_mm", &c.lens.focal_length_mm, 0.5, 2000);
+    c.lens.method = parse_enum<DefocusMethod>(l, "defocus", c.lens.method,
+                                              {{"layered", DefocusMethod::Layered}, {"aperture", DefocusMethod::Aperture}});
+    double samples = c.lens.aperture_samples;
+    l.number("aperture_samples", &samples, 1, 1024);
+    const int side = static_cast<int>(std::lround(std::sqrt(samples)));
+    if (side * side != samples) l.fail("'aperture_samples' must be a square number (1, 4, 16, 64, 256)");
+    c.lens.aperture_samples = static_cast<int>(samples);
+    l.number("mask_threshold", &c.lens.mask_threshold, 1e-3, 1);
+    l.reject_unknown();
+  }
+
+  // Effects: present = on.
+  c.blur.enabled = c.fresnel.enabled = c.dispersion.enabled = c.gravity.enabled = c.sky.enabled = false;
+  if (r.has("effects")) {
+    Reader e = r.child("effects");
+    if (e.has("blur")) {
+      Reader b = e.child("blur");
+      c.blur.enabled = true;
+      b.range("diameter_px_2048", &c.blur.diameter_px_2048, 0, 200);
+      c.blur.method = parse_enum<BlurMethod>(b, "method", c.blur.method,
+                                             {{"disk", BlurMethod::DiskSpan},
+                                              {"disk-direct", BlurMethod::DiskDirect},
+                                              {"disk-aa", BlurMethod::DiskAntialiased},
+                                              {"gaussian", BlurMethod::Gaussian}});
+      b.reject_unknown();
+    }
+    if (e.has("sky")) {
+      Reader k = e.child("sky");
+      c.sky.enabled = true;
+      k.number("fade_rows", &c.sky.fade_rows, 0, 10);
+      k.number("gain", &c.sky.gain, 0, 10);
+      k.reject_unknown();
+    }
+    if (e.has("fresnel")) {
+      Reader f = e.child("fresnel");
+      c.fresnel.enabled = true;
+      f.vec3("interior_rgb", &c.fresnel.interior_rgb, 0, 1);
+      f.reject_unknown();
+    }
+    if (e.has("dispersion")) {
+      Reader d = e.child("dispersion");
+      c.dispersion.enabled = true;
+      d.vec3("wavelength_nm", &c.dispersion.wavelength_nm, 380, 780);
+      d.reject_unknown();
+    }
+    if (e.has("gravity")) {
+      Reader g = e.child("gravity");
+      c.gravity.enabled = true;
+      g.range("elongation", &c.gravity.elongation, 1, 3);
+      g.range("flattening", &c.gravity.flattening, 0.1, 1);
+      g.reject_unknown();
+    }
+    e.reject_unknown();
+  }
+
+  if (c.lens.enabled && c.blur.enabled)
+    r.fail("a scene with a 'camera' is defocused by its lens: remove 'effects.blur' (the paper's disk blur)");
+
+  if (r.has("quality")) {
+    Reader q = r.child("quality");
+    try {
+      c.geometry = GeometryOptions::parse(q.string("geometry", "exact"));
+    } catch (const Error& e) {
+      q.fail(e.what());  // with the file's name
+    }
+    const double mesh_bytes = c.geometry.mesh_bytes_per_drop() * c.drop_count.hi;
+    if (mesh_bytes > kMaxMeshBytes) {
+      std::ostringstream m;
+      m << std::fixed << std::setprecision(1) << "'geometry' = '" << c.geometry.describe() << "' with up to "
+        << static_cast<long long>(c.drop_count.hi) << " drops takes about " << mesh_bytes / (1 << 30) << " GB of mesh a sample, more than the "
+        << kMaxMeshBytes / (1 << 30) << " GB limit; use fewer segments or drops";
+      q.fail(m.str());
+    }
+    double spp = c.samples_per_pixel;
+    q.number("samples_per_pixel", &spp, 1, 256);
+    const int side = static_cast<int>(std::lround(std::sqrt(spp)));
+    if (side * side != spp) q.fail("'samples_per_pixel' must be a square number (1, 4, 9, 16, ...)");
+    c.samples_per_pixel = static_cast<int>(spp);
+    const std::string where = q.string("supersample", "edges");
+    if (where != "edges" && where != "all") q.fail("'supersample' must be 'edges' or 'all'");
+    c.supersample_edges_only = where == "edges";
+    c.border = parse_enum<BorderMode>(q, "border", c.border,
+                                      {{"clamp", BorderMode::Clamp}, {"mirror", BorderMode::Mirror}});
+    q.reject_unknown();
+  }
+  r.reject_unknown();
+  return c;
+}
+
+std::string scene_to_json(const SceneConfig& c) {
+  auto range = [](const Range& r) { return json::array({r.lo, r.hi}); };
+  auto vec3 = [](const glm::dvec3& v) { return json::array({v.x, v.y, v.z}); };
+  json j;
+  j["name"] = c.name;
+  j["glass_distance_cm"] = range(c.glass_distance_cm);
+  j["background_distance_cm"] = range(c.background_distance_cm);
+  j["tilt_deg"] = range(c.tilt_deg);
+  j["drop_count"] = range(c.drop_count);
+  j[c.size_param == DropSizeParam::SphereRadius ? "sphere_radius_cm" : "footprint_radius_cm"] = range(c.drop_size_cm);
+  if (c.size_distribution != SizeDistribution::Uniform) j["size_distribution"] = to_string(c.size_distribution);
+  j["contact_angle_deg"] = range(c.contact_angle_deg);
+  if (c.lens.enabled)
+    j["camera"] = {{"f_number", range(c.lens.f_number)},
+                   {"focal_length_mm", range(c.lens.focal_length_mm)},
+                   {"defocus", to_string(c.lens.method)},
+                   {"aperture_samples", c.lens.aperture_samples},
+                   {"mask_threshold", c.lens.mask_threshold}};
+  j["refractive_index"] = c.refractive_index;
+  j["allow_overlap"] = c.allow_overlap;
+  j["min_gap_cm"] = c.min_gap_cm;
+  j["dark_band"] = to_string(c.tir);
+  json effects = json::object();
+  if (c.blur.enabled) effects["blur"] = {{"diameter_px_2048", range(c.blur.diameter_px_2048)}, {"method", to_string(c.blur.method)}};
+  if (c.sky.enabled) effects["sky"] = {{"fade_rows", c.sky.fade_rows}, {"gain", c.sky.gain}};
+  if (c.fresnel.enabled) effects["fresnel"] = {{"interior_rgb", vec3(c.fresnel.interior_rgb)}};
+  if (c.dispersion.enabled) effects["dispersion"] = {{"wavelength_nm", vec3(c.dispersion.wavelength_nm)}};
+  if (c.gravity.enabled) effects["gravity"] = {{"elongation", range(c.gravity.elongation)}, {"flattening", range(c.gravity.flattening)}};
+  j["effects"] = effects;
+  j["quality"] = {{"geometry", c.geometry.describe()},
+                  {"samples_per_pixel", c.samples_per_pixel},
+                  {"supersample", c.supersample_edges_only ? "edges" : "all"},
+                  {"border", to_string(c.border)}};
+  return j.dump(2);
+}
+
+std::vector<std::string> scene_preset_names() {
+  std::vector<std::string> names;
+  for (const auto& p : kScenePresets) names.emplace_back(p.name);
+  return names;
+}
+
+SceneConfig scene_preset(const std::string& name) {
+  for (const auto& p : kScenePresets) {
+    if (name == p.name) return parse_scene_json(p.json, "preset '" + name + "'");
+  }
+  std::string all;
+  for (const auto& n : scene_preset_names()) all += (all.empty() ? "" : ", ") + n;
+  throw Error("no scene preset '" + name + "' (presets: " + all + ")");
+}
+
+SceneConfig load_scene(const std::string& name_or_path) {
+  for (const auto& p : kScenePresets) {
+    if (name_or_path == p.name) return scene_preset(name_or_path);
+  }
+  std::ifstream in(name_or_path, std::ios::binary);
+  if (!in) throw Error("scene file '" + name_or_path + "' cannot be read (and is not a preset: " + [] {
+                         std::string all;
+                         for (const auto& n : scene_preset_names()) all += (all.empty() ? "" : ", ") + n;
+                         return all;
+                       }() + ")");
+  std::stringstream s;
+  s << in.rdbuf();
+  return parse_scene_json(s.str(), "'" + name_or_path + "'");
+}
+
+}  // namespace raindrop

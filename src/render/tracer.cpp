@@ -1,0 +1,526 @@
+#include "raindrop/render/tracer.h"
+
+#include <algorithm>
+#include <atomic>
+#include <cmath>
+#include <limits>
+#include <vector>
+
+#include <glm/geometric.hpp>
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
+
+#include "raindrop/render/background.h"
+#include "raindrop/render/optics.h"
+#include "raindrop/common/rng.h"
+#include "raindrop/render/sky.h"
+#include "raindrop/render/srgb.h"
+#include "raindrop/render/spans.h"
+
+namespace raindrop {
+namespace {
+
+constexpr int kMaxEvents = 16;  // surface crossings/reflections followed before giving up
+
+// The glass plane's normal and a point on it, computed once per frame (GlassPlane derives
+// them from the tilt with a sine and a cosine each time it is asked).
+struct GlassFrame {
+  glm::dvec3 normal, point;
+  explicit GlassFrame(const GlassPlane& g) : normal(g.normal()), point(g.origin()) {}
+};
+
+template <bool kFresnel>
+DropPath trace_path(const glm::dvec3& origin, const glm::dvec3& dir0, double n_water, TirMode tir,
+                    const DropAccel& accel, const GlassFrame& glass) {
+  DropPath path;
+  glm::dvec3 o = origin, d = glm::normalize(dir0);
+  DropHit current;
+  bool on_surface = false, inside = false;
+  const glm::dvec3& normal = glass.normal;
+  const glm::dvec3& plane_point = glass.point;
+  // All drops lie in the slab between the glass plane and the tallest cap: each query is
+  // limited to the part of the ray inside that slab (padded), so Embree can prune early.
+  const double slab_top = accel.max_height() * (1 + 1e-9) + 1e-9;
+  for (int event = 0; event < kMaxEvents; ++event) {
+    const double h0 = glm::dot(o - plane_point, normal), dn = glm::dot(d, normal);
+    double t_min = 0, t_max = std::numeric_limits<double>::infinity();
+    if (std::abs(dn) > 1e-12) {
+      const double t_bottom = -h0 / dn, t_top = (slab_top - h0) / dn;
+      const double pad = 1e-6 * (std::abs(t_bottom) + std::abs(t_top)) + 1e-7;
+      t_min = std::max(0.0, std::min(t_bottom, t_top) - pad);
+      t_max = std::max(t_bottom, t_top) + pad;
+      if (t_max <= t_min) break;  // the slab is behind the ray
+    } else if (h0 < -1e-9 || h0 > slab_top) {
+      break;  // parallel to the glass and outside the slab: no drop can be met
+    }
+    const auto hit = inside ? accel.intersect_inside(o, d, current, t_max)
+                            : accel.intersect(o, d, on_surface ? &current : nullptr, t_min, t_max);
+    if (!hit) break;
+    ++path.events;
+    if (!path.hit) {
+      path.hit = true;
+      path.first_drop = hit->drop;
+    }
+    const bool entering = glm::dot(d, hit->normal) < 0;
+    const glm::dvec3 facing = entering ? hit->normal : -hit->normal;
+    const double eta = entering ? 1.0 / n_water : n_water;
+    const auto refracted = refract(d, facing, eta);
+    if constexpr (kFresnel) {
+      path.transmittance *= 1.0 - fresnel_reflectance(-glm::dot(d, facing), eta);
+    }
+    o = o + hit->t * d;
+    current = *hit;
+    on_surface = true;
+    if (refracted) {
+      d = *refracted;
+      inside = entering;
+    } else if (tir == TirMode::Black) {
+      path.dark = true;
+      return path;
+    } else {
+      d = reflect(d, facing);
+    }
+  }
+  if (inside) {
+    // Still in the water after kMaxEvents (a ray trapped by repeated total internal
+    // reflection): no light comes out of it towards the camera.
+    path.dark = true;
+    return path;
+  }
+  // A ray heading back through the glass sees the car interior.
+  path.escaped_in = path.hit && glm::dot(d, normal) <= 0;
+  path.origin = o;
+  path.dir = d;
+  return path;
+}
+
+}  // namespace
+
+glm::dvec2 background_pixel(const DropPath& p, const Camera& camera, double background_z) {
+  // Rays that never reach the background plane (d.z ~ 0 or below, e.g. straight up into the
+  // sky) are followed to a point at infinity along a slightly forward-tilted direction; the
+  // border mode then decides what is seen there.
+  const double dz = std::max(p.dir.z, 1e-6);
+  if (p.dir.z > 1e-6 && p.origin.z < background_z) {
+    const double t = (background_z - p.origin.z) / p.dir.z;
+    return camera.project(p.origin + t * p.dir);
+  }
+  return {camera.fx * p.dir.x / dz + camera.cx, camera.fy * p.dir.y / dz + camera.cy};
+}
+
+DropPath trace_through_drops(const glm::dvec3& origin, const glm::dvec3& dir, double n_water, TirMode tir,
+                             bool fresnel, const DropAccel& accel, const GlassPlane& glass) {
+  const GlassFrame frame(glass);
+  return fresnel ? trace_path<true>(origin, dir, n_water, tir, accel, frame)
+                 : trace_path<false>(origin, dir, n_water, tir, accel, frame);
+}
+
+namespace {
+
+struct Sample {
+  bool hit = false;
+  int drop = -1;
+  bool dark = false;
+  bool off_frame = false;
+  glm::dvec3 rgb{0};
+};
+
+template <bool kFresnel, bool kDispersion>
+class Kernel {
+ public:
+  Kernel(const cv::Mat& clean, const Camera& camera, const SceneConfig& config,
+         const SceneSample& scene, const DropAccel& accel)
+      : bg_(clean, config.border),
+        camera_(camera),
+        scene_(scene),
+        glass_(scene.glass),
+        accel_(accel),
+        tir_(config.tir),
+        interior_(config.fresnel.enabled ? config.fresnel.interior_rgb : glm::dvec3(0.0)),
+        n_rgb_(config.channel_indices()) {
+    if (config.sky.enabled) bg_.set_sky(estimate_sky_rgb(clean, config.sky.gain), config.sky.fade_rows * clean.rows);
+  }
+
+  Sample sample(double px, double py) const { return sample_ray(glm::dvec3(0.0), camera_.ray_direction(px, py)); }
+
+  // A ray from `origin` (a point of the lens, z = 0) along `dir`.
+  Sample sample_ray(const glm::dvec3& origin, const glm::dvec3& dir) const {
+    Sample s;
+    if constexpr (!kDispersion) {
+      const DropPath p = trace_path<kFresnel>(origin, dir, n_rgb_.y, tir_, accel_, glass_);
+      s.hit = p.hit;
+      if (!s.hit) return s;
+      s.drop = p.first_drop;
+      s.dark = p.dark;
+      s.rgb = shade(p, &s.off_frame);
+    } else {
+      // One path per colour channel: the green path decides hit and drop (all three meet the
+      // same first surface, whose position does not depend on the index).
+      for (int c = 0; c < 3; ++c) {
+        const DropPath p = trace_path<kFresnel>(origin, dir, n_rgb_[c], tir_, accel_, glass_);
+        if (!p.hit) return s;  // same first hit for every channel
+        bool off = false;
+        s.rgb[c] = shade(p, &off)[c];
+        if (c == 1) {
+          s.hit = true;
+          s.drop = p.first_drop;
+          s.dark = p.dark;
+          s.off_frame = off;
+        }
+      }
+    }
+    return s;
+  }
+
+  glm::dvec3 clean_pixel(int x, int y) const { return bg_.pixel(x, y); }
+
+ private:
+  glm::dvec3 shade(const DropPath& p, bool* off_frame) const {
+    if (p.dark) return glm::dvec3(0.0);
+    glm::dvec3 seen;
+    if (p.escaped_in) {
+      seen = interior_;
+    } else {
+      const glm::dvec2 xy = background_pixel(p, camera_, scene_.background_distance_cm);
+      *off_frame = !bg_.inside(xy.x, xy.y);
+      seen = bg_.sample(xy.x, xy.y);
+    }
+    if constexpr (kFresnel) {
+      // Light reflected at the surfaces instead of transmitted comes from the car side.
+      return p.transmittance * seen + (1.0 - p.transmittance) * interior_;
+    }
+    return seen;
+  }
+
+  BackgroundSampler bg_;
+  const Camera& camera_;
+  const SceneSample& scene_;
+  const GlassFrame glass_;
+  const DropAccel& accel_;
+  TirMode tir_;
+  glm::dvec3 interior_;
+  glm::dvec3 n_rgb_;
+};
+
+// Andrew's monotone chain, in double precision (counter-clockwise, no repeated point).
+void convex_hull(std::vector<glm::dvec2> points, std::vector<glm::dvec2>* hull) {
+  std::sort(points.begin(), points.end(), [](const glm::dvec2& a, const glm::dvec2& b) {
+    return a.x < b.x || (a.x == b.x && a.y < b.y);
+  });
+  auto cross = [](const glm::dvec2& o, const glm::dvec2& a, const glm::dvec2& b) {
+    return (a.x - o.x) * (b.y - o.y) - (a.y - o.y) * (b.x - o.x);
+  };
+  hull->assign(2 * points.size(), glm::dvec2(0));
+  size_t k = 0;
+  for (size_t i = 0; i < points.size(); ++i) {
+    while (k >= 2 && cross((*hull)[k - 2], (*hull)[k - 1], points[i]) <= 0) --k;
+    (*hull)[k++] = points[i];
+  }
+  for (size_t i = points.size() - 1, t = k + 1; i-- > 0;) {
+    while (k >= t && cross((*hull)[k - 2], (*hull)[k - 1], points[i]) <= 0) --k;
+    (*hull)[k++] = points[i];
+  }
+  hull->resize(k > 1 ? k - 1 : k);
+}
+
+// Per image row, the merged x-intervals that can show a drop. A drop's cap is convex, so
+// its image is the convex hull of its projected surface; the hull of a dense sample of rim
+// and cap points, padded by more than the sampling error, bounds it conservatively. Rays
+// outside these intervals cannot meet a drop and are not traced.
+std::vector<std::vector<std::pair<int, int>>> candidate_spans(const Camera& camera,
+                                                              const DropAccel& accel) {
+  std::vector<std::vector<std::pair<int, int>>> rows(camera.height);
+  auto add_rows = [&](double y0, double y1, double x0, double x1) {
+    const int ix0 = static_cast<int>(std::max(0.0, std::floor(x0)));
+    const int ix1 = static_cast<int>(std::min(camera.width - 1.0, std::ceil(x1)));
+    const int iy0 = static_cast<int>(std::max(0.0, std::floor(y0)));
+    const int iy1 = static_cast<int>(std::min(camera.height - 1.0, std::ceil(y1)));
+    for (int y = iy0; y <= iy1 && ix0 <= ix1; ++y) rows[y].push_back({ix0, ix1});
+  };
+  constexpr int kAzimuths = 48, kRings = 4;
+  std::vector<glm::dvec2> points, hull;
+  for (const Drop& drop : accel.drops()) {
+    points.clear();
+    bool behind = false;
+    const double tau = drop.shape().contact_angle;
+    for (int r = 0; r <= kRings && !behind; ++r) {
+      for (int a = 0; a < (r == 0 ? 1 : kAzimuths); ++a) {
+        const glm::dvec3 p = drop.cap_point(tau * r / kRings, 2 * M_PI * a / kAzimuths);
+        if (p.z <= 1e-9) {
+          behind = true;
+          break;
+        }
+        points.push_back(camera.project(p));
+      }
+    }
+    if (behind || points.size() < 3) {  // reaches behind the camera: trace the whole frame
+      add_rows(0, camera.height - 1, 0, camera.width - 1);
+      continue;
+    }
+    convex_hull(points, &hull);
+    double x0 = 1e300, x1 = -1e300, y0 = 1e300, y1 = -1e300;
+    for (const auto& p : hull) {
+      x0 = std::min(x0, p.x), x1 = std::max(x1, p.x), y0 = std::min(y0, p.y), y1 = std::max(y1, p.y);
+    }
+    if (!(x1 >= -camera.width && x0 <= 2.0 * camera.width && y1 >= -camera.height && y0 <= 2.0 * camera.height))
+      continue;  // far outside the frame
+    // Padding: the sampled hull lies inside the true one by at most the sagitta of the
+    // largest sampling step (< 1% of the size here), plus a pixel for rasterisation.
+    const double pad = 1.0 + 0.01 * std::max(x1 - x0, y1 - y0);
+    if (x1 - x0 > 4.0 * camera.width || y1 - y0 > 4.0 * camera.height) {  // huge: bounds will do
+      add_rows(y0 - pad, y1 + pad, x0 - pad, x1 + pad);
+      continue;
+    }
+    // For each row, the x-extent of the hull within the band [y - pad, y + pad], padded.
+    const int iy0 = static_cast<int>(std::max(0.0, std::floor(y0 - pad)));
+    const int iy1 = static_cast<int>(std::min(camera.height - 1.0, std::ceil(y1 + pad)));
+    if (iy0 > iy1) continue;
+    std::vector<double> lo(iy1 - iy0 + 1, 1e300), hi(iy1 - iy0 + 1, -1e300);
+    for (size_t i = 0; i < hull.size(); ++i) {
+      const glm::dvec2 a = hull[i], b = hull[(i + 1) % hull.size()];
+      const int ra = std::max(iy0, static_cast<int>(std::floor(std::min(a.y, b.y) - pad)));
+      const int rb = std::min(iy1, static_cast<int>(std::ceil(std::max(a.y, b.y) + pad)));
+      for (int y = ra; y <= rb; ++y) {
+        // Part of the edge inside the band, by its parameter range.
+        double s0 = 0, s1 = 1;
+        const double dy = b.y - a.y;
+        if (std::abs(dy) > 1e-12) {
+          double u0 = (y - pad - a.y) / dy, u1 = (y + pad - a.y) / dy;
+          if (u0 > u1) std::swap(u0, u1);
+          s0 = std::max(s0, u0);
+          s1 = std::min(s1, u1);
+        } else if (std::abs(a.y - y) > pad) {
+          continue;
+        }
+        if (s0 > s1) continue;
+        const double xa = a.x + s0 * (b.x - a.x), xb = a.x + s1 * (b.x - a.x);
+        lo[y - iy0] = std::min({lo[y - iy0], xa, xb});
+        hi[y - iy0] = std::max({hi[y - iy0], xa, xb});
+      }
+    }
+    for (int y = iy0; y <= iy1; ++y) {
+      if (lo[y - iy0] > hi[y - iy0]) continue;
+      add_rows(y, y, lo[y - iy0] - pad, hi[y - iy0] + pad);
+    }
+  }
+  for (auto& spans : rows) merge_spans(spans);
+  return rows;
+}
+
+// Label used to find edges: drop index, with dark-band pixels distinguished.
+inline int edge_class(int label, bool dark) { return label < 0 ? -1 : 2 * label + (dark ? 1 : 0); }
+
+template <bool kFresnel, bool kDispersion>
+TraceResult run(const cv::Mat& clean, const Camera& camera, const SceneConfig& config,
+                const SceneSample& scene, const DropAccel& accel) {
+  const Kernel<kFresnel, kDispersion> kernel(clean, camera, config, scene, accel);
+  TraceResult out;
+  out.label = cv::Mat(camera.height, camera.width, CV_32S, cv::Scalar(-1));
+  out.color = cv::Mat(camera.height, camera.width, CV_32FC3);
+  // Edge classes are only needed to find the pixels to supersample.
+  const int k = static_cast<int>(std::lround(std::sqrt(config.samples_per_pixel)));
+  const bool need_classes = k > 1 && config.supersample_edges_only;
+  cv::Mat classes = need_classes ? cv::Mat(camera.height, camera.width, CV_32S, cv::Scalar(-1)) : cv::Mat();
+  out.spans = candidate_spans(camera, accel);
+  const auto& spans = out.spans;
+  std::atomic<std::int64_t> candidates{0}, drops{0}, dark{0}, off{0}, supersampled{0};
+  std::vector<int> row_lo(camera.height, camera.width), row_hi(camera.height, -1);
+
+  // Pass 1: one ray through every candidate pixel's centre.
+  tbb::parallel_for(tbb::blocked_range<int>(0, camera.height, 8), [&](const tbb::blocked_range<int>& r) {
+    std::int64_t n_cand = 0, n_drop = 0, n_dark = 0, n_off = 0;
+    for (int y = r.begin(); y < r.end(); ++y) {
+      auto* label = out.label.ptr<int>(y);
+      int* cls = need_classes ? classes.ptr<int>(y) : nullptr;
+      auto* rgb = out.color.ptr<cv::Vec3f>(y);
+      for (const auto& [x0, x1] : spans[y]) {
+        for (int x = x0; x <= x1; ++x) {
+          ++n_cand;
+          const Sample s = kernel.sample(x, y);
+          if (!s.hit) continue;
+          ++n_drop;
+          row_lo[y] = std::min(row_lo[y], x);
+          row_hi[y] = std::max(row_hi[y], x);
+          n_dark += s.dark;
+          n_off += s.off_frame;
+          label[x] = s.drop;
+          if (cls) cls[x] = edge_class(s.drop, s.dark);
+          rgb[x] = cv::Vec3f(static_cast<float>(s.rgb.x), static_cast<float>(s.rgb.y),
+                             static_cast<float>(s.rgb.z));
+        }
+      }
+    }
+    candidates += n_cand;
+    drops += n_drop;
+    dark += n_dark;
+    off += n_off;
+  });
+
+  int box_x0 = camera.width, box_x1 = -1, box_y0 = camera.height, box_y1 = -1;
+  for (int y = 0; y < camera.height; ++y) {
+    if (row_hi[y] < 0) continue;
+    box_x0 = std::min(box_x0, row_lo[y]), box_x1 = std::max(box_x1, row_hi[y]);
+    box_y0 = std::min(box_y0, y), box_y1 = y;
+  }
+  out.drop_box = box_x1 < 0 ? cv::Rect() : cv::Rect(box_x0, box_y0, box_x1 - box_x0 + 1, box_y1 - box_y0 + 1);
+
+  // Pass 2: supersample drop pixels on an edge (a neighbour of another class: outside, other
+  // drop, dark band) or all drop pixels, on a stratified k x k grid. The mask stays the
+  // pixel-centre rule; sub-samples that miss every drop see the clean pixel.
+  if (k > 1) {
+    tbb::parallel_for(tbb::blocked_range<int>(0, camera.height, 8), [&](const tbb::blocked_range<int>& r) {
+      std::int64_t n_ss = 0;
+      for (int y = r.begin(); y < r.end(); ++y) {
+        const int* label = out.label.ptr<int>(y);
+        auto* rgb = out.color.ptr<cv::Vec3f>(y);
+        for (const auto& [x0, x1] : spans[y]) {
+          for (int x = x0; x <= x1; ++x) {
+            if (label[x] < 0) continue;
+            if (config.supersample_edges_only) {
+              const int own = classes.at<int>(y, x);
+              bool edge = false;
+              for (int dy = -1; dy <= 1 && !edge; ++dy) {
+                for (int dx = -1; dx <= 1 && !edge; ++dx) {
+                  const int yy = y + dy, xx = x + dx;
+                  if (yy < 0 || xx < 0 || yy >= camera.height || xx >= camera.width) continue;
+                  edge = classes.at<int>(yy, xx) != own;
+                }
+              }
+              if (!edge) continue;
+            }
+            ++n_ss;
+            glm::dvec3 sum(0.0);
+            for (int j = 0; j < k; ++j) {
+              for (int i = 0; i < k; ++i) {
+                const Sample s = kernel.sample(x + (i + 0.5) / k - 0.5, y + (j + 0.5) / k - 0.5);
+                sum += s.hit ? s.rgb : kernel.clean_pixel(x, y);
+              }
+            }
+            sum /= static_cast<double>(k * k);
+            rgb[x] = cv::Vec3f(static_cast<float>(sum.x), static_cast<float>(sum.y),
+                               static_cast<float>(sum.z));
+          }
+        }
+      }
+      supersampled += n_ss;
+    });
+  }
+
+  out.stats.candidate_pixels = candidates;
+  out.stats.drop_pixels = drops;
+  out.stats.dark_band_pixels = dark;
+  out.stats.off_frame_pixels = off;
+  out.stats.supersampled_pixels = supersampled;
+  return out;
+}
+
+// The aperture reference: every pixel near a drop averages rays from a stratified grid of
+// points on the lens disk, each aimed at the pixel's point on the plane of focus (the
+// background, z = T) and traced through the drops. A ray that meets no drop lands exactly on
+// that point, so it sees the pixel's own clean colour.
+template <bool kFresnel, bool kDispersion>
+ApertureResult run_aperture(const cv::Mat& clean, const Camera& camera, const SceneConfig& config,
+                            const SceneSample& scene, const DropAccel& accel, int samples) {
+  const Kernel<kFresnel, kDispersion> kernel(clean, camera, config, scene, accel);
+  ApertureResult out;
+  out.linear = cv::Mat(camera.height, camera.width, CV_32FC3, cv::Scalar::all(0));
+  out.coverage = cv::Mat(camera.height, camera.width, CV_32F, cv::Scalar(0));
+  const auto& lin = srgb8_to_linear_table();
+  const int k = std::max(1, static_cast<int>(std::lround(std::sqrt(samples))));
+  const double radius = 0.5 * scene.aperture_cm();
+  // Lens points: a k x k stratified grid, jittered per pixel and stratum by a hash (so the
+  // result is the same for any thread count), mapped onto the disk by the concentric map,
+  // which keeps the strata's equal areas. Without the jitter, every pixel would use the
+  // same k/2 rings of the disk and coverage would come in visible steps.
+  auto lens_point = [&](int x, int y, int i, int j) {
+    const std::uint64_t h = mix64((static_cast<std::uint64_t>(y) << 40) ^ (static_cast<std::uint64_t>(x) << 16) ^
+                                  static_cast<std::uint64_t>(j * k + i));
+    const double ju = static_cast<double>(h & 0xffffffffULL) * 0x1.0p-32;
+    const double jv = static_cast<double>(h >> 32) * 0x1.0p-32;
+    const double a = 2.0 * (i + ju) / k - 1.0, b = 2.0 * (j + jv) / k - 1.0;
+    double r = 0, phi = 0;
+    if (a == 0 && b == 0) return glm::dvec2(0.0);
+    if (std::abs(a) > std::abs(b)) {
+      r = a, phi = M_PI / 4 * (b / a);
+    } else {
+      r = b, phi = M_PI / 2 - M_PI / 4 * (a / b);
+    }
+    return radius * r * glm::dvec2(std::cos(phi), std::sin(phi));
+  };
+  // Pixels whose aperture cone can meet a drop: the pinhole candidates widened by the
+  // largest circle of confusion (plus a pixel).
+  const auto spans = candidate_spans(camera, accel);
+  double reach = 0;
+  for (const Drop& d : accel.drops()) {
+    reach = std::max(reach, 0.5 * scene.drop_coc_px(d.shape(), camera.fx));
+    glm::dvec3 lo, hi;
+    d.bounds(&lo, &hi);
+    if (lo.z > 1e-9) reach = std::max(reach, 0.5 * scene.coc_px(lo.z, camera.fx));
+  }
+  const int pad = static_cast<int>(std::ceil(std::min(reach, 4.0 * (camera.width + camera.height)))) + 1;
+  std::vector<std::vector<Span>> rows(camera.height);
+  for (int y = 0; y < camera.height; ++y) {
+    for (const auto& [x0, x1] : spans[y]) {
+      for (int yy = std::max(0, y - pad); yy <= std::min(camera.height - 1, y + pad); ++yy)
+        rows[yy].push_back({std::max(0, x0 - pad), std::min(camera.width - 1, x1 + pad)});
+    }
+  }
+  for (auto& r : rows) merge_spans(r);
+  const double T = scene.background_distance_cm;
+  tbb::parallel_for(tbb::blocked_range<int>(0, camera.height, 4), [&](const tbb::blocked_range<int>& r) {
+    for (int y = r.begin(); y < r.end(); ++y) {
+      auto* out_rgb = out.linear.ptr<cv::Vec3f>(y);
+      auto* out_cov = out.coverage.ptr<float>(y);
+      const auto* src = clean.ptr<cv::Vec3b>(y);
+      for (const auto& [x0, x1] : rows[y]) {
+        for (int x = x0; x <= x1; ++x) {
+          const glm::dvec3 focus = T * camera.ray_direction(x, y);
+          const glm::dvec3 own(lin[src[x][0]], lin[src[x][1]], lin[src[x][2]]);
+          glm::dvec3 sum(0.0);
+          int hits = 0;
+          for (int sample = 0; sample < k * k; ++sample) {
+            const glm::dvec2 p = lens_point(x, y, sample % k, sample / k);
+            const glm::dvec3 origin(p.x, p.y, 0.0);
+            const Sample s = kernel.sample_ray(origin, focus - origin);
+            if (!s.hit) {
+              sum += own;
+              continue;
+            }
+            ++hits;
+            for (int c = 0; c < 3; ++c) sum[c] += srgb_to_linear(std::min(std::max(s.rgb[c], 0.0), 1.0));
+          }
+          if (hits == 0) continue;
+          sum /= static_cast<double>(k * k);
+          out_rgb[x] = cv::Vec3f(static_cast<float>(sum.x), static_cast<float>(sum.y), static_cast<float>(sum.z));
+          out_cov[x] = static_cast<float>(hits) / static_cast<float>(k * k);
+        }
+      }
+    }
+  });
+  return out;
+}
+
+}  // namespace
+
+ApertureResult trace_aperture(const cv::Mat& clean, const Camera& camera, const SceneConfig& config,
+                              const SceneSample& scene, const DropAccel& accel, int samples) {
+  CV_Assert(clean.type() == CV_8UC3 && clean.cols == camera.width && clean.rows == camera.height);
+  const bool fresnel = config.fresnel.enabled, dispersion = config.dispersion.enabled;
+  if (fresnel && dispersion) return run_aperture<true, true>(clean, camera, config, scene, accel, samples);
+  if (fresnel) return run_aperture<true, false>(clean, camera, config, scene, accel, samples);
+  if (dispersion) return run_aperture<false, true>(clean, camera, config, scene, accel, samples);
+  return run_aperture<false, false>(clean, camera, config, scene, accel, samples);
+}
+
+TraceResult trace_drops(const cv::Mat& clean, const Camera& camera, const SceneConfig& config,
+                        const SceneSample& scene, const DropAccel& accel) {
+  CV_Assert(clean.type() == CV_8UC3 && clean.cols == camera.width && clean.rows == camera.height);
+  // Effects pick the kernel instantiation once per frame, not per pixel.
+  const bool fresnel = config.fresnel.enabled, dispersion = config.dispersion.enabled;
+  if (fresnel && dispersion) return run<true, true>(clean, camera, config, scene, accel);
+  if (fresnel) return run<true, false>(clean, camera, config, scene, accel);
+  if (dispersion) return run<false, true>(clean, camera, config, scene, accel);
+  return run<false, false>(clean, camera, config, scene, accel);
+}
+
+}  // namespace raindrop

@@ -1,0 +1,68 @@
+#pragma once
+// Images through OpenImageIO for the end-to-end tests of both programs: reading what a program
+// wrote exactly as stored, and writing fixtures of any depth and channel count.
+#include <gtest/gtest.h>
+
+#include <filesystem>
+#include <optional>
+#include <string>
+
+#include <OpenImageIO/imageio.h>
+#include <opencv2/core.hpp>
+
+namespace testsupport {
+
+struct Image {
+  int width = 0, height = 0, channels = 0;
+  OIIO::TypeDesc format;  // as stored
+  cv::Mat pixels;         // CV_8UC(channels) or CV_16UC(channels), as stored (alpha not premultiplied)
+};
+
+// Decodes the whole file in its stored format (which catches truncation); std::nullopt (and
+// *why) if it cannot be opened or fully decoded, or is neither 8- nor 16-bit with 1-4 channels.
+inline std::optional<Image> read_image(const std::filesystem::path& p, std::string* why = nullptr) {
+  OIIO::ImageSpec config;
+  config.attribute("oiio:UnassociatedAlpha", 1);
+  auto in = OIIO::ImageInput::open(p.string(), &config);
+  if (!in) {
+    if (why) *why = OIIO::geterror();
+    return std::nullopt;
+  }
+  const OIIO::ImageSpec& spec = in->spec();
+  Image img;
+  img.width = spec.width;
+  img.height = spec.height;
+  img.channels = spec.nchannels;
+  img.format = spec.format;
+  const bool eight = spec.format == OIIO::TypeDesc::UINT8, sixteen = spec.format == OIIO::TypeDesc::UINT16;
+  if (!(eight || sixteen) || img.width <= 0 || img.height <= 0 || img.channels < 1 || img.channels > 4) {
+    if (why) *why = "unexpected geometry or pixel format " + std::string(spec.format.c_str());
+    return std::nullopt;
+  }
+  img.pixels.create(img.height, img.width, sixteen ? CV_16UC(img.channels) : CV_8UC(img.channels));
+  if (!in->read_image(0, 0, 0, img.channels, spec.format, img.pixels.data)) {
+    if (why) *why = in->geterror();
+    return std::nullopt;
+  }
+  return img;
+}
+
+// Writes an 8-bit (CV_8U) or 16-bit (CV_16U) image with 1-4 channels in RGB(A) order (2 and 4
+// channels: the last is an unassociated alpha).
+inline void write_image(const std::filesystem::path& p, const cv::Mat& m) {
+  if (p.has_parent_path()) std::filesystem::create_directories(p.parent_path());
+  auto out = OIIO::ImageOutput::create(p.string());
+  ASSERT_TRUE(out) << OIIO::geterror();
+  const OIIO::TypeDesc type = m.depth() == CV_16U ? OIIO::TypeDesc::UINT16 : OIIO::TypeDesc::UINT8;
+  OIIO::ImageSpec spec(m.cols, m.rows, m.channels(), type);
+  if (m.channels() == 4 || m.channels() == 2) {
+    spec.alpha_channel = m.channels() - 1;
+    spec.attribute("oiio:UnassociatedAlpha", 1);
+  }
+  const cv::Mat data = m.isContinuous() ? m : m.clone();
+  ASSERT_TRUE(out->open(p.string(), spec)) << out->geterror();
+  ASSERT_TRUE(out->write_image(type, data.data)) << out->geterror();
+  ASSERT_TRUE(out->close()) << out->geterror();
+}
+
+}  // namespace testsupport
