@@ -65,7 +65,7 @@ fi
 
 if want remove; then
   # raindrop-remove per stage and GFLOP/s (docs/RESULTS.md 3).
-  build/raindrop-bench remove --models models/paper --models models/compact --models models/compact-int8 --models models/paper-int8 --runs 5 | tee "$out/bench_remove.md"
+  build/raindrop-bench remove --models models/paper --models models/compact --models models/compact-int8 --models models/paper-int8 --scale 1 --runs 5 | tee "$out/bench_remove.md"
 fi
 
 if want tradeoffs; then

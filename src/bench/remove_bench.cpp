@@ -12,6 +12,7 @@
 #include <filesystem>
 #include <fstream>
 #include <iostream>
+#include <memory>
 #include <optional>
 #include <string>
 #include <vector>
@@ -22,12 +23,13 @@
 #include <nlohmann/json.hpp>
 #include <opencv2/core.hpp>
 
+#include "../cli/options.h"
 #include "bench_util.h"
-#include "raindrop/render/demo.h"
 #include "raindrop/common/error.h"
 #include "raindrop/common/image_io.h"
 #include "raindrop/remove/model_paths.h"
 #include "raindrop/remove/remover.h"
+#include "raindrop/render/demo.h"
 
 namespace raindrop {
 namespace fs = std::filesystem;
@@ -67,15 +69,6 @@ std::string fmt(double v, const char* f = "%.1f") {
   return buf;
 }
 
-// "HxW" (the bench's order), each side 1-16384, as a cv::Size (W x H); nullopt if malformed.
-std::optional<cv::Size> parse_height_width(const std::string& text) {
-  int h = 0, w = 0;
-  char tail = 0;
-  if (std::sscanf(text.c_str(), "%dx%d%c", &h, &w, &tail) != 2 || h < 1 || w < 1 || h > 16384 || w > 16384)
-    return std::nullopt;
-  return cv::Size(w, h);
-}
-
 // One raindrop-remove process on `input`, from fork to exit, in ms; -1 if it failed.
 double time_process(const fs::path& program, const fs::path& model_dir, const fs::path& input, const fs::path& output,
                     int threads) {
@@ -87,68 +80,75 @@ double time_process(const fs::path& program, const fs::path& model_dir, const fs
   return rc == 0 ? ms : -1;
 }
 
-}  // namespace
-
-int remove_bench(int argc, char** argv) {
-  CLI::App app{"raindrop-bench remove: raindrop-remove's time per image and stage, and GFLOP/s (markdown)",
-               "raindrop-bench remove"};
+struct RemoveBenchOptions {
   std::vector<std::string> model_dirs;
   std::vector<int> thread_counts{1, 2};
-  std::string graph_opt = "all";
+  GraphOpt graph_opt = GraphOpt::all;
   int tile = kDefaultTile, overlap = kDefaultOverlap, runs = 0;
   bool quick = false;
-  std::vector<std::string> size_texts{"256x512", "1024x2048"};
+  std::vector<std::string> size_texts{"512x256", "2048x1024"};
   std::optional<double> scale;
-  std::string process_size = "720x1280";
-  app.add_option("--models", model_dirs, "Model folder (repeatable: one set of rows per folder; default: the one "
-                                         "raindrop-remove finds)");
-  app.add_option("--threads", thread_counts, "Thread counts to measure (repeatable)")->capture_default_str()
+  std::string process_size = "1280x720";
+};
+
+int run_remove_bench(RemoveBenchOptions o);
+
+}  // namespace
+
+std::function<int()> add_remove_bench(CLI::App& parent) {
+  auto o = std::make_shared<RemoveBenchOptions>();
+  CLI::App* app = parent.add_subcommand("remove", "raindrop-remove: time per image and stage, GFLOP/s, process start "
+                                                  "to file written");
+  app->add_option("--models", o->model_dirs, "Model folder (repeatable: one set of rows per folder; default: the one "
+                                             "raindrop-remove finds)");
+  app->add_option("--threads", o->thread_counts, "Thread counts to measure (repeatable)")->capture_default_str()
       ->check(CLI::Range(1, 1024));
-  app.add_option("--graph-opt", graph_opt, "ONNX Runtime graph optimisation level")->capture_default_str()
-      ->check(CLI::IsMember({"disable", "basic", "extended", "all"}));
-  app.add_option("--tile", tile, "Tile size (0: never tile)")->capture_default_str();
-  app.add_option("--tile-overlap", overlap, "Tile overlap")->capture_default_str();
-  app.add_option("--runs", runs, "Timed runs per row (default 20; 3 with --quick)")->check(CLI::Range(1, 1000));
-  app.add_flag("--quick", quick, "3 timed runs after 1 warm-up instead of 20 after 2");
-  app.add_option("--size", size_texts, "Image sizes HxW (repeatable)")->capture_default_str();
-  app.add_option("--scale", scale, "Working scale (default: raindrop-remove's, the long side brought to 512; 1: full size)")
+  app->add_option("--graph-opt", o->graph_opt, "ONNX Runtime graph optimisation level")
+      ->transform(cli::names_to(graph_opt_names()))->default_str("all");
+  app->add_option("--tile", o->tile, "Tile size (0: never tile)")->capture_default_str();
+  app->add_option("--tile-overlap", o->overlap, "Tile overlap")->capture_default_str();
+  app->add_option("--runs", o->runs, "Timed runs per row (default 20; 3 with --quick)")->check(CLI::Range(1, 1000));
+  app->add_flag("--quick", o->quick, "3 timed runs after 1 warm-up instead of 20 after 2");
+  app->add_option("--size", o->size_texts, "Image sizes WIDTHxHEIGHT (repeatable)")->capture_default_str()
+      ->check(cli::width_height());
+  app->add_option("--scale", o->scale, "Working scale (default: raindrop-remove's, the long side brought to 512; 1: full size)")
       ->check(CLI::Range(0.0, 1.0));
-  app.add_option("--process-size", process_size,
-                 "HxW of the image for the process-start-to-file rows (raindrop-remove run as a program; empty: none)")
-      ->capture_default_str();
+  // Checked by the parser, before the (minutes of) rows above it in the output are measured.
+  app->add_option("--process-size", o->process_size,
+                  "WIDTHxHEIGHT of the image for the process-start-to-file rows (raindrop-remove run as a program; "
+                  "empty: none)")
+      ->capture_default_str()->check(cli::width_height());
+  return [o] { return run_remove_bench(*o); };
+}
+
+namespace {
+
+int run_remove_bench(RemoveBenchOptions o) {
   try {
-    app.parse(argc, argv);
-    check_tile_options(tile, overlap);
-  } catch (const CLI::ParseError& e) {
-    return app.exit(e) == 0 ? 0 : 2;
+    check_tile_options(o.tile, o.overlap);
   } catch (const Error& e) {
     std::cerr << "raindrop-bench remove: " << one_line(e.what()) << "\n";
     return 2;
   }
+  auto& model_dirs = o.model_dirs;
+  const auto& thread_counts = o.thread_counts;
+  int& runs = o.runs;
+  const bool quick = o.quick;
+  const auto& scale = o.scale;
+  const std::string& process_size = o.process_size;
   if (runs == 0) runs = quick ? 3 : 20;
   const int warmup = quick ? 1 : 2;
   if (model_dirs.empty()) model_dirs.push_back(find_models(default_model_search()).string());
 
-  std::vector<cv::Size> sizes;  // W x H; named H x W below
-  for (const auto& text : size_texts) {
-    const auto size = parse_height_width(text);
-    if (!size) {
-      std::cerr << "raindrop-bench remove: --size '" << text << "' must be HEIGHTxWIDTH, e.g. 256x512\n";
-      return 2;
-    }
-    sizes.push_back(*size);
-  }
-  // Checked before the (minutes of) rows above it in the output are measured.
+  std::vector<cv::Size> sizes;
+  for (const auto& text : o.size_texts) sizes.push_back(*cli::parse_width_height(text));  // checked by the parser
   std::optional<cv::Size> process;
-  if (!process_size.empty() && !(process = parse_height_width(process_size))) {
-    std::cerr << "raindrop-bench remove: --process-size '" << process_size << "' must be HEIGHTxWIDTH\n";
-    return 2;
-  }
+  if (!process_size.empty()) process = cli::parse_width_height(process_size);
   SessionConfig session;
-  session.graph_opt = parse_graph_opt(graph_opt);
+  session.graph_opt = o.graph_opt;
   RemoveOptions options;
-  options.tile = tile;
-  options.overlap = overlap;
+  options.tile = o.tile;
+  options.overlap = o.overlap;
   options.scale = scale;
   if (scale && !(*scale > 0)) {
     std::cerr << "raindrop-bench remove: --scale must be in (0, 1]\n";
@@ -171,7 +171,7 @@ int remove_bench(int argc, char** argv) {
         const cv::Mat image = demo_street(size.width, size.height);
         Row row;
         row.models = name;
-        row.size = std::to_string(size.height) + "x" + std::to_string(size.width);
+        row.size = std::to_string(size.width) + "x" + std::to_string(size.height);
         row.threads = threads;
         row.runs = runs;
         std::fprintf(stderr, "bench remove: %s %s, %d thread%s: ", name.c_str(), row.size.c_str(), threads,
@@ -206,11 +206,11 @@ int remove_bench(int argc, char** argv) {
 
   std::cout << "## raindrop-remove: time per image\n\n"
             << "Machine: " << bench::machine_description() << "; " << ort_description() << ", CPU, graph optimisation "
-            << graph_opt << "; tile " << (tile ? std::to_string(tile) : std::string("off")) << " (overlap " << overlap
+            << to_string(o.graph_opt) << "; tile " << (o.tile ? std::to_string(o.tile) : std::string("off")) << " (overlap " << o.overlap
             << "). Mean of " << runs << " runs after " << warmup << " warm-up run" << (warmup == 1 ? "" : "s")
             << ", in ms; input: the built-in street image (8-bit RGB). \"other\": input conversion, tile blending and "
                "quantisation; \"total\": wall time of Remover::run.\n\n";
-  std::cout << "| models | size (HxW) | scale | threads | tiles | edge | RDN | threshold+dilation | 3RN | blend | RFN | "
+  std::cout << "| models | size (WxH) | scale | threads | tiles | edge | RDN | threshold+dilation | 3RN | blend | RFN | "
                "other | total | median total | first run |\n|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n";
   for (const auto& r : rows) {
     std::cout << "| " << r.models << " | " << r.size << " | " << fmt(r.scale, "%.3g") << " | " << r.threads << " | "
@@ -234,7 +234,7 @@ int remove_bench(int argc, char** argv) {
     const int threads = thread_counts.back();
     std::cout << "\n## raindrop-remove: process start to file written\n\n"
               << "`raindrop-remove in.png out.png --models DIR -j " << threads << "` on the built-in street image, "
-              << process_size << " (HxW) PNG, run as a program: process start, model loading, decoding, removal at the "
+              << process_size << " (WxH) PNG, run as a program: process start, model loading, decoding, removal at the "
                  "default working scale, encoding, exit. \"first\": the first process of the bench for that model "
                  "folder (files possibly not yet in the page cache); \"warm\": median of the next "
               << runs << ".\n\n| models | first (ms) | warm median (ms) | warm min (ms) |\n|---|---|---|---|\n";
@@ -253,7 +253,7 @@ int remove_bench(int argc, char** argv) {
   }
   std::cout << "\n## raindrop-remove: GFLOP/s\n\nGFLOPs from each model folder's export.json (at 256x512), scaled by "
                "the pixels the networks ran on (tiles and their overlaps included).\n\n"
-               "| models | size (HxW) | threads | GFLOP | RDN GFLOP/s | 3RN GFLOP/s | RFN GFLOP/s | overall GFLOP/s |\n"
+               "| models | size (WxH) | threads | GFLOP | RDN GFLOP/s | 3RN GFLOP/s | RFN GFLOP/s | overall GFLOP/s |\n"
                "|---|---|---|---|---|---|---|---|\n";
   for (const auto& r : rows) {
     std::cout << "| " << r.models << " | " << r.size << " | " << r.threads << " | ";
@@ -270,4 +270,5 @@ int remove_bench(int argc, char** argv) {
   return 0;
 }
 
+}  // namespace
 }  // namespace raindrop

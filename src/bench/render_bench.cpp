@@ -7,6 +7,7 @@
 #include <filesystem>
 #include <functional>
 #include <iostream>
+#include <memory>
 #include <optional>
 #include <string>
 #include <vector>
@@ -20,13 +21,13 @@
 #include <tbb/task_arena.h>
 
 #include "bench_util.h"
-#include "raindrop/render/demo.h"
 #include "raindrop/common/error.h"
-#include "raindrop/render/framing.h"
 #include "raindrop/common/image_io.h"
+#include "raindrop/common/rng.h"
+#include "raindrop/render/demo.h"
+#include "raindrop/render/framing.h"
 #include "raindrop/render/inputs.h"
 #include "raindrop/render/renderer.h"
-#include "raindrop/common/rng.h"
 #include "raindrop/render/scene.h"
 
 namespace raindrop {
@@ -352,22 +353,40 @@ void lens_table(const Input& input, int frames) {
 
 }  // namespace
 
-int render_bench(int argc, char** argv) {
-  CLI::App app{"raindrop-bench render: renderer time and accuracy/time tables (markdown on stdout)"};
+namespace {
+
+struct RenderBenchOptions {
   std::string input_path, shared = "../shared/data", sections = "time,effects,accuracy,lens";
   int frames = 6, repeats = 3;
   bool quick = false;
-  app.add_option("--input", input_path, "Background image (default: the first Cityscapes-mini frame, else the demo street)");
-  app.add_option("--shared-data", shared, "Where ../shared/data is")->capture_default_str();
-  app.add_option("--frames", frames, "Frames (different drops) per measurement")->capture_default_str()->check(CLI::Range(1, 100));
-  app.add_option("--repeats", repeats, "Repetitions; medians are reported")->capture_default_str()->check(CLI::Range(1, 100));
-  app.add_option("--sections", sections, "Comma-separated: time, effects, accuracy, lens")->capture_default_str();
-  app.add_flag("--quick", quick, "Small and fast (a smoke run): 512x256 time table only, 1 frame");
-  try {
-    app.parse(argc, argv);
-  } catch (const CLI::ParseError& e) {
-    return app.exit(e) == 0 ? 0 : 2;
-  }
+};
+
+int run_render_bench(RenderBenchOptions o);
+
+}  // namespace
+
+std::function<int()> add_render_bench(CLI::App& parent) {
+  auto o = std::make_shared<RenderBenchOptions>();
+  CLI::App* app = parent.add_subcommand("render", "Renderer: time per frame against the I/O floor, what each effect "
+                                                  "costs, accuracy against time of the quality knobs");
+  app->add_option("--input", o->input_path, "Background image (default: the first Cityscapes-mini frame, else the demo street)");
+  app->add_option("--shared-data", o->shared, "Where ../shared/data is")->capture_default_str();
+  app->add_option("--frames", o->frames, "Frames (different drops) per measurement")->capture_default_str()->check(CLI::Range(1, 100));
+  app->add_option("--repeats", o->repeats, "Repetitions; medians are reported")->capture_default_str()->check(CLI::Range(1, 100));
+  app->add_option("--sections", o->sections, "Comma-separated: time, effects, accuracy, lens")->capture_default_str();
+  app->add_flag("--quick", o->quick, "Small and fast (a smoke run): 512x256 time table only, 1 frame");
+  return [o] { return run_render_bench(*o); };
+}
+
+namespace {
+
+int run_render_bench(RenderBenchOptions o) {
+  std::string& input_path = o.input_path;
+  std::string& shared = o.shared;
+  std::string& sections = o.sections;
+  int& frames = o.frames;
+  int& repeats = o.repeats;
+  const bool quick = o.quick;
   const fs::path tmp = fs::temp_directory_path() / ("raindrop-bench-" + std::to_string(::getpid()));
   ensure_writable_dir(tmp);
   Input input;
@@ -407,4 +426,5 @@ int render_bench(int argc, char** argv) {
   return 0;
 }
 
+}  // namespace
 }  // namespace raindrop

@@ -2,32 +2,40 @@
 //   raindrop-bench render [options]   renderer: per-frame times vs the I/O floor, effects,
 //                                     accuracy/time of the quality knobs
 //   raindrop-bench remove [options]   raindrop-remove: per-stage times, GFLOP/s, trade-offs
-#include <cstring>
+#include <functional>
 #include <iostream>
+
+#include <CLI/CLI.hpp>
 
 #include "../bench/render_bench.h"
 #ifdef RAINDROP_HAVE_REMOVE_BENCH
 #include "../bench/remove_bench.h"
 #endif
 #include "raindrop/common/error.h"
+#include "raindrop/common/version.h"
 
 int main(int argc, char** argv) {
-  const char* usage =
-      "usage: raindrop-bench render [--help] | raindrop-bench remove [--help]\n"
-      "Prints benchmark tables (markdown) on stdout; progress on stderr.\n";
-  if (argc < 2 || !std::strcmp(argv[1], "--help") || !std::strcmp(argv[1], "-h")) {
-    std::cout << usage;
-    return argc < 2 ? 2 : 0;
+  CLI::App app{"raindrop-bench: benchmark tables (markdown on stdout, progress on stderr). Speed is measured here, "
+               "never asserted in tests."};
+  app.set_version_flag("--version", std::string("raindrop-bench ") + raindrop::kVersion);
+  app.require_subcommand(1);
+  const std::function<int()> render = raindrop::add_render_bench(app);
+#ifdef RAINDROP_HAVE_REMOVE_BENCH
+  const std::function<int()> remove = raindrop::add_remove_bench(app);
+#endif
+  try {
+    app.parse(argc, argv);
+  } catch (const CLI::ParseError& e) {
+    return app.exit(e) == 0 ? 0 : 2;
   }
   try {
-    if (!std::strcmp(argv[1], "render")) return raindrop::render_bench(argc - 1, argv + 1);
+    if (app.got_subcommand("render")) return render();
 #ifdef RAINDROP_HAVE_REMOVE_BENCH
-    if (!std::strcmp(argv[1], "remove")) return raindrop::remove_bench(argc - 1, argv + 1);
+    if (app.got_subcommand("remove")) return remove();
 #endif
   } catch (const std::exception& e) {
     std::cerr << "raindrop-bench: error: " << raindrop::one_line(e.what()) << "\n";
     return 1;
   }
-  std::cerr << "raindrop-bench: unknown subcommand '" << argv[1] << "'\n" << usage;
-  return 2;
+  return 2;  // unreachable: CLI11 requires one subcommand
 }

@@ -31,15 +31,16 @@
 #include <CLI/CLI.hpp>
 #include <opencv2/imgproc.hpp>
 
+#include "options.h"
 #include "raindrop/common/contact_sheet.h"
 #include "raindrop/common/error.h"
 #include "raindrop/common/image_files.h"
 #include "raindrop/common/image_io.h"
 #include "raindrop/common/progress.h"
-#include "raindrop/remove/model_paths.h"
-#include "raindrop/remove/remover.h"
 #include "raindrop/common/shard.h"
 #include "raindrop/common/version.h"
+#include "raindrop/remove/model_paths.h"
+#include "raindrop/remove/remover.h"
 
 namespace fs = std::filesystem;
 using namespace raindrop;
@@ -156,8 +157,9 @@ int run(int argc, char** argv) {
       "is copied).\n"
       "Exit codes: 0 success; 1 error (one line on stderr, no partial output); 2 bad command line;\n"
       "3 folder run with --keep-going finished but some images failed.");
-  std::string input, output, models_dir, model_config, mask, mask_dir, sheet, device = "cpu", graph_opt = "all",
-      shard_text;
+  std::string input, output, models_dir, model_config, mask, mask_dir, sheet, shard_text;
+  Device device = Device::cpu;
+  GraphOpt graph_opt = GraphOpt::all;
   std::optional<double> threshold, scale;
   std::optional<int> dilation;
   int threads = 0, tile = kDefaultTile, overlap = kDefaultOverlap;
@@ -181,14 +183,14 @@ int run(int argc, char** argv) {
       ->check(CLI::Range(0.0, 1.0));
   app.add_option("-j,--threads", threads, "CPU threads (0: one per core; more than the cores: capped, with a warning); with 2 or more, RDN and 3RN run side by side on half each")
       ->capture_default_str()->check(CLI::Range(0, 1024));
-  app.add_option("--device", device, "Execution device")->capture_default_str()->check(CLI::IsMember({"cpu", "cuda"}));
+  app.add_option("--device", device, "Execution device")->transform(cli::names_to(device_names()))->default_str("cpu");
   app.add_option("--tile", tile, "Process images larger than N x N in overlapping tiles of at most N x N (0: never)")
       ->capture_default_str();
   app.add_option("--tile-overlap", overlap,
                  "Smallest overlap between tiles, in pixels (seamless when >= 4x the networks' receptive radius: 28 px for the paper's)")
       ->capture_default_str();
   app.add_option("--graph-opt", graph_opt, "ONNX Runtime graph optimisation level")
-      ->capture_default_str()->check(CLI::IsMember({"disable", "basic", "extended", "all"}));
+      ->transform(cli::names_to(graph_opt_names()))->default_str("all");
   app.add_flag("--time", time, "Print per-stage timings on stderr");
   app.add_option("--contact-sheet", sheet, "Also write an input | mask | output PNG (folder mode: the first images)");
   app.add_flag("--keep-going", keep_going, "Folder mode: go on after an image fails (exit code 3)");
@@ -279,8 +281,8 @@ int run(int argc, char** argv) {
 
   SessionConfig session;
   session.threads = threads;
-  session.device = parse_device(device);
-  session.graph_opt = parse_graph_opt(graph_opt);
+  session.device = device;
+  session.graph_opt = graph_opt;
   ModelSearch search = default_model_search();
   if (!models_dir.empty()) search.explicit_dir = fs::path(models_dir);
   if (!model_config.empty()) search.config = model_config;
@@ -299,7 +301,7 @@ int run(int argc, char** argv) {
                                                   : std::to_string(threads) + (threads == 1 ? " thread" : " threads");
     std::fprintf(stderr, "raindrop-remove: models '%s' (config %s, threshold %g, dilation %d), %s, %s, %s\n",
                  remover.model_dir().string().c_str(), mi.config.c_str(), threshold.value_or(mi.threshold),
-                 dilation.value_or(mi.dilation), ort_description().c_str(), device.c_str(), thread_text.c_str());
+                 dilation.value_or(mi.dilation), ort_description().c_str(), to_string(device), thread_text.c_str());
   }
 
   std::vector<std::vector<cv::Mat>> rows;

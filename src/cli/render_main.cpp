@@ -12,14 +12,15 @@
 
 #include <CLI/CLI.hpp>
 
+#include "options.h"
 #include "raindrop/common/contact_sheet.h"
-#include "raindrop/render/demo.h"
 #include "raindrop/common/error.h"
 #include "raindrop/common/image_io.h"
+#include "raindrop/common/shard.h"
+#include "raindrop/render/demo.h"
 #include "raindrop/render/inputs.h"
 #include "raindrop/render/render_job.h"
 #include "raindrop/render/scene_config.h"
-#include "raindrop/common/shard.h"
 
 namespace fs = std::filesystem;
 using namespace raindrop;
@@ -28,10 +29,9 @@ namespace {
 
 std::optional<cv::Size> parse_size(const std::string& text) {
   if (text.empty() || text == "native") return std::nullopt;
-  int w = 0, h = 0;
-  char tail = 0;
-  if (std::sscanf(text.c_str(), "%dx%d%c", &w, &h, &tail) != 2 || w < 16 || h < 16 || w > 16384 || h > 16384)
-    throw Error("--size '" + text + "' must be WIDTHxHEIGHT between 16x16 and 16384x16384, e.g. 512x256");
+  const auto size = cli::parse_width_height(text, 16, 16384);
+  if (!size) throw Error("--size '" + text + "' must be WIDTHxHEIGHT between 16x16 and 16384x16384, e.g. 512x256");
+  const int w = size->width, h = size->height;
   // The output is bounded like the input (image_io.h): a frame raindrop-remove and this
   // program would refuse to read back is not worth rendering.
   if (static_cast<std::int64_t>(w) * h > kMaxImagePixels)

@@ -6,18 +6,15 @@
 
 namespace raindrop::removal {
 
-Device parse_device(const std::string& text) {
-  if (text == "cpu") return Device::cpu;
-  if (text == "cuda") return Device::cuda;
-  throw Error("device '" + text + "' is not one of cpu, cuda");
+const std::map<std::string, Device>& device_names() {
+  static const std::map<std::string, Device> names{{"cpu", Device::cpu}, {"cuda", Device::cuda}};
+  return names;
 }
 
-GraphOpt parse_graph_opt(const std::string& text) {
-  if (text == "disable") return GraphOpt::disable;
-  if (text == "basic") return GraphOpt::basic;
-  if (text == "extended") return GraphOpt::extended;
-  if (text == "all") return GraphOpt::all;
-  throw Error("graph optimisation level '" + text + "' is not one of disable, basic, extended, all");
+const std::map<std::string, GraphOpt>& graph_opt_names() {
+  static const std::map<std::string, GraphOpt> names{
+      {"disable", GraphOpt::disable}, {"basic", GraphOpt::basic}, {"extended", GraphOpt::extended}, {"all", GraphOpt::all}};
+  return names;
 }
 
 const char* to_string(Device d) { return d == Device::cuda ? "cuda" : "cpu"; }

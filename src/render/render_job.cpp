@@ -24,12 +24,12 @@
 #include <tbb/task_arena.h>
 
 #include "raindrop/common/error.h"
-#include "raindrop/render/framing.h"
 #include "raindrop/common/image_io.h"
-#include "raindrop/render/manifest.h"
 #include "raindrop/common/progress.h"
 #include "raindrop/common/rng.h"
 #include "raindrop/common/version.h"
+#include "raindrop/render/framing.h"
+#include "raindrop/render/manifest.h"
 #include "raindrop/render/scene.h"
 
 namespace raindrop {

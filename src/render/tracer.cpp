@@ -10,12 +10,12 @@
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
 
+#include "raindrop/common/rng.h"
 #include "raindrop/render/background.h"
 #include "raindrop/render/optics.h"
-#include "raindrop/common/rng.h"
 #include "raindrop/render/sky.h"
-#include "raindrop/render/srgb.h"
 #include "raindrop/render/spans.h"
+#include "raindrop/render/srgb.h"
 
 namespace raindrop {
 namespace {

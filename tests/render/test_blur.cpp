@@ -6,8 +6,8 @@
 #include <gtest/gtest.h>
 #include <opencv2/imgproc.hpp>
 
-#include "raindrop/render/blur.h"
 #include "raindrop/common/rng.h"
+#include "raindrop/render/blur.h"
 
 using namespace raindrop;
 

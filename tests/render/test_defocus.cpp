@@ -4,10 +4,10 @@
 
 #include <gtest/gtest.h>
 
+#include "raindrop/common/rng.h"
 #include "raindrop/render/defocus.h"
 #include "raindrop/render/demo.h"
 #include "raindrop/render/renderer.h"
-#include "raindrop/common/rng.h"
 #include "raindrop/render/scene.h"
 #include "raindrop/render/scene_config.h"
 #include "support.h"

@@ -10,8 +10,8 @@
 #include <gtest/gtest.h>
 #include <tbb/task_arena.h>
 
-#include "raindrop/render/blur.h"
 #include "raindrop/common/error.h"
+#include "raindrop/render/blur.h"
 #include "raindrop/render/framing.h"
 #include "raindrop/render/manifest.h"
 #include "raindrop/render/renderer.h"

@@ -8,10 +8,10 @@
 #include <gtest/gtest.h>
 #include <tbb/task_arena.h>
 
+#include "raindrop/common/rng.h"
 #include "raindrop/render/background.h"
 #include "raindrop/render/blur.h"
 #include "raindrop/render/renderer.h"
-#include "raindrop/common/rng.h"
 #include "raindrop/render/scene.h"
 #include "raindrop/render/tracer.h"
 #include "support.h"

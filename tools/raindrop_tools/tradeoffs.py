@@ -14,7 +14,6 @@ from __future__ import annotations
 
 import argparse
 import json
-import re
 import subprocess
 import sys
 from dataclasses import dataclass
@@ -28,7 +27,7 @@ class Variant:
     threads: int = 2
     graph_opt: str = "all"
     tile: int = 1024
-    size: str = "256x512"  # HxW
+    size: str = "512x256"  # WxH, as raindrop-bench takes it
     knob: str = ""        # what this row changes
 
 
@@ -43,24 +42,37 @@ DEFAULT_VARIANTS = [
     Variant("compact, fp32, graph opt disable", "models/compact", graph_opt="disable", knob="graph optimisation"),
     Variant("compact, fp32, graph opt basic", "models/compact", graph_opt="basic", knob="graph optimisation"),
     Variant("compact, fp32, graph opt extended", "models/compact", graph_opt="extended", knob="graph optimisation"),
-    Variant("compact, fp32, 1024x2048, whole image", "models/compact", tile=0, size="1024x2048", knob="tiles"),
-    Variant("compact, fp32, 1024x2048, tiles 1024", "models/compact", tile=1024, size="1024x2048", knob="tiles"),
-    Variant("compact, fp32, 1024x2048, tiles 512", "models/compact", tile=512, size="1024x2048", knob="tiles"),
+    Variant("compact, fp32, 2048x1024, whole image", "models/compact", tile=0, size="2048x1024", knob="tiles"),
+    Variant("compact, fp32, 2048x1024, tiles 1024", "models/compact", tile=1024, size="2048x1024", knob="tiles"),
+    Variant("compact, fp32, 2048x1024, tiles 512", "models/compact", tile=512, size="2048x1024", knob="tiles"),
 ]
 
-ROW_RE = re.compile(r"^\| (?P<models>[^|]+) \| (?P<size>\d+x\d+) \| (?P<threads>\d+) \| (?P<tiles>\d+) \|(?P<rest>.*)$")
+def time_rows(markdown: str) -> list[dict]:
+    """The rows of raindrop-bench remove's "time per image" table, each as {column title: cell},
+    found by the table's header (the first column "models", the second "size (WxH)"), so that
+    columns added to the bench do not shift what is read."""
+    rows: list[dict] = []
+    header: list[str] | None = None
+    for line in markdown.splitlines():
+        cells = [c.strip() for c in line.strip().strip("|").split("|")]
+        if not line.startswith("|"):
+            header = None
+        elif cells[:2] == ["models", "size (WxH)"] and "median total" in cells:
+            header = cells
+        elif header and not set("".join(cells)) <= set("-: ") and len(cells) == len(header):
+            rows.append(dict(zip(header, cells)))
+    return rows
 
 
 def bench_ms(bench: str, v: Variant, runs: int) -> dict:
-    """Median wall time (ms) of raindrop-remove's pipeline for one variant."""
+    """Median wall time (ms) of raindrop-remove's pipeline for one variant, at the variant's
+    size itself (--scale 1: the table compares the networks' cost, not the working scale's)."""
     cmd = [bench, "remove", "--models", v.models, "--threads", str(v.threads), "--graph-opt", v.graph_opt,
-           "--tile", str(v.tile), "--size", v.size, "--runs", str(runs)]
+           "--tile", str(v.tile), "--size", v.size, "--scale", "1", "--process-size", "", "--runs", str(runs)]
     out = subprocess.run(cmd, check=True, capture_output=True, text=True).stdout
-    for line in out.splitlines():
-        m = ROW_RE.match(line)
-        if m and m["size"] == v.size and int(m["threads"]) == v.threads:
-            cells = [c.strip() for c in m["rest"].split("|") if c.strip()]
-            return {"ms": float(cells[-1]), "tiles": int(m["tiles"]), "command": " ".join(cmd)}
+    for row in time_rows(out):
+        if row["size (WxH)"] == v.size and int(row["threads"]) == v.threads:
+            return {"ms": float(row["median total"]), "tiles": int(row["tiles"]), "command": " ".join(cmd)}
     raise RuntimeError(f"no timing row in the output of {' '.join(cmd)}")
 
 
@@ -95,14 +107,14 @@ def label_offsets(points: list[tuple[float, float]], dy: float = 9.0) -> list[tu
 
 
 def plot_pareto(rows: list[dict], path: Path) -> None:
-    """Pareto plot over the 256x512 rows that have an accuracy."""
+    """Pareto plot over the 512x256 rows that have an accuracy."""
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
     pts = [(r["ms"], r["accuracy"]["psnr_y"], r["variant"]["label"]) for r in rows
-           if r["accuracy"] and r["variant"]["size"] == "256x512"]
+           if r["accuracy"] and r["variant"]["size"] == "512x256"]
     if not pts:
         return
     front = sorted((pts[i] for i in pareto([(t, a) for t, a, _ in pts])), key=lambda p: p[0])
@@ -112,7 +124,7 @@ def plot_pareto(rows: list[dict], path: Path) -> None:
     for (t, a, label), off in zip(pts, label_offsets([(t, a) for t, a, _ in pts])):
         ax.annotate(f"{label} ({t:.0f} ms)", (t, a), textcoords="offset points", xytext=off, fontsize=7)
     ax.set_xscale("log")
-    ax.set_xlabel("ms per 256x512 image (raindrop-remove, median; log scale)")
+    ax.set_xlabel("ms per 512x256 image (raindrop-remove, median; log scale)")
     ax.set_ylabel("PSNR (Y, dB) on the held-out synthetic set")
     ax.set_title("raindrop-remove: accuracy against time")
     ax.grid(True, which="both", alpha=0.3)

@@ -1,8 +1,8 @@
-"""The trade-off table's pieces: the Pareto front and parsing raindrop-bench's table."""
+"""The trade-off table's pieces: the Pareto front and reading raindrop-bench's table."""
 
 from __future__ import annotations
 
-from raindrop_tools.tradeoffs import ROW_RE, pareto
+from raindrop_tools.tradeoffs import pareto, time_rows
 
 
 def test_pareto_keeps_exactly_the_undominated_points():
@@ -13,12 +13,32 @@ def test_pareto_keeps_exactly_the_undominated_points():
     assert pareto([(1, 1)]) == [0]
 
 
-def test_bench_rows_are_parsed():
-    line = "| compact (compact) | 256x512 | 2 | 1 | 0.9 | 20.1 | 0.2 | 21.0 | 0.3 | 10.5 | 1.0 | 54.0 | 53.2 |"
-    m = ROW_RE.match(line)
-    assert m and m["size"] == "256x512" and m["threads"] == "2" and m["tiles"] == "1"
-    cells = [c.strip() for c in m["rest"].split("|") if c.strip()]
-    assert float(cells[-1]) == 53.2
+# raindrop-bench remove's time table as it prints it (tests/CMakeLists.txt's bench_remove_quick
+# runs the program and checks the same header).
+BENCH_OUTPUT = """## raindrop-remove: time per image
+
+Machine: AMD EPYC, 2 hardware threads; ...
+
+| models | size (WxH) | scale | threads | tiles | edge | RDN | threshold+dilation | 3RN | blend | RFN | other | total | median total | first run |
+|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|
+| compact (compact) | 512x256 | 1 | 2 | 1 | 0.4 | 70.2 | 0.1 | 100.8 | 0.1 | 10.6 | 1.2 | 115.9 | 116.7 | 180.3 |
+| compact (compact) | 2048x1024 | 0.25 | 2 | 1 | 3.0 | 70.0 | 0.1 | 99.0 | 0.1 | 10.0 | 20.0 | 200.0 | 201.5 | 260.0 |
+
+"first run": the first Remover::run on that size ...
+
+## raindrop-remove: GFLOP/s
+
+| models | size (WxH) | threads | GFLOP | RDN GFLOP/s | 3RN GFLOP/s | RFN GFLOP/s | overall GFLOP/s |
+|---|---|---|---|---|---|---|---|
+| compact (compact) | 512x256 | 2 | 14.21 | 81.2 | 58.2 | 250.3 | 122.6 |
+"""
+
+
+def test_bench_rows_are_read_by_column_title():
+    rows = time_rows(BENCH_OUTPUT)
+    assert [r["size (WxH)"] for r in rows] == ["512x256", "2048x1024"]  # not the GFLOP/s table's row
+    assert rows[0]["median total"] == "116.7" and rows[0]["first run"] == "180.3"
+    assert rows[1]["scale"] == "0.25" and rows[1]["threads"] == "2" and rows[1]["tiles"] == "1"
 
 
 def test_labels_of_points_at_the_same_accuracy_are_stacked():

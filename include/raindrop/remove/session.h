@@ -5,6 +5,7 @@
 // The library is ONNX Runtime 1.31 from the PyPI wheel, compiled against the 1.21 headers
 // (docs/DESIGN.md section 7). That wheel is CPU-only: asking for CUDA is an error that says
 // which providers this build has, instead of a silent fall-back to the CPU.
+#include <map>
 #include <string>
 #include <vector>
 
@@ -22,9 +23,10 @@ struct SessionConfig {
   int cuda_device = 0;
 };
 
-// "cpu"/"cuda" and "disable"/"basic"/"extended"/"all"; throw raindrop::Error otherwise.
-Device parse_device(const std::string& text);
-GraphOpt parse_graph_opt(const std::string& text);
+// The names of the choices on the command line ("cpu", "cuda"; "disable", "basic",
+// "extended", "all"), for parsing them straight into the enums, and back.
+const std::map<std::string, Device>& device_names();
+const std::map<std::string, GraphOpt>& graph_opt_names();
 const char* to_string(Device d);
 const char* to_string(GraphOpt g);
 

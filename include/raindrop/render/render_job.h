@@ -15,10 +15,10 @@
 #include <opencv2/core.hpp>
 
 #include "raindrop/common/image_io.h"
+#include "raindrop/common/shard.h"
 #include "raindrop/render/inputs.h"
 #include "raindrop/render/renderer.h"
 #include "raindrop/render/scene_config.h"
-#include "raindrop/common/shard.h"
 
 namespace raindrop {
 

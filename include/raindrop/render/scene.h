@@ -4,10 +4,10 @@
 #include <cmath>
 #include <vector>
 
+#include "raindrop/common/rng.h"
 #include "raindrop/render/camera.h"
 #include "raindrop/render/drop.h"
 #include "raindrop/render/glass.h"
-#include "raindrop/common/rng.h"
 #include "raindrop/render/scene_config.h"
 
 namespace raindrop {

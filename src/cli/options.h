@@ -1,0 +1,55 @@
+#pragma once
+// Command-line conventions shared by raindrop-render, raindrop-remove and raindrop-bench:
+// image sizes are WIDTHxHEIGHT everywhere (as OpenCV's cv::Size and image tools write them),
+// and a choice among names is parsed by CLI11 straight into its enum, so a bad value is
+// CLI11's usage error (exit 2) before anything runs.
+#include <cstdio>
+#include <map>
+#include <optional>
+#include <string>
+#include <type_traits>
+
+#include <CLI/CLI.hpp>
+#include <opencv2/core.hpp>
+
+namespace raindrop::cli {
+
+// "512x256" -> 512 wide, 256 high, each side in [min_side, max_side]; nullopt if malformed.
+inline std::optional<cv::Size> parse_width_height(const std::string& text, int min_side = 1, int max_side = 16384) {
+  int w = 0, h = 0;
+  char tail = 0;
+  if (std::sscanf(text.c_str(), "%dx%d%c", &w, &h, &tail) != 2 || w < min_side || h < min_side || w > max_side ||
+      h > max_side)
+    return std::nullopt;
+  return cv::Size(w, h);
+}
+
+// A validator for string options that hold a WIDTHxHEIGHT size (an empty value passes:
+// "none" or "the default", as each option says).
+inline CLI::Validator width_height(int min_side = 1, int max_side = 16384) {
+  return CLI::Validator(
+      [=](const std::string& text) -> std::string {
+        if (text.empty() || parse_width_height(text, min_side, max_side)) return {};
+        return "'" + text + "' must be WIDTHxHEIGHT with sides " + std::to_string(min_side) + " to " +
+               std::to_string(max_side) + ", e.g. 512x256";
+      },
+      "WxH");
+}
+
+// Parses an option's value by name straight into an enum: exact names only (not the enum's
+// numbers), listed in --help and in the error.
+template <class Enum>
+CLI::Validator names_to(const std::map<std::string, Enum>& names) {
+  std::string list;
+  for (const auto& entry : names) list += (list.empty() ? "" : ",") + entry.first;
+  return CLI::Validator(
+      [names, list](std::string& text) -> std::string {
+        const auto it = names.find(text);
+        if (it == names.end()) return "'" + text + "' is not one of {" + list + "}";
+        text = std::to_string(static_cast<std::underlying_type_t<Enum>>(it->second));  // what CLI11 converts
+        return {};
+      },
+      "{" + list + "}");
+}
+
+}  // namespace raindrop::cli
