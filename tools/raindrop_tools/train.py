@@ -13,6 +13,11 @@ The run folder holds ``config.yaml`` (the resolved configuration: one run, one c
 ``run.json`` (seed, devices, versions, command lines), ``log.jsonl`` (losses and learning
 rates) and ``checkpoints/``. A non-finite loss or gradient stops the run with an error naming
 the network, the step and the sample ids of the batch; no checkpoint is written for it.
+
+Started by ``torchrun`` with several processes (``torchrun --nproc_per_node=4 -m
+raindrop_tools.train ...``), the run trains with DistributedDataParallel: the configured batch
+is the global batch, split over the processes, and rank 0 alone reads and writes the run
+folder (distributed.py).
 """
 
 from __future__ import annotations
@@ -29,13 +34,13 @@ from pathlib import Path
 
 import torch
 import yaml
+from torch.nn.parallel import DistributedDataParallel
 from torch.utils.data import DataLoader
 from tqdm import tqdm
 
 from . import checkpoint as ckpt
 from . import contract as C
-from . import losses
-from . import onnx_weights
+from . import distributed, losses, onnx_weights
 from .config import (
     ConfigError,
     RunConfig,
@@ -62,6 +67,10 @@ class TrainingError(RuntimeError):
 
 class NonFiniteLossError(TrainingError):
     """A loss or gradient became NaN or Inf."""
+
+
+# Errors reported as a one-line message (exit status 2); anything else is a bug.
+REPORTED = (ConfigError, DatasetError, TrainingError, distributed.WorldError)
 
 
 def choose_device(name: str = "auto") -> torch.device:
@@ -120,7 +129,10 @@ def _diff(a, b, prefix: str = "") -> list[str]:
     return out
 
 
-def _record_invocation(run_dir: Path, cfg: RunConfig, device: torch.device, argv: list[str] | None) -> None:
+def _record_invocation(
+    run_dir: Path, cfg: RunConfig, device: torch.device, argv: list[str] | None,
+    world: distributed.World | None = None,
+) -> None:
     path = run_dir / RUN_FILE
     info = json.loads(path.read_text()) if path.is_file() else {"config": cfg.name, "seed": cfg.seed, "invocations": []}
     info["invocations"].append(
@@ -137,6 +149,7 @@ def _record_invocation(run_dir: Path, cfg: RunConfig, device: torch.device, argv
             "torch": torch.__version__,
             "python": platform.python_version(),
             "host": platform.node(),
+            **({} if world is None else {"processes": world.size, "backend": torch.distributed.get_backend()}),
         }
     )
     _write_json_atomic(path, info)
@@ -144,7 +157,11 @@ def _record_invocation(run_dir: Path, cfg: RunConfig, device: torch.device, argv
 
 class Trainer:
     """Runs the stages of one run folder. ``max_steps`` bounds the optimizer steps of this
-    invocation (a checkpoint is written when it stops early; continue with resume)."""
+    invocation (a checkpoint is written when it stops early; continue with resume).
+
+    With a ``world`` (several processes, distributed.py) every rank runs a Trainer: the trained
+    networks are wrapped in DistributedDataParallel, each rank takes its share of every batch,
+    and only rank 0 logs and touches the run folder."""
 
     def __init__(
         self,
@@ -154,13 +171,18 @@ class Trainer:
         progress: bool = True,
         max_steps: int | None = None,
         log=None,
+        world: distributed.World | None = None,
     ):
         self.cfg = cfg
         self.run_dir = Path(run_dir)
         self.device = device
-        self.progress = progress
+        self.world = world
+        self.writes = world is None or world.is_main  # this process writes the run folder
+        self.progress = progress and self.writes
         self.steps_left = max_steps
         self.log = log or (lambda msg: tqdm.write(msg, file=sys.stderr))
+        if not self.writes:
+            self.log = lambda msg: None
         self.stop_requested = False
         self._dataset: RaindropDataset | None = None
         # All three networks are built from the seed in a fixed order every time, so RFN's
@@ -204,7 +226,8 @@ class Trainer:
         return self._dataset
 
     def _loader(self, stage: int, total: int, start: int) -> DataLoader:
-        ds = self.dataset
+        # Several processes: every rank reads the data; one that cannot ends them all.
+        ds = self.dataset if self.world is None else self.world.agree(lambda: self.dataset, REPORTED)
         t = self.cfg.train
         if isinstance(ds, MultiSourceDataset):
             weights = [s.weight for s in data_sources(self.cfg)]
@@ -219,8 +242,12 @@ class Trainer:
             sampler = StepBatchSampler(
                 ds.sizes, ds.crop, t.batch_size, self.cfg.seed, stage, total, start, flip=ds.flip
             )
+        split = ""
+        if self.world is not None:
+            split = f" ({self.world.local_batch(t.batch_size)} in each of {self.world.size} processes)"
+            sampler = distributed.RankSlice(sampler, self.world.rank, self.world.size)
         self.log(
-            f"stage {stage}: {len(ds)} samples, batch {t.batch_size}, steps {start}->{total} "
+            f"stage {stage}: {len(ds)} samples, batch {t.batch_size}{split}, steps {start}->{total} "
             f"of {total} ({epochs(total, t.batch_size, len(ds)):.2f} epochs), device {self.device}"
         )
         return DataLoader(
@@ -249,7 +276,12 @@ class Trainer:
         return {k: (move(v) if torch.is_tensor(v) else v) for k, v in batch.items()}
 
     def _check(self, what: str, value: torch.Tensor, stage: int, step: int, total: int, ids) -> None:
+        """Raises NonFiniteLossError. Several processes: ``value`` must be the same on every
+        rank (a mean over the ranks, or of synchronised gradients): they all stop together, the
+        message naming the samples of every rank."""
         if not torch.isfinite(value).all():
+            if self.world is not None:
+                ids = [i for part in self.world.gather(list(ids)) for i in part]
             last = ckpt.latest_checkpoint(self.run_dir)
             raise NonFiniteLossError(
                 f"{what} is {value.item()} at stage {stage} step {step} of {total}; "
@@ -257,17 +289,25 @@ class Trainer:
                 f"step (latest: {last.path.name if last else 'none'})."
             )
 
-    def _step(self, name: str, net, opt, sched, loss, stage, step, total, ids) -> None:
-        self._check(f"{name} loss", loss.detach(), stage, step, total, ids)
+    def _step(self, name: str, net, opt, sched, loss, stage, step, total, ids) -> float:
+        """One optimizer step; returns the loss to log (several processes: their mean)."""
+        if self.world is None:
+            shown, what = loss.detach(), f"{name} loss"
+        else:
+            shown, what = self.world.mean(loss), f"{name} loss (mean of the {self.world.size} processes)"
+        self._check(what, shown, stage, step, total, ids)
         opt.zero_grad(set_to_none=True)
-        loss.backward()
+        loss.backward()  # DistributedDataParallel: gradients averaged over the ranks here
         grad_norm = torch.nn.utils.clip_grad_norm_(net.parameters(), float("inf"))
         self._check(f"{name} gradient norm", grad_norm.detach(), stage, step, total, ids)
         opt.step()
         sched.step()
+        return shown.item()
 
     def _save(self, stage: int, step: int, total: int, opts: dict, scheds: dict) -> Path:
         path = ckpt.checkpoint_path(self.run_dir, stage, step)
+        if not self.writes:
+            return path
         ckpt.save_atomic(
             {
                 "format": 1,
@@ -287,6 +327,8 @@ class Trainer:
         return path
 
     def _log_line(self, record: dict) -> None:
+        if not self.writes:
+            return
         with open(self.run_dir / LOG_FILE, "a") as f:
             f.write(json.dumps(record) + "\n")
 
@@ -361,7 +403,14 @@ class Trainer:
         return folder
 
     def _budget_exhausted(self) -> bool:
-        return self.stop_requested or (self.steps_left is not None and self.steps_left <= 0)
+        """Several processes: true on every rank when one of them was asked to stop (a signal
+        reaches the ranks at different moments; they must stop after the same step)."""
+        stop = self.stop_requested
+        if self.world is not None:
+            stop = self.world.any(stop)
+            if stop:
+                self.stop_requested = True
+        return stop or (self.steps_left is not None and self.steps_left <= 0)
 
     # ------------------------------------------------------------------ stages
 
@@ -370,42 +419,63 @@ class Trainer:
             ckpt.list_checkpoints(self.run_dir, 2)
         )
 
-    def run_stage(self, stage: int, resume: bool) -> str:
-        """Run (or continue) one stage. Returns "done", "skipped" or "stopped"."""
-        total = self.cfg.train.stage1_steps if stage == 1 else self.cfg.train.stage2_steps
-        names = ["rdn", "rrn"] if stage == 1 else ["rfn"]
+    def _starting_point(self, stage: int, resume: bool, map_location) -> dict | None:
+        """What the run folder says about ``stage``: None when stage 1 is complete already,
+        else ``{"state": checkpoint to continue from or None, "models": checkpoint whose
+        networks to start from or None}``."""
         latest = ckpt.latest_checkpoint(self.run_dir)
-        start = 0
-        state = None
         if stage == 1:
             if self.stage1_complete():
                 if not resume:
                     raise TrainingError(f"{self.run_dir}: stage 1 is already done; use --resume or a new --out")
                 self.log("stage 1: already complete")
-                return "skipped"
+                return None
             if latest is not None:
-                if not resume:
-                    raise TrainingError(
-                        f"{self.run_dir} already has checkpoints ({latest.path.name}); "
-                        "pass --resume to continue it, or use a new --out"
-                    )
-                state = ckpt.load_checkpoint(latest.path, self.device)
+                return self._continue_from(latest, "checkpoints", resume, map_location)
+            return {"state": None, "models": None}
+        s2 = ckpt.latest_checkpoint(self.run_dir, 2)
+        if s2 is not None:
+            return self._continue_from(s2, "stage-2 checkpoints", resume, map_location)
+        s1 = ckpt.checkpoint_path(self.run_dir, 1, self.cfg.train.stage1_steps)
+        if not s1.is_file():
+            raise TrainingError(f"{self.run_dir}: stage 2 needs the end of stage 1 ({s1.name}); run --stage 1 first")
+        return {"state": None, "models": ckpt.load_checkpoint(s1, map_location)}
+
+    def _continue_from(self, ref: ckpt.CheckpointRef, what: str, resume: bool, map_location) -> dict:
+        if not resume:
+            raise TrainingError(
+                f"{self.run_dir} already has {what} ({ref.path.name}); pass --resume to continue it, or use a new --out"
+            )
+        return {"state": ckpt.load_checkpoint(ref.path, map_location), "models": None}
+
+    def _shared_starting_point(self, stage: int, resume: bool) -> dict | None:
+        """``_starting_point`` as rank 0 finds it, on every rank (on the CPU: each rank moves
+        it to its own device). Every rank starts from rank 0's networks, also in a fresh run
+        (--init-from loads them on rank 0 only)."""
+
+        def on_rank0():
+            start = self._starting_point(stage, resume, "cpu")
+            if start is not None and start["state"] is None and start["models"] is None:
+                start["models"] = {"models": {k: {n: t.cpu() for n, t in net.state_dict().items()}
+                                              for k, net in self.nets.items()}}
+            return start
+
+        return self.world.share(on_rank0, REPORTED)
+
+    def run_stage(self, stage: int, resume: bool) -> str:
+        """Run (or continue) one stage. Returns "done", "skipped" or "stopped"."""
+        total = self.cfg.train.stage1_steps if stage == 1 else self.cfg.train.stage2_steps
+        names = ["rdn", "rrn"] if stage == 1 else ["rfn"]
+        if self.world is None:
+            begin = self._starting_point(stage, resume, self.device)
         else:
-            s2 = ckpt.latest_checkpoint(self.run_dir, 2)
-            if s2 is not None:
-                if not resume:
-                    raise TrainingError(
-                        f"{self.run_dir} already has stage-2 checkpoints ({s2.path.name}); "
-                        "pass --resume to continue it, or use a new --out"
-                    )
-                state = ckpt.load_checkpoint(s2.path, self.device)
-            else:
-                s1 = ckpt.checkpoint_path(self.run_dir, 1, self.cfg.train.stage1_steps)
-                if not s1.is_file():
-                    raise TrainingError(
-                        f"{self.run_dir}: stage 2 needs the end of stage 1 ({s1.name}); run --stage 1 first"
-                    )
-                self._load_models(ckpt.load_checkpoint(s1, self.device))
+            begin = self._shared_starting_point(stage, resume)
+        if begin is None:
+            return "skipped"
+        start = 0
+        state = begin["state"]
+        if begin["models"] is not None:
+            self._load_models(begin["models"])
         opts, scheds = {}, {}
         for n in names:
             opts[n], scheds[n] = self._optimizer(self.nets[n], total)
@@ -427,6 +497,10 @@ class Trainer:
                     if isinstance(m, torch.nn.BatchNorm2d):
                         m.eval()
             net.requires_grad_(n in names)
+        trained = {n: self.nets[n] for n in names}  # the frozen networks are never wrapped
+        if self.world is not None:
+            ids = [self.device.index] if self.device.type == "cuda" else None
+            trained = {n: DistributedDataParallel(net, device_ids=ids) for n, net in trained.items()}
         dilation = Dilation(self.cfg.pipeline.dilation).to(self.device)
         thr = self.cfg.pipeline.threshold
         L = self.cfg.loss
@@ -443,18 +517,20 @@ class Trainer:
                 step += 1
                 record = {"stage": stage, "step": step}
                 if stage == 1:
-                    rdn, rrn = self.nets["rdn"], self.nets["rrn"]
+                    rdn, rrn = trained["rdn"], trained["rrn"]
                     record["lr"] = scheds["rdn"].get_last_lr()[0]
                     loss = losses.detection_loss(rdn(b["rainy"]), b["mask"])
-                    self._step("rdn", rdn, opts["rdn"], scheds["rdn"], loss, stage, step, total, ids)
-                    record["loss_rdn"] = loss.item()
+                    record["loss_rdn"] = self._step(
+                        "rdn", rdn, opts["rdn"], scheds["rdn"], loss, stage, step, total, ids
+                    )
                     loss = losses.reconstruction_loss(
                         rrn(b["rainy"], b["edge"]), b["clean"], b["mask"], L.rrn_mask_weight
                     )
-                    self._step("rrn", rrn, opts["rrn"], scheds["rrn"], loss, stage, step, total, ids)
-                    record["loss_rrn"] = loss.item()
+                    record["loss_rrn"] = self._step(
+                        "rrn", rrn, opts["rrn"], scheds["rrn"], loss, stage, step, total, ids
+                    )
                 else:
-                    rfn = self.nets["rfn"]
+                    rfn = trained["rfn"]
                     record["lr"] = scheds["rfn"].get_last_lr()[0]
                     with torch.no_grad():
                         r = b["rainy"]
@@ -462,8 +538,9 @@ class Trainer:
                         ihat = self.nets["rrn"](r, b["edge"]).clamp(0.0, 1.0)
                         blend = m * ihat + (1.0 - m) * r
                     loss = losses.refine_loss(rfn(blend), b["clean"], L.rfn_ssim_weight, L.ssim_window)
-                    self._step("rfn", rfn, opts["rfn"], scheds["rfn"], loss, stage, step, total, ids)
-                    record["loss_rfn"] = loss.item()
+                    record["loss_rfn"] = self._step(
+                        "rfn", rfn, opts["rfn"], scheds["rfn"], loss, stage, step, total, ids
+                    )
                 if self.steps_left is not None:
                     self.steps_left -= 1
                 bar.update(1)
@@ -487,7 +564,8 @@ class Trainer:
         return "done"
 
     def run(self, stages: list[int], resume: bool) -> str:
-        ckpt.remove_stale_temporaries(self.run_dir)
+        if self.writes:
+            ckpt.remove_stale_temporaries(self.run_dir)
         result = "done"
         for s in stages:
             result = self.run_stage(s, resume)
@@ -570,51 +648,117 @@ def build_arg_parser() -> argparse.ArgumentParser:
     return ap
 
 
+def _open_run(args, world: distributed.World | None = None) -> tuple[RunConfig, Path]:
+    """The configuration and run folder of the command line (the folder created, or its
+    recorded configuration checked). Several processes: a batch they cannot split evenly is
+    refused before the folder is written."""
+    overrides = parse_overrides(args.set)
+    if args.data:
+        overrides.append(("data.train", args.data))
+    cfg = load_config(args.config, overrides) if args.config else None
+    if args.out:
+        run_dir = Path(args.out)
+    elif cfg is not None:
+        run_dir = default_run_dir(cfg.name)
+    else:
+        raise TrainingError("give --config, or --out of an existing run")
+    if cfg is None and overrides:
+        raise TrainingError("--set/--data need --config (a run folder keeps its configuration)")
+    if world is not None and cfg is not None:
+        world.local_batch(cfg.train.batch_size)
+    cfg = prepare_run_dir(run_dir, cfg)
+    if world is not None:
+        world.local_batch(cfg.train.batch_size)  # the recorded configuration's
+    return cfg, run_dir
+
+
+def _initial_weights(trainer: Trainer, args, run_dir: Path) -> None:
+    """--init-from, recorded in run.json; or, for a fine-tuning run stopped before its first
+    checkpoint, the weights it started from."""
+    info_path = run_dir / RUN_FILE
+    info = json.loads(info_path.read_text())
+    if args.init_from:
+        if args.resume and ckpt.latest_checkpoint(run_dir) is not None:
+            raise TrainingError("--init-from with --resume: the run already has checkpoints; drop --init-from")
+        info["init_from"] = str(trainer.init_from(args.init_from).resolve())
+        _write_json_atomic(info_path, info)
+    elif info.get("init_from") and ckpt.latest_checkpoint(run_dir) is None:
+        # a fine-tuning run stopped before its first checkpoint starts again from the same weights
+        trainer.init_from(info["init_from"])
+
+
+def _run_stages(trainer: Trainer, args) -> str:
+    stages = [1, 2] if args.stage == "all" else [int(args.stage)]
+    previous = _install_signal_handlers(trainer)
+    try:
+        return trainer.run(stages, resume=args.resume)
+    finally:
+        for sig, h in previous.items():
+            signal.signal(sig, h)
+
+
+def _exit_status(result: str, trainer: Trainer) -> int:
+    return 0 if result != "stopped" or not trainer.stop_requested else 130
+
+
 def main(argv: list[str] | None = None) -> int:
     args = build_arg_parser().parse_args(argv)
     if args.threads:
         torch.set_num_threads(args.threads)
     try:
-        overrides = parse_overrides(args.set)
-        if args.data:
-            overrides.append(("data.train", args.data))
-        cfg = load_config(args.config, overrides) if args.config else None
-        if args.out:
-            run_dir = Path(args.out)
-        elif cfg is not None:
-            run_dir = default_run_dir(cfg.name)
-        else:
-            raise TrainingError("give --config, or --out of an existing run")
-        if cfg is None and overrides:
-            raise TrainingError("--set/--data need --config (a run folder keeps its configuration)")
-        cfg = prepare_run_dir(run_dir, cfg)
+        world = distributed.from_env()
+    except distributed.WorldError as e:
+        print(f"error: {e}", file=sys.stderr)
+        return 2
+    if world is not None:
+        return _main_distributed(args, argv, world)
+    try:
+        cfg, run_dir = _open_run(args)
         device = choose_device(args.device)
         if device.type == "cuda":
             torch.backends.cudnn.benchmark = True
         _record_invocation(run_dir, cfg, device, argv)
         trainer = Trainer(cfg, run_dir, device, progress=not args.no_progress, max_steps=args.max_steps)
-        info_path = run_dir / RUN_FILE
-        info = json.loads(info_path.read_text())
-        if args.init_from:
-            if args.resume and ckpt.latest_checkpoint(run_dir) is not None:
-                raise TrainingError("--init-from with --resume: the run already has checkpoints; drop --init-from")
-            info["init_from"] = str(trainer.init_from(args.init_from).resolve())
-            _write_json_atomic(info_path, info)
-        elif info.get("init_from") and ckpt.latest_checkpoint(run_dir) is None:
-            # a fine-tuning run stopped before its first checkpoint starts again from the same weights
-            trainer.init_from(info["init_from"])
-        stages = [1, 2] if args.stage == "all" else [int(args.stage)]
-        previous = _install_signal_handlers(trainer)
-        try:
-            result = trainer.run(stages, resume=args.resume)
-        finally:
-            for sig, h in previous.items():
-                signal.signal(sig, h)
-    except (ConfigError, DatasetError, TrainingError) as e:
+        _initial_weights(trainer, args, run_dir)
+        result = _run_stages(trainer, args)
+    except REPORTED as e:
         print(f"error: {e}", file=sys.stderr)
         return 2
     print(f"{result}: run folder {run_dir}")
-    return 0 if result != "stopped" or not trainer.stop_requested else 130
+    return _exit_status(result, trainer)
+
+
+def _main_distributed(args, argv: list[str] | None, world: distributed.World) -> int:
+    """One of several processes started by torchrun. Rank 0 opens the run folder and prints;
+    every error ends all ranks (rank 0 reports it; before the process group exists, each rank
+    reports its own)."""
+    try:
+        try:
+            device = world.start(choose_device(args.device))
+            if device.type == "cuda":
+                torch.backends.cudnn.benchmark = True
+
+            def open_run():
+                cfg, run_dir = _open_run(args, world)
+                _record_invocation(run_dir, cfg, device, argv, world)
+                return cfg, run_dir
+
+            cfg, run_dir = world.share(open_run, REPORTED)
+            trainer = Trainer(
+                cfg, run_dir, device, progress=not args.no_progress, max_steps=args.max_steps, world=world
+            )
+            world.share(lambda: _initial_weights(trainer, args, run_dir), REPORTED)
+            result = _run_stages(trainer, args)
+            world.barrier()  # every rank ends after rank 0's last checkpoint is written
+        except REPORTED as e:
+            if world.is_main or not torch.distributed.is_initialized():
+                print(f"error: {e}", file=sys.stderr)
+            return 2
+    finally:
+        world.stop()
+    if world.is_main:
+        print(f"{result}: run folder {run_dir}")
+    return _exit_status(result, trainer)
 
 
 if __name__ == "__main__":
