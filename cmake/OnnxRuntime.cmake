@@ -5,12 +5,22 @@
 #     (for example an official onnxruntime release, or a CUDA-enabled build);
 #  2. otherwise the pinned copy in <build>/_deps/onnxruntime, fetched at configure time by
 #     scripts/fetch-onnxruntime.sh (versions pinned in deps/onnxruntime.env).
+#     With RAINDROP_ONNXRUNTIME_GPU=ON, the pinned onnxruntime-gpu build instead, in
+#     <build>/_deps/onnxruntime-gpu: --device cuda then works where CUDA 13, cuDNN 9 and an
+#     NVIDIA driver are on the library path. Off by default: the CPU build needs none of that.
 set(ONNXRUNTIME_ROOT "" CACHE PATH "ONNX Runtime prefix (include/, lib/); empty = fetch the pinned copy")
+option(RAINDROP_ONNXRUNTIME_GPU "Fetch the pinned GPU (CUDA) build of ONNX Runtime instead of the CPU one" OFF)
 
 if(NOT ONNXRUNTIME_ROOT)
-  set(ONNXRUNTIME_ROOT "${CMAKE_BINARY_DIR}/_deps/onnxruntime")
+  if(RAINDROP_ONNXRUNTIME_GPU)
+    set(ONNXRUNTIME_ROOT "${CMAKE_BINARY_DIR}/_deps/onnxruntime-gpu")
+    set(_ort_fetch_flags --gpu)
+  else()
+    set(ONNXRUNTIME_ROOT "${CMAKE_BINARY_DIR}/_deps/onnxruntime")
+    set(_ort_fetch_flags)
+  endif()
   execute_process(
-    COMMAND bash "${PROJECT_SOURCE_DIR}/scripts/fetch-onnxruntime.sh" "${ONNXRUNTIME_ROOT}"
+    COMMAND bash "${PROJECT_SOURCE_DIR}/scripts/fetch-onnxruntime.sh" ${_ort_fetch_flags} "${ONNXRUNTIME_ROOT}"
     RESULT_VARIABLE _ort_fetch_rc)
   if(NOT _ort_fetch_rc EQUAL 0)
     message(FATAL_ERROR "Could not obtain ONNX Runtime (scripts/fetch-onnxruntime.sh failed). "

@@ -2,14 +2,30 @@
 # Obtain ONNX Runtime for Debian 12 into DEST (default: build/_deps/onnxruntime):
 #   DEST/lib/libonnxruntime.so.<ver>  (+ libonnxruntime.so symlink)  from the PyPI wheel
 #   DEST/include/onnxruntime/*.h                                    from trixie's -dev package
+# With --gpu (default DEST: build/_deps/onnxruntime-gpu): the library from the onnxruntime-gpu
+# wheel instead, with its CUDA provider libraries beside it (DEST/lib/libonnxruntime_providers_
+# {shared,cuda}.so), which need CUDA 13, cuDNN 9 and the NVIDIA driver at run time.
 # Versions and checksums are pinned in deps/onnxruntime.env. Idempotent: does nothing when
 # DEST/.complete matches the pins. Nothing is installed system-wide.
+#   usage: scripts/fetch-onnxruntime.sh [--gpu] [DEST]
 set -euo pipefail
 here="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 # shellcheck source=../deps/onnxruntime.env
 source "$here/deps/onnxruntime.env"
-dest="${1:-$here/build/_deps/onnxruntime}"
+gpu=0
+if [[ "${1:-}" == "--gpu" ]]; then
+  gpu=1
+  shift
+fi
+if ((gpu)); then
+  package=onnxruntime-gpu wheel="$ORT_GPU_WHEEL" wheel_sha256="$ORT_GPU_WHEEL_SHA256"
+  dest="${1:-$here/build/_deps/onnxruntime-gpu}"
+else
+  package=onnxruntime wheel="$ORT_WHEEL" wheel_sha256="$ORT_WHEEL_SHA256"
+  dest="${1:-$here/build/_deps/onnxruntime}"
+fi
 stamp="$ORT_LIB_VERSION/$ORT_HEADERS_DEB_VERSION"
+((gpu)) && stamp="gpu-$stamp"
 soname_links() {
   # libonnxruntime.so (for linking) and libonnxruntime.so.1 (its SONAME, what programs load).
   ln -sf "libonnxruntime.so.$ORT_LIB_VERSION" "$dest/lib/libonnxruntime.so"
@@ -21,12 +37,12 @@ if [[ -f "$dest/.complete" && "$(cat "$dest/.complete")" == "$stamp" ]]; then
 fi
 work="$(mktemp -d)"
 trap 'rm -rf "$work"' EXIT
-echo "fetch-onnxruntime: library $ORT_LIB_VERSION (PyPI wheel), headers $ORT_HEADERS_DEB_VERSION (Debian trixie)" >&2
+echo "fetch-onnxruntime: library $ORT_LIB_VERSION (PyPI wheel $package), headers $ORT_HEADERS_DEB_VERSION (Debian trixie)" >&2
 
 # 1. The library, from the wheel. --python-version/--platform make pip pick exactly the pinned file.
 python3 -m pip download -q --no-deps --only-binary=:all: --python-version 3.11 \
-  --platform manylinux_2_28_x86_64 "onnxruntime==$ORT_LIB_VERSION" -d "$work/wheel" >&2
-echo "$ORT_WHEEL_SHA256  $work/wheel/$ORT_WHEEL" | sha256sum --check --quiet -
+  --platform manylinux_2_28_x86_64 "$package==$ORT_LIB_VERSION" -d "$work/wheel" >&2
+echo "$wheel_sha256  $work/wheel/$wheel" | sha256sum --check --quiet -
 
 # 2. The headers, from trixie, with a private source list, state and cache (the system's apt
 #    configuration is not touched).
@@ -40,12 +56,16 @@ apt-get "${apt_opts[@]}" -qq update >&2
 echo "$ORT_HEADERS_DEB_SHA256  $work/$ORT_HEADERS_DEB" | sha256sum --check --quiet -
 
 rm -rf "$dest" && mkdir -p "$dest/lib" "$dest/include"
-python3 - "$work/wheel/$ORT_WHEEL" "$dest/lib" "$ORT_LIB_VERSION" <<'PY'
+python3 - "$work/wheel/$wheel" "$dest/lib" "$ORT_LIB_VERSION" "$gpu" <<'PY'
 import sys, zipfile, os
-whl, out, ver = sys.argv[1:]
-name = f"onnxruntime/capi/libonnxruntime.so.{ver}"
-with zipfile.ZipFile(whl) as z, open(os.path.join(out, os.path.basename(name)), "wb") as f:
-    f.write(z.read(name))
+whl, out, ver, gpu = sys.argv[1:]
+names = [f"onnxruntime/capi/libonnxruntime.so.{ver}"]
+if gpu == "1":  # loaded by libonnxruntime from its own folder when --device cuda asks for them
+    names += ["onnxruntime/capi/libonnxruntime_providers_shared.so", "onnxruntime/capi/libonnxruntime_providers_cuda.so"]
+with zipfile.ZipFile(whl) as z:
+    for name in names:
+        with open(os.path.join(out, os.path.basename(name)), "wb") as f:
+            f.write(z.read(name))
 PY
 soname_links
 dpkg -x "$work/$ORT_HEADERS_DEB" "$work/deb"

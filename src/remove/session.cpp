@@ -1,6 +1,9 @@
 #include "raindrop/remove/session.h"
 
 #include <algorithm>
+#include <filesystem>
+
+#include <dlfcn.h>
 
 #include "raindrop/common/error.h"
 
@@ -42,6 +45,27 @@ Ort::Env& ort_env() {
 
 std::vector<std::string> available_providers() { return Ort::GetAvailableProviders(); }
 
+namespace {
+
+// Why the CUDA provider library beside the loaded libonnxruntime does not load, in the
+// dynamic loader's words ("libcublasLt.so.13: cannot open shared object file: ..."); empty if
+// it loads. ONNX Runtime itself only says "Failed to load shared library" (its log, where the
+// loader's reason goes, is off: ort_env).
+std::string cuda_provider_load_error() {
+  Dl_info info{};
+  if (!::dladdr(reinterpret_cast<void*>(&OrtGetApiBase), &info) || !info.dli_fname) return {};
+  const auto lib = std::filesystem::path(info.dli_fname).parent_path() / "libonnxruntime_providers_cuda.so";
+  void* handle = ::dlopen(lib.c_str(), RTLD_NOW | RTLD_LOCAL);
+  if (handle) {
+    ::dlclose(handle);
+    return {};
+  }
+  const char* why = ::dlerror();
+  return why ? why : "";
+}
+
+}  // namespace
+
 Ort::SessionOptions make_session_options(const SessionConfig& config) {
   if (config.threads < 0) throw Error("--threads must be >= 0 (0: ONNX Runtime's default)");
   Ort::SessionOptions so;
@@ -62,14 +86,19 @@ Ort::SessionOptions make_session_options(const SessionConfig& config) {
       for (const auto& p : providers) list += (list.empty() ? "" : ", ") + p;
       throw Error("--device cuda: this ONNX Runtime build (" + ort_description() +
                   ") has no CUDA execution provider (available: " + list +
-                  "); use --device cpu, or configure with -DONNXRUNTIME_ROOT=<a CUDA-enabled ONNX Runtime>");
+                  "); use --device cpu, or build with cmake -DRAINDROP_ONNXRUNTIME_GPU=ON (README: GPU)");
     }
     OrtCUDAProviderOptions cuda{};
     cuda.device_id = config.cuda_device;
+    // The environment first: the provider logs through it while it loads, and without one
+    // ONNX Runtime reports "no default logger" instead of the library that failed to load.
+    ort_env();
     try {
       so.AppendExecutionProvider_CUDA(cuda);
     } catch (const Ort::Exception& e) {
-      throw Error(std::string("--device cuda: ONNX Runtime cannot start the CUDA provider: ") + e.what());
+      const std::string why = cuda_provider_load_error();
+      throw Error(std::string("--device cuda: ONNX Runtime cannot start the CUDA provider: ") + e.what() +
+                  (why.empty() ? "" : " (" + why + "; CUDA 13, cuDNN 9 and the NVIDIA driver must be on the library path)"));
     }
   }
   return so;

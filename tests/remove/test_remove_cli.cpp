@@ -167,6 +167,29 @@ TEST_F(RemoveCli, CudaWithoutTheProvider) {
   expect_clean_failure(r, "CUDA");
 }
 
+// The GPU build (cmake -DRAINDROP_ONNXRUNTIME_GPU=ON): --device cuda either runs on the GPU
+// and gives the CPU's output (to float rounding), or, where CUDA, cuDNN or a GPU is missing,
+// fails with our one line and writes nothing. Never a crash, a hang or a silent CPU run.
+TEST_F(RemoveCli, CudaWithTheProvider) {
+  const std::vector<std::string> providers = Ort::GetAvailableProviders();
+  if (std::find(providers.begin(), providers.end(), "CUDAExecutionProvider") == providers.end())
+    GTEST_SKIP() << "this ONNX Runtime is the CPU build (the default); configure with "
+                    "-DRAINDROP_ONNXRUNTIME_GPU=ON to check the CUDA path";
+  const bool gpu_present = fs::exists("/dev/nvidiactl") || fs::exists("/dev/nvidia0");
+  const RunResult r = remove({"in.png", "out.png", "--device", "cuda"});
+  if (r.code != 0) {
+    EXPECT_FALSE(gpu_present) << "a GPU is present but --device cuda failed\n" << r.describe();
+    expect_clean_failure(r, "CUDA");
+    return;
+  }
+  ASSERT_TRUE(r.err.empty()) << r.describe();
+  const RunResult cpu = remove({"in.png", "cpu.png", "--device", "cpu"});
+  ASSERT_EQ(cpu.code, 0) << cpu.describe();
+  const auto on_gpu = read_image(tmp / "out.png"), on_cpu = read_image(tmp / "cpu.png");
+  ASSERT_TRUE(on_gpu && on_cpu);
+  EXPECT_LE(max_abs_diff(on_gpu->pixels, on_cpu->pixels), 2) << "GPU and CPU outputs differ by more than rounding";
+}
+
 TEST_F(RemoveCli, ModelsFromTheEnvironment) {
   // A model folder...
   RunResult r = remove({"in.png", "out.png"}, {"RAINDROP_MODELS=" + smoke_models().string()});
