@@ -5,6 +5,8 @@
 
 #include <glm/geometric.hpp>
 
+#include "raindrop/common/error.h"
+
 namespace raindrop {
 namespace {
 
@@ -26,8 +28,9 @@ SceneSample sample_scene(const SceneConfig& config, const Camera& camera, Rng& r
     s.f_number = draw(config.lens.f_number, rng);
     s.focal_length_mm = draw(config.lens.focal_length_mm, rng);
   }
-  s.drops_requested = rng.uniform_int(static_cast<int>(config.drop_count.lo),
-                                      static_cast<int>(config.drop_count.hi));
+  const int random_drops = rng.uniform_int(static_cast<int>(config.drop_count.lo),
+                                           static_cast<int>(config.drop_count.hi));
+  s.drops_requested = random_drops + static_cast<int>(config.drops.size());
 
   // Glass area seen by one pixel is proportional to 1 / (d . n)^3 (d = (x', y', 1) the pixel's
   // ray, n the glass normal); accepting a uniformly drawn pixel with probability
@@ -63,7 +66,27 @@ SceneSample sample_scene(const SceneConfig& config, const Camera& camera, Rng& r
   constexpr int kMaxOverlaps = 4;
   const int overlaps_allowed = config.allow_overlap ? kMaxOverlaps : 0;
   const double gap = config.allow_overlap ? 0.0 : config.min_gap_cm;
-  for (int i = 0; i < s.drops_requested; ++i) {
+  // The scene's own drops first, as given; the random ones keep clear of them.
+  for (size_t i = 0; i < config.drops.size(); ++i) {
+    const PlacedDrop& p = config.drops[i];
+    DropShape shape;
+    shape.contact_angle = p.contact_angle_deg * kDeg;
+    shape.footprint_radius =
+        p.size_param == DropSizeParam::FootprintRadius ? p.size_cm : p.size_cm * std::sin(shape.contact_angle);
+    if (p.at_pixel) {
+      const glm::dvec3 ray = camera.ray_direction(p.x, p.y);
+      const auto t = s.glass.intersect({0, 0, 0}, ray);
+      if (!t)
+        throw Error("scene '" + config.name + "': drops[" + std::to_string(i) + "]: the camera does not see the glass at pixel (" +
+                    std::to_string(p.x) + ", " + std::to_string(p.y) + ")");
+      shape.center = s.glass.coords(*t * ray);
+    } else {
+      shape.center = {p.x, p.y};
+    }
+    placed.push_back({shape.center, shape.footprint_radius});
+    s.drops.push_back(shape);
+  }
+  for (int i = 0; i < random_drops; ++i) {
     DropShape shape;
     const double size = config.size_distribution == SizeDistribution::LogUniform
                             ? std::exp(draw({std::log(config.drop_size_cm.lo), std::log(config.drop_size_cm.hi)}, rng))

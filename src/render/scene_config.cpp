@@ -90,6 +90,28 @@ class Reader {
     }
   }
 
+  // [x, y], both inside [min, max].
+  void vec2(const std::string& key, double* x, double* y, double min, double max) {
+    if (!has(key)) return;
+    const json& v = j_.at(key);
+    if (!v.is_array() || v.size() != 2 || !v[0].is_number() || !v[1].is_number()) fail("'" + key + "' must be [x, y]");
+    *x = v[0].get<double>();
+    *y = v[1].get<double>();
+    if (!(*x >= min && *x <= max && *y >= min && *y <= max))
+      fail("'" + key + "' values must lie in [" + std::to_string(min) + ", " + std::to_string(max) + "]");
+  }
+
+  // A list of objects: one Reader per element ("key[i]" in messages).
+  std::vector<Reader> elements(const std::string& key) {
+    seen_.insert(key);
+    const json& v = j_.at(key);
+    if (!v.is_array()) fail("'" + key + "' must be a list of objects");
+    std::vector<Reader> out;
+    for (size_t i = 0; i < v.size(); ++i)
+      out.emplace_back(v[i], (where_.empty() ? "" : where_ + ".") + key + "[" + std::to_string(i) + "]", origin_);
+    return out;
+  }
+
   Reader child(const std::string& key) {
     seen_.insert(key);
     return Reader(j_.at(key), where_.empty() ? key : where_ + "." + key, origin_);
@@ -191,6 +213,26 @@ SceneConfig parse_scene_json(const std::string& text, const std::string& origin)
   r.boolean("allow_overlap", &c.allow_overlap);
   r.number("min_gap_cm", &c.min_gap_cm, 0, 10);
   c.tir = parse_enum<TirMode>(r, "dark_band", c.tir, {{"black", TirMode::Black}, {"trace", TirMode::Trace}});
+  if (r.has("drops")) {
+    for (Reader d : r.elements("drops")) {
+      PlacedDrop p;
+      const bool px = d.has("center_px"), cm = d.has("center_cm");
+      if (px == cm) d.fail("give the centre as either 'center_px' [x, y] or 'center_cm' [u, v]");
+      p.at_pixel = px;
+      if (px) d.vec2("center_px", &p.x, &p.y, -1e5, 1e5);
+      else d.vec2("center_cm", &p.x, &p.y, -1e4, 1e4);
+      const bool sph = d.has("sphere_radius_cm"), fp = d.has("footprint_radius_cm");
+      if (sph == fp) d.fail("give the size as either 'sphere_radius_cm' or 'footprint_radius_cm'");
+      p.size_param = fp ? DropSizeParam::FootprintRadius : DropSizeParam::SphereRadius;
+      d.number(fp ? "footprint_radius_cm" : "sphere_radius_cm", &p.size_cm, 1e-3, 50);
+      if (!d.has("contact_angle_deg")) d.fail("'contact_angle_deg' is required");
+      d.number("contact_angle_deg", &p.contact_angle_deg, 1, 90);
+      d.reject_unknown();
+      c.drops.push_back(p);
+    }
+    if (c.drops.size() > static_cast<size_t>(kMaxDropCount))
+      r.fail("'drops' lists " + std::to_string(c.drops.size()) + " drops, more than " + std::to_string(kMaxDropCount));
+  }
 
   if (r.has("camera")) {
     Reader l = r.child("camera");
@@ -262,11 +304,11 @@ SceneConfig parse_scene_json(const std::string& text, const std::string& origin)
     } catch (const Error& e) {
       q.fail(e.what());  // with the file's name
     }
-    const double mesh_bytes = c.geometry.mesh_bytes_per_drop() * c.drop_count.hi;
+    const double mesh_bytes = c.geometry.mesh_bytes_per_drop() * (c.drop_count.hi + static_cast<double>(c.drops.size()));
     if (mesh_bytes > kMaxMeshBytes) {
       std::ostringstream m;
       m << std::fixed << std::setprecision(1) << "'geometry' = '" << c.geometry.describe() << "' with up to "
-        << static_cast<long long>(c.drop_count.hi) << " drops takes about " << mesh_bytes / (1 << 30) << " GB of mesh a sample, more than the "
+        << static_cast<long long>(c.drop_count.hi) + static_cast<long long>(c.drops.size()) << " drops takes about " << mesh_bytes / (1 << 30) << " GB of mesh a sample, more than the "
         << kMaxMeshBytes / (1 << 30) << " GB limit; use fewer segments or drops";
       q.fail(m.str());
     }
@@ -308,6 +350,14 @@ std::string scene_to_json(const SceneConfig& c) {
   j["allow_overlap"] = c.allow_overlap;
   j["min_gap_cm"] = c.min_gap_cm;
   j["dark_band"] = to_string(c.tir);
+  if (!c.drops.empty()) {
+    json drops = json::array();
+    for (const PlacedDrop& p : c.drops)
+      drops.push_back({{p.at_pixel ? "center_px" : "center_cm", json::array({p.x, p.y})},
+                       {p.size_param == DropSizeParam::FootprintRadius ? "footprint_radius_cm" : "sphere_radius_cm", p.size_cm},
+                       {"contact_angle_deg", p.contact_angle_deg}});
+    j["drops"] = drops;
+  }
   json effects = json::object();
   if (c.blur.enabled) effects["blur"] = {{"diameter_px_2048", range(c.blur.diameter_px_2048)}, {"method", to_string(c.blur.method)}};
   if (c.sky.enabled) effects["sky"] = {{"fade_rows", c.sky.fade_rows}, {"gain", c.sky.gain}};

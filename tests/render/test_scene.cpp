@@ -261,3 +261,100 @@ TEST(Manifest, ATruncatedLastLineIsIgnoredAndABadMiddleLineIsAnError) {
   EXPECT_THROW(read_manifest(file), Error);
   std::filesystem::remove_all(dir);
 }
+
+// ---------------------------------------------------------------------------------------
+// Drops the scene file places itself ("drops").
+
+TEST(SceneFile, PlacedDropsParseAndRoundTrip) {
+  const SceneConfig c = parse_scene_json(R"({
+    "drop_count": 0,
+    "drops": [
+      {"center_px": [100.5, 60], "footprint_radius_cm": 0.4, "contact_angle_deg": 35},
+      {"center_cm": [-2, 1.5], "sphere_radius_cm": 1.0, "contact_angle_deg": 60}
+    ]})", "test");
+  ASSERT_EQ(c.drops.size(), 2u);
+  EXPECT_TRUE(c.drops[0].at_pixel);
+  EXPECT_EQ(c.drops[0].x, 100.5);
+  EXPECT_EQ(c.drops[0].y, 60);
+  EXPECT_EQ(c.drops[0].size_param, DropSizeParam::FootprintRadius);
+  EXPECT_EQ(c.drops[0].contact_angle_deg, 35);
+  EXPECT_FALSE(c.drops[1].at_pixel);
+  EXPECT_EQ(c.drops[1].size_param, DropSizeParam::SphereRadius);
+  EXPECT_EQ(c.drops[1].size_cm, 1.0);
+  const SceneConfig again = parse_scene_json(scene_to_json(c), "printed");  // --print-scene keeps them
+  ASSERT_EQ(again.drops.size(), 2u);
+  EXPECT_EQ(again.drops[1].x, -2);
+  EXPECT_EQ(again.drops[1].contact_angle_deg, 60);
+}
+
+TEST(SceneFile, PlacedDropsRefuseWhatIsUnclear) {
+  const std::string ok = R"("footprint_radius_cm": 0.4, "contact_angle_deg": 35)";
+  for (const std::string& bad : std::vector<std::string>{
+           R"({"drops": {"center_px": [1, 2]}})",                                                   // not a list
+        R"({"drops": [{)" + ok + "}]}",                                                          // no centre
+        R"({"drops": [{"center_px": [1, 2], "center_cm": [0, 0], )" + ok + "}]}",                // two centres
+        R"({"drops": [{"center_px": [1], )" + ok + "}]}",                                        // not [x, y]
+        R"({"drops": [{"center_px": [1, 2], "contact_angle_deg": 35}]})",                        // no size
+        R"({"drops": [{"center_px": [1, 2], "footprint_radius_cm": 0.4}]})",                     // no angle
+        R"({"drops": [{"center_px": [1, 2], "footprint_radius_cm": 0.4, "contact_angle_deg": 95}]})",
+        R"({"drops": [{"center_px": [1, 2], "colour": 1, )" + ok + "}]}"}) {                     // unknown key
+    try {
+      parse_scene_json(bad, "bad.json");
+      ADD_FAILURE() << "accepted: " << bad;
+    } catch (const Error& e) {
+      const std::string msg = e.what();
+      EXPECT_NE(msg.find("bad.json"), std::string::npos) << msg;
+      EXPECT_NE(msg.find("drops"), std::string::npos) << msg;
+      EXPECT_EQ(msg.find('\n'), std::string::npos) << msg;
+    }
+  }
+}
+
+TEST(Scene, APlacedDropSitsWhereTheSceneSaysAndRandomOnesKeepClear) {
+  SceneConfig c = scene_preset("paper");
+  c.drop_count = {60, 60};
+  PlacedDrop at_px;
+  at_px.x = 301.25;
+  at_px.y = 97.5;
+  at_px.size_cm = 1.2;
+  at_px.contact_angle_deg = 33;
+  PlacedDrop on_glass = at_px;
+  on_glass.at_pixel = false;
+  on_glass.x = -3.5;
+  on_glass.y = 2.25;
+  on_glass.size_param = DropSizeParam::SphereRadius;
+  c.drops = {at_px, on_glass};
+  const Camera cam = camera(512, 256, 600);
+  for (int seed = 0; seed < 5; ++seed) {
+    Rng rng(seed);
+    const SceneSample s = sample_scene(c, cam, rng);
+    ASSERT_GE(s.drops.size(), 2u);
+    EXPECT_EQ(s.drops_requested, 62);
+    // The pixel the camera sees the first drop's centre at is the one asked for.
+    const glm::dvec2 seen = cam.project(s.glass.point(s.drops[0].center));
+    EXPECT_NEAR(seen.x, 301.25, 1e-9);
+    EXPECT_NEAR(seen.y, 97.5, 1e-9);
+    EXPECT_NEAR(s.drops[0].footprint_radius, 1.2, 1e-12);
+    EXPECT_NEAR(s.drops[0].contact_angle, 33 * kDegToRad, 1e-12);
+    EXPECT_EQ(s.drops[1].center, glm::dvec2(-3.5, 2.25));
+    EXPECT_NEAR(s.drops[1].footprint_radius, 1.2 * std::sin(33 * kDegToRad), 1e-12);  // a = r sin(tau)
+    for (size_t i = 2; i < s.drops.size(); ++i) {
+      for (size_t k = 0; k < 2; ++k) {
+        const double d = glm::length(s.drops[i].center - s.drops[k].center);
+        EXPECT_GE(d, s.drops[i].footprint_radius + s.drops[k].footprint_radius + c.min_gap_cm - 1e-12)
+            << "random drop " << i << " overlaps placed drop " << k << " (seed " << seed << ")";
+      }
+    }
+  }
+}
+
+TEST(Scene, APlacedDropTheCameraCannotSeeOnTheGlassIsAnError) {
+  SceneConfig c = scene_preset("paper");
+  c.drop_count = {0, 0};
+  c.tilt_deg = {15, 15};
+  PlacedDrop p;
+  p.y = 1e5;  // far below the frame: that ray runs away from the glass, which leans over the camera
+  c.drops = {p};
+  Rng rng(1);
+  EXPECT_THROW(sample_scene(c, camera(512, 256, 600), rng), Error);
+}

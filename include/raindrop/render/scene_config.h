@@ -39,6 +39,17 @@ const char* to_string(DefocusMethod);
 // made placement and rendering slow for no use.
 inline constexpr int kMaxDropCount = 1000;
 
+// A drop the scene file places itself (`drops`), for tests and for users who want one drop
+// where they say: its footprint centre, as the pixel of the output frame where the camera sees
+// it or as a point on the glass, its size and its contact angle.
+struct PlacedDrop {
+  bool at_pixel = true;     // centre: a pixel (x right, y down) of the output frame, else glass
+  double x = 0, y = 0;      // px, or cm on the glass (u across, v downhill from the optical axis)
+  DropSizeParam size_param = DropSizeParam::FootprintRadius;
+  double size_cm = 0.5;     // a or r, per size_param
+  double contact_angle_deg = 40;
+};
+
 struct SceneConfig {
   std::string name = "paper";
 
@@ -56,6 +67,9 @@ struct SceneConfig {
   double refractive_index = 1.333;
   bool allow_overlap = false;             // false: footprints never overlap (real drops merge)
   double min_gap_cm = 0.05;               // gap kept between footprints when !allow_overlap
+  // Placed first, exactly as given (they may touch each other); the drop_count random drops
+  // then keep clear of them as of each other.
+  std::vector<PlacedDrop> drops;
 
   // Dark band: what a totally internally reflected ray shows. Black as in the paper, or
   // traced on through the drop (its escape into the car shows `interior_rgb`).

@@ -1,0 +1,71 @@
+// model_paths.h: where raindrop-remove finds its models, and the default configuration.
+#include "raindrop/common/error.h"
+#include "raindrop/remove/model_paths.h"
+#include "remove_test_util.h"
+
+namespace removetest {
+namespace {
+
+using namespace raindrop::removal;
+
+class ModelSearchTest : public ::testing::Test {
+ protected:
+  void make_models(const fs::path& dir) {
+    for (const char* f : {"rdn.onnx", "rrn.onnx", "rfn.onnx"}) write_file(dir / f, "x");
+  }
+  TempDir tmp;
+};
+
+TEST_F(ModelSearchTest, ExplicitFolderWinsOverEverything) {
+  ModelSearch s;
+  s.explicit_dir = tmp / "mine";
+  s.env_dir = tmp / "env";
+  make_models(tmp / "env");
+  EXPECT_EQ(find_models(s), tmp / "mine");
+}
+
+TEST_F(ModelSearchTest, EnvironmentFolderOrRootOfConfigurations) {
+  ModelSearch s;
+  s.env_dir = tmp / "env";
+  make_models(tmp / "env");
+  EXPECT_EQ(find_models(s), tmp / "env");
+  s.env_dir = tmp / "root";
+  make_models(tmp / "root" / "compact");
+  make_models(tmp / "root" / "paper");
+  EXPECT_EQ(find_models(s), tmp / "root" / "compact") << "no DEFAULT: compact";
+  write_file(tmp / "root" / "DEFAULT", "paper\n");
+  EXPECT_EQ(find_models(s), tmp / "root" / "paper");
+  s.config = "compact";
+  EXPECT_EQ(find_models(s), tmp / "root" / "compact");
+  s.config = "missing";
+  EXPECT_THROW(find_models(s), raindrop::Error) << "$RAINDROP_MODELS is authoritative";
+  s.config = "../escape";
+  EXPECT_THROW(find_models(s), raindrop::Error);
+}
+
+TEST_F(ModelSearchTest, InstalledLocationBeforeSourceTree) {
+  ModelSearch s;
+  s.executable = tmp / "prefix" / "bin" / "raindrop-remove";
+  s.source_models = tmp / "src" / "models";
+  make_models(tmp / "src" / "models" / "compact");
+  EXPECT_EQ(find_models(s), tmp / "src" / "models" / "compact");
+  make_models(tmp / "prefix" / "share" / "raindrop" / "models" / "compact");
+  EXPECT_EQ(find_models(s), tmp / "prefix" / "share" / "raindrop" / "models" / "compact");
+  s.config = "paper";
+  try {
+    find_models(s);
+    FAIL() << "expected an error";
+  } catch (const raindrop::Error& e) {
+    const std::string msg = e.what();
+    EXPECT_NE(msg.find("share/raindrop/models/paper"), std::string::npos) << msg;
+    EXPECT_NE(msg.find("src/models/paper"), std::string::npos) << msg;
+    EXPECT_NE(msg.find("--models"), std::string::npos) << msg;
+  }
+}
+
+TEST(ModelDefault, SourceTreeNamesCompact) {
+  EXPECT_EQ(read_default_config(source_dir() / "models").value_or("<none>"), "compact");
+}
+
+}  // namespace
+}  // namespace removetest
