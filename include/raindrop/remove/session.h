@@ -4,7 +4,8 @@
 //
 // The library is ONNX Runtime 1.31 from the PyPI wheel, compiled against the 1.21 headers
 // (docs/DESIGN.md section 7). That wheel is CPU-only: asking for CUDA is an error that says
-// which providers this build has, instead of a silent fall-back to the CPU.
+// which providers this build has, instead of a silent fall-back to the CPU. The opt-in GPU
+// build (-DRAINDROP_ONNXRUNTIME_GPU=ON) has the CUDA provider.
 #include <map>
 #include <string>
 #include <vector>
