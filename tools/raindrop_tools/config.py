@@ -82,6 +82,13 @@ class SourceConfig:
     # detector flagged flat road and wall as drops (docs/RESULTS.md 4.4). Real pairs' rough
     # masks threshold a similar difference (each image blurred first) at 12 levels.
     visible_levels: float = 0.0
+    # Sensor noise after the optics, as a camera adds it: Gaussian noise with a standard
+    # deviation drawn per crop from [0, this] 8-bit levels, the SAME noise field added to the
+    # rainy and the clean image (then rounded to 8-bit steps). The renderer defocuses its
+    # (noisy) input inside drops, so rendered drops are noise-free where real ones are as noisy
+    # as their surround; without noise a detector learns "noise-free = drop" and flags flat
+    # regions (docs/RESULTS.md 4.5). 0: off (real pairs carry their own noise).
+    sensor_noise_levels: float = 0.0
 
 
 @dataclass(frozen=True)
@@ -271,6 +278,8 @@ def validate_config(cfg: RunConfig) -> None:
             problems.append(f"data.sources[{i}].weight must be > 0, got {src.weight}")
         if not (0.0 <= src.visible_levels <= 255.0):
             problems.append(f"data.sources[{i}].visible_levels must be in [0, 255], got {src.visible_levels}")
+        if not (0.0 <= src.sensor_noise_levels <= 64.0):
+            problems.append(f"data.sources[{i}].sensor_noise_levels must be in [0, 64], got {src.sensor_noise_levels}")
     t = cfg.train
     if t.batch_size < 1 or t.stage1_steps < 1 or t.stage2_steps < 1:
         problems.append("train.batch_size, stage1_steps and stage2_steps must be >= 1")
@@ -376,7 +385,7 @@ def data_sources(cfg: RunConfig) -> list[SourceConfig]:
         split = d.splits if s.split is None else ([s.split] if isinstance(s.split, str) else list(s.split))
         check = d.check_outside_mask if s.check_outside_mask is None else s.check_outside_mask
         out.append(SourceConfig(path=s.path, weight=s.weight, split=split, check_outside_mask=check,
-                                visible_levels=s.visible_levels))
+                                visible_levels=s.visible_levels, sensor_noise_levels=s.sensor_noise_levels))
     return out
 
 

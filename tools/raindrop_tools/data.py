@@ -223,6 +223,21 @@ def visible_difference(rainy_u8: np.ndarray, clean_u8: np.ndarray, levels: float
     return (cv2.blur(d, (5, 5), borderType=cv2.BORDER_REPLICATE) > levels).astype(np.float32)
 
 
+def add_sensor_noise(rainy: np.ndarray, clean: np.ndarray, max_levels: float, key) -> tuple[np.ndarray, np.ndarray]:
+    """``rainy`` and ``clean`` (HxWx3 float32 in [0, 1]) with one Gaussian noise field added to
+    both, its standard deviation drawn from [0, max_levels] 8-bit levels, then clipped and
+    rounded to 8-bit steps: a camera's noise comes after the optics, inside drops as outside.
+    Deterministic in ``key`` (the crop's key), so a resumed run sees the same noise."""
+    rng = np.random.default_rng([int(x) for x in key] + [0x5E50])
+    sigma = rng.uniform(0.0, max_levels) / 255.0
+    noise = rng.normal(0.0, sigma, rainy.shape).astype(np.float32)
+
+    def noisy(img: np.ndarray) -> np.ndarray:
+        return np.round(np.clip(img + noise, 0.0, 1.0) * 255.0).astype(np.float32) / 255.0
+
+    return noisy(rainy), noisy(clean)
+
+
 class RaindropDataset:
     """Random crops (and horizontal flips) of a rendered data set.
 
@@ -246,10 +261,12 @@ class RaindropDataset:
         check_outside_mask: bool = True,
         log: Callable[[str], None] = print,
         visible_levels: float = 0.0,
+        sensor_noise_levels: float = 0.0,
     ):
         self.root = Path(root)
         self.crop = int(crop)
         self.visible_levels = float(visible_levels)
+        self.sensor_noise_levels = float(sensor_noise_levels)
         self.flip = bool(flip)
         self.samples = read_manifest(self.root, splits)
         self._cache: dict[int, tuple[np.ndarray, np.ndarray, np.ndarray]] | None = None
@@ -301,9 +318,12 @@ class RaindropDataset:
         rainy, clean, mask = self.load(i)
         c = self.crop
         rainy_f = to_float(rainy)
-        edge = edge_map_window(rainy_f, y0, x0, c, c)
+        clean_f = None
+        if self.sensor_noise_levels > 0:
+            rainy_f, clean_f = add_sensor_noise(rainy_f, to_float(clean), self.sensor_noise_levels, key)
+        edge = edge_map_window(rainy_f, y0, x0, c, c)  # of the noisy image, as at inference
         r = rainy_f[y0 : y0 + c, x0 : x0 + c]
-        g = to_float(clean[y0 : y0 + c, x0 : x0 + c])
+        g = to_float(clean[y0 : y0 + c, x0 : x0 + c]) if clean_f is None else clean_f[y0 : y0 + c, x0 : x0 + c]
         m = (mask[y0 : y0 + c, x0 : x0 + c] > 127).astype(np.float32)
         if self.visible_levels > 0:
             m *= visible_difference(rainy[y0 : y0 + c, x0 : x0 + c], clean[y0 : y0 + c, x0 : x0 + c], self.visible_levels)

@@ -220,6 +220,7 @@ class Trainer:
                         check_outside_mask=src.check_outside_mask,
                         log=self.log,
                         visible_levels=src.visible_levels,
+                        sensor_noise_levels=src.sensor_noise_levels,
                     )
                 )
             self._dataset = MultiSourceDataset(parts) if d.sources else parts[0]

@@ -106,3 +106,32 @@ def test_the_outside_mask_check_is_per_source(tmp_path):
     item = ds[(1, 0, 3, 4, True)]
     assert item["id"].startswith("real/") and item["rainy"].shape == (3, 32, 32)
     assert ds[(0, 2, 0, 0, False)]["id"] == "rendered/" + parts[0].samples[2].id
+
+
+def test_sensor_noise_is_one_field_on_rainy_and_clean(tiny_dataset):
+    quiet = RaindropDataset(tiny_dataset, crop=32, cache=False)
+    noisy = RaindropDataset(tiny_dataset, crop=32, cache=False, sensor_noise_levels=8.0)
+    stds = []
+    for i in range(len(quiet)):
+        key = (i, 5, 9, bool(i % 2))
+        q, n = quiet[key], noisy[key]
+        again = noisy[key]
+        assert np.array_equal(n["rainy"], again["rainy"]) and np.array_equal(n["clean"], again["clean"])  # same key, same noise
+        assert np.array_equal(n["mask"], q["mask"])
+        for k in ("rainy", "clean"):
+            assert np.allclose(n[k] * 255, np.round(n[k] * 255), atol=1e-3)  # 8-bit steps, as a camera writes
+        # The same field on both: where rainy == clean before, they are still equal after
+        # (clipping at 0 and 1 acts on both alike there).
+        same = np.all(q["rainy"] == q["clean"], axis=0)
+        assert same.any()
+        assert np.array_equal(n["rainy"][:, same], n["clean"][:, same])
+        inside = (q["clean"] > 0.1) & (q["clean"] < 0.9)
+        stds.append(float(np.std((n["clean"] - q["clean"])[inside]) * 255))
+    assert max(stds) > 1.0  # noise was added (sigma drawn from [0, 8] levels per crop)
+    assert max(stds) < 8.5
+    assert len(set(round(s, 3) for s in stds)) > 1  # its strength varies from crop to crop
+
+
+def test_sensor_noise_levels_are_checked():
+    with pytest.raises(ConfigError, match="sensor_noise_levels"):
+        config_from_dict({"data": {"sources": [{"path": "x", "sensor_noise_levels": 100}]}})

@@ -1,0 +1,82 @@
+"""Street frames made piecewise flat, as backgrounds the detector must not take for drops.
+
+    python -m raindrop_tools.flatten <camvid>/train data/flat-frames --limit 300
+
+Real camera frames always carry some noise and texture; a region with none at all (graphics,
+heavily compressed JPEG, denoised camera output, the renderer's own demo street) is out of what
+models trained on camera frames have seen, and the fine-tuned detectors took such regions for
+drops (docs/RESULTS.md 4.5). Each frame is brought to the training size (bicubic), median
+filtered and reduced to a few colours without dithering: real scene layouts, flat regions.
+raindrop-render then puts drops on them (or none: tools/configs/scenes/no-drops.json).
+Imports without torch.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+
+import numpy as np
+from PIL import Image, ImageFilter
+
+IMAGE_SUFFIXES = {".png", ".jpg", ".jpeg", ".bmp", ".tif", ".tiff", ".webp"}
+
+
+def flatten(image: Image.Image, size: tuple[int, int] = (512, 256), median: int = 7, colours: int = 12) -> Image.Image:
+    """``image`` resized to ``size`` (width, height), median filtered (odd window) and
+    quantised to at most ``colours`` colours (median cut, no dither): 8-bit RGB."""
+    if median < 1 or median % 2 == 0:
+        raise ValueError(f"median window must be odd and positive, got {median}")
+    if not 2 <= colours <= 256:
+        raise ValueError(f"colours must be 2-256, got {colours}")
+    im = image.convert("RGB").resize(size, Image.BICUBIC)
+    if median > 1:
+        im = im.filter(ImageFilter.MedianFilter(median))
+    return im.quantize(colors=colours, method=Image.Quantize.MEDIANCUT, dither=Image.Dither.NONE).convert("RGB")
+
+
+def flat_fraction(image: Image.Image) -> float:
+    """Fraction of pixels whose 3x3 neighbourhood is one colour (for the model card and tests)."""
+    a = np.asarray(image.convert("RGB"), dtype=np.int16)
+    same = np.ones(a.shape[:2], dtype=bool)[1:-1, 1:-1]
+    for dy in (-1, 0, 1):
+        for dx in (-1, 0, 1):
+            shifted = a[1 + dy : a.shape[0] - 1 + dy, 1 + dx : a.shape[1] - 1 + dx]
+            same &= (shifted == a[1:-1, 1:-1]).all(axis=2)
+    return float(same.mean())
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("input", type=Path, help="folder of frames (not recursive), read in name order")
+    ap.add_argument("output", type=Path, help="folder for the flattened PNGs (same names)")
+    ap.add_argument("--limit", type=int, default=0, help="the first N frames only (0: all)")
+    ap.add_argument("--size", default="512x256", help="WIDTHxHEIGHT")
+    ap.add_argument("--median", type=int, default=7, help="median filter window (odd)")
+    ap.add_argument("--colours", type=int, default=12, help="colours per frame")
+    args = ap.parse_args(argv)
+    try:
+        w, h = (int(v) for v in args.size.lower().split("x"))
+    except ValueError:
+        print(f"flatten: error: --size {args.size!r} must be WIDTHxHEIGHT", file=sys.stderr)
+        return 2
+    frames = sorted(p for p in args.input.iterdir() if p.suffix.lower() in IMAGE_SUFFIXES) if args.input.is_dir() else []
+    if not frames:
+        print(f"flatten: error: no images in {args.input}", file=sys.stderr)
+        return 1
+    if args.limit > 0:
+        frames = frames[: args.limit]
+    args.output.mkdir(parents=True, exist_ok=True)
+    try:
+        for p in frames:
+            flatten(Image.open(p), (w, h), args.median, args.colours).save(args.output / (p.stem + ".png"))
+    except ValueError as e:
+        print(f"flatten: error: {e}", file=sys.stderr)
+        return 2
+    print(f"flatten: {len(frames)} frames -> {args.output}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

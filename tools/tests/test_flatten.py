@@ -1,0 +1,44 @@
+"""flatten.py: piecewise-flat frames for the detector's negatives."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from PIL import Image
+
+from raindrop_tools.flatten import flat_fraction, flatten, main
+
+
+def textured(seed: int = 0) -> Image.Image:
+    rng = np.random.default_rng(seed)
+    y, x = np.mgrid[0:96, 0:160]
+    base = np.stack([x * 1.5, y * 2.0, (x + y) * 0.8], axis=2)
+    return Image.fromarray(np.clip(base + rng.normal(0, 6, base.shape), 0, 255).astype(np.uint8))
+
+
+def test_flattened_frames_are_mostly_flat_with_few_colours():
+    src = textured()
+    assert flat_fraction(src) < 0.01  # camera-like noise: almost nothing is flat
+    out = flatten(src, (128, 64), median=7, colours=12)
+    assert out.size == (128, 64) and out.mode == "RGB"
+    assert len(np.unique(np.asarray(out).reshape(-1, 3), axis=0)) <= 12
+    assert flat_fraction(out) > 0.6
+
+
+def test_bad_settings_are_refused():
+    with pytest.raises(ValueError):
+        flatten(textured(), median=4)
+    with pytest.raises(ValueError):
+        flatten(textured(), colours=1)
+
+
+def test_cli_writes_the_first_frames_in_name_order(tmp_path):
+    src, out = tmp_path / "in", tmp_path / "out"
+    src.mkdir()
+    for i, name in enumerate(["c.png", "a.png", "b.jpg"]):
+        textured(i).save(src / name)
+    assert main([str(src), str(out), "--limit", "2", "--size", "64x32"]) == 0
+    assert sorted(p.name for p in out.iterdir()) == ["a.png", "b.png"]
+    assert Image.open(out / "a.png").size == (64, 32)
+    assert main([str(tmp_path / "empty"), str(out)]) == 1
+    assert main([str(src), str(out), "--size", "64"]) == 2
