@@ -86,8 +86,9 @@ class SourceConfig:
     # deviation drawn per crop from [0, this] 8-bit levels, the SAME noise field added to the
     # rainy and the clean image (then rounded to 8-bit steps). The renderer defocuses its
     # (noisy) input inside drops, so rendered drops are noise-free where real ones are as noisy
-    # as their surround; without noise a detector learns "noise-free = drop" and flags flat
-    # regions (docs/RESULTS.md 4.5). 0: off (real pairs carry their own noise).
+    # as their surround, and a detector trained without noise takes "noise-free" for a drop.
+    # (With it, the fine-tuned detector still flagged flat road, by smoothness instead:
+    # docs/RESULTS.md 4.5.) 0: off (real pairs carry their own noise).
     sensor_noise_levels: float = 0.0
 
 
