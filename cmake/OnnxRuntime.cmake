@@ -28,11 +28,13 @@ if(NOT ONNXRUNTIME_ROOT)
   endif()
 endif()
 
+# NO_CACHE: found again at every configure, so switching RAINDROP_ONNXRUNTIME_GPU or
+# ONNXRUNTIME_ROOT in an existing build folder takes effect (a cached path would keep the old one).
 find_path(ONNXRUNTIME_INCLUDE_DIR onnxruntime_cxx_api.h
           PATHS "${ONNXRUNTIME_ROOT}/include/onnxruntime" "${ONNXRUNTIME_ROOT}/include"
-          NO_DEFAULT_PATH REQUIRED)
+          NO_DEFAULT_PATH REQUIRED NO_CACHE)
 find_library(ONNXRUNTIME_LIBRARY NAMES onnxruntime PATHS "${ONNXRUNTIME_ROOT}/lib"
-             NO_DEFAULT_PATH REQUIRED)
+             NO_DEFAULT_PATH REQUIRED NO_CACHE)
 add_library(onnxruntime::onnxruntime SHARED IMPORTED)
 set_target_properties(onnxruntime::onnxruntime PROPERTIES
   IMPORTED_LOCATION "${ONNXRUNTIME_LIBRARY}"

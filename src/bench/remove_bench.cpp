@@ -117,7 +117,7 @@ std::function<int()> add_remove_bench(CLI::App& parent) {
   app->add_option("--process-size", o->process_size,
                   "WIDTHxHEIGHT of the image for the process-start-to-file rows (raindrop-remove run as a program; "
                   "empty: none)")
-      ->capture_default_str()->check(cli::width_height());
+      ->capture_default_str()->check(cli::width_height(1, 16384, /*allow_empty=*/true));
   return [o] { return run_remove_bench(*o); };
 }
 

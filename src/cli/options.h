@@ -24,12 +24,12 @@ inline std::optional<cv::Size> parse_width_height(const std::string& text, int m
   return cv::Size(w, h);
 }
 
-// A validator for string options that hold a WIDTHxHEIGHT size (an empty value passes:
-// "none" or "the default", as each option says).
-inline CLI::Validator width_height(int min_side = 1, int max_side = 16384) {
+// A validator for string options that hold a WIDTHxHEIGHT size; with `allow_empty`, an empty
+// value passes too ("none", as the option says).
+inline CLI::Validator width_height(int min_side = 1, int max_side = 16384, bool allow_empty = false) {
   return CLI::Validator(
       [=](const std::string& text) -> std::string {
-        if (text.empty() || parse_width_height(text, min_side, max_side)) return {};
+        if ((allow_empty && text.empty()) || parse_width_height(text, min_side, max_side)) return {};
         return "'" + text + "' must be WIDTHxHEIGHT with sides " + std::to_string(min_side) + " to " +
                std::to_string(max_side) + ", e.g. 512x256";
       },

@@ -62,6 +62,15 @@ class UsageError : public Error {
 // folders (the output and mask folders, when they lie inside the input folder) are left out.
 std::vector<fs::path> list_images(const fs::path& dir, const std::vector<fs::path>& skip) {
   std::vector<fs::path> files = list_image_files(dir, true, skip);
+  // EXR holds float images, which this program does not take (read_image_native): a folder's
+  // EXR files are not inputs here, as before image_files.h gave both programs one list.
+  files.erase(std::remove_if(files.begin(), files.end(),
+                             [](const fs::path& f) {
+                               std::string ext = f.extension().string();
+                               for (char& c : ext) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
+                               return ext == ".exr";
+                             }),
+              files.end());
   // Lexically: fs::relative resolves symbolic links, which put a linked input's output
   // beside its target ("out/../elsewhere/a.png") instead of under the output folder.
   for (auto& f : files) f = f.lexically_relative(dir);
@@ -238,7 +247,7 @@ int run(int argc, char** argv) {
     refuse_coinciding({{"input folder", in_path}, {"output folder", out_arg}, {"mask folder", fs::path(mask_dir)}},
                       "folder");
     const auto images = list_images(in_path, {out_arg, fs::path(mask_dir)});
-    if (images.empty()) throw Error("no image files (" + image_extensions() + ") under '" + input + "'");
+    if (images.empty()) throw Error("no image files (" + image_extensions() + "; exr not taken) under '" + input + "'");
     for (const auto& rel : images) {
       if (!shard.owns(rel.generic_string())) continue;  // another shard's (shard.h)
       Job j{in_path / rel, out_arg / rel, std::nullopt, rel.string(), true};

@@ -307,6 +307,11 @@ cv::Mat read_image_native(const fs::path& path, int min_size) {
     throw Error(quoted(path) + ": image is " + std::to_string(w) + "x" + std::to_string(h) +
                 ", smaller than the " + std::to_string(min_size) + "x" + std::to_string(min_size) + " minimum");
   if (nc < 1 || nc > 4) throw Error(quoted(path) + ": " + std::to_string(nc) + " channels are not supported");
+  // Float files (EXR, float TIFF) hold linear light, which 16 bits cannot keep without a
+  // transfer curve of our choosing, and which the networks never saw.
+  if (spec.format.is_floating_point())
+    throw Error(quoted(path) + ": " + std::to_string(spec.format.size() * 8) +
+                "-bit float image (linear light); only 8- and 16-bit images are taken (convert it to PNG or TIFF first)");
   const bool eight = spec.format == OIIO::TypeDesc::UINT8 || spec.format == OIIO::TypeDesc::INT8;
   cv::Mat img(h, w, eight ? CV_8UC(nc) : CV_16UC(nc));
   read_pixels(*in, path, nc, eight ? OIIO::TypeDesc::UINT8 : OIIO::TypeDesc::UINT16, img.data);

@@ -230,8 +230,10 @@ SceneConfig parse_scene_json(const std::string& text, const std::string& origin)
       d.reject_unknown();
       c.drops.push_back(p);
     }
-    if (c.drops.size() > static_cast<size_t>(kMaxDropCount))
-      r.fail("'drops' lists " + std::to_string(c.drops.size()) + " drops, more than " + std::to_string(kMaxDropCount));
+    if (c.drops.size() + static_cast<size_t>(c.drop_count.hi) > static_cast<size_t>(kMaxDropCount))
+      r.fail("'drops' lists " + std::to_string(c.drops.size()) + " drops beside up to " +
+             std::to_string(static_cast<int>(c.drop_count.hi)) + " random ones ('drop_count'): more than " +
+             std::to_string(kMaxDropCount) + " in all");
   }
 
   if (r.has("camera")) {

@@ -57,6 +57,7 @@ TEST(CliOptions, SizesAreWidthByHeight) {
   EXPECT_TRUE(parse({"--size", "4096x16"}).ok);
   EXPECT_FALSE(parse({"--size", "4097x16"}).ok);  // past the option's bounds
   EXPECT_FALSE(parse({"--size", "15x100"}).ok);
+  EXPECT_FALSE(parse({"--size", ""}).ok);  // empty only where an option allows it
   const auto bad = parse({"--size", "256x512x"});
   EXPECT_FALSE(bad.ok);
   EXPECT_NE(bad.error.find("WIDTHxHEIGHT"), std::string::npos) << bad.error;
