@@ -65,11 +65,7 @@ std::vector<fs::path> list_images(const fs::path& dir, const std::vector<fs::pat
   // EXR holds float images, which this program does not take (read_image_native): a folder's
   // EXR files are not inputs here, as before image_files.h gave both programs one list.
   files.erase(std::remove_if(files.begin(), files.end(),
-                             [](const fs::path& f) {
-                               std::string ext = f.extension().string();
-                               for (char& c : ext) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
-                               return ext == ".exr";
-                             }),
+                             [](const fs::path& f) { return lowercase_extension(f) == ".exr"; }),
               files.end());
   // Lexically: fs::relative resolves symbolic links, which put a linked input's output
   // beside its target ("out/../elsewhere/a.png") instead of under the output folder.
@@ -80,15 +76,15 @@ std::vector<fs::path> list_images(const fs::path& dir, const std::vector<fs::pat
 // An 8-bit RGB view of any image we handle, for the contact sheet (alpha dropped).
 cv::Mat sheet_panel(const cv::Mat& img) {
   cv::Mat rgb = to_rgb8(img);
-  if (rgb.data == img.data) rgb = rgb.clone();  // kept for the sheet; the image's buffer is not ours
   // Keep the sheet's memory small in batch runs: panels are shown kPanelWidth wide anyway.
   if (rgb.cols > kPanelWidth) {
     cv::Mat small;
     const int h = std::max(1, static_cast<int>(std::lround(static_cast<double>(rgb.rows) * kPanelWidth / rgb.cols)));
     cv::resize(rgb, small, {kPanelWidth, h}, 0, 0, cv::INTER_AREA);
-    rgb = small;
+    return small;
   }
-  return rgb;
+  // Kept for the sheet: a panel that is still the image's own buffer (8-bit RGB) is copied.
+  return rgb.data == img.data ? rgb.clone() : rgb;
 }
 
 struct Job {

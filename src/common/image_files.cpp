@@ -22,9 +22,14 @@ bool is_under(const fs::path& p, const fs::path& dir) {
 
 }  // namespace
 
-bool has_image_extension(const fs::path& p) {
+std::string lowercase_extension(const fs::path& p) {
   std::string ext = p.extension().string();
   std::transform(ext.begin(), ext.end(), ext.begin(), [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
+  return ext;
+}
+
+bool has_image_extension(const fs::path& p) {
+  const std::string ext = lowercase_extension(p);
   return std::find(kExtensions.begin(), kExtensions.end(), ext) != kExtensions.end();
 }
 

@@ -223,19 +223,19 @@ def visible_difference(rainy_u8: np.ndarray, clean_u8: np.ndarray, levels: float
     return (cv2.blur(d, (5, 5), borderType=cv2.BORDER_REPLICATE) > levels).astype(np.float32)
 
 
-def add_sensor_noise(rainy: np.ndarray, clean: np.ndarray, max_levels: float, key) -> tuple[np.ndarray, np.ndarray]:
-    """``rainy`` and ``clean`` (HxWx3 float32 in [0, 1]) with one Gaussian noise field added to
-    both, its standard deviation drawn from [0, max_levels] 8-bit levels, then clipped and
-    rounded to 8-bit steps: a camera's noise comes after the optics, inside drops as outside.
-    Deterministic in ``key`` (the crop's key), so a resumed run sees the same noise."""
+def sensor_noise(shape: tuple[int, ...], max_levels: float, key) -> np.ndarray:
+    """A Gaussian noise field (float32, in [0, 1] units) of ``shape``, its standard deviation
+    drawn from [0, max_levels] 8-bit levels: a camera's noise, which comes after the optics,
+    inside drops as outside. Deterministic in ``key`` (the crop's key), so a resumed run sees the
+    same noise."""
     rng = np.random.default_rng([int(x) for x in key] + [0x5E50])
     sigma = rng.uniform(0.0, max_levels) / 255.0
-    noise = rng.normal(0.0, sigma, rainy.shape).astype(np.float32)
+    return rng.normal(0.0, sigma, shape).astype(np.float32)
 
-    def noisy(img: np.ndarray) -> np.ndarray:
-        return np.round(np.clip(img + noise, 0.0, 1.0) * 255.0).astype(np.float32) / 255.0
 
-    return noisy(rainy), noisy(clean)
+def with_noise(image: np.ndarray, noise: np.ndarray) -> np.ndarray:
+    """``image`` (float32 in [0, 1]) plus ``noise``, clipped and rounded to 8-bit steps."""
+    return np.round(np.clip(image + noise, 0.0, 1.0) * 255.0).astype(np.float32) / 255.0
 
 
 class RaindropDataset:
@@ -318,12 +318,15 @@ class RaindropDataset:
         rainy, clean, mask = self.load(i)
         c = self.crop
         rainy_f = to_float(rainy)
-        clean_f = None
+        g = to_float(clean[y0 : y0 + c, x0 : x0 + c])
         if self.sensor_noise_levels > 0:
-            rainy_f, clean_f = add_sensor_noise(rainy_f, to_float(clean), self.sensor_noise_levels, key)
+            # One field on both images: the whole rainy frame (its edge map is of the full
+            # frame), the clean one only where the crop needs it.
+            noise = sensor_noise(rainy_f.shape, self.sensor_noise_levels, key)
+            rainy_f = with_noise(rainy_f, noise)
+            g = with_noise(g, noise[y0 : y0 + c, x0 : x0 + c])
         edge = edge_map_window(rainy_f, y0, x0, c, c)  # of the noisy image, as at inference
         r = rainy_f[y0 : y0 + c, x0 : x0 + c]
-        g = to_float(clean[y0 : y0 + c, x0 : x0 + c]) if clean_f is None else clean_f[y0 : y0 + c, x0 : x0 + c]
         m = (mask[y0 : y0 + c, x0 : x0 + c] > 127).astype(np.float32)
         if self.visible_levels > 0:
             m *= visible_difference(rainy[y0 : y0 + c, x0 : x0 + c], clean[y0 : y0 + c, x0 : x0 + c], self.visible_levels)

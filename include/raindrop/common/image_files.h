@@ -7,6 +7,9 @@
 
 namespace raindrop {
 
+// The file's extension in lower case, with its dot (".png"; "" without one).
+std::string lowercase_extension(const std::filesystem::path& p);
+
 // A known image extension (any case): how a file named on the command line is told from a
 // list of files.
 bool has_image_extension(const std::filesystem::path& p);
