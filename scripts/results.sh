@@ -2,7 +2,7 @@
 # Regenerates every figure of docs/RESULTS.md into out/results/ (run after scripts/setup.sh
 # and scripts/setup-tools.sh; needs a folder of real photographs, $RAINDROP_SHARED_DATA
 # (default ../shared/data), for the real frames). Sections can be chosen:
-# scripts/results.sh data render stats eval remove tradeoffs sheets photoreal scale
+# scripts/results.sh data render stats eval remove tradeoffs sheets photoreal scale flatroad
 #
 # Nothing here is committed automatically: images derived from Cityscapes, CamVid or the
 # real raindrop photographs stay under out/ (their licences forbid redistribution).
@@ -13,7 +13,7 @@ py=.venv/bin/python
 out=out/results
 mkdir -p "$out"
 sections=("$@")
-((${#sections[@]})) || sections=(data render stats eval remove tradeoffs sheets photoreal scale)
+((${#sections[@]})) || sections=(data render stats eval remove tradeoffs sheets photoreal scale flatroad)
 want() { [[ " ${sections[*]} " == *" $1 "* ]]; }
 
 if want data; then
@@ -158,4 +158,41 @@ if want scale; then
       fi
     done
   done | tee "$out/working_scale.txt"
+fi
+
+if want flatroad; then
+  # docs/RESULTS.md 4.5: the demo street's mask IoU as rendered and with 1, 2 and 4 levels of
+  # Gaussian noise added (numpy, seed 0; the true mask unchanged), for models/compact and the
+  # fine-tuned models under out/models where they were trained and exported.
+  set_dir="$out/flatroad"
+  rm -rf "$set_dir" && build/raindrop-render --demo --size 512x256 --seed 7 --out "$set_dir/set" -q
+  mkdir -p "$set_dir/in" && cp "$set_dir/set/rainy/street_v00.png" "$set_dir/in/street_noise0.png"
+  $py - "$set_dir" <<'PY'
+import sys
+import numpy as np
+from PIL import Image
+d = sys.argv[1]
+rng = np.random.default_rng(0)
+for s in (1, 2, 4):
+    a = np.asarray(Image.open(f"{d}/set/rainy/street_v00.png").convert("RGB")).astype(float)
+    Image.fromarray(np.clip(a + rng.normal(0, s, a.shape), 0, 255).round().astype(np.uint8)).save(f"{d}/in/street_noise{s}.png")
+PY
+  for dir in models/compact out/models/compact-real out/models/compact-real-neg out/models/compact-real-flat \
+             out/models/compact-real-noise; do
+    [[ -d $dir ]] || continue
+    m=$(basename "$dir")
+    build/raindrop-remove "$set_dir/in" "$set_dir/out-$m" --models "$dir" --mask-dir "$set_dir/masks-$m" -q
+    $py - "$set_dir" "$m" <<'PY'
+import sys
+import numpy as np
+from PIL import Image
+d, m = sys.argv[1:]
+truth = np.asarray(Image.open(f"{d}/set/mask/street_v00.png")) > 0
+ious = []
+for s in (0, 1, 2, 4):
+    found = np.asarray(Image.open(f"{d}/masks-{m}/street_noise{s}.png")) > 0
+    ious.append(f"{(truth & found).sum() / max((truth | found).sum(), 1):.3f}")
+print(f"| {m} | {' / '.join(ious)} |")
+PY
+  done | tee "$out/flatroad.md"
 fi
