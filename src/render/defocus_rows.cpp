@@ -29,9 +29,9 @@ typedef float f4 __attribute__((vector_size(16)));
 
 // A row of the disk as the inner loop reads it: the run [lo, hi] of full weight, and the
 // partial taps of the rim in mirrored pairs (the disk is symmetric: dx and -dx weigh the
-// same) or alone (dx = 0).
+// same) or alone (dx = 0). Row dy > 0 stands for rows dy and -dy, which weigh the same.
 struct SpreadRow {
-  int dy = 0;
+  int dy = 0;  // >= 0
   int reach = 0;       // the largest |dx| of the row
   int lo = 1, hi = 0;  // empty when lo > hi
   int pair_begin = 0, pair_end = 0;
@@ -70,6 +70,8 @@ Spread make_spread(double diameter) {
   }
   s.run_weight = static_cast<float>(1.0 / total);
   for (const KernelRow& r : rows) {
+    s.reach_y = std::max(s.reach_y, std::abs(r.dy));
+    if (r.dy < 0) continue;  // the disk's weights depend on |dy| only (disk_kernel.cpp): row -dy is row dy
     SpreadRow row;
     row.dy = r.dy;
     // Every tap of the row with its normalised weight, by dx; a short run becomes taps.
@@ -94,47 +96,52 @@ Spread make_spread(double diameter) {
     }
     row.pair_end = static_cast<int>(s.pairs.size());
     s.reach_x = std::max(s.reach_x, row.reach);
-    s.reach_y = std::max(s.reach_y, std::abs(r.dy));
     s.rows.push_back(row);
   }
   return s;
 }
 
-// Rows of an image that is zero outside a drop: per row from its first one (y0), the first
-// and last column that may be non-zero, the values between them and their prefix sums. Each
-// row is stored with `pad` zeros on both sides, so that the inner loop of spread_row reads
-// every tap and run of an output pixel the row reaches without bounds checks.
+// Rows of an image that is zero outside a drop, from its first row (y0): per row the first
+// and last column that may be non-zero, and the values and their prefix sums on columns
+// [x0, x0 + width), which hold every row's non-zero columns with `pad` zeros on both sides
+// (twice the disk's reach): the inner loop of spread_row reads every tap and run of an
+// output pixel that a row reaches without bounds checks, and rows dy and -dy of the disk
+// share their column offsets.
 struct Rows {
   int y0 = -1;  // -1: empty
-  int pad = 0;  // twice the disk's reach
-  std::vector<Span> extent;   // per row; first > second: nothing on that row
-  std::vector<size_t> start;  // per row: where its padded values start; its prefix sums start at start + row
-  std::vector<f4> value;
-  std::vector<f4> prefix;  // per row, padded length + 1 sums: 0, v0, v0 + v1, ...
+  int x0 = 0, width = 0, pad = 0;
+  std::vector<Span> extent;  // per row; first > second: nothing on that row
+  std::vector<f4> value;     // rows x width
+  std::vector<f4> prefix;    // rows x (width + 1): 0, v0, v0 + v1, ...
   Spread spread;
 
+  bool has_row(int j) const {
+    return j >= 0 && j < static_cast<int>(extent.size()) && extent[j].first <= extent[j].second;
+  }
   // Zero values for the extents, with `pad` = twice the spread's reach.
   void allocate() {
     pad = 2 * spread.reach_x;
-    start.resize(extent.size());
-    size_t n = 0;
-    for (size_t j = 0; j < extent.size(); ++j) {
-      start[j] = n;
-      if (extent[j].first <= extent[j].second) n += extent[j].second - extent[j].first + 1 + 2 * pad;
+    int lo = INT_MAX, hi = INT_MIN;
+    for (const Span& e : extent) {
+      if (e.first > e.second) continue;
+      lo = std::min(lo, e.first);
+      hi = std::max(hi, e.second);
     }
-    value.assign(n, f4{0, 0, 0, 0});
-    prefix.resize(n + extent.size());
+    x0 = lo - pad;
+    width = hi - lo + 1 + 2 * pad;
+    value.assign(extent.size() * width, f4{0, 0, 0, 0});
+    prefix.resize(extent.size() * (width + 1));
   }
-  // The value at row j (from y0), column x (within the row's extent).
-  f4& at(int j, int x) { return value[start[j] + (x - extent[j].first + pad)]; }
+  f4& at(int j, int x) { return value[static_cast<size_t>(j) * width + (x - x0)]; }
+  const f4* value_row(int j) const { return value.data() + static_cast<size_t>(j) * width; }
+  const f4* prefix_row(int j) const { return prefix.data() + static_cast<size_t>(j) * (width + 1); }
   void sum_rows() {
     for (size_t j = 0; j < extent.size(); ++j) {
-      const f4* v = value.data() + start[j];
-      f4* p = prefix.data() + start[j] + j;
-      p[0] = f4{0, 0, 0, 0};
       if (extent[j].first > extent[j].second) continue;
-      const int length = extent[j].second - extent[j].first + 1 + 2 * pad;
-      for (int i = 0; i < length; ++i) p[i + 1] = p[i] + v[i];
+      const f4* v = value_row(j);
+      f4* p = prefix.data() + j * (width + 1);
+      p[0] = f4{0, 0, 0, 0};
+      for (int i = 0; i < width; ++i) p[i + 1] = p[i] + v[i];
     }
   }
 };
@@ -266,35 +273,61 @@ void interpolate_row(const Layer& layer, int y, f4* acc) {
   }
 }
 
+// One disk row (or mirrored pair of rows) over columns [ia, ib) of the layer's storage, added
+// to acc[x0 + i]: a and b are the layer rows it reads (b: the mirrored row, when kPair), pa and
+// pb their prefix sums.
+template <bool kPair, bool kRun>
+inline void spread_loop(const SpreadRow& k, const Spread& s, const f4* a, const f4* pa, const f4* b, const f4* pb,
+                        int ia, int ib, int x0, f4* acc) {
+  const TapPair* pairs = s.pairs.data() + k.pair_begin;
+  const int n_pairs = k.pair_end - k.pair_begin;
+  for (int i = ia; i < ib; ++i) {
+    f4 sum;
+    if constexpr (kRun) {
+      f4 run = pa[i + k.hi + 1] - pa[i + k.lo];
+      if constexpr (kPair) run += pb[i + k.hi + 1] - pb[i + k.lo];
+      sum = s.run_weight * run;
+    } else {
+      f4 centre = a[i];
+      if constexpr (kPair) centre += b[i];
+      sum = k.centre * centre;
+    }
+    for (int t = 0; t < n_pairs; ++t) {
+      const int dx = pairs[t].dx;
+      f4 taps = a[i + dx] + a[i - dx];
+      if constexpr (kPair) taps += b[i + dx] + b[i - dx];
+      sum += pairs[t].w * taps;
+    }
+    acc[x0 + i] += sum;
+  }
+}
+
 void spread_row(const Rows& layer, int y, int width, f4* acc) {
   const Spread& s = layer.spread;
-  const int rows = static_cast<int>(layer.extent.size());
   for (const SpreadRow& k : s.rows) {
-    const int j = y + k.dy - layer.y0;
-    if (j < 0 || j >= rows) continue;
-    const Span e = layer.extent[j];
-    if (e.first > e.second) continue;
-    // v[i], p[i]: column c0 + i. The output columns this row reaches are within the disk's
-    // reach of the drop's pixels, and the rows are padded by twice that, so every read below
-    // stays in the row.
-    const int c0 = e.first - layer.pad;
-    const f4* v = layer.value.data() + layer.start[j];
-    const f4* p = layer.prefix.data() + layer.start[j] + j;
-    const int ia = std::max(e.first - k.reach, 0) - c0, ib = std::min(e.second + k.reach, width - 1) - c0;
-    const TapPair* pairs = s.pairs.data() + k.pair_begin;
-    const int n_pairs = k.pair_end - k.pair_begin;
-    if (k.lo <= k.hi) {  // a row with a run has its centre in the run
-      for (int i = ia; i <= ib; ++i) {
-        f4 sum = s.run_weight * (p[i + k.hi + 1] - p[i + k.lo]);
-        for (int t = 0; t < n_pairs; ++t) sum += pairs[t].w * (v[i + pairs[t].dx] + v[i - pairs[t].dx]);
-        acc[i + c0] += sum;
-      }
+    const int ja = y + k.dy - layer.y0, jb = y - k.dy - layer.y0;
+    const bool has_a = layer.has_row(ja), has_b = k.dy > 0 && layer.has_row(jb);
+    if (!has_a && !has_b) continue;
+    // The output columns these rows reach, within the disk row's reach of their pixels; the
+    // rows are padded by twice the disk's reach, so every read stays in the storage.
+    int lo = INT_MAX, hi = INT_MIN;
+    for (int j : {ja, jb}) {
+      if (!(j == ja ? has_a : has_b)) continue;
+      lo = std::min(lo, layer.extent[j].first);
+      hi = std::max(hi, layer.extent[j].second);
+    }
+    const int ia = std::max(lo - k.reach, 0) - layer.x0, ib = std::min(hi + k.reach, width - 1) + 1 - layer.x0;
+    const int one = has_a ? ja : jb;
+    const f4 *a = layer.value_row(one), *pa = layer.prefix_row(one);
+    const f4 *b = has_b ? layer.value_row(jb) : a, *pb = has_b ? layer.prefix_row(jb) : pa;
+    const bool run = k.lo <= k.hi;  // a row with a run has its centre in the run
+    const int x0 = layer.x0;
+    if (has_a && has_b) {
+      run ? spread_loop<true, true>(k, s, a, pa, b, pb, ia, ib, x0, acc)
+          : spread_loop<true, false>(k, s, a, pa, b, pb, ia, ib, x0, acc);
     } else {
-      for (int i = ia; i <= ib; ++i) {
-        f4 sum = k.centre * v[i];
-        for (int t = 0; t < n_pairs; ++t) sum += pairs[t].w * (v[i + pairs[t].dx] + v[i - pairs[t].dx]);
-        acc[i + c0] += sum;
-      }
+      run ? spread_loop<false, true>(k, s, a, pa, a, pa, ia, ib, x0, acc)
+          : spread_loop<false, false>(k, s, a, pa, a, pa, ia, ib, x0, acc);
     }
   }
 }
