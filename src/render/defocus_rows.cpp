@@ -19,6 +19,7 @@
 
 #include "raindrop/render/disk_kernel.h"
 #include "raindrop/render/layer_mix.h"
+#include "raindrop/render/spans.h"
 #include "raindrop/render/srgb.h"
 
 namespace raindrop {
@@ -391,15 +392,16 @@ DefocusedFrame composite_layers(const cv::Mat& clean, const TraceResult& traced,
       if (reach.y < r.end() && reach.y + reach.height > r.begin()) active.push_back(&layers[d]);
     }
     std::vector<f4> acc(W);
+    std::vector<Span> spans;  // the columns of row y that some layer reaches
     for (int y = r.begin(); y < r.end(); ++y) {
-      int xa = W, xb = -1;
+      spans.clear();
       for (const Layer* layer : active) {
         if (y < layer->reach.y || y >= layer->reach.y + layer->reach.height) continue;
-        xa = std::min(xa, layer->reach.x);
-        xb = std::max(xb, layer->reach.x + layer->reach.width - 1);
+        spans.push_back({layer->reach.x, layer->reach.x + layer->reach.width - 1});
       }
-      if (xa > xb) continue;
-      std::fill(acc.begin() + xa, acc.begin() + xb + 1, f4{0, 0, 0, 0});
+      if (spans.empty()) continue;
+      merge_spans(spans);
+      for (const auto& [xa, xb] : spans) std::fill(acc.begin() + xa, acc.begin() + xb + 1, f4{0, 0, 0, 0});
       for (const Layer* layer : active) {
         if (y < layer->reach.y || y >= layer->reach.y + layer->reach.height) continue;
         if (layer->scale == 1) {
@@ -411,9 +413,11 @@ DefocusedFrame composite_layers(const cv::Mat& clean, const TraceResult& traced,
       const auto* b = clean.ptr<cv::Vec3b>(y);
       float* coverage = out.coverage.ptr<float>(y);
       auto* rainy = out.rainy.ptr<cv::Vec3b>(y);
-      for (int x = xa; x <= xb; ++x) {
-        const float c[3] = {acc[x][0], acc[x][1], acc[x][2]};
-        mix_layers(acc[x][3], c, b[x].val, &coverage[x], rainy[x].val);
+      for (const auto& [xa, xb] : spans) {
+        for (int x = xa; x <= xb; ++x) {
+          const float c[3] = {acc[x][0], acc[x][1], acc[x][2]};
+          mix_layers(acc[x][3], c, b[x].val, &coverage[x], rainy[x].val);
+        }
       }
     }
   });

@@ -6,6 +6,7 @@
 #include <array>
 #include <cmath>
 #include <cstdint>
+#include <cstring>
 
 namespace raindrop {
 
@@ -51,18 +52,13 @@ class SrgbTables {
     return decode_[i] + (t - static_cast<float>(i)) * (decode_[i + 1] - decode_[i]);
   }
 
-  // Exactly linear_to_srgb8(v), for every v: the code from the bin's first code and the
-  // boundaries between codes; within rounding of a boundary the formula decides.
+  // Exactly linear_to_srgb8(v), for every float v: the code from the bin's first code and the
+  // smallest float of each code, found with the formula itself.
   std::uint8_t encode(float v) const {
     if (!(v > 0.0f)) return 0;  // also NaN, as linear_to_srgb8
     if (v >= 1.0f) return 255;
-    const double x = v;
     int c = first_code_[static_cast<int>(v * kBins)];
-    while (c < 255 && x >= bound_[c + 1]) ++c;
-    constexpr double kMargin = 1e-9;  // relative; pow's rounding is ~1e-16
-    if ((c < 255 && x >= bound_[c + 1] * (1 - kMargin)) || (c > 0 && x <= bound_[c] * (1 + kMargin))) {
-      return linear_to_srgb8(x);
-    }
+    while (c < 255 && v >= first_float_[c + 1]) ++c;
     return static_cast<std::uint8_t>(c);
   }
 
@@ -70,13 +66,23 @@ class SrgbTables {
   static constexpr int kBins = 4096;
   SrgbTables() {
     for (int i = 0; i <= kBins; ++i) decode_[i] = static_cast<float>(srgb_to_linear(static_cast<double>(i) / kBins));
-    // bound_[c]: the linear value where the code turns from c - 1 to c.
-    bound_[0] = 0;
-    for (int c = 1; c < 256; ++c) bound_[c] = srgb_to_linear((c - 0.5) / 255.0);
+    // first_float_[c]: the smallest float in (0, 1] whose code is c or more (the formula is
+    // non-decreasing), by bisection on the floats' bit patterns, which order positive floats.
+    first_float_[0] = 0;
+    for (int c = 1; c < 256; ++c) {
+      std::uint32_t lo = 0, hi = 0x3f800000;  // bits of 0 and 1.0f; code(1.0f) = 255
+      while (hi - lo > 1) {
+        const std::uint32_t mid = lo + (hi - lo) / 2;
+        float f;
+        std::memcpy(&f, &mid, sizeof f);
+        (linear_to_srgb8(f) >= c ? hi : lo) = mid;
+      }
+      std::memcpy(&first_float_[c], &hi, sizeof hi);
+    }
     for (int i = 0; i < kBins; ++i) first_code_[i] = linear_to_srgb8(static_cast<double>(static_cast<float>(i) / kBins));
   }
   std::array<float, kBins + 1> decode_{};
-  std::array<double, 256> bound_{};
+  std::array<float, 256> first_float_{};
   std::array<std::uint8_t, kBins> first_code_{};
 };
 
