@@ -1,18 +1,22 @@
 // composite_layers (defocus.h): every drop's layer spread by its disk, output row by output
-// row. The layer of one drop is zero outside that drop's pixels, so each layer keeps only its
-// rows from the drop's first to its last pixel, with per-row prefix sums; an output row then
-// adds, for each drop that can reach it and each row of that drop's disk, the run of full
-// weight (two prefix reads) and the rim's partial taps (disk_kernel.h), over the columns that
-// row of the drop can reach. Nothing is done for pixels that no drop's circle reaches.
+// row. The layer of one drop is zero outside that drop's pixels, so each layer keeps only the
+// rows from the drop's first to its last pixel, padded, with per-row prefix sums; an output
+// row then adds, for each drop that can reach it and each row of that drop's disk (rows dy and
+// -dy together: they weigh the same), the run of full weight (two prefix reads) and the rim's
+// partial taps (disk_kernel.h), over the columns those rows of the drop can reach. Circles of
+// 96 px and more are spread on a coarser grid and interpolated back (kCoarseDiameter).
+// Nothing is done for pixels that no drop's circle reaches.
 //
-// Threads take bands of output rows; every output pixel is summed by one thread, in the same
-// order (drop, kernel row, run then taps) whatever the number of threads, so the result does
-// not depend on it.
+// Threads take bands of output rows (and of a coarse layer's cell rows); every output pixel is
+// summed by one thread, in the same order (drop, disk row, run then taps) whatever the number
+// of threads, so the result does not depend on it.
 #include "raindrop/render/defocus.h"
 
 #include <algorithm>
 #include <climits>
+#include <cmath>
 #include <cstdlib>
+#include <vector>
 
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
@@ -154,11 +158,11 @@ void spread_row(const Rows& rows, int y, int width, f4* acc);
 // blocks, s = floor(diameter / kCoarseDiameter): the block averages are spread by the disk of
 // diameter / s (>= kCoarseDiameter cells) and the result is interpolated back (bilinear). That
 // costs O(diameter / s^3) per pixel instead of O(diameter) (at 2048 px, lens-cover's
-// 180-pixel circles: 70 ms instead of 730), and differs from the exact spread by what the
-// extra smoothing, about s pixels wide, changes in a disk at least 48 s wide: most at the
+// 180-pixel circles: about 70 ms instead of 730), and differs from the exact spread by what
+// the extra smoothing, about s pixels wide, changes in a disk at least 48 s wide: most at the
 // peak of a drop about as wide as its circle, where the spread coverage has a cone-like tip.
-// Measured: coverage within 0.9/255 and the image within one level (circles of 60-180 px);
-// 32 gave 1.9/255 (tests/render/test_defocus.cpp checks 1/255).
+// Measured on lens-cover frames at 2048 px and on the tests' scenes: coverage within 0.86/255
+// and the image within one level; 32 gave 1.9/255 (tests/render/test_defocus.cpp checks 1/255).
 constexpr double kCoarseDiameter = 48;
 
 int coarse_scale(double diameter) { return std::max(1, static_cast<int>(diameter / kCoarseDiameter)); }

@@ -7,16 +7,17 @@
 //     A = sum_d blur_d(a_d),   I = (1 - A) B + sum_d blur_d(a_d R_d)
 // (A clamped to 1 where blurred drops overlap). A drop smaller than its circle of confusion
 // so never reaches A = 1: it is semi-transparent, and its image spreads beyond its outline,
-// as in real photographs. What this ignores, against the aperture reference (tracer.h, trace_aperture):
-// the parallax of the drop's view across the aperture and the blur's variation inside one
-// drop; the accuracy/time table measures the difference.
+// as in real photographs. What this ignores, against the aperture reference (tracer.h,
+// trace_aperture): the parallax of the drop's view across the aperture and the blur's
+// variation inside one drop; the accuracy/time table measures the difference.
 //
 // Two implementations of the same sums: composite_layers spreads every layer with the disk's
 // rows (disk_kernel.h: a prefix-sum run and the rim's partial taps per row, O(d) per pixel),
 // output row by output row on all threads, and touches only the rows and columns a layer can
-// reach; composite_layers_exact convolves each drop's layer with the dense disk by
-// cv::filter2D, one drop after another (the method before; `"defocus": "layered-exact"`).
-// They agree to float rounding (tests/render/test_defocus.cpp).
+// reach; circles of 96 px and more it spreads on a coarser grid (defocus_rows.cpp).
+// composite_layers_exact convolves each drop's layer with the dense disk by cv::filter2D, one
+// drop after another (the method before; `"defocus": "layered-exact"`). They agree to float
+// rounding below 96 px, within 1/255 in coverage above (tests/render/test_defocus.cpp).
 #include <vector>
 
 #include <opencv2/core.hpp>
