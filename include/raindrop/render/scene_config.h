@@ -24,8 +24,10 @@ enum class BorderMode { Clamp, Mirror };
 enum class BlurMethod { DiskSpan, DiskDirect, DiskAntialiased, Gaussian };
 enum class TirMode { Black, Trace };
 enum class SizeDistribution { Uniform, LogUniform };
-// How a thin-lens camera's defocus of the drops is rendered (see defocus.h, aperture.h).
-enum class DefocusMethod { Layered, Aperture };
+// How a thin-lens camera's defocus of the drops is rendered (see defocus.h; the aperture
+// reference is tracer.h's trace_aperture). LayeredExact: the layered sums with one dense
+// cv::filter2D per drop, kept to compare the fast path against.
+enum class DefocusMethod { Layered, LayeredExact, Aperture };
 
 const char* to_string(BorderMode);
 const char* to_string(BlurMethod);
