@@ -141,8 +141,12 @@ std::vector<cv::Mat> process(Remover& remover, const Job& job, const Settings& s
   if (job.mask) write_image_atomic(r.mask, *job.mask);
   if (s.time) {
     const double coverage = 100.0 * cv::countNonZero(r.mask) / static_cast<double>(r.mask.total());
-    std::fprintf(stderr, "raindrop-remove: %s: %dx%d at scale %.3g, %d tile%s, mask %.2f%%: %s\n",
-                 job.input.string().c_str(), input.cols, input.rows, r.scale, r.tiles_x * r.tiles_y,
+    char coarse[96] = "";
+    if (r.coarse_scale > 0)
+      std::snprintf(coarse, sizeof coarse, ", %d large drop%s at scale %.3g", r.large_drops, r.large_drops == 1 ? "" : "s",
+                    r.coarse_scale);
+    std::fprintf(stderr, "raindrop-remove: %s: %dx%d at scale %.3g%s, %d tile%s, mask %.2f%%: %s\n",
+                 job.input.string().c_str(), input.cols, input.rows, r.scale, coarse, r.tiles_x * r.tiles_y,
                  r.tiles_x * r.tiles_y == 1 ? "" : "s", coverage, r.times.describe().c_str());
   }
   if (!want_panels) return {};
@@ -168,7 +172,7 @@ int run(int argc, char** argv) {
   std::optional<double> threshold, scale;
   std::optional<int> dilation;
   int threads = 0, tile = kDefaultTile, overlap = kDefaultOverlap;
-  bool time = false, quiet = false, keep_going = false;
+  bool time = false, quiet = false, keep_going = false, no_large_drops = false;
   Shard shard;
   app.add_option("input", input, "Input image, or folder of images")->required();
   app.add_option("output", output, "Output image (format from the extension), or folder")->required();
@@ -186,6 +190,9 @@ int run(int argc, char** argv) {
                  "Scale the networks see the image at, in (0, 1] (default: the image's long side brought to the models' "
                  "working size, 512 for the committed models; never enlarged). Outside the mask the output is the input")
       ->check(CLI::Range(0.0, 1.0));
+  app.add_flag("--no-large-drops", no_large_drops,
+               "Skip the coarse pass at a third of that scale that takes over drops too large for the networks there "
+               "(60 px and more at the working scale, e.g. on a lens cover)");
   app.add_option("-j,--threads", threads, "CPU threads (0: one per core; more than the cores: capped, with a warning); with 2 or more, RDN and 3RN run side by side on half each")
       ->capture_default_str()->check(CLI::Range(0, 1024));
   app.add_option("--device", device, "Execution device")->transform(cli::names_to(device_names()))->default_str("cpu");
@@ -299,6 +306,7 @@ int run(int argc, char** argv) {
   s.options.tile = tile;
   s.options.overlap = overlap;
   s.options.scale = scale;
+  s.options.large_drops = !no_large_drops;
   s.time = time;
   if (time) {
     const ModelInfo& mi = remover.info();

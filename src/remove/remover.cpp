@@ -127,9 +127,55 @@ RemoveResult Remover::run(const cv::Mat& image, const RemoveOptions& opt) {
     throw Error("--scale must be a number in (0, 1], got " + std::to_string(*opt.scale));
   const double scale = opt.scale.value_or(auto_working_scale(image.size(), info().working_size));
   const cv::Size small = scaled_size(image.size(), scale);
-  if (small == image.size()) return run_native(image, opt);
-  return run_scaled(image, opt, small, scale);
+  RemoveResult res = small == image.size() ? run_native(image, opt) : run_scaled(image, opt, small, scale);
+  if (opt.large_drops) add_large_drops(image, opt, scale, res);
+  return res;
 }
+
+namespace {
+
+// A result computed on a small copy, brought back over `base` at full size (working_scale.h):
+// out = (1 - a) base + a up(rgb_small), a = up(weight_small) bilinear, where the base is the
+// input or a finer pass's output (`base_rgb`: its float RGB, or empty to convert `base`).
+// Where a == 0 the base's own pixels, bit for bit (no round trip through float). `mask`
+// (CV_8U 0/255) marks a >= 0.5; `rgb` (keep_float) holds the blended float rows.
+struct Upsampled {
+  cv::Mat image, mask, rgb;
+};
+
+Upsampled composite_upsampled(const cv::Mat& base, const cv::Mat& base_rgb, const cv::Mat& rgb_small,
+                              const cv::Mat& weight_small, bool keep_float) {
+  const cv::Size full = base.size();
+  Upsampled up;
+  up.image.create(full, base.type());
+  up.mask.create(full, CV_8U);
+  if (keep_float) up.rgb.create(full, CV_32FC3);
+  const size_t pixel_bytes = base.elemSize();
+  constexpr int kBand = 256;  // rows per band: full-size float work stays a few MB
+  for (int y0 = 0; y0 < full.height; y0 += kBand) {
+    const int rows = std::min(kBand, full.height - y0);
+    const cv::Rect band(0, y0, full.width, rows);
+    cv::Mat alpha;
+    const cv::Mat blended = blend_upsampled_rows(base_rgb.empty() ? to_rgb_float(base, band) : base_rgb(band), y0, full,
+                                                 rgb_small, weight_small, alpha);
+    store_rgb_float(blended, up.image, y0);
+    if (keep_float) blended.copyTo(up.rgb.rowRange(y0, y0 + rows));
+    for (int y = 0; y < rows; ++y) {
+      const float* a = alpha.ptr<float>(y);
+      const unsigned char* src = base.ptr<unsigned char>(y0 + y);
+      unsigned char* dst = up.image.ptr<unsigned char>(y0 + y);
+      unsigned char* m = up.mask.ptr<unsigned char>(y0 + y);
+      for (int x = 0; x < full.width; ++x) {
+        m[x] = a[x] >= 0.5f ? 255 : 0;
+        if (a[x] <= 0.0f) std::memcpy(dst + x * pixel_bytes, src + x * pixel_bytes, pixel_bytes);
+      }
+    }
+  }
+  copy_alpha(base, up.image);
+  return up;
+}
+
+}  // namespace
 
 RemoveResult Remover::run_scaled(const cv::Mat& image, const RemoveOptions& opt, cv::Size small, double scale) {
   auto clock = Clock::now();
@@ -148,36 +194,43 @@ RemoveResult Remover::run_scaled(const cv::Mat& image, const RemoveOptions& opt,
   clock = Clock::now();
   cv::Mat mask_small;
   res.mask.convertTo(mask_small, CV_32F, 1.0 / 255.0);
-  const cv::Size full = image.size();
-  cv::Mat out(full, image.type()), mask(full, CV_8U), rgb;
-  if (opt.keep_float) rgb.create(full, CV_32FC3);
-  const size_t pixel_bytes = image.elemSize();
-  constexpr int kBand = 256;  // rows per band: full-size float work stays a few MB
-  for (int y0 = 0; y0 < full.height; y0 += kBand) {
-    const int rows = std::min(kBand, full.height - y0);
-    cv::Mat alpha;
-    const cv::Mat blended =
-        blend_upsampled_rows(to_rgb_float(image, cv::Rect(0, y0, full.width, rows)), y0, full, res.rgb, mask_small, alpha);
-    store_rgb_float(blended, out, y0);
-    if (opt.keep_float) blended.copyTo(rgb.rowRange(y0, y0 + rows));
-    for (int y = 0; y < rows; ++y) {
-      const float* a = alpha.ptr<float>(y);
-      const unsigned char* src = image.ptr<unsigned char>(y0 + y);
-      unsigned char* dst = out.ptr<unsigned char>(y0 + y);
-      unsigned char* m = mask.ptr<unsigned char>(y0 + y);
-      for (int x = 0; x < full.width; ++x) {
-        m[x] = a[x] >= 0.5f ? 255 : 0;
-        // Outside the mask the input's own pixel, bit for bit (no round trip through float).
-        if (a[x] <= 0.0f) std::memcpy(dst + x * pixel_bytes, src + x * pixel_bytes, pixel_bytes);
-      }
-    }
-  }
-  copy_alpha(image, out);
-  res.image = out;
-  res.mask = mask;
-  res.rgb = rgb;
+  Upsampled up = composite_upsampled(image, cv::Mat(), res.rgb, mask_small, opt.keep_float);
+  res.image = up.image;
+  res.mask = up.mask;
+  res.rgb = up.rgb;
   t.output += lap_ms(clock);
   return res;
+}
+
+void Remover::add_large_drops(const cv::Mat& image, const RemoveOptions& opt, double scale, RemoveResult& res) {
+  const double coarse_scale = scale / kLargeDropScaleDivisor;
+  const cv::Size coarse = scaled_size(image.size(), coarse_scale);
+  if (!coarse_pass_fits(coarse)) return;
+  auto clock = Clock::now();
+  cv::Mat coarse_native;
+  cv::resize(image, coarse_native, coarse, 0, 0, cv::INTER_AREA);
+  StageTimes& t = res.times;
+  t.convert += lap_ms(clock);
+  RemoveOptions sub = opt;
+  sub.scale = 1.0;
+  sub.keep_float = true;
+  sub.large_drops = false;
+  const RemoveResult c = run_native(coarse_native, sub);
+  t += c.times;
+  res.network_pixels += c.network_pixels;
+  res.coarse_scale = coarse_scale;
+
+  clock = Clock::now();
+  const cv::Mat large = large_drop_mask(c.mask, &res.large_drops);
+  t.mask += lap_ms(clock);
+  if (res.large_drops == 0) return;
+  cv::Mat weight;
+  large.convertTo(weight, CV_32F, 1.0 / 255.0);
+  Upsampled up = composite_upsampled(res.image, opt.keep_float ? res.rgb : cv::Mat(), c.rgb, weight, opt.keep_float);
+  res.image = up.image;
+  res.mask = res.mask | up.mask;
+  if (opt.keep_float) res.rgb = up.rgb;
+  t.output += lap_ms(clock);
 }
 
 RemoveResult Remover::run_native(const cv::Mat& image, const RemoveOptions& opt) {

@@ -5,6 +5,7 @@ produced, so that its own choices (the working scale, tiling) are measured as a 
 
     raindrop-remove data/test/rainy out/removed
     python -m raindrop_tools.score_outputs --data data/test --outputs out/removed
+    python -m raindrop_tools.score_outputs --data data/real-pairs --outputs out/rp --split test
 
 For every ``rainy/<name>`` of the set with a ``<name>`` in ``--outputs``: PSNR/SSIM (Y, the pinned
 protocol of ``metrics``) of the rainy input and of the output against ``clean/<name>``. Prints
@@ -23,11 +24,29 @@ from . import metrics
 from .imageio import read_rgb_strict
 
 
-def score(data: Path, outputs: Path) -> dict:
+def split_names(data: Path, split: str) -> set[str]:
+    """The rainy file names of the samples whose manifest ``split`` is ``split``."""
+    manifest = data / "manifest.jsonl"
+    if not manifest.is_file():
+        raise SystemExit(f"score_outputs: --split needs {manifest}")
+    names = set()
+    for line in manifest.read_text().splitlines():
+        if line.strip():
+            rec = json.loads(line)
+            if rec.get("split") == split:
+                names.add(Path(rec["rainy"]).name)
+    if not names:
+        raise SystemExit(f"score_outputs: no sample of {manifest} has split {split!r}")
+    return names
+
+
+def score(data: Path, outputs: Path, split: str | None = None) -> dict:
     rainy_dir, clean_dir = data / "rainy", data / "clean"
     if not rainy_dir.is_dir() or not clean_dir.is_dir():
         raise SystemExit(f"score_outputs: {data} has no rainy/ and clean/ folders")
-    names = sorted(p.name for p in rainy_dir.iterdir() if (outputs / p.name).is_file())
+    wanted = split_names(data, split) if split else None
+    names = sorted(p.name for p in rainy_dir.iterdir()
+                   if (outputs / p.name).is_file() and (wanted is None or p.name in wanted))
     if not names:
         raise SystemExit(f"score_outputs: no image of {rainy_dir} has an output in {outputs}")
     rows = []
@@ -47,10 +66,12 @@ def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--data", required=True, type=Path, help="rendered set with rainy/ and clean/")
     ap.add_argument("--outputs", required=True, type=Path, help="folder of outputs named as rainy/")
+    ap.add_argument("--split", help="only the samples with this manifest split (e.g. test for the real pairs "
+                    "that `realpairs prepare` wrote)")
     ap.add_argument("--label", default="", help="text that starts the printed line")
     ap.add_argument("--json", type=Path, help="also write every image's scores here")
     a = ap.parse_args(argv)
-    r = score(a.data, a.outputs)
+    r = score(a.data, a.outputs, a.split)
     m = r["mean"]
     print(f"{a.label or a.outputs}: {r['images']} images, PSNR-Y {m['input_psnr_y']:.2f} -> {m['output_psnr_y']:.2f} dB "
           f"(gain {m['gain_psnr_y']:+.2f}), SSIM-Y {m['input_ssim_y']:.4f} -> {m['output_ssim_y']:.4f}")

@@ -52,3 +52,16 @@ def test_no_matching_outputs_is_an_error(tmp_path):
     (outs / "0.png").unlink()
     with pytest.raises(SystemExit, match="no image"):
         SO.score(data, outs)
+
+
+def test_split_keeps_only_that_splits_samples(tmp_path):
+    data, outs = make_set(tmp_path, 3)
+    rows = [{"rainy": f"rainy/{i}.png", "split": "test" if i != 1 else "train"} for i in range(3)]
+    (data / "manifest.jsonl").write_text("\n".join(json.dumps(r) for r in rows) + "\n")
+    r = SO.score(data, outs, "test")
+    assert [p["name"] for p in r["per_image"]] == ["0.png", "2.png"]
+    with pytest.raises(SystemExit, match="no sample"):
+        SO.score(data, outs, "val")
+    (data / "manifest.jsonl").unlink()
+    with pytest.raises(SystemExit, match="manifest"):
+        SO.score(data, outs, "test")

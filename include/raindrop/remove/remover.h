@@ -24,6 +24,7 @@
 
 #include <opencv2/core.hpp>
 
+#include "raindrop/remove/large_drops.h"
 #include "raindrop/remove/model.h"
 #include "raindrop/remove/session.h"
 #include "raindrop/remove/stage_times.h"
@@ -41,6 +42,9 @@ struct RemoveOptions {
   // The scale the networks see the image at, in (0, 1]; default: auto_working_scale
   // (working_scale.h: the long side brought to the models' working size, never enlarged).
   std::optional<double> scale;
+  // After the pass at that scale, a coarse pass at a third of it for drops too large for the
+  // networks there (large_drops.h). Off: the working-scale pass alone.
+  bool large_drops = true;
 };
 
 struct RemoveResult {
@@ -51,6 +55,8 @@ struct RemoveResult {
   int tiles_x = 1, tiles_y = 1;
   double network_pixels = 0;  // pixels each network ran on (sum of the tiles' padded areas)
   double scale = 1.0;         // the scale the networks saw the image at
+  double coarse_scale = 0;    // the coarse pass's scale (large_drops.h); 0 when it did not run
+  int large_drops = 0;        // drops the coarse pass found large and replaced
 };
 
 class Remover {
@@ -61,7 +67,8 @@ class Remover {
 
   // image: CV_8U, CV_16U or CV_32F with 1-4 channels (see pixels.h), any size >= 1x1.
   // At a scale below 1 the networks run on a downscaled copy and the correction comes back
-  // as working_scale.h says: pixels outside the mask are the input's own.
+  // as working_scale.h says: pixels outside the mask are the input's own. Then, unless
+  // options.large_drops is off, a coarse pass replaces drops too large for that scale.
   RemoveResult run(const cv::Mat& image, const RemoveOptions& options = {});
 
   const ModelInfo& info() const { return models_.info(); }
@@ -72,6 +79,8 @@ class Remover {
   RemoveResult run_native(const cv::Mat& image, const RemoveOptions& options);
   // The pipeline on a copy at `small`, brought back to the image's size.
   RemoveResult run_scaled(const cv::Mat& image, const RemoveOptions& options, cv::Size small, double scale);
+  // The coarse pass for large drops over `res`, the result at `scale` (large_drops.h).
+  void add_large_drops(const cv::Mat& image, const RemoveOptions& options, double scale, RemoveResult& res);
 
   Models models_;
 };

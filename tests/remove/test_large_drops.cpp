@@ -1,0 +1,85 @@
+// The coarse pass for large drops (raindrop/remove/large_drops.h): which parts of a mask count
+// as large, when the pass runs, and that it replaces exactly those parts with the coarse copy's
+// result, upsampled, leaving everything else as the working-scale pass made it.
+#include <cmath>
+
+#include <opencv2/imgproc.hpp>
+
+#include "raindrop/remove/large_drops.h"
+#include "raindrop/remove/remover.h"
+#include "remove_test_util.h"
+#include "smoke_remover.h"
+
+namespace removetest {
+namespace {
+
+using namespace raindrop::removal;
+
+Remover& smoke() { return smoke_remover(); }
+
+TEST(LargeDrops, PartsAtLeastTheDiameterAcrossAreLarge) {
+  cv::Mat mask(120, 200, CV_8U, cv::Scalar(0));
+  // Filled disks of diameter 17 and 23 px (area ~227 and ~415 against pi * 10^2 ~ 314), and a
+  // ring 40 px across: its area (a thin band) decides, not its outline.
+  cv::circle(mask, {30, 30}, 8, cv::Scalar(255), cv::FILLED);
+  cv::circle(mask, {80, 30}, 11, cv::Scalar(255), cv::FILLED);
+  cv::circle(mask, {150, 60}, 20, cv::Scalar(255), 1);
+  int count = -1;
+  const cv::Mat large = large_drop_mask(mask, &count);
+  EXPECT_EQ(count, 1);
+  EXPECT_EQ(large.at<unsigned char>(30, 30), 0);
+  EXPECT_EQ(large.at<unsigned char>(30, 80), 255);
+  EXPECT_EQ(cv::countNonZero(large), cv::countNonZero(mask(cv::Rect(60, 10, 40, 40))));
+  EXPECT_EQ(large.at<unsigned char>(60, 170), 0);
+}
+
+TEST(LargeDrops, TheCoarseCopyMustHoldALargeDrop) {
+  EXPECT_TRUE(coarse_pass_fits({2 * kLargeDropDiameter, 2 * kLargeDropDiameter}));
+  EXPECT_FALSE(coarse_pass_fits({2 * kLargeDropDiameter - 1, 500}));
+  EXPECT_FALSE(coarse_pass_fits({500, 2 * kLargeDropDiameter - 1}));
+  // A 64x64 image: a copy at a third is 21 px, too small; the pass does not run.
+  RemoveOptions o;
+  const RemoveResult r = smoke().run(make_image(64, 64, 5), o);
+  EXPECT_EQ(r.coarse_scale, 0.0);
+  EXPECT_EQ(r.large_drops, 0);
+}
+
+// No large drop found: the result is the working-scale pass's, bit for bit.
+TEST(LargeDrops, NoLargeDropLeavesTheResultAsItWas) {
+  const cv::Mat img = make_image(600, 300, 6);
+  RemoveOptions none;
+  none.threshold = 1.0;  // P > 1 never: empty masks
+  const RemoveResult with = smoke().run(img, none);
+  RemoveOptions off = none;
+  off.large_drops = false;
+  const RemoveResult without = smoke().run(img, off);
+  EXPECT_DOUBLE_EQ(with.coarse_scale, with.scale / 3.0);
+  EXPECT_EQ(with.large_drops, 0);
+  EXPECT_EQ(max_abs_diff(with.image, without.image), 0);
+  EXPECT_EQ(cv::countNonZero(with.mask != without.mask), 0);
+}
+
+// A mask over everything is one large drop: the output is the coarse copy's result upsampled.
+TEST(LargeDrops, AFullMaskIsTheCoarseCopysResultUpsampled) {
+  const cv::Mat img = make_image(600, 300, 7);
+  RemoveOptions all;
+  all.threshold = -1.0;  // P > -1 always
+  const RemoveResult r = smoke().run(img, all);
+  ASSERT_EQ(r.large_drops, 1);
+  const double coarse_scale = r.scale / kLargeDropScaleDivisor;
+  EXPECT_DOUBLE_EQ(r.coarse_scale, coarse_scale);
+  EXPECT_EQ(cv::countNonZero(r.mask), static_cast<int>(r.mask.total()));
+  cv::Mat small, expected, expected8;
+  cv::resize(img, small, scaled_size(img.size(), coarse_scale), 0, 0, cv::INTER_AREA);
+  RemoveOptions native = all;
+  native.scale = 1.0;
+  native.keep_float = true;
+  native.large_drops = false;
+  const RemoveResult s = smoke().run(small, native);
+  cv::resize(s.rgb, expected, img.size(), 0, 0, cv::INTER_LINEAR);
+  expected.convertTo(expected8, CV_8U, 255.0);
+  EXPECT_LE(max_abs_diff(r.image, expected8), 1);
+}
+
+}  // namespace
+}  // namespace removetest
