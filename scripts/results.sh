@@ -2,7 +2,7 @@
 # Regenerates every figure of docs/RESULTS.md into out/results/ (run after scripts/setup.sh
 # and scripts/setup-tools.sh; needs a folder of real photographs, $RAINDROP_SHARED_DATA
 # (default ../shared/data), for the real frames). Sections can be chosen:
-# scripts/results.sh data render stats eval remove tradeoffs sheets photoreal scale flatroad
+# scripts/results.sh data render stats eval remove tradeoffs sheets photoreal scale flatroad largedrops
 #
 # Nothing here is committed automatically: images derived from Cityscapes, CamVid or the
 # real raindrop photographs stay under out/ (their licences forbid redistribution).
@@ -13,7 +13,7 @@ py=.venv/bin/python
 out=out/results
 mkdir -p "$out"
 sections=("$@")
-((${#sections[@]})) || sections=(data render stats eval remove tradeoffs sheets photoreal scale flatroad)
+((${#sections[@]})) || sections=(data render stats eval remove tradeoffs sheets photoreal scale flatroad largedrops)
 want() { [[ " ${sections[*]} " == *" $1 "* ]]; }
 
 if want data; then
@@ -198,4 +198,36 @@ for s in (0, 1, 2, 4):
 print(f"| {m} | {' / '.join(ious)} |")
 PY
   done | tee "$out/flatroad.md"
+fi
+
+if want largedrops; then
+  # docs/RESULTS.md 4.6: raindrop-remove with and without its coarse pass for large drops, on
+  # the real pairs' test split (data/real-pairs, from `realpairs prepare`) and on the first 100
+  # samples of rendered sets (photoreal above). Each set is linked into a folder of plainly
+  # named files (older renders named some samples '..-...', which folder walks skip as hidden).
+  for m in compact paper; do
+    for flags in "" "--no-large-drops"; do
+      for set in real-pairs:test test:- val-paper:- val-lens-cover:- val-windshield-day:-; do
+        name="${set%%:*}" split="${set##*:}" dir="$out/largedrops/$m${flags:+-off}-$name"
+        rm -rf "$dir" && mkdir -p "$dir/set/rainy" "$dir/set/clean"
+        $py - "data/$name" "$dir/set" "$split" <<'PY'
+import json, os, sys
+src, dst, split = sys.argv[1:]
+n = 0
+for line in open(os.path.join(src, "manifest.jsonl")):
+    r = json.loads(line)
+    if split != "-" and r.get("split") != split:
+        continue
+    name = "s" + os.path.basename(r["rainy"])
+    for kind in ("rainy", "clean"):
+        os.symlink(os.path.abspath(os.path.join(src, r[kind])), os.path.join(dst, kind, name))
+    n += 1
+    if n == 100:
+        break
+PY
+        build/raindrop-remove "$dir/set/rainy" "$dir/out" --model-config "$m" -q $flags
+        $py -m raindrop_tools.score_outputs --data "$dir/set" --outputs "$dir/out" --label "$m $name ${flags:-(default)}"
+      done
+    done
+  done | tee "$out/largedrops.txt"
 fi
