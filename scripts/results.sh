@@ -153,10 +153,10 @@ if want scale; then
       set_dir="$out/scale-$scene-$size"
       build/raindrop-render --cityscapes "$shared/cityscapes-mini" --split all --scene $scene --size $size \
         --variants 2 --seed 5 --out "$set_dir" -q
-      build/raindrop-remove "$set_dir/rainy" "$set_dir-auto" -q
+      build/raindrop-remove "$set_dir/rainy" "$set_dir-auto" -q --no-large-drops
       $py -m raindrop_tools.score_outputs --data "$set_dir" --outputs "$set_dir-auto" --label "$scene $size default scale"
       if [[ $size != 512x256 ]]; then
-        build/raindrop-remove "$set_dir/rainy" "$set_dir-full" -q --scale 1
+        build/raindrop-remove "$set_dir/rainy" "$set_dir-full" -q --scale 1 --no-large-drops
         $py -m raindrop_tools.score_outputs --data "$set_dir" --outputs "$set_dir-full" --label "$scene $size --scale 1"
       fi
     done
@@ -184,7 +184,7 @@ PY
              out/models/compact-real-noise; do
     [[ -d $dir ]] || continue
     m=$(basename "$dir")
-    build/raindrop-remove "$set_dir/in" "$set_dir/out-$m" --models "$dir" --mask-dir "$set_dir/masks-$m" -q
+    build/raindrop-remove "$set_dir/in" "$set_dir/out-$m" --models "$dir" --mask-dir "$set_dir/masks-$m" -q --no-large-drops
     $py - "$set_dir" "$m" <<'PY'
 import sys
 import numpy as np

@@ -192,7 +192,8 @@ int run(int argc, char** argv) {
       ->check(CLI::Range(0.0, 1.0));
   app.add_flag("--no-large-drops", no_large_drops,
                "Skip the coarse pass at a third of that scale that takes over drops too large for the networks there "
-               "(60 px and more at the working scale, e.g. on a lens cover)");
+               "(mask regions with the area of a disk 60 px across at the working scale, clusters included, e.g. on a "
+               "lens cover)");
   app.add_option("-j,--threads", threads, "CPU threads (0: one per core; more than the cores: capped, with a warning); with 2 or more, RDN and 3RN run side by side on half each")
       ->capture_default_str()->check(CLI::Range(0, 1024));
   app.add_option("--device", device, "Execution device")->transform(cli::names_to(device_names()))->default_str("cpu");

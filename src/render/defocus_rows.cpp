@@ -158,10 +158,10 @@ void spread_row(const Rows& rows, int y, int width, f4* acc);
 // blocks, s = floor(diameter / kCoarseDiameter): the block averages are spread by the disk of
 // diameter / s (>= kCoarseDiameter cells) and the result is interpolated back (bilinear). That
 // costs O(diameter / s^3) per pixel instead of O(diameter) (at 2048 px, lens-cover's
-// 180-pixel circles: about 70 ms instead of 730), and differs from the exact spread by what
+// 180-pixel circles: 52 ms instead of 428 in RESULTS 4.1), and differs from the exact spread by what
 // the extra smoothing, about s pixels wide, changes in a disk at least 48 s wide: most at the
 // peak of a drop about as wide as its circle, where the spread coverage has a cone-like tip.
-// Measured on lens-cover frames at 2048 px and on the tests' scenes: coverage within 0.86/255
+// Measured on lens-cover frames at 2048 px and on the tests' scenes: coverage within 0.64/255
 // and the image within one level; 32 gave 1.9/255 (tests/render/test_defocus.cpp checks 1/255).
 constexpr double kCoarseDiameter = 48;
 

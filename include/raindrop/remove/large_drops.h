@@ -8,15 +8,18 @@
 // again, which the networks handle. So after the pass at the working scale, the pipeline runs
 // once more on a copy at a third of that scale, keeps only the drops that pass finds large
 // (connected parts of its mask at least kLargeDropDiameter px across, i.e. 60 px or more at
-// the working scale), and takes the coarse pass's output there, blended in with the upsampled
-// mask as working_scale.h describes; everywhere else the fine pass's result stays bit for bit.
+// the working scale; measured on the coarse pass's dilated mask by area, so a cluster of
+// touching small drops, or a large false detection, counts too), and takes the coarse pass's
+// output there, blended in with the upsampled mask as working_scale.h describes; everywhere
+// else the fine pass's result stays bit for bit.
 // Small drops stay with the fine pass: in the coarse copy they are a few pixels wide and their
 // reconstruction there is blurred.
 //
 // Measured with the shipped compact model (docs/RESULTS.md 4.6): on real lens-cover pairs the
 // PSNR gain goes from +0.2 to about +1.5 dB, on thin-lens windshield renders it rises by
-// 0.4 dB, and on the paper preset's drops it stays within 0.1 dB. The coarse pass costs about a
-// ninth of the fine one (a third of the pixels on each side).
+// 0.26 dB, and on the paper preset's drops it stays within 0.1 dB. The coarse copy has a ninth
+// of the pixels (a third on each side); when it finds a large drop, compositing its result is
+// one more pass over the full-size image's rows.
 #include <opencv2/core.hpp>
 
 namespace raindrop::removal {

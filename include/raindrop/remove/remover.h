@@ -4,7 +4,8 @@
 //   and right) to a multiple of the models' pad_multiple;
 //   P = RDN(R); M0 = P > threshold; M = elliptical dilation of M0 (k x k);
 //   Ihat = clamp(3RN(R, E), 0, 1); B = M * Ihat + (1 - M) * R; out = clamp(RFN(B), 0, 1),
-//   cropped back. It matches tools/raindrop_tools/reference.py to within 1/255.
+//   cropped back. It matches tools/raindrop_tools/reference.py to within 1/255 at scale 1
+//   without the coarse pass for large drops (large_drops.h), which the reference does not have.
 //
 // Large images are tiled (see tiling.h) in two passes: pass 1 runs the RDN per tile and
 // thresholds each pixel's probability from the one tile that owns it into a mask of the
