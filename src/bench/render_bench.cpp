@@ -263,7 +263,7 @@ void accuracy_table(const Input& input, int frames, int repeats) {
   std::cerr << "bench render: accuracy reference (64 spp everywhere)\n";
   SceneConfig ref_config = base;
   ref_config.samples_per_pixel = 64;
-  ref_config.supersample_edges_only = false;
+  ref_config.supersample = Supersample::All;
   std::vector<RenderedFrame> reference;
   const double ref_ms = core_ms(frame, ref_config, scenes, 2, 1, &reference);
   std::printf("| reference | exact, 64 spp in all drop pixels | %.1f | 0 | - | 0 | 0 |\n", ref_ms);
@@ -288,7 +288,7 @@ void accuracy_table(const Input& input, int frames, int repeats) {
     for (bool edges : {true, false}) {
       SceneConfig c = base;
       c.samples_per_pixel = spp;
-      c.supersample_edges_only = edges;
+      c.supersample = edges ? Supersample::Edges : Supersample::All;
       row("samples", std::to_string(spp) + " spp " + (edges ? "at drop edges" : "in all drop pixels"), c, reference);
     }
   }

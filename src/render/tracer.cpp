@@ -319,7 +319,7 @@ TraceResult run(const cv::Mat& clean, const Camera& camera, const SceneConfig& c
   out.color = cv::Mat(camera.height, camera.width, CV_32FC3);
   // Edge classes are only needed to find the pixels to supersample.
   const int k = static_cast<int>(std::lround(std::sqrt(config.samples_per_pixel)));
-  const bool need_classes = k > 1 && config.supersample_edges_only;
+  const bool need_classes = k > 1 && config.supersample != Supersample::All;
   cv::Mat classes = need_classes ? cv::Mat(camera.height, camera.width, CV_32S, cv::Scalar(-1)) : cv::Mat();
   out.spans = candidate_spans(camera, accel);
   const auto& spans = out.spans;
@@ -376,7 +376,7 @@ TraceResult run(const cv::Mat& clean, const Camera& camera, const SceneConfig& c
         for (const auto& [x0, x1] : spans[y]) {
           for (int x = x0; x <= x1; ++x) {
             if (label[x] < 0) continue;
-            if (config.supersample_edges_only) {
+            if (config.supersample != Supersample::All) {
               const int own = classes.at<int>(y, x);
               bool edge = false;
               for (int dy = -1; dy <= 1 && !edge; ++dy) {
