@@ -128,8 +128,9 @@ struct Sample {
 template <bool kFresnel, bool kDispersion>
 class Kernel {
  public:
+  // `plan`: with dispersion auto, the drops whose colours are traced apart.
   Kernel(const cv::Mat& clean, const Camera& camera, const SceneConfig& config,
-         const SceneSample& scene, const DropAccel& accel)
+         const SceneSample& scene, const DropAccel& accel, const EffectPlan* plan)
       : bg_(clean, config.border),
         camera_(camera),
         scene_(scene),
@@ -137,7 +138,8 @@ class Kernel {
         accel_(accel),
         tir_(config.tir),
         interior_(config.fresnel.enabled ? config.fresnel.interior_rgb : glm::dvec3(0.0)),
-        n_rgb_(config.channel_indices()) {
+        n_rgb_(config.channel_indices()),
+        disperse_(plan && plan->dispersion_auto ? &plan->drops : nullptr) {
     if (config.sky.enabled) bg_.set_sky(estimate_sky_rgb(clean, config.sky.gain), config.sky.fade_rows * clean.rows);
   }
 
@@ -153,6 +155,20 @@ class Kernel {
       s.drop = p.first_drop;
       s.dark = p.dark;
       s.rgb = shade(p, &s.off_frame);
+    } else if (disperse_) {
+      // Auto: the green path first; the drop it meets says whether red and blue are traced
+      // apart or take its colour (their shift there is imperceptible, effect_policy.h).
+      const DropPath g = trace_path<kFresnel>(origin, dir, n_rgb_.y, tir_, accel_, glass_);
+      if (!g.hit) return s;
+      s.hit = true;
+      s.drop = g.first_drop;
+      s.dark = g.dark;
+      s.rgb = shade(g, &s.off_frame);
+      if (!(*disperse_)[g.first_drop].dispersion) return s;
+      for (int c : {0, 2}) {
+        bool off = false;
+        s.rgb[c] = shade(trace_path<kFresnel>(origin, dir, n_rgb_[c], tir_, accel_, glass_), &off)[c];
+      }
     } else {
       // One path per colour channel: the green path decides hit and drop (all three meet the
       // same first surface, whose position does not depend on the index).
@@ -200,6 +216,7 @@ class Kernel {
   TirMode tir_;
   glm::dvec3 interior_;
   glm::dvec3 n_rgb_;
+  const std::vector<DropEffects>* disperse_;
 };
 
 // Andrew's monotone chain, in double precision (counter-clockwise, no repeated point).
@@ -312,8 +329,8 @@ inline int edge_class(int label, bool dark) { return label < 0 ? -1 : 2 * label 
 
 template <bool kFresnel, bool kDispersion>
 TraceResult run(const cv::Mat& clean, const Camera& camera, const SceneConfig& config,
-                const SceneSample& scene, const DropAccel& accel) {
-  const Kernel<kFresnel, kDispersion> kernel(clean, camera, config, scene, accel);
+                const SceneSample& scene, const DropAccel& accel, const EffectPlan* plan) {
+  const Kernel<kFresnel, kDispersion> kernel(clean, camera, config, scene, accel, plan);
   TraceResult out;
   out.label = cv::Mat(camera.height, camera.width, CV_32S, cv::Scalar(-1));
   out.color = cv::Mat(camera.height, camera.width, CV_32FC3);
@@ -420,8 +437,8 @@ TraceResult run(const cv::Mat& clean, const Camera& camera, const SceneConfig& c
 // that point, so it sees the pixel's own clean colour.
 template <bool kFresnel, bool kDispersion>
 ApertureResult run_aperture(const cv::Mat& clean, const Camera& camera, const SceneConfig& config,
-                            const SceneSample& scene, const DropAccel& accel, int samples) {
-  const Kernel<kFresnel, kDispersion> kernel(clean, camera, config, scene, accel);
+                            const SceneSample& scene, const DropAccel& accel, int samples, const EffectPlan* plan) {
+  const Kernel<kFresnel, kDispersion> kernel(clean, camera, config, scene, accel, plan);
   ApertureResult out;
   out.linear = cv::Mat(camera.height, camera.width, CV_32FC3, cv::Scalar::all(0));
   out.coverage = cv::Mat(camera.height, camera.width, CV_32F, cv::Scalar(0));
@@ -503,24 +520,27 @@ ApertureResult run_aperture(const cv::Mat& clean, const Camera& camera, const Sc
 }  // namespace
 
 ApertureResult trace_aperture(const cv::Mat& clean, const Camera& camera, const SceneConfig& config,
-                              const SceneSample& scene, const DropAccel& accel, int samples) {
+                              const SceneSample& scene, const DropAccel& accel, int samples, const EffectPlan* plan) {
   CV_Assert(clean.type() == CV_8UC3 && clean.cols == camera.width && clean.rows == camera.height);
-  const bool fresnel = config.fresnel.enabled, dispersion = config.dispersion.enabled;
-  if (fresnel && dispersion) return run_aperture<true, true>(clean, camera, config, scene, accel, samples);
-  if (fresnel) return run_aperture<true, false>(clean, camera, config, scene, accel, samples);
-  if (dispersion) return run_aperture<false, true>(clean, camera, config, scene, accel, samples);
-  return run_aperture<false, false>(clean, camera, config, scene, accel, samples);
+  const bool fresnel = config.fresnel.enabled;
+  const bool dispersion = plan ? plan->dispersion_anywhere(config) : config.dispersion.enabled;
+  if (fresnel && dispersion) return run_aperture<true, true>(clean, camera, config, scene, accel, samples, plan);
+  if (fresnel) return run_aperture<true, false>(clean, camera, config, scene, accel, samples, plan);
+  if (dispersion) return run_aperture<false, true>(clean, camera, config, scene, accel, samples, plan);
+  return run_aperture<false, false>(clean, camera, config, scene, accel, samples, plan);
 }
 
 TraceResult trace_drops(const cv::Mat& clean, const Camera& camera, const SceneConfig& config,
-                        const SceneSample& scene, const DropAccel& accel) {
+                        const SceneSample& scene, const DropAccel& accel, const EffectPlan* plan) {
   CV_Assert(clean.type() == CV_8UC3 && clean.cols == camera.width && clean.rows == camera.height);
-  // Effects pick the kernel instantiation once per frame, not per pixel.
-  const bool fresnel = config.fresnel.enabled, dispersion = config.dispersion.enabled;
-  if (fresnel && dispersion) return run<true, true>(clean, camera, config, scene, accel);
-  if (fresnel) return run<true, false>(clean, camera, config, scene, accel);
-  if (dispersion) return run<false, true>(clean, camera, config, scene, accel);
-  return run<false, false>(clean, camera, config, scene, accel);
+  // Effects pick the kernel instantiation once per frame, not per pixel: a frame where auto
+  // finds no drop that needs dispersion runs the kernel without it.
+  const bool fresnel = config.fresnel.enabled;
+  const bool dispersion = plan ? plan->dispersion_anywhere(config) : config.dispersion.enabled;
+  if (fresnel && dispersion) return run<true, true>(clean, camera, config, scene, accel, plan);
+  if (fresnel) return run<true, false>(clean, camera, config, scene, accel, plan);
+  if (dispersion) return run<false, true>(clean, camera, config, scene, accel, plan);
+  return run<false, false>(clean, camera, config, scene, accel, plan);
 }
 
 }  // namespace raindrop

@@ -120,3 +120,213 @@ TEST(EffectPolicy, GravityShiftVanishesForTheSphereAndGrowsWithTheDeformation) {
   EXPECT_GT(gravity_shift_px(10, 1.3, 0.6), gravity_shift_px(10, 1.3, 1.0));
 }
 
+namespace {
+
+// Scenes spanning the regimes auto decides in: drops from a twentieth of a pixel to 17 px in
+// radius at 256 x 128 (log-uniform footprints of 0.005-0.3 cm on glass 5-40 cm away),
+// contact angles 20-80 degrees, glass from upright to tilted 30 degrees; `kind` 0 without
+// blur, 1 with the paper's disk blur, 2 through a thin lens. Every effect named, the ones
+// auto decides forced on, and every drop pixel sampled 64 times: close to the converged
+// image, against which the criteria are stated.
+SceneConfig varied_scene(int kind) {
+  SceneConfig c = scene_preset("paper");
+  c.glass_distance_cm = {5, 40};
+  c.tilt_deg = {30, 90};
+  c.drop_count = {10, 30};
+  c.size_param = DropSizeParam::FootprintRadius;
+  c.drop_size_cm = {0.005, 0.3};
+  c.size_distribution = SizeDistribution::LogUniform;
+  c.contact_angle_deg = {20, 80};
+  c.min_gap_cm = 0.005;
+  c.fresnel.enabled = c.dispersion.enabled = c.gravity.enabled = true;
+  c.blur.enabled = kind == 1;
+  if (kind == 2) {
+    c.lens.enabled = true;
+    c.lens.f_number = {1.8, 8};
+    c.lens.focal_length_mm = {4, 8};
+  }
+  c.samples_per_pixel = 64;
+  c.supersample = Supersample::All;
+  return c;
+}
+
+// The pixels the picked drops may change: a disk around each footprint's centre reaching past
+// the cap's image (at most its radius plus its height, under its radius) and the blur.
+cv::Mat drop_disks(const Camera& cam, const SceneSample& scene, const EffectPlan& plan,
+                   const std::function<bool(const DropEffects&)>& pick) {
+  cv::Mat disks(cam.height, cam.width, CV_8U, cv::Scalar(0));
+  for (size_t i = 0; i < scene.drops.size(); ++i) {
+    const DropEffects& d = plan.drops[i];
+    if (!pick(d)) continue;
+    const glm::dvec2 c = cam.project(scene.glass.point(scene.drops[i].center));
+    cv::circle(disks, cv::Point(static_cast<int>(std::lround(c.x)), static_cast<int>(std::lround(c.y))),
+               static_cast<int>(std::ceil(2 * d.radius_px + d.blur_px / 2 + 2)), 255, -1);
+  }
+  return disks;
+}
+
+// Pixels inside a drop in either render ("inside the drops"): the mask, or any coverage of
+// the lens.
+cv::Mat covered(const RenderedFrame& a, const RenderedFrame& b) {
+  auto one = [](const RenderedFrame& f) { return cv::Mat(f.alpha.empty() ? f.mask > 0 : f.alpha > 1.0f / 255); };
+  return one(a) | one(b);
+}
+
+struct LevelError {
+  double rmse = 0, max = 0;
+  double sq = 0, n = 0;
+  void add(const cv::Mat& a, const cv::Mat& b, const cv::Mat& region) {
+    for (int y = 0; y < a.rows; ++y)
+      for (int x = 0; x < a.cols; ++x) {
+        if (!region.at<std::uint8_t>(y, x)) continue;
+        for (int c = 0; c < 3; ++c) {
+          const double d = std::abs(double(a.at<cv::Vec3b>(y, x)[c]) - b.at<cv::Vec3b>(y, x)[c]);
+          sq += d * d;
+          n += 1;
+          max = std::max(max, d);
+        }
+      }
+    rmse = n > 0 ? std::sqrt(sq / n) : 0;
+  }
+};
+
+}  // namespace
+
+// Every drop where auto skipped dispersion or gravity, on 36 scenes: against the full
+// simulation, RMSE under 0.5 and no channel off by 4 levels or more in its pixels. And the
+// test is not empty: auto skips dispersion on many drops, gravity on some.
+TEST(EffectsAuto, SkippedDispersionAndGravityStayWithinTolerance) {
+  const Camera cam = camera(256, 128, 283);
+  const cv::Mat clean = demo_street(cam.width, cam.height);
+  int drops = 0, no_dispersion = 0, no_gravity = 0;
+  LevelError all, full1_error, auto1_error;
+  for (int seed = 0; seed < 36; ++seed) {
+    SCOPED_TRACE("scene " + std::to_string(seed));
+    const SceneConfig full = varied_scene(seed % 3);
+    SceneConfig automatic = full;
+    automatic.dispersion.automatic = automatic.gravity.automatic = true;
+    Rng rng(seed);
+    const SceneSample scene = sample_scene(full, cam, rng);
+    const RenderedFrame f = render_frame(clean, cam, full, scene);
+    const RenderedFrame a = render_frame(clean, cam, automatic, scene);
+    ASSERT_EQ(a.effects.drops.size(), scene.drops.size());
+    const cv::Mat disks = drop_disks(cam, scene, a.effects, [](const DropEffects& d) { return !d.dispersion || !d.gravity; });
+    LevelError e;
+    e.add(a.rainy, f.rainy, disks & covered(a, f));
+    all.add(a.rainy, f.rainy, disks & covered(a, f));
+    EXPECT_LT(e.max, kToleranceMax);
+    // Away from those drops the two renders are the same, byte for byte.
+    EXPECT_EQ(cv::norm(a.rainy, f.rainy, cv::NORM_INF, disks == 0), 0);
+    // At one sample per pixel the inside of a drop aliases: the render is further from the
+    // converged image than the effects skipped, and skipping them adds nothing that shows.
+    SceneConfig full1 = full, automatic1 = automatic;
+    full1.samples_per_pixel = automatic1.samples_per_pixel = 1;
+    full1_error.add(render_frame(clean, cam, full1, scene).rainy, f.rainy, disks & covered(a, f));
+    auto1_error.add(render_frame(clean, cam, automatic1, scene).rainy, f.rainy, disks & covered(a, f));
+    drops += static_cast<int>(scene.drops.size());
+    for (const DropEffects& d : a.effects.drops) {
+      no_dispersion += !d.dispersion;
+      no_gravity += !d.gravity;
+    }
+  }
+  // The RMSE over all of them (a frame's skipped drops may hold a single pixel).
+  EXPECT_LT(all.rmse, kToleranceRmse);
+  std::printf("skipped: dispersion on %d, gravity on %d of %d drops; %.0f pixel values, RMSE %.3f, max %.0f\n",
+              no_dispersion, no_gravity, drops, all.n, all.rmse, all.max);
+  std::printf("at 1 spp against the converged full render: full RMSE %.2f, auto RMSE %.2f\n", full1_error.rmse,
+              auto1_error.rmse);
+  EXPECT_GT(full1_error.rmse, all.rmse);
+  EXPECT_LT(auto1_error.rmse, full1_error.rmse + kToleranceRmse);
+  EXPECT_GT(no_dispersion, drops / 3) << "auto skipped dispersion on too few drops for the test to tell";
+  EXPECT_GT(no_gravity, drops / 10) << "auto skipped gravity on too few drops for the test to tell";
+}
+
+namespace {
+
+// One drop of radius about 7 px at the frame's centre, on upright glass 20 cm away, seen
+// without blur: big enough that auto keeps every effect.
+struct OneDrop {
+  Camera cam = camera(256, 128, 283);
+  cv::Mat clean = demo_street(256, 128);
+  SceneConfig config;
+  SceneSample scene;
+  OneDrop(double footprint_cm, double contact_angle_deg) {
+    config.blur.enabled = false;
+    config.dispersion.enabled = config.gravity.enabled = true;
+    config.samples_per_pixel = 64;
+    config.supersample = Supersample::All;
+    scene.glass = GlassPlane{20, 60 * kDegToRad};
+    scene.background_distance_cm = 1000;
+    scene.drops = {cap(0, 0, footprint_cm, contact_angle_deg)};
+    scene.drops[0].elongation = 1.2;
+    scene.drops[0].flattening = 0.8;
+  }
+  SceneConfig automatic() const {
+    SceneConfig c = config;
+    c.dispersion.automatic = c.gravity.automatic = true;
+    return c;
+  }
+};
+
+}  // namespace
+
+// The criteria are not just "always on": where auto keeps an effect, skipping it would break
+// the tolerance the skipped drops are held to.
+TEST(EffectsAuto, AnEffectAutoKeepsWouldShowIfSkipped) {
+  const OneDrop d(0.5, 60);
+  const RenderedFrame full = render_frame(d.clean, d.cam, d.config, d.scene);
+  const RenderedFrame a = render_frame(d.clean, d.cam, d.automatic(), d.scene);
+  ASSERT_EQ(a.effects.drops.size(), 1u);
+  EXPECT_TRUE(a.effects.drops[0].dispersion) << a.effects.drops[0].dispersion_levels << " levels";
+  EXPECT_TRUE(a.effects.drops[0].gravity) << a.effects.drops[0].gravity_levels << " levels";
+  EXPECT_EQ(cv::norm(a.rainy, full.rainy, cv::NORM_INF), 0);
+
+  // Dispersion skipped: every channel with the green index.
+  SceneConfig no_dispersion = d.config;
+  no_dispersion.dispersion.enabled = false;
+  no_dispersion.refractive_index = d.config.channel_indices().y;
+  const RenderedFrame nd = render_frame(d.clean, d.cam, no_dispersion, d.scene);
+  // Gravity skipped: the spherical cap of the same footprint.
+  SceneSample sphere = d.scene;
+  sphere.drops[0].elongation = sphere.drops[0].flattening = 1;
+  const RenderedFrame ng = render_frame(d.clean, d.cam, d.config, sphere);
+  const cv::Mat region = covered(full, nd) | covered(full, ng);
+  for (const RenderedFrame* skipped : {&nd, &ng}) {
+    LevelError e;
+    e.add(skipped->rainy, full.rainy, region);
+    EXPECT_GT(e.rmse, kToleranceRmse) << (skipped == &nd ? "dispersion" : "gravity");
+    EXPECT_GT(e.max, kToleranceMax) << (skipped == &nd ? "dispersion" : "gravity");
+  }
+}
+
+// When no drop of a frame needs dispersion, the frame runs the kernel without it, every
+// channel with the green index: the render is that of the scene without dispersion at that
+// index, byte for byte. When every drop needs it, the render is the full one, byte for byte.
+TEST(EffectsAuto, DispersionEverywhereOrNowhereIsExact) {
+  const OneDrop tiny(0.005, 60);  // a fifth of a pixel across
+  SceneConfig automatic = tiny.automatic();
+  const RenderedFrame a = render_frame(tiny.clean, tiny.cam, automatic, tiny.scene);
+  ASSERT_FALSE(a.effects.dispersion_anywhere(automatic));
+  SceneConfig green = tiny.config;
+  green.dispersion.enabled = false;
+  green.refractive_index = tiny.config.channel_indices().y;
+  SceneSample sphere = tiny.scene;
+  sphere.drops[0].elongation = sphere.drops[0].flattening = 1;
+  ASSERT_FALSE(a.effects.drops[0].gravity);
+  EXPECT_EQ(cv::norm(a.rainy, render_frame(tiny.clean, tiny.cam, green, sphere).rainy, cv::NORM_INF), 0);
+
+  // The paper's drops at 512 x 256 without blur: every one needs both effects.
+  SceneConfig full = scene_preset("paper");
+  full.blur.enabled = false;
+  full.dispersion.enabled = full.gravity.enabled = true;
+  SceneConfig every = full;
+  every.dispersion.automatic = every.gravity.automatic = true;
+  const Camera cam = camera(512, 256, 566);
+  const cv::Mat clean = demo_street(cam.width, cam.height);
+  Rng rng(3);
+  const SceneSample scene = sample_scene(full, cam, rng);
+  const RenderedFrame e = render_frame(clean, cam, every, scene);
+  for (const DropEffects& d : e.effects.drops) EXPECT_TRUE(d.dispersion && d.gravity);
+  EXPECT_EQ(cv::norm(e.rainy, render_frame(clean, cam, full, scene).rainy, cv::NORM_INF), 0);
+}
+
