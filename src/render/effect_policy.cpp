@@ -180,4 +180,11 @@ std::string gravity_why(const EffectPlan& plan) {
       [](const DropEffects& d) { return d.gravity_levels; }, [](const DropEffects& d) { return d.gravity_px; });
 }
 
+std::string supersample_why(long long aliasing_pixels, long long smooth_pixels, int samples_per_pixel) {
+  if (samples_per_pixel <= 1) return "1 sample per pixel: nothing to supersample";
+  return std::to_string(samples_per_pixel) + " samples at drop edges and in " + std::to_string(aliasing_pixels) +
+         " inside pixels whose footprint on the background varies by " + fixed(kAutoBudgetLevels, 0) +
+         " levels or more; " + std::to_string(smooth_pixels) + " inside pixels keep one";
+}
+
 }  // namespace raindrop

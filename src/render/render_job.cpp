@@ -167,6 +167,14 @@ json effects_auto_record(const SceneConfig& config, const RenderedFrame& rendere
   };
   if (plan.dispersion_auto) out["dispersion"] = per_drop(&DropEffects::dispersion, dispersion_why(plan));
   if (plan.gravity_auto) out["gravity"] = per_drop(&DropEffects::gravity, gravity_why(plan));
+  if (plan.supersample_auto) {
+    const TraceStats& s = rendered.stats;
+    out["supersample"] = {{"on", s.supersampled_pixels > 0},
+                          {"pixels", s.supersampled_pixels},
+                          {"inside_aliasing", s.aliasing_pixels},
+                          {"inside_one_sample", s.smooth_pixels},
+                          {"why", supersample_why(s.aliasing_pixels, s.smooth_pixels, config.samples_per_pixel)}};
+  }
   return out;
 }
 

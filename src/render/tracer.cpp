@@ -4,6 +4,7 @@
 #include <atomic>
 #include <cmath>
 #include <limits>
+#include <optional>
 #include <vector>
 
 #include <glm/geometric.hpp>
@@ -12,6 +13,7 @@
 
 #include "raindrop/common/rng.h"
 #include "raindrop/render/background.h"
+#include "raindrop/render/background_range.h"
 #include "raindrop/render/optics.h"
 #include "raindrop/render/sky.h"
 #include "raindrop/render/spans.h"
@@ -123,6 +125,7 @@ struct Sample {
   bool dark = false;
   bool off_frame = false;
   glm::dvec3 rgb{0};
+  glm::dvec2 xy{NAN, NAN};  // the background point seen (the green path's); NaN: none
 };
 
 template <bool kFresnel, bool kDispersion>
@@ -154,7 +157,7 @@ class Kernel {
       if (!s.hit) return s;
       s.drop = p.first_drop;
       s.dark = p.dark;
-      s.rgb = shade(p, &s.off_frame);
+      s.rgb = shade(p, &s.off_frame, &s.xy);
     } else if (disperse_) {
       // Auto: the green path first; the drop it meets says whether red and blue are traced
       // apart or take its colour (their shift there is imperceptible, effect_policy.h).
@@ -163,7 +166,7 @@ class Kernel {
       s.hit = true;
       s.drop = g.first_drop;
       s.dark = g.dark;
-      s.rgb = shade(g, &s.off_frame);
+      s.rgb = shade(g, &s.off_frame, &s.xy);
       if (!(*disperse_)[g.first_drop].dispersion) return s;
       for (int c : {0, 2}) {
         bool off = false;
@@ -176,7 +179,7 @@ class Kernel {
         const DropPath p = trace_path<kFresnel>(origin, dir, n_rgb_[c], tir_, accel_, glass_);
         if (!p.hit) return s;  // same first hit for every channel
         bool off = false;
-        s.rgb[c] = shade(p, &off)[c];
+        s.rgb[c] = shade(p, &off, c == 1 ? &s.xy : nullptr)[c];
         if (c == 1) {
           s.hit = true;
           s.drop = p.first_drop;
@@ -189,9 +192,12 @@ class Kernel {
   }
 
   glm::dvec3 clean_pixel(int x, int y) const { return bg_.pixel(x, y); }
+  const BackgroundSampler& background() const { return bg_; }
 
  private:
-  glm::dvec3 shade(const DropPath& p, bool* off_frame) const {
+  // `seen_at`, if given, receives the background point seen (left alone for a dark ray or one
+  // that reaches the car's interior).
+  glm::dvec3 shade(const DropPath& p, bool* off_frame, glm::dvec2* seen_at = nullptr) const {
     if (p.dark) return glm::dvec3(0.0);
     glm::dvec3 seen;
     if (p.escaped_in) {
@@ -200,6 +206,7 @@ class Kernel {
       const glm::dvec2 xy = background_pixel(p, camera_, scene_.background_distance_cm);
       *off_frame = !bg_.inside(xy.x, xy.y);
       seen = bg_.sample(xy.x, xy.y);
+      if (seen_at) *seen_at = xy;
     }
     if constexpr (kFresnel) {
       // Light reflected at the surfaces instead of transmitted comes from the car side.
@@ -338,9 +345,16 @@ TraceResult run(const cv::Mat& clean, const Camera& camera, const SceneConfig& c
   const int k = static_cast<int>(std::lround(std::sqrt(config.samples_per_pixel)));
   const bool need_classes = k > 1 && config.supersample != Supersample::All;
   cv::Mat classes = need_classes ? cv::Mat(camera.height, camera.width, CV_32S, cv::Scalar(-1)) : cv::Mat();
+  // Auto supersampling: the background point each drop pixel's ray saw (NaN: the dark band,
+  // infinite: the car's interior), whose distance to its neighbours' is the pixel's footprint
+  // on the background.
+  const bool automatic = k > 1 && config.supersample == Supersample::Auto;
+  cv::Mat seen_at = automatic ? cv::Mat(camera.height, camera.width, CV_32FC2, cv::Scalar::all(NAN)) : cv::Mat();
+  std::optional<BackgroundRange> variation;
+  if (automatic) variation.emplace(clean, kernel.background());
   out.spans = candidate_spans(camera, accel);
   const auto& spans = out.spans;
-  std::atomic<std::int64_t> candidates{0}, drops{0}, dark{0}, off{0}, supersampled{0};
+  std::atomic<std::int64_t> candidates{0}, drops{0}, dark{0}, off{0}, supersampled{0}, aliasing{0}, smooth{0};
   std::vector<int> row_lo(camera.height, camera.width), row_hi(camera.height, -1);
 
   // Pass 1: one ray through every candidate pixel's centre.
@@ -362,6 +376,11 @@ TraceResult run(const cv::Mat& clean, const Camera& camera, const SceneConfig& c
           n_off += s.off_frame;
           label[x] = s.drop;
           if (cls) cls[x] = edge_class(s.drop, s.dark);
+          if (automatic && !s.dark) {
+            // A ray that saw no street saw the car's interior: marked infinite.
+            seen_at.at<cv::Vec2f>(y, x) = std::isnan(s.xy.x) ? cv::Vec2f(INFINITY, INFINITY)
+                                                            : cv::Vec2f(static_cast<float>(s.xy.x), static_cast<float>(s.xy.y));
+          }
           rgb[x] = cv::Vec3f(static_cast<float>(s.rgb.x), static_cast<float>(s.rgb.y),
                              static_cast<float>(s.rgb.z));
         }
@@ -381,12 +400,50 @@ TraceResult run(const cv::Mat& clean, const Camera& camera, const SceneConfig& c
   }
   out.drop_box = box_x1 < 0 ? cv::Rect() : cv::Rect(box_x0, box_y0, box_x1 - box_x0 + 1, box_y1 - box_y0 + 1);
 
+  // Auto: does the background vary over the pixel's footprint by more than the budget
+  // (effect_policy.h)? The footprint is the largest step to a neighbour's sample: the pixel's
+  // sub-samples lie within half a step of its centre's where the map from pixels to the
+  // background is smooth. Where it is not (a neighbour's step is not matched by the opposite
+  // one: the map folds or jumps), where a neighbour saw no street and on the frame's border
+  // (no neighbour beyond it to show an edge there), the pixel is supersampled. The dark band
+  // is black and its edges are class edges: flat. With traced internal reflection, rays that
+  // are trapped, leave into the car or reach the street after reflections interleave in
+  // slivers thinner than a pixel (the class does not tell them apart): supersampled. Without
+  // it, a ray reaches the car's interior only when it leaves the cap heading back to the
+  // glass (near a rim); such a pixel is flat only among neighbours that all did.
+  auto aliases = [&](int x, int y) {
+    if (x == 0 || y == 0 || x == camera.width - 1 || y == camera.height - 1) return true;
+    const cv::Vec2f p = seen_at.at<cv::Vec2f>(y, x);
+    if (std::isnan(p[0])) return config.tir != TirMode::Black;
+    if (std::isinf(p[0])) {
+      if (config.tir != TirMode::Black) return true;
+      for (int dy = -1; dy <= 1; ++dy)
+        for (int dx = -1; dx <= 1; ++dx)
+          if (!std::isinf(seen_at.at<cv::Vec2f>(y + dy, x + dx)[0])) return true;
+      return false;
+    }
+    double size = 0;
+    constexpr int kPairs[4][2] = {{1, 0}, {0, 1}, {1, 1}, {1, -1}};
+    for (const auto& step : kPairs) {
+      const cv::Vec2f a = seen_at.at<cv::Vec2f>(y + step[1], x + step[0]);
+      const cv::Vec2f b = seen_at.at<cv::Vec2f>(y - step[1], x - step[0]);
+      if (!std::isfinite(a[0]) || !std::isfinite(b[0])) return true;
+      const double da = std::hypot(a[0] - p[0], a[1] - p[1]), db = std::hypot(b[0] - p[0], b[1] - p[1]);
+      if (std::hypot(a[0] + b[0] - 2 * p[0], a[1] + b[1] - 2 * p[1]) > 0.5 * std::max(da, db)) return true;
+      const double diagonal = step[0] != 0 && step[1] != 0 ? M_SQRT1_2 : 1.0;
+      size = std::max(size, diagonal * std::max(da, db));
+    }
+    const glm::dvec3 spread = variation->range(p[0], p[1], size);
+    return 255.0 * std::max({spread.x, spread.y, spread.z}) >= kAutoBudgetLevels;
+  };
+
   // Pass 2: supersample drop pixels on an edge (a neighbour of another class: outside, other
-  // drop, dark band) or all drop pixels, on a stratified k x k grid. The mask stays the
-  // pixel-centre rule; sub-samples that miss every drop see the clean pixel.
+  // drop, dark band), all drop pixels, or (auto) the edges and the inside pixels that alias,
+  // on a stratified k x k grid. The mask stays the pixel-centre rule; sub-samples that miss
+  // every drop see the clean pixel.
   if (k > 1) {
     tbb::parallel_for(tbb::blocked_range<int>(0, camera.height, 8), [&](const tbb::blocked_range<int>& r) {
-      std::int64_t n_ss = 0;
+      std::int64_t n_ss = 0, n_alias = 0, n_smooth = 0;
       for (int y = r.begin(); y < r.end(); ++y) {
         const int* label = out.label.ptr<int>(y);
         auto* rgb = out.color.ptr<cv::Vec3f>(y);
@@ -403,7 +460,12 @@ TraceResult run(const cv::Mat& clean, const Camera& camera, const SceneConfig& c
                   edge = classes.at<int>(yy, xx) != own;
                 }
               }
-              if (!edge) continue;
+              if (!edge && !automatic) continue;
+              if (!edge && !aliases(x, y)) {
+                ++n_smooth;
+                continue;
+              }
+              n_alias += !edge;
             }
             ++n_ss;
             glm::dvec3 sum(0.0);
@@ -420,6 +482,8 @@ TraceResult run(const cv::Mat& clean, const Camera& camera, const SceneConfig& c
         }
       }
       supersampled += n_ss;
+      aliasing += n_alias;
+      smooth += n_smooth;
     });
   }
 
@@ -428,6 +492,8 @@ TraceResult run(const cv::Mat& clean, const Camera& camera, const SceneConfig& c
   out.stats.dark_band_pixels = dark;
   out.stats.off_frame_pixels = off;
   out.stats.supersampled_pixels = supersampled;
+  out.stats.aliasing_pixels = aliasing;
+  out.stats.smooth_pixels = smooth;
   return out;
 }
 

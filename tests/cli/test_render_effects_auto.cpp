@@ -1,4 +1,4 @@
-// End-to-end: a scene that leaves dispersion and gravity to its physics
+// End-to-end: a scene that leaves dispersion, gravity and supersampling to its physics
 // ("auto", docs/SCENES.md) records in each manifest line what was simulated and why, for the
 // frame and for every drop, and the drops' recorded shapes are those rendered.
 #include "cli_test_util.h"
@@ -13,7 +13,8 @@ TEST(RenderEffectsAuto, ManifestSaysWhatWasSimulatedAndWhy) {
   write_file(tmp / "scene.json", R"({
     "name": "auto-test", "glass_distance_cm": 10, "tilt_deg": 60, "drop_count": 40,
     "footprint_radius_cm": [0.001, 0.25], "size_distribution": "log-uniform", "min_gap_cm": 0.005,
-    "effects": {"dispersion": "auto", "gravity": {"auto": true, "elongation": [1.1, 1.3]}}})");
+    "effects": {"dispersion": "auto", "gravity": {"auto": true, "elongation": [1.1, 1.3]}},
+    "quality": {"samples_per_pixel": 4, "supersample": "auto"}})");
   const auto r = run_render({"-i", "street.png", "--out", "out", "--scene", "scene.json", "-j", "1", "-q"}, tmp.path());
   ASSERT_EQ(r.code, 0) << r.describe();
   const auto records = read_manifest(tmp / "out");
@@ -46,6 +47,9 @@ TEST(RenderEffectsAuto, ManifestSaysWhatWasSimulatedAndWhy) {
     EXPECT_EQ(drop.at("elongation").get<double>(), 1.0);
     EXPECT_EQ(drop.at("flattening").get<double>(), 1.0);
   }
+  const json& ss = why.at("supersample");
+  EXPECT_GT(ss.at("pixels").get<long>(), 0);
+  EXPECT_NE(ss.at("why").get<std::string>().find("4 samples"), std::string::npos) << ss.dump();
 }
 
 // A scene without "auto" writes no effects_auto (its manifest is as it always was).

@@ -12,6 +12,10 @@
 //    from its size in pixels, contact angle, viewing angle and the index difference;
 //  - gravity, per drop: the shift of the image and outline between the deformed cap and the
 //    spherical one;
+//  - supersampling, per pixel (tracer.cpp): a drop shows the street minified, so one ray
+//    samples one point of a wide footprint on the background; a pixel keeps one ray where
+//    the background varies over its footprint by less than the budget (background_range.h),
+//    since any number of rays there averages to within that of the one;
 //  - defocus: the thin lens' own rule (defocus.h, circles of confusion under half a pixel).
 //
 // The bound is for the converged image (what a pixel integrates): at one sample per pixel the
@@ -88,5 +92,6 @@ std::vector<DropShape> rendered_shapes(const SceneSample& scene, const EffectPla
 // For the manifest: one line saying what was decided and why.
 std::string dispersion_why(const EffectPlan& plan);
 std::string gravity_why(const EffectPlan& plan);
+std::string supersample_why(long long aliasing_pixels, long long smooth_pixels, int samples_per_pixel);
 
 }  // namespace raindrop

@@ -35,6 +35,10 @@ struct TraceStats {
   std::int64_t dark_band_pixels = 0;   // total internal reflection painted black
   std::int64_t off_frame_pixels = 0;   // background sample fell outside the frame
   std::int64_t supersampled_pixels = 0;
+  // Supersample auto: inside pixels supersampled because their single sample aliases, and
+  // those left at one sample (effect_policy.h).
+  std::int64_t aliasing_pixels = 0;
+  std::int64_t smooth_pixels = 0;
 };
 
 struct TraceResult {
