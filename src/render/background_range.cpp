@@ -37,17 +37,17 @@ BackgroundRange::BackgroundRange(const cv::Mat& rgb8, const BackgroundSampler& s
 }
 
 glm::dvec3 BackgroundRange::range(double x, double y, double size) const {
-  // A bilinear sample reads the 2 x 2 pixels around its point: the footprint is at least a
-  // pixel wide. Level L's blocks are at least as wide as the footprint, so it meets at most
-  // two of them along each axis.
+  // The sampler's bilinear samples over the square read the frame pixels from
+  // floor(v - size / 2) to floor(v + size / 2) + 1 along each axis (after folding the centre
+  // into the frame: folding moves no point further from it). Level L's blocks are the first
+  // power of two at least as wide as the square, so that span meets a few of them.
   const double s = std::max(size, 1.0);
   const int level = std::min(static_cast<int>(std::ceil(std::log2(s))), static_cast<int>(lo_.size()) - 1);
-  const double block = std::ldexp(1.0, level);
   const double fx = sampler_.fold(x, lo_[0].cols), fy = sampler_.fold(y, lo_[0].rows);
   const cv::Mat &lo = lo_[level], &hi = hi_[level];
-  auto cell = [&](double v, int n) { return std::clamp(static_cast<int>(std::floor((v + 0.5) / block)), 0, n - 1); };
-  const int x0 = cell(fx - 0.5 * s, lo.cols), x1 = cell(fx + 0.5 * s, lo.cols);
-  const int y0 = cell(fy - 0.5 * s, lo.rows), y1 = cell(fy + 0.5 * s, lo.rows);
+  auto cell = [&](double v, int n) { return std::clamp(static_cast<int>(std::floor(v)), 0, n - 1) >> level; };
+  const int x0 = cell(fx - 0.5 * s, lo_[0].cols), x1 = cell(fx + 0.5 * s + 1.0, lo_[0].cols);
+  const int y0 = cell(fy - 0.5 * s, lo_[0].rows), y1 = cell(fy + 0.5 * s + 1.0, lo_[0].rows);
   glm::dvec3 out(0.0);
   for (int c = 0; c < 3; ++c) {
     int a = 255, b = 0;
