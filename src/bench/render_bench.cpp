@@ -7,6 +7,7 @@
 #include <ctime>
 #include <filesystem>
 #include <functional>
+#include <iomanip>
 #include <iostream>
 #include <memory>
 #include <optional>
@@ -22,6 +23,7 @@
 #include <tbb/parallel_for.h>
 #include <tbb/task_arena.h>
 
+#include "../cli/options.h"
 #include "bench_util.h"
 #include "raindrop/common/error.h"
 #include "raindrop/common/image_io.h"
@@ -71,19 +73,23 @@ std::vector<SceneSample> scenes_for(const SceneConfig& config, const Camera& cam
 
 // Median render-core time (Embree build + trace + blur + compose) over the scenes, frames
 // one after another, each using all `threads`.
+// `blur`, if given: the median of the blur stage alone (for the thin-lens camera's layered
+// path, the compositing of the layers).
 double core_ms(const Frame& frame, const SceneConfig& config, const std::vector<SceneSample>& scenes, int threads,
-               int repeats, std::vector<RenderedFrame>* outputs = nullptr) {
-  std::vector<double> times;
+               int repeats, std::vector<RenderedFrame>* outputs = nullptr, double* blur = nullptr) {
+  std::vector<double> times, blur_times;
   with_threads(threads, [&] {
     render_frame(frame.clean, frame.camera, config, scenes[0]);  // warm-up
     for (int r = 0; r < repeats; ++r) {
       for (size_t i = 0; i < scenes.size(); ++i) {
         RenderedFrame f = render_frame(frame.clean, frame.camera, config, scenes[i]);
         times.push_back(f.timings.core_ms());
+        blur_times.push_back(f.timings.blur_ms);
         if (outputs && r == 0) outputs->push_back(std::move(f));
       }
     }
   });
+  if (blur) *blur = median(blur_times);
   return median(times);
 }
 
@@ -419,35 +425,40 @@ void auto_table(const Input& input, int frames, int repeats) {
   }
 }
 
-// The thin-lens camera: aperture sampling at 1-256 rays per pixel and the layered fast path,
-// against aperture sampling with 256 rays, on the lens-cover and windshield-day presets.
-void lens_table(const Input& input, int frames) {
-  const cv::Size size(512, 256);
-  std::cout << "\n### Thin-lens defocus: accuracy against time (512x256, 2 threads, " << frames
-            << " frames per preset)\n\n"
+// The thin-lens camera: aperture sampling at 1-256 rays per pixel and the layered fast path
+// (and its exact per-drop form), against aperture sampling with 256 rays, on the lens-cover
+// and windshield-day presets.
+void lens_table(const Input& input, int frames, int repeats, int threads, const cv::Size& size) {
+  const Frame frame = make_frame(read_rgb8(input.png, false), input.calibration, size);
+  const double paper_ms =
+      core_ms(frame, paper_with_70_drops(), scenes_for(paper_with_70_drops(), frame.camera, frames), threads, repeats, nullptr);
+  std::cout << "\n### Thin-lens defocus: accuracy against time (" << size.width << "x" << size.height << ", "
+            << threads << (threads == 1 ? " thread, " : " threads, ") << frames << " frames per preset, median of "
+            << repeats << " repeats for the layered rows and the paper preset)\n\n"
             << "Errors over the pixels where either render has coverage above 0.01, against aperture sampling "
                "with 256 rays per pixel; RMSE and max in 8-bit levels, *coverage* = mean absolute difference "
-               "of the coverage (alpha) there. The paper preset's core time on the same frame is the yardstick.\n\n"
-            << "| preset | method | core ms | x paper | RMSE | PSNR dB | max | coverage |\n|---|---|---|---|---|---|---|---|\n";
-  const Frame frame = make_frame(read_rgb8(input.png, false), input.calibration, size);
-  const double paper_ms = core_ms(frame, paper_with_70_drops(), scenes_for(paper_with_70_drops(), frame.camera, frames), 2, 3, nullptr);
+               "of the coverage (alpha) there. The paper preset's core time on the same frame is the yardstick; "
+               "*layers ms* is the layered compositing alone (the rest of the core is the pinhole trace). Paper "
+               "preset core on this frame: " << std::fixed << std::setprecision(1) << paper_ms << std::defaultfloat << " ms.\n\n"
+            << "| preset | method | core ms | x paper | layers ms | RMSE | PSNR dB | max | coverage |\n"
+            << "|---|---|---|---|---|---|---|---|---|\n";
   for (const char* preset : {"lens-cover", "windshield-day"}) {
     const SceneConfig fast = scene_preset(preset);
     const std::vector<SceneSample> scenes = scenes_for(fast, frame.camera, frames);
-    auto with = [&](int samples) {
+    auto with = [&](DefocusMethod method, int samples) {
       SceneConfig c = fast;
-      c.lens.method = DefocusMethod::Aperture;
+      c.lens.method = method;
       c.lens.aperture_samples = samples;
       return c;
     };
     std::cerr << "bench render: lens reference " << preset << "\n";
     std::vector<RenderedFrame> reference;
-    const double ref_ms = core_ms(frame, with(256), scenes, 2, 1, &reference);
-    auto row = [&](const std::string& method, const SceneConfig& c, int repeats) {
+    const double ref_ms = core_ms(frame, with(DefocusMethod::Aperture, 256), scenes, threads, 1, &reference);
+    auto row = [&](const std::string& method, const SceneConfig& c, int row_repeats) {
       std::vector<RenderedFrame> out;
-      const double ms = c.lens.aperture_samples == 256 && c.lens.method == DefocusMethod::Aperture
-                            ? ref_ms
-                            : core_ms(frame, c, scenes, 2, repeats, &out);
+      double layers = 0;
+      const bool is_reference = c.lens.aperture_samples == 256 && c.lens.method == DefocusMethod::Aperture;
+      const double ms = is_reference ? ref_ms : core_ms(frame, c, scenes, threads, row_repeats, &out, &layers);
       if (out.empty()) out = reference;
       double sq = 0, n = 0, worst = 0, cov = 0;
       for (size_t i = 0; i < reference.size(); ++i) {
@@ -456,12 +467,18 @@ void lens_table(const Input& input, int frames) {
         cov += cv::mean(cv::abs(out[i].alpha - reference[i].alpha), inside)[0] * cv::countNonZero(inside);
       }
       const double rmse = n > 0 ? std::sqrt(sq / n) : 0;
-      std::printf("| %s | %s | %.1f | %.1f | %.2f | %.1f | %.0f | %.3f |\n", preset, method.c_str(), ms, ms / paper_ms,
-                  rmse, rmse > 0 ? 20 * std::log10(255.0 / rmse) : 99.0, worst, n > 0 ? 3 * cov / n : 0.0);
+      char layers_text[32] = "-";
+      if (c.lens.method != DefocusMethod::Aperture) std::snprintf(layers_text, sizeof layers_text, "%.1f", layers);
+      std::printf("| %s | %s | %.1f | %.1f | %s | %.2f | %.1f | %.0f | %.3f |\n", preset, method.c_str(), ms,
+                  ms / paper_ms, layers_text, rmse, rmse > 0 ? 20 * std::log10(255.0 / rmse) : 99.0, worst,
+                  n > 0 ? 3 * cov / n : 0.0);
       std::fflush(stdout);
     };
-    row("layered (fast path)", fast, 3);
-    for (int samples : {1, 4, 16, 64, 256}) row("aperture, " + std::to_string(samples) + " rays", with(samples), 1);
+    row("layered (fast path)", fast, repeats);
+    row("layered-exact (filter2D per drop)", with(DefocusMethod::LayeredExact, 16), repeats);
+    for (int samples : {1, 4, 16, 64, 256}) {
+      row("aperture, " + std::to_string(samples) + " rays", with(DefocusMethod::Aperture, samples), 1);
+    }
   }
 }
 
@@ -471,6 +488,8 @@ namespace {
 
 struct RenderBenchOptions {
   std::string input_path, shared = "../shared/data", sections = "time,effects,auto,accuracy,lens,png";
+  std::string lens_size = "512x256";
+  int lens_threads = 2;
   int frames = 6, repeats = 3;
   bool quick = false;
 };
@@ -540,6 +559,11 @@ std::function<int()> add_render_bench(CLI::App& parent) {
   app->add_option("--repeats", o->repeats, "Repetitions; medians are reported")->capture_default_str()->check(CLI::Range(1, 100));
   app->add_option("--sections", o->sections, "Comma-separated: time, effects, auto, accuracy, lens, png")->capture_default_str();
   app->add_flag("--quick", o->quick, "Small and fast (a smoke run): 512x256 time table only, 1 frame");
+  app->add_option("--lens-size", o->lens_size, "WIDTHxHEIGHT of the lens section's frame (2048x1024: the 256-ray "
+                                               "reference alone takes minutes)")
+      ->capture_default_str()->check(cli::width_height(16));
+  app->add_option("--lens-threads", o->lens_threads, "Threads for the lens section")->capture_default_str()
+      ->check(CLI::Range(1, 1024));
   return [o] { return run_render_bench(*o); };
 }
 
@@ -587,7 +611,7 @@ int run_render_bench(RenderBenchOptions o) {
   if (sections.find("effects") != std::string::npos) effects_table(input, frames, repeats);
   if (sections.find("auto") != std::string::npos) auto_table(input, frames, repeats);
   if (sections.find("accuracy") != std::string::npos) accuracy_table(input, std::min(frames, 3), 1);
-  if (sections.find("lens") != std::string::npos) lens_table(input, std::min(frames, 2));
+  if (sections.find("lens") != std::string::npos) lens_table(input, std::min(frames, 2), repeats, o.lens_threads, *cli::parse_width_height(o.lens_size));
   std::error_code ec;
   fs::remove_all(tmp, ec);
   return 0;

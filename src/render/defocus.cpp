@@ -6,24 +6,23 @@
 #include <opencv2/imgproc.hpp>
 
 #include "raindrop/render/blur.h"
+#include "raindrop/render/layer_mix.h"
 #include "raindrop/render/srgb.h"
 
 namespace raindrop {
 namespace {
 
-// Below this, a pixel's coverage is rounding noise of the convolution, not light.
-constexpr float kNoCoverage = 1e-5f;
-
 // Writes linear radiance where coverage > kNoCoverage, the clean bytes elsewhere.
 cv::Mat encode(const cv::Mat& clean, const cv::Mat& linear, const cv::Mat& coverage) {
   cv::Mat rainy = clean.clone();
+  const SrgbTables& srgb = SrgbTables::get();
   for (int y = 0; y < clean.rows; ++y) {
     const float* a = coverage.ptr<float>(y);
     const auto* rgb = linear.ptr<cv::Vec3f>(y);
     auto* out = rainy.ptr<cv::Vec3b>(y);
     for (int x = 0; x < clean.cols; ++x) {
       if (!(a[x] > kNoCoverage)) continue;
-      for (int c = 0; c < 3; ++c) out[x][c] = linear_to_srgb8(rgb[x][c]);
+      for (int c = 0; c < 3; ++c) out[x][c] = srgb.encode(rgb[x][c]);
     }
   }
   return rainy;
@@ -31,10 +30,15 @@ cv::Mat encode(const cv::Mat& clean, const cv::Mat& linear, const cv::Mat& cover
 
 }  // namespace
 
-DefocusedFrame composite_layers(const cv::Mat& clean, const TraceResult& traced, const Camera& camera,
-                                const SceneSample& scene, const std::vector<Drop>& drops) {
+double layer_blur_diameter(const SceneSample& scene, const Drop& drop, double fx, cv::Size frame) {
+  const double coc = scene.drop_coc_px(drop.shape(), fx);
+  const double diameter = std::isfinite(coc) ? std::min(coc, 2.0 * std::max(frame.width, frame.height)) : 0.0;
+  return diameter >= kMinVisibleCocPx ? diameter : 0.0;
+}
+
+DefocusedFrame composite_layers_exact(const cv::Mat& clean, const TraceResult& traced, const Camera& camera,
+                                      const SceneSample& scene, const std::vector<Drop>& drops) {
   CV_Assert(clean.type() == CV_8UC3 && traced.label.size() == clean.size());
-  const auto& lin = srgb8_to_linear_table();
   DefocusedFrame out;
   out.coc_px.assign(drops.size(), 0.0);
   // Each drop's pixel box in the pinhole render.
@@ -53,13 +57,9 @@ DefocusedFrame composite_layers(const cv::Mat& clean, const TraceResult& traced,
   const cv::Rect frame(0, 0, clean.cols, clean.rows);
   for (size_t d = 0; d < drops.size(); ++d) {
     if (box[d].area() == 0) continue;
-    const double coc = scene.drop_coc_px(drops[d].shape(), camera.fx);
-    // Kernel reach, bounded so that a pathological scene cannot ask for a frame-sized kernel
-    // per drop (the blur is then simply as wide as the frame).
-    // A drop centred behind the lens (infinite circle) is left sharp, as before.
-    const double diameter = std::isfinite(coc) ? std::min(coc, 2.0 * std::max(clean.cols, clean.rows)) : 0.0;
-    const bool blurred = diameter >= kMinVisibleCocPx;
-    out.coc_px[d] = blurred ? diameter : 0.0;
+    const double diameter = layer_blur_diameter(scene, drops[d], camera.fx, clean.size());
+    const bool blurred = diameter > 0;
+    out.coc_px[d] = diameter;
     cv::Mat kernel;
     int reach = 0;
     if (blurred) {
@@ -90,25 +90,16 @@ DefocusedFrame composite_layers(const cv::Mat& clean, const TraceResult& traced,
     A(region) += a;
     C(region) += aR;
   }
-  // Composite: where blurred drops overlap past full coverage, they share it.
-  cv::Mat linear(clean.size(), CV_32FC3, cv::Scalar::all(0));
+  out.rainy = clean.clone();
+  out.coverage = cv::Mat(clean.size(), CV_32F, cv::Scalar(0));
   for (int y = 0; y < clean.rows; ++y) {
-    float* a = A.ptr<float>(y);
+    const float* a = A.ptr<float>(y);
     const auto* c = C.ptr<cv::Vec3f>(y);
     const auto* b = clean.ptr<cv::Vec3b>(y);
-    auto* o = linear.ptr<cv::Vec3f>(y);
-    for (int x = 0; x < clean.cols; ++x) {
-      if (!(a[x] > kNoCoverage)) {
-        a[x] = 0;
-        continue;
-      }
-      const float scale = a[x] > 1.0f ? 1.0f / a[x] : 1.0f;
-      a[x] = std::min(a[x], 1.0f);
-      for (int k = 0; k < 3; ++k) o[x][k] = (1.0f - a[x]) * lin[b[x][k]] + scale * c[x][k];
-    }
+    float* coverage = out.coverage.ptr<float>(y);
+    auto* rainy = out.rainy.ptr<cv::Vec3b>(y);
+    for (int x = 0; x < clean.cols; ++x) mix_layers(a[x], c[x].val, b[x].val, &coverage[x], rainy[x].val);
   }
-  out.rainy = encode(clean, linear, A);
-  out.coverage = A;
   return out;
 }
 

@@ -18,7 +18,8 @@ void finish_mask(const SceneConfig& config, RenderedFrame& frame) {
   frame.stats.drop_pixels = cv::countNonZero(frame.mask);
 }
 
-// The thin-lens camera: layered compositing (fast) or aperture sampling (reference).
+// The thin-lens camera: layered compositing (fast, or its exact per-drop form) or aperture
+// sampling (reference).
 // A drop just outside the frame still spreads light into it, so both run on the frame
 // widened by the largest circle's radius (the clean frame mirrored into the margin, as the
 // border mode continues it) and are cropped back.
@@ -44,7 +45,9 @@ RenderedFrame render_defocused(const cv::Mat& clean, const Camera& camera, const
     frame.stats = traced.stats;
     frame.timings.trace_ms = ms_since(t0);
     t0 = Clock::now();
-    out = composite_layers(wide, traced, wide_camera, scene, drops);
+    out = config.lens.method == DefocusMethod::LayeredExact
+              ? composite_layers_exact(wide, traced, wide_camera, scene, drops)
+              : composite_layers(wide, traced, wide_camera, scene, drops);
     frame.timings.blur_ms = ms_since(t0);
   }
   t0 = Clock::now();

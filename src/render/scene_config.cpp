@@ -157,7 +157,14 @@ Enum parse_enum(Reader& r, const std::string& key, Enum fallback,
 const char* to_string(BorderMode m) { return m == BorderMode::Clamp ? "clamp" : "mirror"; }
 const char* to_string(TirMode m) { return m == TirMode::Black ? "black" : "trace"; }
 const char* to_string(SizeDistribution d) { return d == SizeDistribution::Uniform ? "uniform" : "log-uniform"; }
-const char* to_string(DefocusMethod m) { return m == DefocusMethod::Layered ? "layered" : "aperture"; }
+const char* to_string(DefocusMethod m) {
+  switch (m) {
+    case DefocusMethod::Layered: return "layered";
+    case DefocusMethod::LayeredExact: return "layered-exact";
+    case DefocusMethod::Aperture: return "aperture";
+  }
+  return "?";
+}
 const char* to_string(Supersample s) {
   return s == Supersample::Edges ? "edges" : (s == Supersample::All ? "all" : "auto");
 }
@@ -253,7 +260,9 @@ SceneConfig parse_scene_json(const std::string& text, const std::string& origin)
     l.range("f_number", &c.lens.f_number, 0.5, 1e6);
     l.range("focal_length_mm", &c.lens.focal_length_mm, 0.5, 2000);
     c.lens.method = parse_enum<DefocusMethod>(l, "defocus", c.lens.method,
-                                              {{"layered", DefocusMethod::Layered}, {"aperture", DefocusMethod::Aperture}});
+                                              {{"layered", DefocusMethod::Layered},
+                                               {"layered-exact", DefocusMethod::LayeredExact},
+                                               {"aperture", DefocusMethod::Aperture}});
     double samples = c.lens.aperture_samples;
     l.number("aperture_samples", &samples, 1, 1024);
     const int side = static_cast<int>(std::lround(std::sqrt(samples)));

@@ -6,7 +6,8 @@ Writes ``rdn.onnx`` (image -> mask_prob, sigmoid inside), ``rrn.onnx`` (image, e
 reconstruction) and ``rfn.onnx`` (blend -> restored): opset 18, float32 NCHW, dynamic N, H
 and W, metadata ``raindrop.*``, each checked with ``onnx.checker`` and against PyTorch in
 ONNX Runtime. Also writes ``export.json`` (configuration, GFLOPs at 256x512, sha256 of each
-graph). The networks handle any H, W internally, so ``raindrop.pad_multiple`` is 1.
+graph). The networks accept any H, W, so ``raindrop.pad_multiple`` is 1; the pipelines still pad
+to even sizes (CONTRACTS.md section 2: the stride-2 body was trained on even crops).
 """
 
 from __future__ import annotations

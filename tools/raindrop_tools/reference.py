@@ -8,8 +8,10 @@ Exactly, in float32:
 
 1. ``R`` = RGB uint8 / 255 (``imageio.to_float``), HxWx3.
 2. ``E`` = ``edge.edge_map_numpy(R)`` on the unpadded image. Then ``R`` and ``E`` are padded
-   at the bottom and right (replicate) to multiples of ``raindrop.pad_multiple`` (the largest
-   of the three graphs'; 1 for the models of raindrop_tools.export, i.e. no padding).
+   at the bottom and right (replicate) to multiples of 2 and of ``raindrop.pad_multiple`` (the
+   least common multiple; 2 for the models of raindrop_tools.export). Always even: the RDN and
+   3RN have a stride-2 body trained on even crops, and at an odd size their bottom or right
+   border rows come out wrong (tens of levels; the C++ Models says more).
 3. ``P`` = rdn(R); ``M0 = P > float32(threshold)`` (strictly greater, compared in float32).
 4. ``M`` = ``cv2.dilate(M0, getStructuringElement(MORPH_ELLIPSE, (k, k)))`` on the padded
    mask (default border: outside pixels never count); k = 1: ``M = M0``.
@@ -114,7 +116,7 @@ class RaindropRemover:
             raise ModelError(f"{self.models_dir}: unreadable raindrop.* metadata: {e}") from None
         if min(multiples) < 1:
             raise ModelError(f"{self.models_dir}: raindrop.pad_multiple must be >= 1")
-        self.pad_multiple = math.lcm(*multiples)
+        self.pad_multiple = math.lcm(2, *multiples)
 
     # ------------------------------------------------------------------ steps
 

@@ -29,7 +29,7 @@ inline constexpr int kMaxDilation = 1023;
 // The raindrop.* metadata the three graphs agree on.
 struct ModelInfo {
   std::string config;     // raindrop.config, e.g. "compact"
-  int pad_multiple = 1;   // lcm of the graphs' raindrop.pad_multiple
+  int pad_multiple = 2;   // lcm of 2 and the graphs' raindrop.pad_multiple (model.cpp says why 2)
   double threshold = 0.5; // raindrop.threshold of rdn.onnx (the training default), in (0, 1)
   int dilation = 1;       // raindrop.dilation of rdn.onnx, 1..kMaxDilation
   // Optional raindrop.working_size of rdn.onnx: the long side, in pixels, of the frames the

@@ -7,9 +7,17 @@
 //     A = sum_d blur_d(a_d),   I = (1 - A) B + sum_d blur_d(a_d R_d)
 // (A clamped to 1 where blurred drops overlap). A drop smaller than its circle of confusion
 // so never reaches A = 1: it is semi-transparent, and its image spreads beyond its outline,
-// as in real photographs. What this ignores, against the aperture reference (aperture.h):
-// the parallax of the drop's view across the aperture and the blur's variation inside one
-// drop; the accuracy/time table measures the difference.
+// as in real photographs. What this ignores, against the aperture reference (tracer.h,
+// trace_aperture): the parallax of the drop's view across the aperture and the blur's
+// variation inside one drop; the accuracy/time table measures the difference.
+//
+// Two implementations of the same sums: composite_layers spreads every layer with the disk's
+// rows (disk_kernel.h: a prefix-sum run and the rim's partial taps per row, O(d) per pixel),
+// output row by output row on all threads, and touches only the rows and columns a layer can
+// reach; circles of 96 px and more it spreads on a coarser grid (defocus_rows.cpp).
+// composite_layers_exact convolves each drop's layer with the dense disk by cv::filter2D, one
+// drop after another (the method before; `"defocus": "layered-exact"`). They agree to float
+// rounding below 96 px, within 1/255 in coverage above (tests/render/test_defocus.cpp).
 #include <vector>
 
 #include <opencv2/core.hpp>
@@ -31,9 +39,21 @@ struct DefocusedFrame {
 // change no pixel by more than rounding (the `auto` rule of the thin-lens camera).
 inline constexpr double kMinVisibleCocPx = 0.5;
 
-// `traced`: the pinhole trace of `drops` over `clean` (CV_8UC3 RGB).
+// The diameter (pixels) of the disk that spreads `drop`'s layer; 0: left sharp (a circle under
+// kMinVisibleCocPx, or a drop centred behind the lens, whose circle is infinite). Bounded by
+// twice the frame's longer side, so that a pathological scene cannot ask for a kernel wider
+// than the frame per drop (the blur is then simply as wide as the frame).
+double layer_blur_diameter(const SceneSample& scene, const Drop& drop, double fx, cv::Size frame);
+
+// `traced`: the pinhole trace of `drops` over `clean` (CV_8UC3 RGB). Runs on the calling
+// thread's TBB arena; the result does not depend on the number of threads.
 DefocusedFrame composite_layers(const cv::Mat& clean, const TraceResult& traced, const Camera& camera,
                                 const SceneSample& scene, const std::vector<Drop>& drops);
+
+// The same with one cv::filter2D per drop and dense kernels: the reference the fast path is
+// tested against, and the bench's "layered-exact" row.
+DefocusedFrame composite_layers_exact(const cv::Mat& clean, const TraceResult& traced, const Camera& camera,
+                                      const SceneSample& scene, const std::vector<Drop>& drops);
 
 // The reference's result in the same form: linear radiance where coverage > 0, the clean
 // bytes elsewhere.

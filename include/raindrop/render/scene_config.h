@@ -24,8 +24,10 @@ enum class BorderMode { Clamp, Mirror };
 enum class BlurMethod { DiskSpan, DiskDirect, DiskAntialiased, Gaussian };
 enum class TirMode { Black, Trace };
 enum class SizeDistribution { Uniform, LogUniform };
-// How a thin-lens camera's defocus of the drops is rendered (see defocus.h, aperture.h).
-enum class DefocusMethod { Layered, Aperture };
+// How a thin-lens camera's defocus of the drops is rendered (see defocus.h; the aperture
+// reference is tracer.h's trace_aperture). LayeredExact: the layered sums with one dense
+// cv::filter2D per drop, kept to compare the fast path against.
+enum class DefocusMethod { Layered, LayeredExact, Aperture };
 // Which drop pixels get samples_per_pixel > 1: those on an edge (next to another drop, the
 // background or the dark band), every drop pixel, or (auto) the edges and the inside pixels
 // whose single sample aliases (effect_policy.h).

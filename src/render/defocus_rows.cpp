@@ -1,0 +1,431 @@
+// composite_layers (defocus.h): every drop's layer spread by its disk, output row by output
+// row. The layer of one drop is zero outside that drop's pixels, so each layer keeps only the
+// rows from the drop's first to its last pixel, padded, with per-row prefix sums; an output
+// row then adds, for each drop that can reach it and each row of that drop's disk (rows dy and
+// -dy together: they weigh the same), the run of full weight (two prefix reads) and the rim's
+// partial taps (disk_kernel.h), over the columns those rows of the drop can reach. Circles of
+// 96 px and more are spread on a coarser grid and interpolated back (kCoarseDiameter).
+// Nothing is done for pixels that no drop's circle reaches.
+//
+// Threads take bands of output rows (and of a coarse layer's cell rows); every output pixel is
+// summed by one thread, in the same order (drop, disk row, run then taps) whatever the number
+// of threads, so the result does not depend on it.
+#include "raindrop/render/defocus.h"
+
+#include <algorithm>
+#include <climits>
+#include <cmath>
+#include <cstdlib>
+#include <vector>
+
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
+
+#include "raindrop/render/disk_kernel.h"
+#include "raindrop/render/layer_mix.h"
+#include "raindrop/render/spans.h"
+#include "raindrop/render/srgb.h"
+
+namespace raindrop {
+namespace {
+
+// a R (linear RGB) and a in one SIMD register (GCC/Clang vector extension, as in blur.cpp).
+typedef float f4 __attribute__((vector_size(16)));
+
+// A row of the disk as the inner loop reads it: the run [lo, hi] of full weight, and the
+// partial taps of the rim in mirrored pairs (the disk is symmetric: dx and -dx weigh the
+// same) or alone (dx = 0). Row dy > 0 stands for rows dy and -dy, which weigh the same.
+struct SpreadRow {
+  int dy = 0;  // >= 0
+  int reach = 0;       // the largest |dx| of the row
+  int lo = 1, hi = 0;  // empty when lo > hi
+  int pair_begin = 0, pair_end = 0;
+  float centre = 0;    // weight of a lone tap at dx = 0
+};
+
+struct TapPair {
+  int dx;  // > 0: taps dx and -dx
+  float w;
+};
+
+// The normalised disk of one drop (weights as blur_kernel's, in float).
+struct Spread {
+  std::vector<SpreadRow> rows;
+  std::vector<TapPair> pairs;
+  float run_weight = 0;  // of each tap in a run
+  int reach_x = 0, reach_y = 0;
+};
+
+// A run this short is cheaper as taps (a tap is one read, a run two), and exact.
+constexpr int kMinRun = 3;
+
+Spread make_spread(double diameter) {
+  Spread s;
+  if (!(diameter > 0)) {  // left sharp: the identity, exactly
+    SpreadRow row;
+    row.centre = 1.0f;
+    s.rows.push_back(row);
+    return s;
+  }
+  const std::vector<KernelRow> rows = disk_rows(diameter, true, true);
+  double total = 0;
+  for (const KernelRow& r : rows) {
+    if (r.run_lo <= r.run_hi) total += r.run_hi - r.run_lo + 1;
+    for (const auto& [dx, w] : r.taps) total += w;
+  }
+  s.run_weight = static_cast<float>(1.0 / total);
+  for (const KernelRow& r : rows) {
+    s.reach_y = std::max(s.reach_y, std::abs(r.dy));
+    if (r.dy < 0) continue;  // the disk's weights depend on |dy| only (disk_kernel.cpp): row -dy is row dy
+    SpreadRow row;
+    row.dy = r.dy;
+    // Every tap of the row with its normalised weight, by dx; a short run becomes taps.
+    std::vector<std::pair<int, float>> taps;
+    if (r.run_hi - r.run_lo + 1 >= kMinRun) {
+      row.lo = r.run_lo;
+      row.hi = r.run_hi;
+      row.reach = std::max(std::abs(r.run_lo), std::abs(r.run_hi));
+    } else {
+      for (int dx = r.run_lo; dx <= r.run_hi; ++dx) taps.push_back({dx, s.run_weight});
+    }
+    for (const auto& [dx, w] : r.taps) taps.push_back({dx, static_cast<float>(w / total)});
+    row.pair_begin = static_cast<int>(s.pairs.size());
+    for (const auto& [dx, w] : taps) {
+      row.reach = std::max(row.reach, std::abs(dx));
+      if (dx == 0) {
+        row.centre = w;
+      } else if (dx > 0) {
+        // The disk's weights depend on |dx| only (disk_kernel.cpp), so -dx is in the row too.
+        s.pairs.push_back({dx, w});
+      }
+    }
+    row.pair_end = static_cast<int>(s.pairs.size());
+    s.reach_x = std::max(s.reach_x, row.reach);
+    s.rows.push_back(row);
+  }
+  return s;
+}
+
+// Rows of an image that is zero outside a drop, from its first row (y0): per row the first
+// and last column that may be non-zero, and the values and their prefix sums on columns
+// [x0, x0 + width), which hold every row's non-zero columns with `pad` zeros on both sides
+// (twice the disk's reach): the inner loop of spread_row reads every tap and run of an
+// output pixel that a row reaches without bounds checks, and rows dy and -dy of the disk
+// share their column offsets.
+struct Rows {
+  int y0 = -1;  // -1: empty
+  int x0 = 0, width = 0, pad = 0;
+  std::vector<Span> extent;  // per row; first > second: nothing on that row
+  std::vector<f4> value;     // rows x width
+  std::vector<f4> prefix;    // rows x (width + 1): 0, v0, v0 + v1, ...
+  Spread spread;
+
+  bool has_row(int j) const {
+    return j >= 0 && j < static_cast<int>(extent.size()) && extent[j].first <= extent[j].second;
+  }
+  // Zero values for the extents, with `pad` = twice the spread's reach.
+  void allocate() {
+    pad = 2 * spread.reach_x;
+    int lo = INT_MAX, hi = INT_MIN;
+    for (const Span& e : extent) {
+      if (e.first > e.second) continue;
+      lo = std::min(lo, e.first);
+      hi = std::max(hi, e.second);
+    }
+    x0 = lo - pad;
+    width = hi - lo + 1 + 2 * pad;
+    value.assign(extent.size() * width, f4{0, 0, 0, 0});
+    prefix.resize(extent.size() * (width + 1));
+  }
+  f4& at(int j, int x) { return value[static_cast<size_t>(j) * width + (x - x0)]; }
+  const f4* value_row(int j) const { return value.data() + static_cast<size_t>(j) * width; }
+  const f4* prefix_row(int j) const { return prefix.data() + static_cast<size_t>(j) * (width + 1); }
+  void sum_rows() {
+    for (size_t j = 0; j < extent.size(); ++j) {
+      if (extent[j].first > extent[j].second) continue;
+      const f4* v = value_row(j);
+      f4* p = prefix.data() + j * (width + 1);
+      p[0] = f4{0, 0, 0, 0};
+      for (int i = 0; i < width; ++i) p[i + 1] = p[i] + v[i];
+    }
+  }
+};
+
+// Adds `rows`, spread by its disk, to output row y: acc[x] for x in [0, width).
+void spread_row(const Rows& rows, int y, int width, f4* acc);
+
+// A circle of confusion at least twice this wide is spread on a coarser grid of s x s pixel
+// blocks, s = floor(diameter / kCoarseDiameter): the block averages are spread by the disk of
+// diameter / s (>= kCoarseDiameter cells) and the result is interpolated back (bilinear). That
+// costs O(diameter / s^3) per pixel instead of O(diameter) (at 2048 px, lens-cover's
+// 180-pixel circles: about 70 ms instead of 730), and differs from the exact spread by what
+// the extra smoothing, about s pixels wide, changes in a disk at least 48 s wide: most at the
+// peak of a drop about as wide as its circle, where the spread coverage has a cone-like tip.
+// Measured on lens-cover frames at 2048 px and on the tests' scenes: coverage within 0.86/255
+// and the image within one level; 32 gave 1.9/255 (tests/render/test_defocus.cpp checks 1/255).
+constexpr double kCoarseDiameter = 48;
+
+int coarse_scale(double diameter) { return std::max(1, static_cast<int>(diameter / kCoarseDiameter)); }
+
+// One drop's layer: its pixels in the pinhole render, (a R, a) in linear light, and how it
+// is spread.
+struct Layer {
+  Rows rows;       // scale 1: the drop's pixels, frame coordinates; else its s x s block averages,
+                   // in cells from (cell_x0, cell_y0)
+  int scale = 1;
+  // scale > 1: the spread block averages, cells_high x cells_wide from cell (cell_x0, cell_y0).
+  int cell_x0 = 0, cell_y0 = 0, cells_wide = 0, cells_high = 0;
+  std::vector<f4> cells;
+  cv::Rect reach;  // the pixels of the frame its spread layer can reach
+};
+
+// The drop's pixel (a R, a), decoded from the trace.
+inline f4 traced_value(const cv::Vec3f& rgb, const SrgbTables& srgb) {
+  f4 out{0, 0, 0, 1.0f};
+  for (int c = 0; c < 3; ++c) out[c] = std::isfinite(rgb[c]) ? srgb.decode(rgb[c]) : 0.0f;
+  return out;
+}
+
+// Fills the layer from the trace and spreads it where it is coarse; `layer.rows.y0` and
+// `extent` hold the drop's pixels (frame coordinates).
+void build_layer(Layer& layer, int index, const TraceResult& traced, double diameter, cv::Size frame) {
+  const SrgbTables& srgb = SrgbTables::get();
+  Rows& px = layer.rows;
+  const int n_rows = static_cast<int>(px.extent.size());
+  int x_lo = INT_MAX, x_hi = INT_MIN;
+  for (const Span& e : px.extent) {
+    if (e.first > e.second) continue;
+    x_lo = std::min(x_lo, e.first);
+    x_hi = std::max(x_hi, e.second);
+  }
+  layer.scale = coarse_scale(diameter);
+  if (layer.scale == 1) {
+    px.spread = make_spread(diameter);
+    px.allocate();
+    for (int j = 0; j < n_rows; ++j) {
+      const Span e = px.extent[j];
+      const int* label = traced.label.ptr<int>(px.y0 + j);
+      const auto* rgb = traced.color.ptr<cv::Vec3f>(px.y0 + j);
+      for (int x = e.first; x <= e.second; ++x) {
+        if (label[x] == index) px.at(j, x) = traced_value(rgb[x], srgb);
+      }
+    }
+    px.sum_rows();
+    const Spread& s = px.spread;
+    layer.reach = cv::Rect(x_lo - s.reach_x, px.y0 - s.reach_y, x_hi - x_lo + 1 + 2 * s.reach_x, n_rows + 2 * s.reach_y) &
+                  cv::Rect(0, 0, frame.width, frame.height);
+    return;
+  }
+  // Coarse: cell (u, v) averages pixels [u s, u s + s) x [v s, v s + s) of the frame. The cells
+  // are counted from one beyond the spread's reach, so the spread is computed whole (also
+  // beyond the frame's edge, which the interpolation next to the edge reads).
+  const int s = layer.scale;
+  Rows cell;
+  cell.spread = make_spread(diameter / s);
+  const int u0 = x_lo / s, u1 = x_hi / s, v0 = px.y0 / s, v1 = (px.y0 + n_rows - 1) / s;
+  layer.cell_x0 = u0 - cell.spread.reach_x - 1;
+  layer.cell_y0 = v0 - cell.spread.reach_y - 1;
+  layer.cells_wide = u1 - u0 + 1 + 2 * cell.spread.reach_x + 2;
+  layer.cells_high = v1 - v0 + 1 + 2 * cell.spread.reach_y + 2;
+  cell.y0 = v0 - layer.cell_y0;
+  cell.extent.assign(v1 - v0 + 1, Span{INT_MAX, INT_MIN});
+  for (int j = 0; j < n_rows; ++j) {
+    const Span e = px.extent[j];
+    if (e.first > e.second) continue;
+    Span& c = cell.extent[(px.y0 + j) / s - v0];
+    c.first = std::min(c.first, e.first / s - layer.cell_x0);
+    c.second = std::max(c.second, e.second / s - layer.cell_x0);
+  }
+  cell.allocate();
+  const float area = 1.0f / static_cast<float>(s * s);
+  for (int j = 0; j < n_rows; ++j) {
+    const Span e = px.extent[j];
+    const int y = px.y0 + j, jc = y / s - v0;
+    const int* label = traced.label.ptr<int>(y);
+    const auto* rgb = traced.color.ptr<cv::Vec3f>(y);
+    for (int x = e.first; x <= e.second; ++x) {
+      if (label[x] == index) cell.at(jc, x / s - layer.cell_x0) += area * traced_value(rgb[x], srgb);
+    }
+  }
+  cell.sum_rows();
+  layer.cells.assign(static_cast<size_t>(layer.cells_wide) * layer.cells_high, f4{0, 0, 0, 0});
+  tbb::parallel_for(0, layer.cells_high, [&](int r) {
+    spread_row(cell, r, layer.cells_wide, layer.cells.data() + static_cast<size_t>(r) * layer.cells_wide);
+  });
+  layer.rows = std::move(cell);
+  // Pixel x sits at cell coordinate (x + 0.5) / s - 0.5: the interpolation reads cells
+  // [0, cells_wide) for x from (cell_x0 + 0.5) s - 0.5 to (cell_x0 + cells_wide - 0.5) s - 0.5.
+  auto first_pixel = [s](int c) { return static_cast<int>(std::ceil((c + 0.5) * s - 0.5)); };
+  const int xa = first_pixel(layer.cell_x0), ya = first_pixel(layer.cell_y0);
+  const int xb = first_pixel(layer.cell_x0 + layer.cells_wide - 1), yb = first_pixel(layer.cell_y0 + layer.cells_high - 1);
+  layer.reach = cv::Rect(xa, ya, xb - xa, yb - ya) & cv::Rect(0, 0, frame.width, frame.height);
+}
+
+// Adds a coarse layer's spread, interpolated (bilinear), to output row y over its reach.
+void interpolate_row(const Layer& layer, int y, f4* acc) {
+  const double inv = 1.0 / layer.scale;
+  const double fy = (y + 0.5) * inv - 0.5 - layer.cell_y0;
+  const int iy = std::min(static_cast<int>(std::floor(fy)), layer.cells_high - 2);
+  const float wy = static_cast<float>(fy - iy);
+  const f4* r0 = layer.cells.data() + static_cast<size_t>(iy) * layer.cells_wide;
+  const f4* r1 = r0 + layer.cells_wide;
+  for (int x = layer.reach.x; x < layer.reach.x + layer.reach.width; ++x) {
+    const double fx = (x + 0.5) * inv - 0.5 - layer.cell_x0;
+    const int ix = std::min(static_cast<int>(std::floor(fx)), layer.cells_wide - 2);
+    const float wx = static_cast<float>(fx - ix);
+    const f4 top = r0[ix] + wx * (r0[ix + 1] - r0[ix]), bottom = r1[ix] + wx * (r1[ix + 1] - r1[ix]);
+    acc[x] += top + wy * (bottom - top);
+  }
+}
+
+// One disk row (or mirrored pair of rows) over columns [ia, ib) of the layer's storage, added
+// to acc[x0 + i]: a and b are the layer rows it reads (b: the mirrored row, when kPair), pa and
+// pb their prefix sums.
+template <bool kPair, bool kRun>
+inline void spread_loop(const SpreadRow& k, const Spread& s, const f4* a, const f4* pa, const f4* b, const f4* pb,
+                        int ia, int ib, int x0, f4* acc) {
+  const TapPair* pairs = s.pairs.data() + k.pair_begin;
+  const int n_pairs = k.pair_end - k.pair_begin;
+  for (int i = ia; i < ib; ++i) {
+    f4 sum;
+    if constexpr (kRun) {
+      f4 run = pa[i + k.hi + 1] - pa[i + k.lo];
+      if constexpr (kPair) run += pb[i + k.hi + 1] - pb[i + k.lo];
+      sum = s.run_weight * run;
+    } else {
+      f4 centre = a[i];
+      if constexpr (kPair) centre += b[i];
+      sum = k.centre * centre;
+    }
+    for (int t = 0; t < n_pairs; ++t) {
+      const int dx = pairs[t].dx;
+      f4 taps = a[i + dx] + a[i - dx];
+      if constexpr (kPair) taps += b[i + dx] + b[i - dx];
+      sum += pairs[t].w * taps;
+    }
+    acc[x0 + i] += sum;
+  }
+}
+
+void spread_row(const Rows& layer, int y, int width, f4* acc) {
+  const Spread& s = layer.spread;
+  for (const SpreadRow& k : s.rows) {
+    const int ja = y + k.dy - layer.y0, jb = y - k.dy - layer.y0;
+    const bool has_a = layer.has_row(ja), has_b = k.dy > 0 && layer.has_row(jb);
+    if (!has_a && !has_b) continue;
+    // The output columns these rows reach, within the disk row's reach of their pixels; the
+    // rows are padded by twice the disk's reach, so every read stays in the storage.
+    int lo = INT_MAX, hi = INT_MIN;
+    for (int j : {ja, jb}) {
+      if (!(j == ja ? has_a : has_b)) continue;
+      lo = std::min(lo, layer.extent[j].first);
+      hi = std::max(hi, layer.extent[j].second);
+    }
+    const int ia = std::max(lo - k.reach, 0) - layer.x0, ib = std::min(hi + k.reach, width - 1) + 1 - layer.x0;
+    const int one = has_a ? ja : jb;
+    const f4 *a = layer.value_row(one), *pa = layer.prefix_row(one);
+    const f4 *b = has_b ? layer.value_row(jb) : a, *pb = has_b ? layer.prefix_row(jb) : pa;
+    const bool run = k.lo <= k.hi;  // a row with a run has its centre in the run
+    const int x0 = layer.x0;
+    if (has_a && has_b) {
+      run ? spread_loop<true, true>(k, s, a, pa, b, pb, ia, ib, x0, acc)
+          : spread_loop<true, false>(k, s, a, pa, b, pb, ia, ib, x0, acc);
+    } else {
+      run ? spread_loop<false, true>(k, s, a, pa, a, pa, ia, ib, x0, acc)
+          : spread_loop<false, false>(k, s, a, pa, a, pa, ia, ib, x0, acc);
+    }
+  }
+}
+
+}  // namespace
+
+DefocusedFrame composite_layers(const cv::Mat& clean, const TraceResult& traced, const Camera& camera,
+                                const SceneSample& scene, const std::vector<Drop>& drops) {
+  CV_Assert(clean.type() == CV_8UC3 && traced.label.size() == clean.size());
+  const int W = clean.cols, H = clean.rows;
+  DefocusedFrame out;
+  out.coc_px.assign(drops.size(), 0.0);
+  out.rainy = clean.clone();
+  out.coverage = cv::Mat(clean.size(), CV_32F, cv::Scalar(0));
+
+  // Each drop's first and last pixel per row, from the traced pixels (the tracer's spans, or
+  // the drop pixels' box when a trace has none).
+  std::vector<Layer> layers(drops.size());
+  const cv::Rect all = traced.drop_box;
+  const bool have_spans = static_cast<int>(traced.spans.size()) == H;
+  for (int y = all.y; y < all.y + all.height; ++y) {
+    const int* label = traced.label.ptr<int>(y);
+    auto visit = [&](int x0, int x1) {
+      for (int x = std::max(x0, all.x); x <= std::min(x1, all.x + all.width - 1); ++x) {
+        const int d = label[x];
+        if (d < 0) continue;
+        Rows& rows = layers[d].rows;
+        if (rows.y0 < 0) rows.y0 = y;
+        const size_t j = static_cast<size_t>(y - rows.y0);
+        if (rows.extent.size() <= j) rows.extent.resize(j + 1, Span{INT_MAX, INT_MIN});
+        rows.extent[j].first = std::min(rows.extent[j].first, x);
+        rows.extent[j].second = std::max(rows.extent[j].second, x);
+      }
+    };
+    if (have_spans) {
+      for (const auto& [x0, x1] : traced.spans[y]) visit(x0, x1);
+    } else {
+      visit(all.x, all.x + all.width - 1);
+    }
+  }
+  std::vector<int> present;
+  for (size_t d = 0; d < drops.size(); ++d) {
+    if (layers[d].rows.y0 >= 0) present.push_back(static_cast<int>(d));
+  }
+  tbb::parallel_for(size_t{0}, present.size(), [&](size_t i) {
+    const int d = present[i];
+    out.coc_px[d] = layer_blur_diameter(scene, drops[d], camera.fx, clean.size());
+    build_layer(layers[d], d, traced, out.coc_px[d], clean.size());
+  });
+
+  int y_begin = H, y_end = 0;
+  for (int d : present) {
+    y_begin = std::min(y_begin, layers[d].reach.y);
+    y_end = std::max(y_end, layers[d].reach.y + layers[d].reach.height);
+  }
+  if (y_begin >= y_end) return out;
+  tbb::parallel_for(tbb::blocked_range<int>(y_begin, y_end, 4), [&](const tbb::blocked_range<int>& r) {
+    std::vector<const Layer*> active;  // in drop order: the order of the sums
+    for (int d : present) {
+      const cv::Rect& reach = layers[d].reach;
+      if (reach.y < r.end() && reach.y + reach.height > r.begin()) active.push_back(&layers[d]);
+    }
+    std::vector<f4> acc(W);
+    std::vector<Span> spans;  // the columns of row y that some layer reaches
+    for (int y = r.begin(); y < r.end(); ++y) {
+      spans.clear();
+      for (const Layer* layer : active) {
+        if (y < layer->reach.y || y >= layer->reach.y + layer->reach.height) continue;
+        spans.push_back({layer->reach.x, layer->reach.x + layer->reach.width - 1});
+      }
+      if (spans.empty()) continue;
+      merge_spans(spans);
+      for (const auto& [xa, xb] : spans) std::fill(acc.begin() + xa, acc.begin() + xb + 1, f4{0, 0, 0, 0});
+      for (const Layer* layer : active) {
+        if (y < layer->reach.y || y >= layer->reach.y + layer->reach.height) continue;
+        if (layer->scale == 1) {
+          spread_row(layer->rows, y, W, acc.data());
+        } else {
+          interpolate_row(*layer, y, acc.data());
+        }
+      }
+      const auto* b = clean.ptr<cv::Vec3b>(y);
+      float* coverage = out.coverage.ptr<float>(y);
+      auto* rainy = out.rainy.ptr<cv::Vec3b>(y);
+      for (const auto& [xa, xb] : spans) {
+        for (int x = xa; x <= xb; ++x) {
+          const float c[3] = {acc[x][0], acc[x][1], acc[x][2]};
+          mix_layers(acc[x][3], c, b[x].val, &coverage[x], rainy[x].val);
+        }
+      }
+    }
+  });
+  return out;
+}
+
+}  // namespace raindrop
