@@ -4,6 +4,7 @@
 
 #include <cmath>
 #include <cstdio>
+#include <ctime>
 #include <filesystem>
 #include <functional>
 #include <iomanip>
@@ -92,6 +93,33 @@ double core_ms(const Frame& frame, const SceneConfig& config, const std::vector<
   return median(times);
 }
 
+// The same for two settings, frame by frame in turn, so that a change of the machine's load
+// falls on both alike: their ratio is what the two settings cost, not when each ran. Also
+// the processor time of each render (all threads), which other jobs on the machine inflate
+// less than the wall time.
+struct PairedTimes {
+  double core_ms[2], cpu_ms[2];
+};
+PairedTimes paired_core_ms(const Frame& frame, const SceneConfig* configs[2], const std::vector<SceneSample>& scenes,
+                           int threads, int repeats, std::vector<RenderedFrame> outputs[2]) {
+  std::vector<double> wall[2], cpu[2];
+  with_threads(threads, [&] {
+    for (int k = 0; k < 2; ++k) render_frame(frame.clean, frame.camera, *configs[k], scenes[0]);  // warm-up
+    for (int r = 0; r < repeats; ++r) {
+      for (size_t i = 0; i < scenes.size(); ++i) {
+        for (int k = 0; k < 2; ++k) {
+          const std::clock_t c0 = std::clock();
+          RenderedFrame f = render_frame(frame.clean, frame.camera, *configs[k], scenes[i]);
+          cpu[k].push_back(1000.0 * static_cast<double>(std::clock() - c0) / CLOCKS_PER_SEC);
+          wall[k].push_back(f.timings.core_ms());
+          if (r == 0) outputs[k].push_back(std::move(f));
+        }
+      }
+    }
+  });
+  return {{median(wall[0]), median(wall[1])}, {median(cpu[0]), median(cpu[1])}};
+}
+
 void time_table(const Input& input, const std::vector<cv::Size>& sizes, int frames, int repeats, const fs::path& tmp) {
   std::cout << "\n### Time per frame (paper scene, 70 drops)\n\n"
             << "Decode = read + crop/resize; trace includes building the Embree scene; encode = three PNGs "
@@ -171,6 +199,21 @@ void time_table(const Input& input, const std::vector<cv::Size>& sizes, int fram
   }
 }
 
+// Every effect the renderer has, on everywhere: the full simulation auto is measured against.
+void everything_on(SceneConfig& c) {
+  c.fresnel.enabled = c.dispersion.enabled = c.gravity.enabled = true;
+  c.dispersion.automatic = c.gravity.automatic = false;
+  c.tir = TirMode::Trace;
+  c.samples_per_pixel = 4;
+  c.supersample = Supersample::All;
+}
+
+// The same left to the scene's physics (effect_policy.h).
+void make_auto(SceneConfig& c) {
+  c.dispersion.automatic = c.gravity.automatic = true;
+  c.supersample = Supersample::Auto;
+}
+
 void effects_table(const Input& input, int frames, int repeats) {
   const cv::Size size(2048, 1024);
   std::cout << "\n### What each effect costs (2048x1024, 2 threads, render core per frame)\n\n"
@@ -196,6 +239,11 @@ void effects_table(const Input& input, int frames, int repeats) {
          c.fresnel.enabled = c.dispersion.enabled = c.gravity.enabled = true;
          c.tir = TirMode::Trace;
          c.samples_per_pixel = 4;
+       }},
+      {"+ all of the above, 4 spp in every drop pixel (everything on)", [](SceneConfig& c) { everything_on(c); }},
+      {"+ all of the above, auto (dispersion, gravity, supersampling)", [](SceneConfig& c) {
+         everything_on(c);
+         make_auto(c);
        }},
       {"paper (again)", [](SceneConfig&) {}},
   };
@@ -269,7 +317,7 @@ void accuracy_table(const Input& input, int frames, int repeats) {
   std::cerr << "bench render: accuracy reference (64 spp everywhere)\n";
   SceneConfig ref_config = base;
   ref_config.samples_per_pixel = 64;
-  ref_config.supersample_edges_only = false;
+  ref_config.supersample = Supersample::All;
   std::vector<RenderedFrame> reference;
   const double ref_ms = core_ms(frame, ref_config, scenes, 2, 1, &reference);
   std::printf("| reference | exact, 64 spp in all drop pixels | %.1f | 0 | - | 0 | 0 |\n", ref_ms);
@@ -294,7 +342,7 @@ void accuracy_table(const Input& input, int frames, int repeats) {
     for (bool edges : {true, false}) {
       SceneConfig c = base;
       c.samples_per_pixel = spp;
-      c.supersample_edges_only = edges;
+      c.supersample = edges ? Supersample::Edges : Supersample::All;
       row("samples", std::to_string(spp) + " spp " + (edges ? "at drop edges" : "in all drop pixels"), c, reference);
     }
   }
@@ -309,6 +357,71 @@ void accuracy_table(const Input& input, int frames, int repeats) {
     SceneConfig c = base;
     c.blur.enabled = false;
     row("blur", "none", c, aa);
+  }
+}
+
+// "auto" against everything on, on the paper's scene, on windshield-day (small drops seen
+// through a thin lens) and on lens-cover (drops a few cm from the lens, far out of focus), and
+// supersampling alone on the paper's scene (its dark band black), at the paper's 2048 px and
+// at the 512 px training size: time, error over the drop pixels, and what auto skipped.
+void auto_table(const Input& input, int frames, int repeats) {
+  std::cout << "\n### Effects chosen by physics: auto against everything on (2 threads, " << frames
+            << " frames per row)\n\n"
+            << "*Everything on*: the scene plus Fresnel, dispersion, gravity, traced internal reflection and 4 samples "
+               "in every drop pixel (*paper, 4 spp only*: the paper's scene with 4 samples in every drop pixel); "
+               "*auto*: the same with dispersion, gravity and supersampling \"auto\", timed frame "
+               "by frame in turn with it (medians; *CPU ms*: processor time of the render, both threads; the paper "
+               "scene alone is the yardstick of *vs paper*). Errors "
+               "over the pixels inside either render's drops (mask, or coverage above 0.01), in 8-bit levels. "
+               "*Skipped*: dispersion and gravity, share of the drops; supersampling, share of the inside drop "
+               "pixels (not at an edge) left at one sample.\n\n"
+            << "| scene | size | setting | core ms | vs paper | CPU ms | core vs everything on | CPU vs everything on | "
+               "RMSE | PSNR dB | max | dispersion skipped | gravity skipped | one sample |\n"
+               "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n";
+  for (const cv::Size size : {cv::Size(2048, 1024), cv::Size(512, 256)}) {
+    const Frame frame = make_frame(read_rgb8(input.png, false), input.calibration, size);
+    const double paper_ms =
+        core_ms(frame, paper_with_70_drops(), scenes_for(paper_with_70_drops(), frame.camera, frames), 2, repeats);
+    for (const char* preset : {"paper", "windshield-day", "lens-cover", "paper, 4 spp only"}) {
+      const std::string name = preset;
+      SceneConfig on = name.rfind("paper", 0) == 0 ? paper_with_70_drops() : scene_preset(preset);
+      if (name == "paper, 4 spp only") {
+        on.samples_per_pixel = 4;  // the paper's effects and black dark band, supersampled
+        on.supersample = Supersample::All;
+      } else {
+        everything_on(on);
+      }
+      SceneConfig automatic = on;
+      make_auto(automatic);
+      const std::vector<SceneSample> scenes = scenes_for(on, frame.camera, frames);
+      std::cerr << "bench render: auto " << preset << " " << size.width << "x" << size.height << "\n";
+      const SceneConfig* configs[2] = {&on, &automatic};
+      std::vector<RenderedFrame> outputs[2];
+      const PairedTimes t = paired_core_ms(frame, configs, scenes, 2, repeats, outputs);
+      const std::vector<RenderedFrame>&full = outputs[0], &chosen = outputs[1];
+      double sq = 0, n = 0, worst = 0, drops = 0, no_dispersion = 0, no_gravity = 0, one = 0, inside = 0;
+      for (size_t i = 0; i < full.size(); ++i) {
+        auto covered = [](const RenderedFrame& f) { return f.alpha.empty() ? cv::Mat(f.mask > 0) : cv::Mat(f.alpha > 0.01f); };
+        add_error(chosen[i].rainy, full[i].rainy, covered(chosen[i]) | covered(full[i]), &sq, &n, &worst);
+        for (const DropEffects& d : chosen[i].effects.drops) {
+          drops += 1;
+          no_dispersion += !d.dispersion;
+          no_gravity += !d.gravity;
+        }
+        one += static_cast<double>(chosen[i].stats.smooth_pixels);
+        inside += static_cast<double>(chosen[i].stats.smooth_pixels + chosen[i].stats.aliasing_pixels);
+      }
+      const double rmse = n > 0 ? std::sqrt(sq / n) : 0;
+      const std::string dims = std::to_string(size.width) + "x" + std::to_string(size.height);
+      std::printf("| %s | %s | everything on | %.1f | %.2fx | %.1f | 1.00x | 1.00x | 0 | - | 0 | 0%% | 0%% | 0%% |\n",
+                  preset, dims.c_str(), t.core_ms[0], t.core_ms[0] / paper_ms, t.cpu_ms[0]);
+      std::printf("| %s | %s | auto | %.1f | %.2fx | %.1f | %.2fx | %.2fx | %.2f | %.1f | %.0f | %.0f%% | %.0f%% | %.0f%% |\n",
+                  preset, dims.c_str(), t.core_ms[1], t.core_ms[1] / paper_ms, t.cpu_ms[1], t.core_ms[1] / t.core_ms[0],
+                  t.cpu_ms[1] / t.cpu_ms[0], rmse,
+                  rmse > 0 ? 20 * std::log10(255.0 / rmse) : 99.0, worst, 100 * no_dispersion / std::max(drops, 1.0),
+                  100 * no_gravity / std::max(drops, 1.0), 100 * one / std::max(inside, 1.0));
+      std::fflush(stdout);
+    }
   }
 }
 
@@ -374,7 +487,7 @@ void lens_table(const Input& input, int frames, int repeats, int threads, const 
 namespace {
 
 struct RenderBenchOptions {
-  std::string input_path, shared = "../shared/data", sections = "time,effects,accuracy,lens,png";
+  std::string input_path, shared = "../shared/data", sections = "time,effects,auto,accuracy,lens,png";
   std::string lens_size = "512x256";
   int lens_threads = 2;
   int frames = 6, repeats = 3;
@@ -444,7 +557,7 @@ std::function<int()> add_render_bench(CLI::App& parent) {
   app->add_option("--shared-data", o->shared, "Where ../shared/data is")->capture_default_str();
   app->add_option("--frames", o->frames, "Frames (different drops) per measurement")->capture_default_str()->check(CLI::Range(1, 100));
   app->add_option("--repeats", o->repeats, "Repetitions; medians are reported")->capture_default_str()->check(CLI::Range(1, 100));
-  app->add_option("--sections", o->sections, "Comma-separated: time, effects, accuracy, lens, png")->capture_default_str();
+  app->add_option("--sections", o->sections, "Comma-separated: time, effects, auto, accuracy, lens, png")->capture_default_str();
   app->add_flag("--quick", o->quick, "Small and fast (a smoke run): 512x256 time table only, 1 frame");
   app->add_option("--lens-size", o->lens_size, "WIDTHxHEIGHT of the lens section's frame (2048x1024: the 256-ray "
                                                "reference alone takes minutes)")
@@ -496,6 +609,7 @@ int run_render_bench(RenderBenchOptions o) {
   if (sections.find("time") != std::string::npos) time_table(input, sizes, frames, repeats, tmp);
   if (sections.find("png") != std::string::npos) png_table(input, std::max(repeats, 3), tmp);
   if (sections.find("effects") != std::string::npos) effects_table(input, frames, repeats);
+  if (sections.find("auto") != std::string::npos) auto_table(input, frames, repeats);
   if (sections.find("accuracy") != std::string::npos) accuracy_table(input, std::min(frames, 3), 1);
   if (sections.find("lens") != std::string::npos) lens_table(input, std::min(frames, 2), repeats, o.lens_threads, *cli::parse_width_height(o.lens_size));
   std::error_code ec;

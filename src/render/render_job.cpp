@@ -153,13 +153,48 @@ json drop_record(const DropShape& d, bool gravity, double coc_px, bool lens) {
   return j;
 }
 
+// What the scene's "auto" effects decided for a frame, and why (effect_policy.h).
+json effects_auto_record(const SceneConfig& config, const RenderedFrame& rendered) {
+  const EffectPlan& plan = rendered.effects;
+  json out = json::object();
+  auto per_drop = [&](bool DropEffects::*on, const std::string& why) {
+    int count = 0;
+    for (const DropEffects& d : plan.drops) count += d.*on;
+    return json{{"on", count > 0},
+                {"drops_on", count},
+                {"drops_off", static_cast<int>(plan.drops.size()) - count},
+                {"why", why}};
+  };
+  if (plan.dispersion_auto) out["dispersion"] = per_drop(&DropEffects::dispersion, dispersion_why(plan));
+  if (plan.gravity_auto) out["gravity"] = per_drop(&DropEffects::gravity, gravity_why(plan));
+  if (plan.supersample_auto) {
+    const TraceStats& s = rendered.stats;
+    out["supersample"] = {{"on", s.supersampled_pixels > 0},
+                          {"pixels", s.supersampled_pixels},
+                          {"inside_aliasing", s.aliasing_pixels},
+                          {"inside_one_sample", s.smooth_pixels},
+                          {"why", supersample_why(s.aliasing_pixels, s.smooth_pixels, config.samples_per_pixel)}};
+  }
+  return out;
+}
+
 json sample_record(const std::string& id, const InputImage& input, int variant, std::uint64_t seed,
                    const Frame& frame, const SceneConfig& config, const SceneSample& scene,
                    const RenderedFrame& rendered, const std::string& job) {
   json drops = json::array();
-  for (size_t i = 0; i < scene.drops.size(); ++i)
-    drops.push_back(drop_record(scene.drops[i], config.gravity.enabled,
+  // The drops as rendered (gravity undone where auto skipped it).
+  const std::vector<DropShape> shapes = rendered_shapes(scene, rendered.effects);
+  for (size_t i = 0; i < shapes.size(); ++i) {
+    drops.push_back(drop_record(shapes[i], config.gravity.enabled,
                                 i < rendered.coc_px.size() ? rendered.coc_px[i] : 0.0, config.lens.enabled));
+    const EffectPlan& plan = rendered.effects;
+    if (plan.dispersion_auto)
+      drops.back()["dispersion"] = {{"on", plan.drops[i].dispersion}, {"spread_px", plan.drops[i].spread_px},
+                                    {"levels", plan.drops[i].dispersion_levels}};
+    if (plan.gravity_auto)
+      drops.back()["gravity"] = {{"on", plan.drops[i].gravity}, {"shift_px", plan.drops[i].gravity_px},
+                                 {"levels", plan.drops[i].gravity_levels}};
+  }
   const double px = static_cast<double>(rendered.stats.drop_pixels);
   json record{{"id", id},
               {"rainy", "rainy/" + id + ".png"},
@@ -190,6 +225,7 @@ json sample_record(const std::string& id, const InputImage& input, int variant, 
               {"off_frame_fraction", px > 0 ? rendered.stats.off_frame_pixels / px : 0.0},
               {"renderer", "raindrop-render " + renderer_version()},
               {"job", job}};
+  if (rendered.effects.any_auto()) record["effects_auto"] = effects_auto_record(config, rendered);
   if (config.lens.enabled) {
     record["alpha"] = "alpha/" + id + ".png";
     record["lens"] = {{"f_number", scene.f_number},

@@ -36,11 +36,12 @@ RenderedFrame render_defocused(const cv::Mat& clean, const Camera& camera, const
   auto t0 = Clock::now();
   DefocusedFrame out;
   if (config.lens.method == DefocusMethod::Aperture) {
-    out = encode_aperture(wide, trace_aperture(wide, wide_camera, config, scene, accel, config.lens.aperture_samples));
+    out = encode_aperture(wide, trace_aperture(wide, wide_camera, config, scene, accel, config.lens.aperture_samples,
+                                               &frame.effects));
     frame.timings.trace_ms = ms_since(t0);
     for (const Drop& d : drops) out.coc_px.push_back(scene.drop_coc_px(d.shape(), camera.fx));
   } else {
-    const TraceResult traced = trace_drops(wide, wide_camera, config, scene, accel);
+    const TraceResult traced = trace_drops(wide, wide_camera, config, scene, accel, &frame.effects);
     frame.stats = traced.stats;
     frame.timings.trace_ms = ms_since(t0);
     t0 = Clock::now();
@@ -68,25 +69,30 @@ RenderedFrame render_frame(const cv::Mat& clean, const Camera& camera, const Sce
                            const SceneSample& scene) {
   RenderedFrame frame;
   auto t0 = Clock::now();
+  // Skip the lens when no drop's circle of confusion reaches half a pixel: the pinhole
+  // render is then what the lens would give, to rounding.
+  double largest = 0;
+  const bool lens = config.lens.enabled && scene.aperture_cm() > 0;
+  if (lens) {
+    for (const DropShape& d : scene.drops) largest = std::max(largest, scene.drop_coc_px(d, camera.fx));
+  }
+  const bool defocus = lens && largest >= kMinVisibleCocPx;
+  // The effects the scene leaves to its physics ("auto"), per drop; gravity is undone on the
+  // drops where it does not show.
+  frame.effects = plan_effects(config, scene, camera, defocus);
   std::vector<Drop> drops;
   drops.reserve(scene.drops.size());
-  for (const DropShape& shape : scene.drops) drops.emplace_back(shape, scene.glass);
+  for (const DropShape& shape : rendered_shapes(scene, frame.effects)) drops.emplace_back(shape, scene.glass);
   DropAccel accel(drops, config.geometry);
   // Non-overlapping footprints mean non-overlapping caps (a cap never reaches past its
   // footprint for contact angles up to 90 degrees).
   accel.set_disjoint(!config.allow_overlap);
   frame.timings.accel_ms = ms_since(t0);
 
-  if (config.lens.enabled && scene.aperture_cm() > 0) {
-    // Skip the lens when no drop's circle of confusion reaches half a pixel: the pinhole
-    // render is then what the lens would give, to rounding.
-    double largest = 0;
-    for (const Drop& d : drops) largest = std::max(largest, scene.drop_coc_px(d.shape(), camera.fx));
-    if (largest >= kMinVisibleCocPx) return render_defocused(clean, camera, config, scene, accel, drops, largest, frame);
-  }
+  if (defocus) return render_defocused(clean, camera, config, scene, accel, drops, largest, frame);
 
   t0 = Clock::now();
-  TraceResult traced = trace_drops(clean, camera, config, scene, accel);
+  TraceResult traced = trace_drops(clean, camera, config, scene, accel, &frame.effects);
   frame.timings.trace_ms = ms_since(t0);
   frame.stats = traced.stats;
 

@@ -2,6 +2,7 @@
 
 #include <cmath>
 #include <fstream>
+#include <functional>
 #include <iomanip>
 #include <map>
 #include <set>
@@ -35,6 +36,13 @@ class Reader {
   bool has(const std::string& key) {
     seen_.insert(key);
     return j_.contains(key);
+  }
+
+  // Whether `key` holds the string "auto" (an effect left to the scene's physics, the same
+  // as {"auto": true}).
+  bool is_auto(const std::string& key) const {
+    const json& v = j_.at(key);
+    return v.is_string() && v.get<std::string>() == "auto";
   }
 
   // A number (fixed value) or [lo, hi] with lo <= hi, both inside [min, max].
@@ -157,6 +165,9 @@ const char* to_string(DefocusMethod m) {
   }
   return "?";
 }
+const char* to_string(Supersample s) {
+  return s == Supersample::Edges ? "edges" : (s == Supersample::All ? "all" : "auto");
+}
 const char* to_string(BlurMethod m) {
   switch (m) {
     case BlurMethod::DiskSpan: return "disk";
@@ -173,8 +184,8 @@ std::vector<std::string> SceneConfig::effect_names() const {
   if (lens.enabled) names.push_back(std::string("defocus-") + to_string(lens.method));
   if (sky.enabled) names.push_back("sky");
   if (fresnel.enabled) names.push_back("fresnel");
-  if (dispersion.enabled) names.push_back("dispersion");
-  if (gravity.enabled) names.push_back("gravity");
+  if (dispersion.enabled) names.push_back(dispersion.automatic ? "dispersion-auto" : "dispersion");
+  if (gravity.enabled) names.push_back(gravity.automatic ? "gravity-auto" : "gravity");
   return names;
 }
 
@@ -261,10 +272,14 @@ SceneConfig parse_scene_json(const std::string& text, const std::string& origin)
     l.reject_unknown();
   }
 
-  // Effects: present = on.
+  // Effects: present = on; dispersion and gravity may be "auto" (or carry "auto": true).
   c.blur.enabled = c.fresnel.enabled = c.dispersion.enabled = c.gravity.enabled = c.sky.enabled = false;
   if (r.has("effects")) {
     Reader e = r.child("effects");
+    for (const char* fixed : {"blur", "sky", "fresnel"}) {
+      if (e.has(fixed) && e.is_auto(fixed))
+        e.fail(std::string("'") + fixed + "' has no \"auto\" (only dispersion, gravity and quality.supersample do)");
+    }
     if (e.has("blur")) {
       Reader b = e.child("blur");
       c.blur.enabled = true;
@@ -289,19 +304,25 @@ SceneConfig parse_scene_json(const std::string& text, const std::string& origin)
       f.vec3("interior_rgb", &c.fresnel.interior_rgb, 0, 1);
       f.reject_unknown();
     }
-    if (e.has("dispersion")) {
-      Reader d = e.child("dispersion");
-      c.dispersion.enabled = true;
-      d.vec3("wavelength_nm", &c.dispersion.wavelength_nm, 380, 780);
-      d.reject_unknown();
-    }
-    if (e.has("gravity")) {
-      Reader g = e.child("gravity");
-      c.gravity.enabled = true;
+    // Dispersion and gravity: "auto", or their object, where "auto": true says the same.
+    auto may_be_auto = [&](const char* key, bool* enabled, bool* automatic, const std::function<void(Reader&)>& read) {
+      if (!e.has(key)) return;
+      *enabled = true;
+      if (e.is_auto(key)) {
+        *automatic = true;
+        return;
+      }
+      Reader r = e.child(key);
+      r.boolean("auto", automatic);
+      read(r);
+      r.reject_unknown();
+    };
+    may_be_auto("dispersion", &c.dispersion.enabled, &c.dispersion.automatic,
+                [&](Reader& d) { d.vec3("wavelength_nm", &c.dispersion.wavelength_nm, 380, 780); });
+    may_be_auto("gravity", &c.gravity.enabled, &c.gravity.automatic, [&](Reader& g) {
       g.range("elongation", &c.gravity.elongation, 1, 3);
       g.range("flattening", &c.gravity.flattening, 0.1, 1);
-      g.reject_unknown();
-    }
+    });
     e.reject_unknown();
   }
 
@@ -328,9 +349,8 @@ SceneConfig parse_scene_json(const std::string& text, const std::string& origin)
     const int side = static_cast<int>(std::lround(std::sqrt(spp)));
     if (side * side != spp) q.fail("'samples_per_pixel' must be a square number (1, 4, 9, 16, ...)");
     c.samples_per_pixel = static_cast<int>(spp);
-    const std::string where = q.string("supersample", "edges");
-    if (where != "edges" && where != "all") q.fail("'supersample' must be 'edges' or 'all'");
-    c.supersample_edges_only = where == "edges";
+    c.supersample = parse_enum<Supersample>(q, "supersample", c.supersample,
+                                            {{"edges", Supersample::Edges}, {"all", Supersample::All}, {"auto", Supersample::Auto}});
     c.border = parse_enum<BorderMode>(q, "border", c.border,
                                       {{"clamp", BorderMode::Clamp}, {"mirror", BorderMode::Mirror}});
     q.reject_unknown();
@@ -373,12 +393,19 @@ std::string scene_to_json(const SceneConfig& c) {
   if (c.blur.enabled) effects["blur"] = {{"diameter_px_2048", range(c.blur.diameter_px_2048)}, {"method", to_string(c.blur.method)}};
   if (c.sky.enabled) effects["sky"] = {{"fade_rows", c.sky.fade_rows}, {"gain", c.sky.gain}};
   if (c.fresnel.enabled) effects["fresnel"] = {{"interior_rgb", vec3(c.fresnel.interior_rgb)}};
-  if (c.dispersion.enabled) effects["dispersion"] = {{"wavelength_nm", vec3(c.dispersion.wavelength_nm)}};
-  if (c.gravity.enabled) effects["gravity"] = {{"elongation", range(c.gravity.elongation)}, {"flattening", range(c.gravity.flattening)}};
+  // "auto" only where it is on, so that a scene without it prints as it always did.
+  if (c.dispersion.enabled) {
+    effects["dispersion"] = {{"wavelength_nm", vec3(c.dispersion.wavelength_nm)}};
+    if (c.dispersion.automatic) effects["dispersion"]["auto"] = true;
+  }
+  if (c.gravity.enabled) {
+    effects["gravity"] = {{"elongation", range(c.gravity.elongation)}, {"flattening", range(c.gravity.flattening)}};
+    if (c.gravity.automatic) effects["gravity"]["auto"] = true;
+  }
   j["effects"] = effects;
   j["quality"] = {{"geometry", c.geometry.describe()},
                   {"samples_per_pixel", c.samples_per_pixel},
-                  {"supersample", c.supersample_edges_only ? "edges" : "all"},
+                  {"supersample", to_string(c.supersample)},
                   {"border", to_string(c.border)}};
   return j.dump(2);
 }

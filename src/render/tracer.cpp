@@ -4,6 +4,7 @@
 #include <atomic>
 #include <cmath>
 #include <limits>
+#include <optional>
 #include <vector>
 
 #include <glm/geometric.hpp>
@@ -12,6 +13,7 @@
 
 #include "raindrop/common/rng.h"
 #include "raindrop/render/background.h"
+#include "raindrop/render/background_range.h"
 #include "raindrop/render/optics.h"
 #include "raindrop/render/sky.h"
 #include "raindrop/render/spans.h"
@@ -123,13 +125,15 @@ struct Sample {
   bool dark = false;
   bool off_frame = false;
   glm::dvec3 rgb{0};
+  glm::dvec2 xy{NAN, NAN};  // the background point seen (the green path's); NaN: none
 };
 
 template <bool kFresnel, bool kDispersion>
 class Kernel {
  public:
+  // `plan`: with dispersion auto, the drops whose colours are traced apart.
   Kernel(const cv::Mat& clean, const Camera& camera, const SceneConfig& config,
-         const SceneSample& scene, const DropAccel& accel)
+         const SceneSample& scene, const DropAccel& accel, const EffectPlan* plan)
       : bg_(clean, config.border),
         camera_(camera),
         scene_(scene),
@@ -137,7 +141,8 @@ class Kernel {
         accel_(accel),
         tir_(config.tir),
         interior_(config.fresnel.enabled ? config.fresnel.interior_rgb : glm::dvec3(0.0)),
-        n_rgb_(config.channel_indices()) {
+        n_rgb_(config.channel_indices()),
+        disperse_(plan && plan->dispersion_auto ? &plan->drops : nullptr) {
     if (config.sky.enabled) bg_.set_sky(estimate_sky_rgb(clean, config.sky.gain), config.sky.fade_rows * clean.rows);
   }
 
@@ -152,7 +157,21 @@ class Kernel {
       if (!s.hit) return s;
       s.drop = p.first_drop;
       s.dark = p.dark;
-      s.rgb = shade(p, &s.off_frame);
+      s.rgb = shade(p, &s.off_frame, &s.xy);
+    } else if (disperse_) {
+      // Auto: the green path first; the drop it meets says whether red and blue are traced
+      // apart or take its colour (their shift there is imperceptible, effect_policy.h).
+      const DropPath g = trace_path<kFresnel>(origin, dir, n_rgb_.y, tir_, accel_, glass_);
+      if (!g.hit) return s;
+      s.hit = true;
+      s.drop = g.first_drop;
+      s.dark = g.dark;
+      s.rgb = shade(g, &s.off_frame, &s.xy);
+      if (!(*disperse_)[g.first_drop].dispersion) return s;
+      for (int c : {0, 2}) {
+        bool off = false;
+        s.rgb[c] = shade(trace_path<kFresnel>(origin, dir, n_rgb_[c], tir_, accel_, glass_), &off)[c];
+      }
     } else {
       // One path per colour channel: the green path decides hit and drop (all three meet the
       // same first surface, whose position does not depend on the index).
@@ -160,7 +179,7 @@ class Kernel {
         const DropPath p = trace_path<kFresnel>(origin, dir, n_rgb_[c], tir_, accel_, glass_);
         if (!p.hit) return s;  // same first hit for every channel
         bool off = false;
-        s.rgb[c] = shade(p, &off)[c];
+        s.rgb[c] = shade(p, &off, c == 1 ? &s.xy : nullptr)[c];
         if (c == 1) {
           s.hit = true;
           s.drop = p.first_drop;
@@ -173,9 +192,12 @@ class Kernel {
   }
 
   glm::dvec3 clean_pixel(int x, int y) const { return bg_.pixel(x, y); }
+  const BackgroundSampler& background() const { return bg_; }
 
  private:
-  glm::dvec3 shade(const DropPath& p, bool* off_frame) const {
+  // `seen_at`, if given, receives the background point seen (left alone for a dark ray or one
+  // that reaches the car's interior).
+  glm::dvec3 shade(const DropPath& p, bool* off_frame, glm::dvec2* seen_at = nullptr) const {
     if (p.dark) return glm::dvec3(0.0);
     glm::dvec3 seen;
     if (p.escaped_in) {
@@ -184,6 +206,7 @@ class Kernel {
       const glm::dvec2 xy = background_pixel(p, camera_, scene_.background_distance_cm);
       *off_frame = !bg_.inside(xy.x, xy.y);
       seen = bg_.sample(xy.x, xy.y);
+      if (seen_at) *seen_at = xy;
     }
     if constexpr (kFresnel) {
       // Light reflected at the surfaces instead of transmitted comes from the car side.
@@ -200,6 +223,7 @@ class Kernel {
   TirMode tir_;
   glm::dvec3 interior_;
   glm::dvec3 n_rgb_;
+  const std::vector<DropEffects>* disperse_;
 };
 
 // Andrew's monotone chain, in double precision (counter-clockwise, no repeated point).
@@ -312,18 +336,25 @@ inline int edge_class(int label, bool dark) { return label < 0 ? -1 : 2 * label 
 
 template <bool kFresnel, bool kDispersion>
 TraceResult run(const cv::Mat& clean, const Camera& camera, const SceneConfig& config,
-                const SceneSample& scene, const DropAccel& accel) {
-  const Kernel<kFresnel, kDispersion> kernel(clean, camera, config, scene, accel);
+                const SceneSample& scene, const DropAccel& accel, const EffectPlan* plan) {
+  const Kernel<kFresnel, kDispersion> kernel(clean, camera, config, scene, accel, plan);
   TraceResult out;
   out.label = cv::Mat(camera.height, camera.width, CV_32S, cv::Scalar(-1));
   out.color = cv::Mat(camera.height, camera.width, CV_32FC3);
   // Edge classes are only needed to find the pixels to supersample.
   const int k = static_cast<int>(std::lround(std::sqrt(config.samples_per_pixel)));
-  const bool need_classes = k > 1 && config.supersample_edges_only;
+  const bool need_classes = k > 1 && config.supersample != Supersample::All;
   cv::Mat classes = need_classes ? cv::Mat(camera.height, camera.width, CV_32S, cv::Scalar(-1)) : cv::Mat();
+  // Auto supersampling: the background point each drop pixel's ray saw (NaN: the dark band,
+  // infinite: the car's interior), whose distance to its neighbours' is the pixel's footprint
+  // on the background.
+  const bool automatic = k > 1 && config.supersample == Supersample::Auto;
+  cv::Mat seen_at = automatic ? cv::Mat(camera.height, camera.width, CV_32FC2, cv::Scalar::all(NAN)) : cv::Mat();
+  std::optional<BackgroundRange> variation;
+  if (automatic) variation.emplace(clean, kernel.background());
   out.spans = candidate_spans(camera, accel);
   const auto& spans = out.spans;
-  std::atomic<std::int64_t> candidates{0}, drops{0}, dark{0}, off{0}, supersampled{0};
+  std::atomic<std::int64_t> candidates{0}, drops{0}, dark{0}, off{0}, supersampled{0}, aliasing{0}, smooth{0};
   std::vector<int> row_lo(camera.height, camera.width), row_hi(camera.height, -1);
 
   // Pass 1: one ray through every candidate pixel's centre.
@@ -345,6 +376,11 @@ TraceResult run(const cv::Mat& clean, const Camera& camera, const SceneConfig& c
           n_off += s.off_frame;
           label[x] = s.drop;
           if (cls) cls[x] = edge_class(s.drop, s.dark);
+          if (automatic && !s.dark) {
+            // A ray that saw no street saw the car's interior: marked infinite.
+            seen_at.at<cv::Vec2f>(y, x) = std::isnan(s.xy.x) ? cv::Vec2f(INFINITY, INFINITY)
+                                                            : cv::Vec2f(static_cast<float>(s.xy.x), static_cast<float>(s.xy.y));
+          }
           rgb[x] = cv::Vec3f(static_cast<float>(s.rgb.x), static_cast<float>(s.rgb.y),
                              static_cast<float>(s.rgb.z));
         }
@@ -364,19 +400,57 @@ TraceResult run(const cv::Mat& clean, const Camera& camera, const SceneConfig& c
   }
   out.drop_box = box_x1 < 0 ? cv::Rect() : cv::Rect(box_x0, box_y0, box_x1 - box_x0 + 1, box_y1 - box_y0 + 1);
 
+  // Auto: does the background vary over the pixel's footprint by more than the budget
+  // (effect_policy.h)? The footprint is the largest step to a neighbour's sample: the pixel's
+  // sub-samples lie within half a step of its centre's where the map from pixels to the
+  // background is smooth. Where it is not (a neighbour's step is not matched by the opposite
+  // one: the map folds or jumps), where a neighbour saw no street and on the frame's border
+  // (no neighbour beyond it to show an edge there), the pixel is supersampled. The dark band
+  // is black and its edges are class edges: flat. With traced internal reflection, rays that
+  // are trapped, leave into the car or reach the street after reflections interleave in
+  // slivers thinner than a pixel (the class does not tell them apart): supersampled. Without
+  // it, a ray reaches the car's interior only when it leaves the cap heading back to the
+  // glass (near a rim); such a pixel is flat only among neighbours that all did.
+  auto aliases = [&](int x, int y) {
+    if (x == 0 || y == 0 || x == camera.width - 1 || y == camera.height - 1) return true;
+    const cv::Vec2f p = seen_at.at<cv::Vec2f>(y, x);
+    if (std::isnan(p[0])) return config.tir != TirMode::Black;
+    if (std::isinf(p[0])) {
+      if (config.tir != TirMode::Black) return true;
+      for (int dy = -1; dy <= 1; ++dy)
+        for (int dx = -1; dx <= 1; ++dx)
+          if (!std::isinf(seen_at.at<cv::Vec2f>(y + dy, x + dx)[0])) return true;
+      return false;
+    }
+    double size = 0;
+    constexpr int kPairs[4][2] = {{1, 0}, {0, 1}, {1, 1}, {1, -1}};
+    for (const auto& step : kPairs) {
+      const cv::Vec2f a = seen_at.at<cv::Vec2f>(y + step[1], x + step[0]);
+      const cv::Vec2f b = seen_at.at<cv::Vec2f>(y - step[1], x - step[0]);
+      if (!std::isfinite(a[0]) || !std::isfinite(b[0])) return true;
+      const double da = std::hypot(a[0] - p[0], a[1] - p[1]), db = std::hypot(b[0] - p[0], b[1] - p[1]);
+      if (std::hypot(a[0] + b[0] - 2 * p[0], a[1] + b[1] - 2 * p[1]) > 0.5 * std::max(da, db)) return true;
+      const double diagonal = step[0] != 0 && step[1] != 0 ? M_SQRT1_2 : 1.0;
+      size = std::max(size, diagonal * std::max(da, db));
+    }
+    const glm::dvec3 spread = variation->range(p[0], p[1], size);
+    return 255.0 * std::max({spread.x, spread.y, spread.z}) >= kAutoBudgetLevels;
+  };
+
   // Pass 2: supersample drop pixels on an edge (a neighbour of another class: outside, other
-  // drop, dark band) or all drop pixels, on a stratified k x k grid. The mask stays the
-  // pixel-centre rule; sub-samples that miss every drop see the clean pixel.
+  // drop, dark band), all drop pixels, or (auto) the edges and the inside pixels that alias,
+  // on a stratified k x k grid. The mask stays the pixel-centre rule; sub-samples that miss
+  // every drop see the clean pixel.
   if (k > 1) {
     tbb::parallel_for(tbb::blocked_range<int>(0, camera.height, 8), [&](const tbb::blocked_range<int>& r) {
-      std::int64_t n_ss = 0;
+      std::int64_t n_ss = 0, n_alias = 0, n_smooth = 0;
       for (int y = r.begin(); y < r.end(); ++y) {
         const int* label = out.label.ptr<int>(y);
         auto* rgb = out.color.ptr<cv::Vec3f>(y);
         for (const auto& [x0, x1] : spans[y]) {
           for (int x = x0; x <= x1; ++x) {
             if (label[x] < 0) continue;
-            if (config.supersample_edges_only) {
+            if (config.supersample != Supersample::All) {
               const int own = classes.at<int>(y, x);
               bool edge = false;
               for (int dy = -1; dy <= 1 && !edge; ++dy) {
@@ -386,7 +460,12 @@ TraceResult run(const cv::Mat& clean, const Camera& camera, const SceneConfig& c
                   edge = classes.at<int>(yy, xx) != own;
                 }
               }
-              if (!edge) continue;
+              if (!edge && !automatic) continue;
+              if (!edge && !aliases(x, y)) {
+                ++n_smooth;
+                continue;
+              }
+              n_alias += !edge;
             }
             ++n_ss;
             glm::dvec3 sum(0.0);
@@ -403,6 +482,8 @@ TraceResult run(const cv::Mat& clean, const Camera& camera, const SceneConfig& c
         }
       }
       supersampled += n_ss;
+      aliasing += n_alias;
+      smooth += n_smooth;
     });
   }
 
@@ -411,6 +492,8 @@ TraceResult run(const cv::Mat& clean, const Camera& camera, const SceneConfig& c
   out.stats.dark_band_pixels = dark;
   out.stats.off_frame_pixels = off;
   out.stats.supersampled_pixels = supersampled;
+  out.stats.aliasing_pixels = aliasing;
+  out.stats.smooth_pixels = smooth;
   return out;
 }
 
@@ -420,8 +503,8 @@ TraceResult run(const cv::Mat& clean, const Camera& camera, const SceneConfig& c
 // that point, so it sees the pixel's own clean colour.
 template <bool kFresnel, bool kDispersion>
 ApertureResult run_aperture(const cv::Mat& clean, const Camera& camera, const SceneConfig& config,
-                            const SceneSample& scene, const DropAccel& accel, int samples) {
-  const Kernel<kFresnel, kDispersion> kernel(clean, camera, config, scene, accel);
+                            const SceneSample& scene, const DropAccel& accel, int samples, const EffectPlan* plan) {
+  const Kernel<kFresnel, kDispersion> kernel(clean, camera, config, scene, accel, plan);
   ApertureResult out;
   out.linear = cv::Mat(camera.height, camera.width, CV_32FC3, cv::Scalar::all(0));
   out.coverage = cv::Mat(camera.height, camera.width, CV_32F, cv::Scalar(0));
@@ -503,24 +586,27 @@ ApertureResult run_aperture(const cv::Mat& clean, const Camera& camera, const Sc
 }  // namespace
 
 ApertureResult trace_aperture(const cv::Mat& clean, const Camera& camera, const SceneConfig& config,
-                              const SceneSample& scene, const DropAccel& accel, int samples) {
+                              const SceneSample& scene, const DropAccel& accel, int samples, const EffectPlan* plan) {
   CV_Assert(clean.type() == CV_8UC3 && clean.cols == camera.width && clean.rows == camera.height);
-  const bool fresnel = config.fresnel.enabled, dispersion = config.dispersion.enabled;
-  if (fresnel && dispersion) return run_aperture<true, true>(clean, camera, config, scene, accel, samples);
-  if (fresnel) return run_aperture<true, false>(clean, camera, config, scene, accel, samples);
-  if (dispersion) return run_aperture<false, true>(clean, camera, config, scene, accel, samples);
-  return run_aperture<false, false>(clean, camera, config, scene, accel, samples);
+  const bool fresnel = config.fresnel.enabled;
+  const bool dispersion = plan ? plan->dispersion_anywhere(config) : config.dispersion.enabled;
+  if (fresnel && dispersion) return run_aperture<true, true>(clean, camera, config, scene, accel, samples, plan);
+  if (fresnel) return run_aperture<true, false>(clean, camera, config, scene, accel, samples, plan);
+  if (dispersion) return run_aperture<false, true>(clean, camera, config, scene, accel, samples, plan);
+  return run_aperture<false, false>(clean, camera, config, scene, accel, samples, plan);
 }
 
 TraceResult trace_drops(const cv::Mat& clean, const Camera& camera, const SceneConfig& config,
-                        const SceneSample& scene, const DropAccel& accel) {
+                        const SceneSample& scene, const DropAccel& accel, const EffectPlan* plan) {
   CV_Assert(clean.type() == CV_8UC3 && clean.cols == camera.width && clean.rows == camera.height);
-  // Effects pick the kernel instantiation once per frame, not per pixel.
-  const bool fresnel = config.fresnel.enabled, dispersion = config.dispersion.enabled;
-  if (fresnel && dispersion) return run<true, true>(clean, camera, config, scene, accel);
-  if (fresnel) return run<true, false>(clean, camera, config, scene, accel);
-  if (dispersion) return run<false, true>(clean, camera, config, scene, accel);
-  return run<false, false>(clean, camera, config, scene, accel);
+  // Effects pick the kernel instantiation once per frame, not per pixel: a frame where auto
+  // finds no drop that needs dispersion runs the kernel without it.
+  const bool fresnel = config.fresnel.enabled;
+  const bool dispersion = plan ? plan->dispersion_anywhere(config) : config.dispersion.enabled;
+  if (fresnel && dispersion) return run<true, true>(clean, camera, config, scene, accel, plan);
+  if (fresnel) return run<true, false>(clean, camera, config, scene, accel, plan);
+  if (dispersion) return run<false, true>(clean, camera, config, scene, accel, plan);
+  return run<false, false>(clean, camera, config, scene, accel, plan);
 }
 
 }  // namespace raindrop

@@ -69,6 +69,11 @@ TEST(SceneFile, MistakesAreReportedWithTheKey) {
       {R"({"dark_band": "grey"})", "'dark_band'"},
       {R"({"tilt_deg": [30, 45],})", "not valid JSON"},
       {R"([1, 2])", "JSON object"},
+      {R"({"effects": {"dispersion": "yes"}})", "effects.dispersion: must be a JSON object"},
+      {R"({"effects": {"gravity": {"auto": "yes"}}})", "'auto' must be true or false"},
+      {R"({"effects": {"fresnel": "auto"}})", "'fresnel' has no \"auto\""},
+      {R"({"effects": {"blur": {"auto": true}}})", "unknown key 'auto'"},
+      {R"({"quality": {"supersample": "some"}})", "'supersample'"},
   };
   for (const auto& [text, needle] : cases) {
     try {
@@ -80,6 +85,31 @@ TEST(SceneFile, MistakesAreReportedWithTheKey) {
     }
   }
   EXPECT_THROW(load_scene("no-such-preset-or-file"), Error);
+}
+
+// "auto" leaves an effect to the scene's physics (effect_policy.h): as a string, or as a key
+// beside the effect's other settings. It prints as the key, only where it is on, so scenes
+// without it print as they always did; explicit settings mean what they meant.
+TEST(SceneFile, EffectsMayBeAuto) {
+  const SceneConfig c = parse_scene_json(
+      R"({"effects": {"dispersion": "auto", "gravity": {"auto": true, "elongation": [1, 1.2]}},
+          "quality": {"samples_per_pixel": 4, "supersample": "auto"}})", "t");
+  EXPECT_TRUE(c.dispersion.enabled && c.dispersion.automatic);
+  EXPECT_TRUE(c.gravity.enabled && c.gravity.automatic);
+  EXPECT_EQ(c.gravity.elongation.hi, 1.2);
+  EXPECT_EQ(c.supersample, Supersample::Auto);
+  EXPECT_EQ(c.effect_names(), (std::vector<std::string>{"refraction", "dark_band", "dispersion-auto", "gravity-auto"}));
+  const std::string text = scene_to_json(c);
+  EXPECT_EQ(scene_to_json(parse_scene_json(text, "round trip")), text);
+  EXPECT_NE(text.find("\"auto\": true"), std::string::npos);
+  EXPECT_NE(text.find("\"supersample\": \"auto\""), std::string::npos);
+
+  const SceneConfig off = parse_scene_json(R"({"effects": {"dispersion": {"auto": false}, "gravity": {}}})", "t");
+  EXPECT_TRUE(off.dispersion.enabled);
+  EXPECT_FALSE(off.dispersion.automatic);
+  EXPECT_FALSE(off.gravity.automatic);
+  EXPECT_EQ(off.supersample, Supersample::Edges);
+  for (const auto& name : scene_preset_names()) EXPECT_EQ(scene_to_json(scene_preset(name)).find("auto"), std::string::npos) << name;
 }
 
 TEST(SceneFile, CommentsAreAllowed) {

@@ -37,9 +37,28 @@ class BackgroundSampler {
   // corner's colour.
   glm::dvec3 sample(double x, double y) const {
     const glm::dvec3 c = sample_frame(x, y);
-    if (sky_fade_px_ <= 0 || !(y < -0.5)) return c;
-    const double w = std::isfinite(y) ? std::min(1.0, (-0.5 - y) / sky_fade_px_) : 1.0;
-    return c + w * (sky_ - c);
+    const double w = sky_weight(y);
+    return w > 0 ? c + w * (sky_ - c) : c;
+  }
+
+  // How much of the sky is seen at row y, from 0 (the frame's continuation) to 1.
+  double sky_weight(double y) const {
+    if (sky_fade_px_ <= 0 || !(y < -0.5)) return 0.0;
+    return std::isfinite(y) ? std::min(1.0, (-0.5 - y) / sky_fade_px_) : 1.0;
+  }
+
+  // Maps a coordinate into [0, n - 1] according to the border mode (n: the frame's width or
+  // height): where in the frame its continuation at v comes from.
+  double fold(double v, int n) const {
+    if (v >= 0.0 && v <= n - 1.0) return v;  // inside: the common case, no fmod
+    if (!std::isfinite(v)) return v > 0 ? n - 1 : 0;
+    if (border_ == BorderMode::Clamp || n == 1) return std::min(std::max(v, 0.0), n - 1.0);
+    // Mirror about the outer pixel edges (-0.5 and n - 0.5): period 2n.
+    const double period = 2.0 * n;
+    double u = std::fmod(v + 0.5, period);
+    if (u < 0) u += period;
+    if (u > n) u = period - u;
+    return std::min(std::max(u - 0.5, 0.0), n - 1.0);
   }
 
   glm::dvec3 pixel(int x, int y) const {
@@ -68,19 +87,6 @@ class BackgroundSampler {
   }
 
   static int clampi(int v, int n) { return v < 0 ? 0 : (v >= n ? n - 1 : v); }
-
-  // Maps a coordinate into [0, n - 1] according to the border mode.
-  double fold(double v, int n) const {
-    if (v >= 0.0 && v <= n - 1.0) return v;  // inside: the common case, no fmod
-    if (!std::isfinite(v)) return v > 0 ? n - 1 : 0;
-    if (border_ == BorderMode::Clamp || n == 1) return std::min(std::max(v, 0.0), n - 1.0);
-    // Mirror about the outer pixel edges (-0.5 and n - 0.5): period 2n.
-    const double period = 2.0 * n;
-    double u = std::fmod(v + 0.5, period);
-    if (u < 0) u += period;
-    if (u > n) u = period - u;
-    return std::min(std::max(u - 0.5, 0.0), n - 1.0);
-  }
 
   const cv::Mat& img_;
   BorderMode border_;

@@ -6,6 +6,7 @@
 #include <opencv2/core.hpp>
 
 #include "raindrop/render/camera.h"
+#include "raindrop/render/effect_policy.h"
 #include "raindrop/render/scene.h"
 #include "raindrop/render/scene_config.h"
 #include "raindrop/render/tracer.h"
@@ -29,6 +30,7 @@ struct RenderedFrame {
   cv::Mat alpha;
   std::vector<double> coc_px;
   bool defocused = false;  // the lens path ran (false: pinhole, or every circle < 0.5 px)
+  EffectPlan effects;      // what the scene's "auto" effects decided, per drop
   TraceStats stats;
   FrameTimings timings;
   double coverage() const;  // fraction of mask pixels

@@ -28,12 +28,17 @@ enum class SizeDistribution { Uniform, LogUniform };
 // reference is tracer.h's trace_aperture). LayeredExact: the layered sums with one dense
 // cv::filter2D per drop, kept to compare the fast path against.
 enum class DefocusMethod { Layered, LayeredExact, Aperture };
+// Which drop pixels get samples_per_pixel > 1: those on an edge (next to another drop, the
+// background or the dark band), every drop pixel, or (auto) the edges and the inside pixels
+// whose single sample aliases (effect_policy.h).
+enum class Supersample { Edges, All, Auto };
 
 const char* to_string(BorderMode);
 const char* to_string(BlurMethod);
 const char* to_string(TirMode);
 const char* to_string(SizeDistribution);
 const char* to_string(DefocusMethod);
+const char* to_string(Supersample);
 
 // The most drops a scene may ask for per sample. The presets ask for at most 300 and 1000
 // small drops already crowd a frame; placing each drop tests up to 200 positions against every
@@ -78,7 +83,9 @@ struct SceneConfig {
   TirMode tir = TirMode::Black;
 
   // Effects. The paper's: refraction and the dark band (always), blur. Beyond the paper:
-  // fresnel, dispersion, gravity.
+  // fresnel, dispersion, gravity. Dispersion and gravity may be `automatic` ("auto" in the
+  // file): simulated for the drops where the scene's physics makes them perceptible at the
+  // output resolution, skipped for the others (effect_policy.h).
   struct Blur {
     bool enabled = true;
     Range diameter_px_2048{7, 20};  // disk diameter at 2048 px wide, scaled with the width
@@ -90,10 +97,12 @@ struct SceneConfig {
   } fresnel;
   struct Dispersion {
     bool enabled = false;
+    bool automatic = false;
     glm::dvec3 wavelength_nm{620, 540, 460};  // where red, green, blue are traced
   } dispersion;
   struct Gravity {
     bool enabled = false;
+    bool automatic = false;  // the shapes are still drawn for every drop, then kept or not
     Range elongation{1.0, 1.3};  // downhill footprint stretch
     Range flattening{0.6, 1.0};  // height relative to the spherical cap
   } gravity;
@@ -125,7 +134,7 @@ struct SceneConfig {
   // Quality: the accuracy/time knobs.
   GeometryOptions geometry;
   int samples_per_pixel = 1;      // 1, 4, 16, 64 (square numbers: stratified grid)
-  bool supersample_edges_only = true;
+  Supersample supersample = Supersample::Edges;
   BorderMode border = BorderMode::Mirror;
 
   // Effects that will run, in a fixed order, for the manifest and logs.

@@ -22,6 +22,7 @@
 
 #include "raindrop/render/camera.h"
 #include "raindrop/render/drop_accel.h"
+#include "raindrop/render/effect_policy.h"
 #include "raindrop/render/scene.h"
 #include "raindrop/render/scene_config.h"
 #include "raindrop/render/spans.h"
@@ -34,6 +35,10 @@ struct TraceStats {
   std::int64_t dark_band_pixels = 0;   // total internal reflection painted black
   std::int64_t off_frame_pixels = 0;   // background sample fell outside the frame
   std::int64_t supersampled_pixels = 0;
+  // Supersample auto: inside pixels supersampled because their single sample aliases, and
+  // those left at one sample (effect_policy.h).
+  std::int64_t aliasing_pixels = 0;
+  std::int64_t smooth_pixels = 0;
 };
 
 struct TraceResult {
@@ -65,9 +70,11 @@ DropPath trace_through_drops(const glm::dvec3& origin, const glm::dvec3& dir, do
 // background plane is z = background_z); rays that never reach it are followed to infinity.
 glm::dvec2 background_pixel(const DropPath& path, const Camera& camera, double background_z);
 
-// `clean` is the frame (CV_8UC3, RGB); `accel` holds the scene's drops.
+// `clean` is the frame (CV_8UC3, RGB); `accel` holds the scene's drops. `plan`: the effects
+// chosen per drop where the scene says "auto" (effect_policy.h); without one, every effect
+// the scene names is simulated for every drop.
 TraceResult trace_drops(const cv::Mat& clean, const Camera& camera, const SceneConfig& config,
-                        const SceneSample& scene, const DropAccel& accel);
+                        const SceneSample& scene, const DropAccel& accel, const EffectPlan* plan = nullptr);
 
 // The thin-lens reference (SceneConfig::lens, method Aperture): `samples` rays per pixel
 // from points spread over the aperture disk, focused on the background plane.
@@ -76,6 +83,7 @@ struct ApertureResult {
   cv::Mat coverage;  // CV_32F: the fraction of the aperture's rays that met a drop
 };
 ApertureResult trace_aperture(const cv::Mat& clean, const Camera& camera, const SceneConfig& config,
-                              const SceneSample& scene, const DropAccel& accel, int samples);
+                              const SceneSample& scene, const DropAccel& accel, int samples,
+                              const EffectPlan* plan = nullptr);
 
 }  // namespace raindrop
