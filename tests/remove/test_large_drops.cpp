@@ -81,5 +81,30 @@ TEST(LargeDrops, AFullMaskIsTheCoarseCopysResultUpsampled) {
   EXPECT_LE(max_abs_diff(r.image, expected8), 1);
 }
 
+// The coarse pass keeps what the working-scale pass keeps: size, channels, depth, alpha.
+TEST(LargeDrops, FormatsAreKept) {
+  const cv::Mat rgb = make_image(300, 150, 8);
+  cv::Mat grey, rgba16, alpha(rgb.size(), CV_8U);
+  cv::cvtColor(rgb, grey, cv::COLOR_RGB2GRAY);
+  cv::randu(alpha, 0, 256);
+  cv::Mat rgba;
+  cv::merge(std::vector<cv::Mat>{rgb, alpha}, rgba);
+  rgba.convertTo(rgba16, CV_16U, 257.0);
+  RemoveOptions all;
+  all.threshold = -1.0;  // one mask over everything: the coarse pass takes it all
+  for (const cv::Mat& img : {grey, rgba16}) {
+    const RemoveResult r = smoke().run(img, all);
+    ASSERT_EQ(r.large_drops, 1);
+    EXPECT_EQ(r.image.size(), img.size());
+    EXPECT_EQ(r.image.type(), img.type());
+    if (img.channels() == 4) {
+      std::vector<cv::Mat> in_planes, out_planes;
+      cv::split(img, in_planes);
+      cv::split(r.image, out_planes);
+      EXPECT_EQ(cv::countNonZero(in_planes[3] != out_planes[3]), 0) << "alpha must be copied through";
+    }
+  }
+}
+
 }  // namespace
 }  // namespace removetest
