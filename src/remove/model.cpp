@@ -185,7 +185,8 @@ Models::Models(const fs::path& dir, const SessionConfig& config) : dir_(dir), co
   // there come out wrong: measured on real drops at 77 px, the bottom 4 rows of the
   // reconstruction differed from those of the same image padded to even by 85 levels of 8 bits
   // on average (up to 183), which cost 1-4 dB per image once the working scale enlarged them.
-  // Replicate-padding to even size removes that (tests/remove/test_remover.cpp, OddSizes).
+  // Replicate-padding to even size removes that (tests/remove/test_trained_models.cpp,
+  // TrainedModels.OddSizesAreRestoredAsWellAtTheirBorders).
   int multiple = 2;
   for (Network* n : {rdn_.get(), rrn_.get(), rfn_.get()}) {
     const int m = parse_int(n->file(), "raindrop.pad_multiple", n->metadata().at("raindrop.pad_multiple"));

@@ -29,6 +29,14 @@ cv::Mat read_or_fail(const fs::path& p) {
   return img ? img->pixels : cv::Mat();
 }
 
+// raindrop-render's demo set (a checkerboard and a street, one variant each, seed 7) at `size`
+// (WIDTHxHEIGHT) into tmp/out.
+void render_demo(const TempDir& tmp, const std::string& size, const std::string& out) {
+  const RunResult r = run_command(RAINDROP_RENDER_BIN, {"--demo", "--size", size, "--seed", "7", "--out", out, "-q", "-j", "1"},
+                                  tmp.path());
+  ASSERT_EQ(r.code, 0) << r.describe();
+}
+
 // Thresholds sit well below what the committed models reach (compact: +3.7 dB on the
 // checkerboard, +6.4 dB on the street; mask IoU 0.72-0.77 after the default 3x3 dilation) and
 // far above an untrained model (the fixture in tools/tests/fixtures/models-smoke: no gain).
@@ -40,9 +48,8 @@ TEST(TrainedModels, RemoveRenderedDrops) {
   if (dirs.empty()) GTEST_SKIP() << "no trained models in " << (source_dir() / "models");
   TempDir tmp;
   // 512x256 is the size the models were trained at (the paper's); one variant per background.
-  RunResult r = run_command(RAINDROP_RENDER_BIN, {"--demo", "--size", "512x256", "--seed", "7", "--out", "set", "-q", "-j", "1"},
-                            tmp.path());
-  ASSERT_EQ(r.code, 0) << r.describe();
+  ASSERT_NO_FATAL_FAILURE(render_demo(tmp, "512x256", "set"));
+  RunResult r;
   std::vector<std::string> names;
   for (const auto& e : fs::directory_iterator(tmp / "set/rainy")) names.push_back(e.path().filename().string());
   std::sort(names.begin(), names.end());
@@ -74,10 +81,7 @@ TEST(TrainedModels, GainDoesNotDependOnTheImageSize) {
   if (dirs.empty()) GTEST_SKIP() << "no trained models in " << (source_dir() / "models");
   TempDir tmp;
   for (const char* size : {"512x256", "2048x1024"}) {
-    const RunResult r = run_command(RAINDROP_RENDER_BIN,
-                                    {"--demo", "--size", size, "--seed", "7", "--out", std::string("set-") + size, "-q", "-j", "1"},
-                                    tmp.path());
-    ASSERT_EQ(r.code, 0) << r.describe();
+    ASSERT_NO_FATAL_FAILURE(render_demo(tmp, size, std::string("set-") + size));
   }
   for (const auto& dir : dirs) {
     const std::string config = dir.filename().string();
@@ -113,9 +117,8 @@ TEST(TrainedModels, OddSizesAreRestoredAsWellAtTheirBorders) {
   const auto dirs = trained_models();
   if (dirs.empty()) GTEST_SKIP() << "no trained models in " << (source_dir() / "models");
   TempDir tmp;
-  RunResult r = run_command(RAINDROP_RENDER_BIN, {"--demo", "--size", "512x256", "--seed", "7", "--out", "set", "-q", "-j", "1"},
-                            tmp.path());
-  ASSERT_EQ(r.code, 0) << r.describe();
+  ASSERT_NO_FATAL_FAILURE(render_demo(tmp, "512x256", "set"));
+  RunResult r;
   const std::vector<std::string> names = {"checkerboard_v00.png", "street_v00.png"};
   fs::create_directories(tmp / "in");
   for (const auto& n : names) {
