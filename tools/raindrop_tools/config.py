@@ -90,6 +90,12 @@ class SourceConfig:
     # (With it, the fine-tuned detector still flagged flat road, by smoothness instead:
     # docs/RESULTS.md 4.5.) 0: off (real pairs carry their own noise).
     sensor_noise_levels: float = 0.0
+    # Weight of this source's crops in the detector's (RDN) loss; the reconstruction networks
+    # learn from every source alike. 0 keeps a source's masks out of what the detector learns:
+    # for real pairs, whose rough masks mark every difference between the two lenses (stereo
+    # parallax, exposure, the wet glass's haze over flat road) and taught the fine-tuned
+    # detectors to flag smooth regions (docs/RESULTS.md 4.4-4.7).
+    detection_weight: float = 1.0
 
 
 @dataclass(frozen=True)
@@ -281,6 +287,8 @@ def validate_config(cfg: RunConfig) -> None:
             problems.append(f"data.sources[{i}].visible_levels must be in [0, 255], got {src.visible_levels}")
         if not (0.0 <= src.sensor_noise_levels <= 64.0):
             problems.append(f"data.sources[{i}].sensor_noise_levels must be in [0, 64], got {src.sensor_noise_levels}")
+        if not (0.0 <= src.detection_weight <= 100.0):
+            problems.append(f"data.sources[{i}].detection_weight must be in [0, 100], got {src.detection_weight}")
     t = cfg.train
     if t.batch_size < 1 or t.stage1_steps < 1 or t.stage2_steps < 1:
         problems.append("train.batch_size, stage1_steps and stage2_steps must be >= 1")
@@ -386,7 +394,8 @@ def data_sources(cfg: RunConfig) -> list[SourceConfig]:
         split = d.splits if s.split is None else ([s.split] if isinstance(s.split, str) else list(s.split))
         check = d.check_outside_mask if s.check_outside_mask is None else s.check_outside_mask
         out.append(SourceConfig(path=s.path, weight=s.weight, split=split, check_outside_mask=check,
-                                visible_levels=s.visible_levels, sensor_noise_levels=s.sensor_noise_levels))
+                                visible_levels=s.visible_levels, sensor_noise_levels=s.sensor_noise_levels,
+                                detection_weight=s.detection_weight))
     return out
 
 

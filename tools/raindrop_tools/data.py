@@ -243,7 +243,8 @@ class RaindropDataset:
 
     An item is a dict of numpy arrays: ``rainy`` and ``clean`` (3xhxw float32 in [0, 1]),
     ``mask`` (1xhxw float32, 0 or 1), ``edge`` (1xhxw float32: the edge map of the FULL rainy
-    image, cropped, see ``edge.edge_map_window``) and ``id`` (str).
+    image, cropped, see ``edge.edge_map_window``), ``detection_weight`` (float32 scalar: the
+    crop's weight in the detector's loss, ``SourceConfig.detection_weight``) and ``id`` (str).
 
     Index it with a key ``(sample index, y0, x0, flip)`` (what ``StepBatchSampler`` yields)
     for reproducible crops, or with a plain sample index for a fresh random crop.
@@ -262,8 +263,10 @@ class RaindropDataset:
         log: Callable[[str], None] = print,
         visible_levels: float = 0.0,
         sensor_noise_levels: float = 0.0,
+        detection_weight: float = 1.0,
     ):
         self.root = Path(root)
+        self.detection_weight = np.float32(detection_weight)
         self.crop = int(crop)
         self.visible_levels = float(visible_levels)
         self.sensor_noise_levels = float(sensor_noise_levels)
@@ -338,6 +341,7 @@ class RaindropDataset:
             "clean": np.ascontiguousarray(g.transpose(2, 0, 1)),
             "mask": np.ascontiguousarray(m[None]),
             "edge": np.ascontiguousarray(edge[None]),
+            "detection_weight": self.detection_weight,
         }
 
 

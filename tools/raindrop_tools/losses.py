@@ -7,9 +7,14 @@ import torch.nn.functional as F
 from pytorch_msssim import ssim
 
 
-def detection_loss(logits: torch.Tensor, mask: torch.Tensor) -> torch.Tensor:
-    """RDN: binary cross-entropy, mean over pixels, in the numerically stable logits form."""
-    return F.binary_cross_entropy_with_logits(logits, mask)
+def detection_loss(logits: torch.Tensor, mask: torch.Tensor, weight: torch.Tensor | None = None) -> torch.Tensor:
+    """RDN: binary cross-entropy, mean over pixels, in the numerically stable logits form.
+    ``weight`` (one value per crop, shape (N,)) scales each crop's term; the mean stays over all
+    pixels of the batch, so a crop of weight 0 adds nothing and the others keep their scale."""
+    if weight is None:
+        return F.binary_cross_entropy_with_logits(logits, mask)
+    w = weight.to(logits.dtype).reshape(-1, *([1] * (logits.dim() - 1)))
+    return F.binary_cross_entropy_with_logits(logits, mask, weight=w.expand_as(logits))
 
 
 def reconstruction_loss(

@@ -4,8 +4,14 @@
         [--rendered DATASET ...] [--limit N] [--crops-per-image 4] [--folds 5] [--seed 0] [--json FILE]
 
 (a) **Statistics of drops** from (rainy, clean, mask) triples. Real pairs: the rough masks of
-``realpairs.rough_mask`` (its mask options apply); rendered data sets (CONTRACTS.md section 1):
-their own masks. Per image, on 8-bit luma Y (``metrics.LUMA_WEIGHTS``, float):
+``realpairs.rough_mask`` (its mask options apply). Rendered data sets (CONTRACTS.md section 1):
+by default the same rough masks, made from their rainy/clean pairs with the same options
+(``--rendered-masks rough``), so that both sides are measured alike; ``--rendered-masks own``
+uses the renderer's masks instead, which describe the drops themselves. The two differ most
+for semi-transparent thin-lens drops: a rendered mask includes every pixel a drop touches, a
+rough mask only those that change by more than the threshold, so inside-drop brightness is
++3 levels with own masks and +20 with rough ones on one set (docs/RESULTS.md 4.2). Per image,
+on 8-bit luma Y (``metrics.LUMA_WEIGHTS``, float):
 
 * ``coverage``: fraction of mask pixels;
 * drops = 8-connected components of the mask: ``drops`` per image; per drop the equivalent
@@ -299,13 +305,21 @@ def collect_real(folder, split, params: RP.MaskParams, rng, crops_per_image, hol
     return st
 
 
-def collect_rendered(root, rng, crops_per_image, limit=None, splits=None) -> SetStats:
+def collect_rendered(root, rng, crops_per_image, limit=None, splits=None,
+                     rough: RP.MaskParams | None = None) -> SetStats:
+    """Statistics of a rendered set: with its own masks, or with ``rough`` the rough masks of
+    its rainy/clean pairs (as real pairs are measured)."""
     samples = read_manifest(root, splits)
     if limit and len(samples) > limit:  # spread over the set, not its first ids
         samples = [samples[i] for i in np.linspace(0, len(samples) - 1, limit).round().astype(int)]
-    st = SetStats(f"rendered ({Path(root).name})", "rendered")
+    st = SetStats(f"rendered ({Path(root).name}, {'rough' if rough else 'own'} masks)", "rendered")
     for s in samples:
-        rainy, clean, mask = read_rgb_strict(s.rainy), read_rgb_strict(s.clean), read_mask_strict(s.mask)
+        rainy, clean = read_rgb_strict(s.rainy), read_rgb_strict(s.clean)
+        if rough is not None:
+            mask = RP.rough_mask(rainy, clean, rough.blur, rough.threshold, rough.open_size, rough.close_size,
+                                 rough.min_area)
+        else:
+            mask = read_mask_strict(s.mask)
         group = s.id.rsplit("_v", 1)[0]  # variants of one source image stay in one fold
         st.add(rainy, clean, mask, group, rng, crops_per_image)
     return st
@@ -362,6 +376,9 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--rendered", action="append", default=[], metavar="DATASET",
                     help="rendered data set folder (repeatable)")
     ap.add_argument("--rendered-split", action="append", help="only samples of this manifest split (repeatable)")
+    ap.add_argument("--rendered-masks", choices=["rough", "own"], default="rough",
+                    help="masks of the rendered sets: rough (default: derived from each rainy/clean pair like the "
+                    "real pairs' masks, so both are measured alike) or own (the renderer's masks)")
     ap.add_argument("--limit", type=int, help="at most N images per set (rendered: spread over the set)")
     ap.add_argument("--crops-per-image", type=int, default=4, help=f"{CROP}x{CROP} crops per image for the classifier")
     ap.add_argument("--folds", type=int, default=5)
@@ -370,13 +387,15 @@ def main(argv: list[str] | None = None) -> int:
     RP.add_mask_arguments(ap)
     args = ap.parse_args(argv)
     try:
-        real = collect_real(args.real_pairs, args.split, RP.mask_params_from_args(args),
+        params = RP.mask_params_from_args(args)
+        real = collect_real(args.real_pairs, args.split, params,
                             np.random.default_rng([args.seed, 0]), args.crops_per_image,
                             RP.parse_holdout(args.holdout) if args.holdout else None, args.limit)
         sets = [real]
         for i, root in enumerate(args.rendered):
             sets.append(collect_rendered(root, np.random.default_rng([args.seed, i + 1]), args.crops_per_image,
-                                         args.limit, args.rendered_split))
+                                         args.limit, args.rendered_split,
+                                         params if args.rendered_masks == "rough" else None))
     except (RP.PairsError, DatasetError, ImageError, ValueError) as e:
         print(f"error: {e}", file=sys.stderr)
         return 2

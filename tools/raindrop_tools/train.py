@@ -221,6 +221,7 @@ class Trainer:
                         log=self.log,
                         visible_levels=src.visible_levels,
                         sensor_noise_levels=src.sensor_noise_levels,
+                        detection_weight=src.detection_weight,
                     )
                 )
             self._dataset = MultiSourceDataset(parts) if d.sources else parts[0]
@@ -520,7 +521,7 @@ class Trainer:
                 if stage == 1:
                     rdn, rrn = trained["rdn"], trained["rrn"]
                     record["lr"] = scheds["rdn"].get_last_lr()[0]
-                    loss = losses.detection_loss(rdn(b["rainy"]), b["mask"])
+                    loss = losses.detection_loss(rdn(b["rainy"]), b["mask"], b["detection_weight"])
                     record["loss_rdn"] = self._step(
                         "rdn", rdn, opts["rdn"], scheds["rdn"], loss, stage, step, total, ids
                     )

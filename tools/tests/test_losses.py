@@ -62,3 +62,14 @@ def test_detection_loss_is_bce_on_logits_and_stable_for_large_logits():
     want = (math.log(2) + (2 + math.log1p(math.exp(-2))) + math.log1p(math.exp(-3)) + 100.0) / 4
     assert detection_loss(logits, mask).item() == pytest.approx(want, rel=1e-6)
     _finite_with_grad(detection_loss, torch.full((1, 1, 4, 4), 1e4), torch.zeros(1, 1, 4, 4))
+
+
+def test_detection_loss_weights_each_crop():
+    torch.manual_seed(0)
+    logits, mask = torch.randn(2, 1, 8, 8), (torch.rand(2, 1, 8, 8) > 0.5).float()
+    plain = detection_loss(logits, mask)
+    assert detection_loss(logits, mask, torch.ones(2)).item() == pytest.approx(plain.item(), rel=1e-6)
+    # crop 0 weighted out: half the mean of crop 1 alone (the mean stays over every pixel)
+    half = detection_loss(logits, mask, torch.tensor([0.0, 1.0])).item()
+    assert half == pytest.approx(0.5 * detection_loss(logits[1:], mask[1:]).item(), rel=1e-6)
+    assert detection_loss(logits, mask, torch.zeros(2)).item() == 0.0

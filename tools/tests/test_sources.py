@@ -135,3 +135,12 @@ def test_sensor_noise_is_one_field_on_rainy_and_clean(tiny_dataset):
 def test_sensor_noise_levels_are_checked():
     with pytest.raises(ConfigError, match="sensor_noise_levels"):
         config_from_dict({"data": {"sources": [{"path": "x", "sensor_noise_levels": 100}]}})
+
+
+def test_detection_weight_is_per_source_and_checked(tiny_dataset):
+    cfg = config_from_dict({"data": {"sources": [{"path": "a"}, {"path": "b", "detection_weight": 0}]}})
+    assert [s.detection_weight for s in data_sources(cfg)] == [1.0, 0.0]
+    with pytest.raises(ConfigError, match="detection_weight"):
+        config_from_dict({"data": {"sources": [{"path": "x", "detection_weight": -1}]}})
+    item = RaindropDataset(tiny_dataset, crop=32, cache=False, detection_weight=0.25)[0]
+    assert item["detection_weight"] == np.float32(0.25)

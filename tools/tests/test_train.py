@@ -225,6 +225,30 @@ def test_training_on_rendered_and_real_sources(tiny_dataset, tmp_path):
     assert train.main([*base, "--out", str(tmp_path / "run3")]) == 2
 
 
+def test_a_source_of_detection_weight_zero_teaches_the_detector_nothing(tiny_dataset, tmp_path):
+    """data.sources[].detection_weight 0 on every source: the RDN's parameters stay as they
+    were after its first step (Adam moves nothing on a zero gradient) while the 3RN learns;
+    weight 1 moves both. Buffers (BatchNorm statistics) are not parameters and may move."""
+    raw = yaml.safe_load((CONFIGS / "smoke.yaml").read_text())
+    del raw["data"]["train"]
+
+    def moved(weight):
+        raw["data"]["sources"] = [{"path": str(tiny_dataset), "detection_weight": weight}]
+        cfg_file = tmp_path / f"w{weight}.yaml"
+        cfg_file.write_text(yaml.safe_dump(raw))
+        out = tmp_path / f"run-w{weight}"
+        base = ["--config", str(cfg_file), "--no-progress", "--stage", "1", "--out", str(out)]
+        assert train.main([*base, "--max-steps", "1"]) == 0
+        first = ckpt.load_checkpoint(ckpt.latest_checkpoint(out).path)["models"]
+        assert train.main(["--out", str(out), "--resume", "--stage", "1", "--no-progress"]) == 0
+        last = ckpt.load_checkpoint(ckpt.latest_checkpoint(out).path)["models"]
+        params = {net: [k for k in first[net] if "running_" not in k and "num_batches" not in k] for net in first}
+        return {net: any(not torch.equal(first[net][k], last[net][k]) for k in params[net]) for net in ("rdn", "rrn")}
+
+    assert moved(0.0) == {"rdn": False, "rrn": True}
+    assert moved(1.0) == {"rdn": True, "rrn": True}
+
+
 def test_init_from_loads_the_weights_not_the_optimizer(smoke_run, tmp_path, capsys):
     src_ckpt = ckpt.latest_checkpoint(smoke_run["run"]).path
     src = ckpt.load_checkpoint(src_ckpt)["models"]
