@@ -123,6 +123,53 @@ std::function<int()> add_remove_bench(CLI::App& parent) {
 
 namespace {
 
+// What the coarse pass for large drops (large_drops.h) adds to Remover::run, measured on the
+// street image with the pass on and off in alternate runs (so load changes hit both alike):
+// as found (the street's drops are small: only the coarse copy's detector runs), and with a
+// threshold below 0, which makes the whole frame one large drop (every network runs twice).
+void print_coarse_pass_cost(const std::vector<std::string>& model_dirs, cv::Size size, int threads, int runs,
+                            int warmup) {
+  std::cout << "\n## raindrop-remove: what the coarse pass for large drops costs\n\n"
+            << size.width << "x" << size.height << " street image, " << threads << " thread" << (threads == 1 ? "" : "s")
+            << ", default working scale; Remover::run with the coarse pass and without it (--no-large-drops) in "
+               "alternate runs, median of "
+            << runs << " each after " << warmup << " warm-up pair" << (warmup == 1 ? "" : "s")
+            << ". \"all one drop\": threshold -1, every pixel a drop, so the coarse copy's 3RN and RFN run too.\n\n"
+               "| models | mask | without (ms) | with (ms) | with / without | pixels through the networks, with / without | large drops |\n"
+               "|---|---|---|---|---|---|---|\n";
+  const cv::Mat image = demo_street(size.width, size.height);
+  SessionConfig session;
+  session.threads = threads;
+  for (const auto& dir : model_dirs) {
+    Remover remover(dir, session);
+    for (const bool all_one_drop : {false, true}) {
+      RemoveOptions on, off;
+      if (all_one_drop) on.threshold = off.threshold = -1.0;
+      off.large_drops = false;
+      std::vector<double> t_on, t_off;
+      RemoveResult r_on, r_off;
+      for (int i = 0; i < warmup + runs; ++i) {
+        double t0 = bench::now_ms();
+        r_off = remover.run(image, off);
+        const double w_off = bench::now_ms() - t0;
+        t0 = bench::now_ms();
+        r_on = remover.run(image, on);
+        const double w_on = bench::now_ms() - t0;
+        if (i < warmup) continue;
+        t_off.push_back(w_off);
+        t_on.push_back(w_on);
+      }
+      const double a = bench::median(t_off), b = bench::median(t_on);
+      std::cout << "| " << fs::path(dir).filename().string() << " | " << (all_one_drop ? "all one drop" : "as found")
+                << " | " << fmt(a) << " | " << fmt(b) << " | " << fmt(b / a, "%.2f") << " | "
+                << fmt((r_on.network_pixels + r_on.reconstructed_pixels) /
+                           (r_off.network_pixels + r_off.reconstructed_pixels),
+                       "%.2f")
+                << " | " << r_on.large_drops << " |\n";
+    }
+  }
+}
+
 int run_remove_bench(RemoveBenchOptions o) {
   try {
     check_tile_options(o.tile, o.overlap);
@@ -213,7 +260,7 @@ int run_remove_bench(RemoveBenchOptions o) {
             << "). Mean of " << runs << " runs after " << warmup << " warm-up run" << (warmup == 1 ? "" : "s")
             << ", in ms; input: the built-in street image (8-bit RGB). \"other\": input conversion, tile blending and "
                "quantisation; \"total\": wall time of Remover::run. The working-scale pass alone (raindrop-remove "
-               "--no-large-drops); the coarse pass for large drops adds about 11% of the network pixels.\n\n";
+               "--no-large-drops); what the coarse pass for large drops adds: its own table below.\n\n";
   std::cout << "| models | size (WxH) | scale | threads | tiles | edge | RDN | threshold+dilation | 3RN | blend | RFN | "
                "other | total | median total | first run |\n|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n";
   for (const auto& r : rows) {
@@ -255,6 +302,7 @@ int run_remove_bench(RemoveBenchOptions o) {
     }
     fs::remove_all(tmp, ec);
   }
+  if (process) print_coarse_pass_cost(model_dirs, *process, thread_counts.back(), runs, warmup);
   std::cout << "\n## raindrop-remove: GFLOP/s\n\nGFLOPs from each model folder's export.json (at 256x512), scaled by "
                "the pixels the networks ran on (tiles and their overlaps included).\n\n"
                "| models | size (WxH) | threads | GFLOP | RDN GFLOP/s | 3RN GFLOP/s | RFN GFLOP/s | overall GFLOP/s |\n"

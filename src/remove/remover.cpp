@@ -215,15 +215,20 @@ void Remover::add_large_drops(const cv::Mat& image, const RemoveOptions& opt, do
   sub.scale = 1.0;
   sub.keep_float = true;
   sub.large_drops = false;
-  const RemoveResult c = run_native(coarse_native, sub);
+  // Most photographs have no large drop: the coarse copy's detector decides before its 3RN and
+  // RFN run, which are about two thirds of its cost.
+  cv::Mat large;
+  const MaskGate only_with_large_drops = [&](const cv::Mat& mask) {
+    large = large_drop_mask(mask, &res.large_drops);
+    return res.large_drops > 0;
+  };
+  const RemoveResult c = run_native(coarse_native, sub, only_with_large_drops);
   t += c.times;
   res.network_pixels += c.network_pixels;
+  res.reconstructed_pixels += c.reconstructed_pixels;
   res.coarse_scale = coarse_scale;
-
-  clock = Clock::now();
-  const cv::Mat large = large_drop_mask(c.mask, &res.large_drops);
-  t.mask += lap_ms(clock);
   if (res.large_drops == 0) return;
+  clock = Clock::now();
   cv::Mat weight;
   large.convertTo(weight, CV_32F, 1.0 / 255.0);
   Upsampled up = composite_upsampled(res.image, opt.keep_float ? res.rgb : cv::Mat(), c.rgb, weight, opt.keep_float);
@@ -233,7 +238,7 @@ void Remover::add_large_drops(const cv::Mat& image, const RemoveOptions& opt, do
   t.output += lap_ms(clock);
 }
 
-RemoveResult Remover::run_native(const cv::Mat& image, const RemoveOptions& opt) {
+RemoveResult Remover::run_native(const cv::Mat& image, const RemoveOptions& opt, const MaskGate& gate) {
   const double threshold = opt.threshold.value_or(info().threshold);
   if (!std::isfinite(threshold)) throw Error("--threshold must be a finite number");
   const int k = opt.dilation.value_or(info().dilation);
@@ -256,7 +261,7 @@ RemoveResult Remover::run_native(const cv::Mat& image, const RemoveOptions& opt)
   // Pass 1: detection, thresholded into the whole-image mask from each pixel's owning tile.
   // A single tile's 3RN runs here too, beside its RDN, when there are threads for both
   // (Models::branches): it needs only the input.
-  const int branches = single ? models_.branches() : 1;
+  const int branches = single && !gate ? models_.branches() : 1;
   cv::Mat mask0(Hp, Wp, CV_8U, cv::Scalar(0));
   TileInputs kept;                // the single tile's inputs, reused by pass 2
   std::vector<float> kept_ihat;   // and its 3RN output when it ran beside the RDN
@@ -288,7 +293,13 @@ RemoveResult Remover::run_native(const cv::Mat& image, const RemoveOptions& opt)
   auto clock = Clock::now();
   const cv::Mat mask = dilate_mask(mask0, k);
   mask0.release();
+  const bool reconstruct_now = !gate || gate(mask(cv::Rect(0, 0, W, H)));
   t.mask += lap_ms(clock);
+  if (!reconstruct_now) {
+    res.mask = mask(cv::Rect(0, 0, W, H)) * 255;
+    return res;
+  }
+  res.reconstructed_pixels = res.network_pixels;
 
   // Pass 2: reconstruction, blend, refinement; tile outputs blended into a strip of rows
   // that is finished (quantised into the output) as soon as no later tile row reaches it.

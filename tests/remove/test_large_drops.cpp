@@ -57,6 +57,10 @@ TEST(LargeDrops, NoLargeDropLeavesTheResultAsItWas) {
   EXPECT_EQ(with.large_drops, 0);
   EXPECT_EQ(max_abs_diff(with.image, without.image), 0);
   EXPECT_EQ(cv::countNonZero(with.mask != without.mask), 0);
+  // The coarse copy's detector ran; its 3RN and RFN did not (nothing to replace).
+  EXPECT_GT(with.network_pixels, without.network_pixels);
+  EXPECT_EQ(with.reconstructed_pixels, without.reconstructed_pixels);
+  EXPECT_EQ(without.reconstructed_pixels, without.network_pixels);
 }
 
 // A mask over everything is one large drop: the output is the coarse copy's result upsampled.
@@ -66,6 +70,7 @@ TEST(LargeDrops, AFullMaskIsTheCoarseCopysResultUpsampled) {
   all.threshold = -1.0;  // P > -1 always
   const RemoveResult r = smoke().run(img, all);
   ASSERT_EQ(r.large_drops, 1);
+  EXPECT_EQ(r.reconstructed_pixels, r.network_pixels);  // both passes ran whole
   const double coarse_scale = r.scale / kLargeDropScaleDivisor;
   EXPECT_DOUBLE_EQ(r.coarse_scale, coarse_scale);
   EXPECT_EQ(cv::countNonZero(r.mask), static_cast<int>(r.mask.total()));

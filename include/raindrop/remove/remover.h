@@ -21,6 +21,7 @@
 // the threads each, then RFN on all of them (Models::branches); StageTimes then sum the busy
 // time of both sides, more than the wall time. Tiled images run in order.
 #include <filesystem>
+#include <functional>
 #include <optional>
 
 #include <opencv2/core.hpp>
@@ -54,7 +55,10 @@ struct RemoveResult {
   cv::Mat rgb;    // CV_32FC3 in [0, 1], keep_float only: clamp(RFN(B)) cropped, RGB
   StageTimes times;
   int tiles_x = 1, tiles_y = 1;
-  double network_pixels = 0;  // pixels each network ran on (sum of the tiles' padded areas)
+  double network_pixels = 0;  // pixels the detector ran on (sum of the tiles' padded areas)
+  // Pixels the 3RN and RFN ran on: network_pixels, less a coarse pass that found no large
+  // drop (it stops after its detector).
+  double reconstructed_pixels = 0;
   double scale = 1.0;         // the scale the networks saw the image at
   double coarse_scale = 0;    // the coarse pass's scale (large_drops.h); 0 when it did not run
   int large_drops = 0;        // drops the coarse pass found large and replaced
@@ -76,8 +80,13 @@ class Remover {
   const std::filesystem::path& model_dir() const { return models_.dir(); }
 
  private:
-  // The pipeline at the image's own size (the networks see every pixel).
-  RemoveResult run_native(const cv::Mat& image, const RemoveOptions& options);
+  // Decides after detection whether reconstruction is worth running, from the dilated mask
+  // (CV_8U 0/1, the image's size).
+  using MaskGate = std::function<bool(const cv::Mat& mask)>;
+  // The pipeline at the image's own size (the networks see every pixel). With a `gate` that
+  // returns false, it stops after detection: the result then holds the mask and the times
+  // only (image empty), and the 3RN does not run beside the RDN (it might be wasted).
+  RemoveResult run_native(const cv::Mat& image, const RemoveOptions& options, const MaskGate& gate = {});
   // The pipeline on a copy at `small`, brought back to the image's size.
   RemoveResult run_scaled(const cv::Mat& image, const RemoveOptions& options, cv::Size small, double scale);
   // The coarse pass for large drops over `res`, the result at `scale` (large_drops.h).
