@@ -96,6 +96,11 @@ class SourceConfig:
     # parallax, exposure, the wet glass's haze over flat road) and taught the fine-tuned
     # detectors to flag smooth regions (docs/RESULTS.md 4.4-4.7).
     detection_weight: float = 1.0
+    # Train on this source's images downscaled by this factor (area averaging; masks averaged
+    # the same way and thresholded at one half), in (0, 1]. raindrop-remove's coarse pass for
+    # large drops runs the networks at a third of the working scale: real lens-cover drops
+    # 50-200 px across become the 15-70 px the networks handle there (docs/RESULTS.md 4.6-4.7).
+    scale: float = 1.0
 
 
 @dataclass(frozen=True)
@@ -287,6 +292,8 @@ def validate_config(cfg: RunConfig) -> None:
             problems.append(f"data.sources[{i}].visible_levels must be in [0, 255], got {src.visible_levels}")
         if not (0.0 <= src.sensor_noise_levels <= 64.0):
             problems.append(f"data.sources[{i}].sensor_noise_levels must be in [0, 64], got {src.sensor_noise_levels}")
+        if not (0.0 < src.scale <= 1.0):
+            problems.append(f"data.sources[{i}].scale must be in (0, 1], got {src.scale}")
         if not (0.0 <= src.detection_weight <= 100.0):
             problems.append(f"data.sources[{i}].detection_weight must be in [0, 100], got {src.detection_weight}")
     t = cfg.train
@@ -395,7 +402,7 @@ def data_sources(cfg: RunConfig) -> list[SourceConfig]:
         check = d.check_outside_mask if s.check_outside_mask is None else s.check_outside_mask
         out.append(SourceConfig(path=s.path, weight=s.weight, split=split, check_outside_mask=check,
                                 visible_levels=s.visible_levels, sensor_noise_levels=s.sensor_noise_levels,
-                                detection_weight=s.detection_weight))
+                                detection_weight=s.detection_weight, scale=s.scale))
     return out
 
 

@@ -16,10 +16,11 @@ from __future__ import annotations
 
 import json
 import os
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Callable, Iterator
 
+import cv2
 import numpy as np
 
 from .edge import edge_map_window
@@ -209,6 +210,22 @@ def check_files(
         _raise(problems, "data set refused")
 
 
+def scaled_length(n: int, scale: float) -> int:
+    """A side of ``n`` px at ``scale``: rounded, at least 1 (as raindrop-remove's scaled_size)."""
+    return max(1, int(np.floor(n * scale + 0.5)))  # half away from zero, as std::lround
+
+
+def downscale_sample(rainy: np.ndarray, clean: np.ndarray, mask: np.ndarray, scale: float):
+    """(rainy, clean, mask) at ``scale`` < 1: images by area averaging (as raindrop-remove makes
+    its smaller copies), the mask averaged the same way and kept where at least half covered."""
+    h, w = mask.shape
+    size = (scaled_length(w, scale), scaled_length(h, scale))
+    r = cv2.resize(rainy, size, interpolation=cv2.INTER_AREA)
+    c = cv2.resize(clean, size, interpolation=cv2.INTER_AREA)
+    m = cv2.resize(mask.astype(np.float32), size, interpolation=cv2.INTER_AREA)
+    return r, c, np.where(m >= 127.5, 255, 0).astype(np.uint8)
+
+
 def visible_difference(rainy_u8: np.ndarray, clean_u8: np.ndarray, levels: float) -> np.ndarray:
     """Where rainy and clean (HxWx3 uint8) visibly differ: the 5x5 box blur of the absolute
     luma difference > ``levels`` 8-bit levels, as float32 0/1 (``SourceConfig.visible_levels``).
@@ -264,9 +281,13 @@ class RaindropDataset:
         visible_levels: float = 0.0,
         sensor_noise_levels: float = 0.0,
         detection_weight: float = 1.0,
+        scale: float = 1.0,
     ):
         self.root = Path(root)
         self.detection_weight = np.float32(detection_weight)
+        if not (0.0 < scale <= 1.0):
+            raise ValueError(f"scale must be in (0, 1], got {scale}")
+        self.scale = float(scale)
         self.crop = int(crop)
         self.visible_levels = float(visible_levels)
         self.sensor_noise_levels = float(sensor_noise_levels)
@@ -279,18 +300,27 @@ class RaindropDataset:
                 log(f"data: not caching: the decoded set needs {need:.1f} GiB > cache_max_gib {cache_max_gib}")
             else:
                 self._cache = {}
-        keep = self._cache.__setitem__ if self._cache is not None else None
+        keep = (lambda i, images: self._cache.__setitem__(i, self._scaled(images))) if self._cache is not None else None
         if self._cache is not None and validate == "header":
             # Caching decodes everything anyway: validate fully at no extra cost.
             validate = "full"
         check_files(
             self.samples,
-            min_size=self.crop,
+            min_size=self.crop if self.scale == 1.0 else 1,
             level=validate,
             check_outside_mask=check_outside_mask,
             keep=keep,
             manifest=str(self.root / MANIFEST),
         )
+        if self.scale != 1.0:
+            # From here on a sample's size is its downscaled size (what crops are drawn from).
+            self.samples = [replace(s, width=scaled_length(s.width, self.scale), height=scaled_length(s.height, self.scale))
+                            for s in self.samples]
+            small = [f"{s.id} ({s.width}x{s.height})" for s in self.samples if min(s.width, s.height) < self.crop]
+            if small:
+                _raise([f"{self.root / MANIFEST}: at scale {self.scale:g}, image(s) smaller than the "
+                        f"{self.crop}x{self.crop} crop: {', '.join(small[:5])}{'...' if len(small) > 5 else ''}"],
+                       "data set refused")
         self._rng = np.random.default_rng()
 
     def __len__(self) -> int:
@@ -302,10 +332,15 @@ class RaindropDataset:
         return [(s.height, s.width) for s in self.samples]
 
     def load(self, i: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """Decoded (rainy, clean, mask) uint8 images of sample ``i``."""
+        """Decoded (rainy, clean, mask) uint8 images of sample ``i``, at the source's scale."""
         if self._cache is not None and i in self._cache:
             return self._cache[i]
-        return _decode(self.samples[i])
+        return self._scaled(_decode(self.samples[i]))
+
+    def _scaled(self, images: tuple[np.ndarray, np.ndarray, np.ndarray]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        if self.scale == 1.0:
+            return images
+        return downscale_sample(*images, self.scale)
 
     def random_key(self, i: int, rng: np.random.Generator) -> tuple[int, int, int, bool]:
         s = self.samples[i]

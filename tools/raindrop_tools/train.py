@@ -222,6 +222,7 @@ class Trainer:
                         visible_levels=src.visible_levels,
                         sensor_noise_levels=src.sensor_noise_levels,
                         detection_weight=src.detection_weight,
+                        scale=src.scale,
                     )
                 )
             self._dataset = MultiSourceDataset(parts) if d.sources else parts[0]

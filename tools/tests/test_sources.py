@@ -144,3 +144,40 @@ def test_detection_weight_is_per_source_and_checked(tiny_dataset):
         config_from_dict({"data": {"sources": [{"path": "x", "detection_weight": -1}]}})
     item = RaindropDataset(tiny_dataset, crop=32, cache=False, detection_weight=0.25)[0]
     assert item["detection_weight"] == np.float32(0.25)
+
+
+def test_a_source_can_be_trained_at_a_smaller_scale(tiny_dataset):
+    """data.sources[].scale: crops come from an area-downscaled copy (as raindrop-remove makes
+    its coarse copies), the mask downscaled alike and kept binary; too small is refused."""
+    import cv2
+
+    from raindrop_tools.data import downscale_sample, scaled_length
+
+    full = RaindropDataset(tiny_dataset, crop=16, cache=False)
+    third = RaindropDataset(tiny_dataset, crop=16, cache=False, scale=1 / 3)
+    cached = RaindropDataset(tiny_dataset, crop=16, cache=True, scale=1 / 3)
+    (h, w), (h3, w3) = full.sizes[0], third.sizes[0]
+    assert (h3, w3) == (scaled_length(h, 1 / 3), scaled_length(w, 1 / 3))
+    assert scaled_length(5, 0.5) == 3 and scaled_length(1, 0.1) == 1  # std::lround, at least 1
+    rainy, clean, mask = full.load(0)
+    r3, c3, m3 = third.load(0)
+    assert r3.shape == (h3, w3, 3) and m3.shape == (h3, w3)
+    assert np.array_equal(r3, cv2.resize(rainy, (w3, h3), interpolation=cv2.INTER_AREA))
+    assert set(np.unique(m3)) <= {0, 255}
+    # the mask keeps its share of the frame (within the rounding of its outline)
+    assert abs((m3 > 0).mean() - (mask > 0).mean()) < 0.05
+    for a, b in zip(cached.load(0), (r3, c3, m3)):
+        assert np.array_equal(a, b)
+    item = third[(0, 0, 0, False)]
+    assert item["rainy"].shape == (3, 16, 16)
+    # a half-covered block of 2x2 pixels stays, a quarter-covered one goes
+    m = np.zeros((4, 4), np.uint8)
+    m[0:2, 0] = 255
+    m[2, 2] = 255
+    z = np.zeros((4, 4, 3), np.uint8)
+    assert downscale_sample(z, z, m, 0.5)[2].tolist() == [[255, 0], [0, 0]]
+    with pytest.raises(DatasetError, match="smaller than the"):
+        RaindropDataset(tiny_dataset, crop=min(h, w) // 2, cache=False, scale=0.25)
+    with pytest.raises(ConfigError, match=r"sources\[0\].scale"):
+        config_from_dict({"data": {"sources": [{"path": "x", "scale": 0}]}})
+    assert [x.scale for x in data_sources(config_from_dict({"data": {"sources": [{"path": "x", "scale": 0.5}]}}))] == [0.5]
