@@ -2,7 +2,7 @@
 # Regenerates every figure of docs/RESULTS.md into out/results/ (run after scripts/setup.sh
 # and scripts/setup-tools.sh; needs a folder of real photographs, $RAINDROP_SHARED_DATA
 # (default ../shared/data), for the real frames). Sections can be chosen:
-# scripts/results.sh data render stats eval remove tradeoffs sheets photoreal scale flatroad largedrops
+# scripts/results.sh data render stats eval remove tradeoffs sheets photoreal scale flatroad largedrops coarsetrain
 #
 # Nothing here is committed automatically: images derived from Cityscapes, CamVid or the
 # real raindrop photographs stay under out/ (their licences forbid redistribution).
@@ -13,7 +13,7 @@ py=.venv/bin/python
 out=out/results
 mkdir -p "$out"
 sections=("$@")
-((${#sections[@]})) || sections=(data render stats eval remove tradeoffs sheets photoreal scale flatroad largedrops)
+((${#sections[@]})) || sections=(data render stats eval remove tradeoffs sheets photoreal scale flatroad largedrops coarsetrain)
 want() { [[ " ${sections[*]} " == *" $1 "* ]]; }
 
 if want data; then
@@ -234,4 +234,52 @@ PY
       done
     done
   done | tee "$out/largedrops.txt"
+fi
+
+if want coarsetrain; then
+  # docs/RESULTS.md 4.7: models fine-tuned for the coarse pass's scale (tools/configs/
+  # compact-real-coarse*.yaml, compact-real-d.yaml; trained and exported to out/models, or
+  # committed under models/), each as raindrop-remove runs it by default: the real pairs' test
+  # split with and without the coarse pass, the first 100 paper-preset test samples, and the
+  # demo street's mask IoU (flatroad above, no noise).
+  set_dir="$out/coarsetrain"
+  rm -rf "$set_dir" && build/raindrop-render --demo --size 512x256 --seed 7 --out "$set_dir/street" -q
+  for dir in models/compact out/models/compact-real-d out/models/compact-real-coarse out/models/compact-real-coarse-det \
+             out/models/compact-real-coarse-lens models/compact-real-coarse-long; do
+    [[ -d $dir ]] || continue
+    m=$(basename "$dir")
+    for run in real-pairs:test: real-pairs:test:--no-large-drops test:-:; do
+      IFS=: read -r name split flags <<<"$run"
+      d="$set_dir/$m-$name${flags:+-off}"
+      rm -rf "$d" && mkdir -p "$d/set/rainy" "$d/set/clean"
+      $py - "data/$name" "$d/set" "$split" <<'PY'
+import json, os, sys
+src, dst, split = sys.argv[1:]
+n = 0
+for line in open(os.path.join(src, "manifest.jsonl")):
+    r = json.loads(line)
+    if split != "-" and r.get("split") != split:
+        continue
+    name = "s" + os.path.basename(r["rainy"])
+    for kind in ("rainy", "clean"):
+        os.symlink(os.path.abspath(os.path.join(src, r[kind])), os.path.join(dst, kind, name))
+    n += 1
+    if n == 100:
+        break
+PY
+      build/raindrop-remove "$d/set/rainy" "$d/out" --models "$dir" -q $flags
+      $py -m raindrop_tools.score_outputs --data "$d/set" --outputs "$d/out" --label "$m $name ${flags:-(default)}"
+    done
+    build/raindrop-remove "$set_dir/street/rainy/street_v00.png" "$set_dir/$m-street.png" --models "$dir" \
+      --mask "$set_dir/$m-street-mask.png" -q
+    $py - "$set_dir" "$m" <<'PY'
+import sys
+import numpy as np
+from PIL import Image
+d, m = sys.argv[1:]
+truth = np.asarray(Image.open(f"{d}/street/mask/street_v00.png")) > 0
+found = np.asarray(Image.open(f"{d}/{m}-street-mask.png")) > 0
+print(f"{m} demo street mask IoU {(truth & found).sum() / max((truth | found).sum(), 1):.3f}")
+PY
+  done | tee "$out/coarsetrain.txt"
 fi
