@@ -15,6 +15,27 @@ mkdir -p "$out"
 sections=("$@")
 ((${#sections[@]})) || sections=(data render stats eval remove tradeoffs sheets photoreal scale flatroad largedrops coarsetrain)
 want() { [[ " ${sections[*]} " == *" $1 "* ]]; }
+# link_set SRC DST SPLIT: the first 100 samples of data set SRC (of manifest split SPLIT; "-" =
+# all) linked into DST/rainy and DST/clean under plainly named files (older renders named some
+# samples '..-...', which folder walks skip as hidden), DST emptied first.
+link_set() {
+  rm -rf "$2" && mkdir -p "$2/rainy" "$2/clean"
+  $py - "$1" "$2" "$3" <<'PY'
+import json, os, sys
+src, dst, split = sys.argv[1:]
+n = 0
+for line in open(os.path.join(src, "manifest.jsonl")):
+    r = json.loads(line)
+    if split != "-" and r.get("split") != split:
+        continue
+    name = "s" + os.path.basename(r["rainy"])
+    for kind in ("rainy", "clean"):
+        os.symlink(os.path.abspath(os.path.join(src, r[kind])), os.path.join(dst, kind, name))
+    n += 1
+    if n == 100:
+        break
+PY
+}
 
 if want data; then
   # The training and held-out test sets behind models/ (models/README.md). A folder that is
@@ -213,22 +234,7 @@ if want largedrops; then
     for flags in "" "--no-large-drops"; do
       for set in real-pairs:test test:- val-paper:- val-lens-cover:- val-windshield-day:-; do
         name="${set%%:*}" split="${set##*:}" dir="$out/largedrops/$m${flags:+-off}-$name"
-        rm -rf "$dir" && mkdir -p "$dir/set/rainy" "$dir/set/clean"
-        $py - "data/$name" "$dir/set" "$split" <<'PY'
-import json, os, sys
-src, dst, split = sys.argv[1:]
-n = 0
-for line in open(os.path.join(src, "manifest.jsonl")):
-    r = json.loads(line)
-    if split != "-" and r.get("split") != split:
-        continue
-    name = "s" + os.path.basename(r["rainy"])
-    for kind in ("rainy", "clean"):
-        os.symlink(os.path.abspath(os.path.join(src, r[kind])), os.path.join(dst, kind, name))
-    n += 1
-    if n == 100:
-        break
-PY
+        rm -rf "$dir" && link_set "data/$name" "$dir/set" "$split"
         build/raindrop-remove "$dir/set/rainy" "$dir/out" --model-config "$m" -q $flags
         $py -m raindrop_tools.score_outputs --data "$dir/set" --outputs "$dir/out" --label "$m $name ${flags:-(default)}"
       done
@@ -251,22 +257,7 @@ if want coarsetrain; then
     for run in real-pairs:test: real-pairs:test:--no-large-drops test:-:; do
       IFS=: read -r name split flags <<<"$run"
       d="$set_dir/$m-$name${flags:+-off}"
-      rm -rf "$d" && mkdir -p "$d/set/rainy" "$d/set/clean"
-      $py - "data/$name" "$d/set" "$split" <<'PY'
-import json, os, sys
-src, dst, split = sys.argv[1:]
-n = 0
-for line in open(os.path.join(src, "manifest.jsonl")):
-    r = json.loads(line)
-    if split != "-" and r.get("split") != split:
-        continue
-    name = "s" + os.path.basename(r["rainy"])
-    for kind in ("rainy", "clean"):
-        os.symlink(os.path.abspath(os.path.join(src, r[kind])), os.path.join(dst, kind, name))
-    n += 1
-    if n == 100:
-        break
-PY
+      rm -rf "$d" && link_set "data/$name" "$d/set" "$split"
       build/raindrop-remove "$d/set/rainy" "$d/out" --models "$dir" -q $flags
       $py -m raindrop_tools.score_outputs --data "$d/set" --outputs "$d/out" --label "$m $name ${flags:-(default)}"
     done
