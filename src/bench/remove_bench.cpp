@@ -127,10 +127,11 @@ namespace {
 // street image with the pass on and off in alternate runs (so load changes hit both alike):
 // as found (the street's drops are small: only the coarse copy's detector runs), and with a
 // threshold below 0, which makes the whole frame one large drop (every network runs twice).
-void print_coarse_pass_cost(const std::vector<std::string>& model_dirs, cv::Size size, int threads, int runs,
+void print_coarse_pass_cost(const std::vector<std::string>& model_dirs, cv::Size size, SessionConfig session, int runs,
                             int warmup) {
+  const int threads = session.threads;
   std::cout << "\n## raindrop-remove: what the coarse pass for large drops costs\n\n"
-            << size.width << "x" << size.height << " street image, " << threads << " thread" << (threads == 1 ? "" : "s")
+            << size.width << "x" << size.height << " street image (--process-size), " << threads << " thread" << (threads == 1 ? "" : "s")
             << ", default working scale; Remover::run with the coarse pass and without it (--no-large-drops) in "
                "alternate runs, median of "
             << runs << " each after " << warmup << " warm-up pair" << (warmup == 1 ? "" : "s")
@@ -138,8 +139,6 @@ void print_coarse_pass_cost(const std::vector<std::string>& model_dirs, cv::Size
                "| models | mask | without (ms) | with (ms) | with / without | pixels through the networks, with / without | large drops |\n"
                "|---|---|---|---|---|---|---|\n";
   const cv::Mat image = demo_street(size.width, size.height);
-  SessionConfig session;
-  session.threads = threads;
   for (const auto& dir : model_dirs) {
     Remover remover(dir, session);
     for (const bool all_one_drop : {false, true}) {
@@ -302,7 +301,10 @@ int run_remove_bench(RemoveBenchOptions o) {
     }
     fs::remove_all(tmp, ec);
   }
-  if (process) print_coarse_pass_cost(model_dirs, *process, thread_counts.back(), runs, warmup);
+  if (process) {  // the --process-size image, the last --threads value, the same graph optimisation
+    session.threads = thread_counts.back();
+    print_coarse_pass_cost(model_dirs, *process, session, runs, warmup);
+  }
   std::cout << "\n## raindrop-remove: GFLOP/s\n\nGFLOPs from each model folder's export.json (at 256x512), scaled by "
                "the pixels the networks ran on (tiles and their overlaps included).\n\n"
                "| models | size (WxH) | threads | GFLOP | RDN GFLOP/s | 3RN GFLOP/s | RFN GFLOP/s | overall GFLOP/s |\n"

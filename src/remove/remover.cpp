@@ -326,7 +326,12 @@ RemoveResult Remover::run_native(const cv::Mat& image, const RemoveOptions& opt,
       const int x0 = lx.begin[ix], x1 = lx.end[ix];
       TileInputs in = single ? std::move(kept) : build_inputs(image, y0, y1, x0, x1, t);
       // 3RN (already run beside the RDN for a single tile on two threads).
-      std::vector<float> ihat = !kept_ihat.empty() ? std::move(kept_ihat) : reconstruct(models_.rrn(), in, t);
+      // A single tile whose 3RN did not run beside its RDN (a gated pass, or one thread) uses the
+      // same half-thread session: the all-thread sessions are made only for tiled images, so a
+      // coarse pass never creates sessions of its own (it runs on a ninth-size copy, where
+      // half the threads cost little).
+      std::vector<float> ihat = !kept_ihat.empty() ? std::move(kept_ihat)
+                                                   : reconstruct(single ? models_.rrn_beside() : models_.rrn(), in, t);
       const size_t plane = static_cast<size_t>(in.h) * in.w;
       clock = Clock::now();
       // B = M * Ihat + (1 - M) * R with M in {0, 1} is exactly a choice between the two

@@ -295,7 +295,7 @@ class RaindropDataset:
         self.samples = read_manifest(self.root, splits)
         self._cache: dict[int, tuple[np.ndarray, np.ndarray, np.ndarray]] | None = None
         if cache:
-            need = sum(s.width * s.height * 7 for s in self.samples) / 2**30
+            need = sum(s.width * s.height * 7 for s in self.samples) * self.scale**2 / 2**30  # cached downscaled
             if need > cache_max_gib:
                 log(f"data: not caching: the decoded set needs {need:.1f} GiB > cache_max_gib {cache_max_gib}")
             else:

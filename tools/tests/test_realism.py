@@ -112,9 +112,9 @@ def test_cli_on_generated_real_pairs_and_rendered_set(tmp_path, capsys):
     assert "### real (pairs, train): 6 images" in capsys.readouterr().out
 
 
-def test_rendered_sets_are_measured_with_rough_masks_by_default(tmp_path, capsys):
+def test_rendered_sets_measured_with_rough_masks_see_only_the_visible_drop(tmp_path, capsys):
     """A rendered mask twice as large as the visible drop: with its own mask the drop's
-    coverage is the mask's; with rough masks (the default, as for real pairs) it is the
+    coverage is the mask's; with rough masks (the CLI's default, as for real pairs) it is the
     visible part only, as it would be for a real pair with the same images."""
     import cv2
 

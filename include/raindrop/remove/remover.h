@@ -85,7 +85,8 @@ class Remover {
   using MaskGate = std::function<bool(const cv::Mat& mask)>;
   // The pipeline at the image's own size (the networks see every pixel). With a `gate` that
   // returns false, it stops after detection: the result then holds the mask and the times
-  // only (image empty), and the 3RN does not run beside the RDN (it might be wasted).
+  // only (image empty), and the 3RN does not run beside the RDN (it might be wasted): a single
+  // tile then runs both, one after the other, on the half-thread sessions.
   RemoveResult run_native(const cv::Mat& image, const RemoveOptions& options, const MaskGate& gate = {});
   // The pipeline on a copy at `small`, brought back to the image's size.
   RemoveResult run_scaled(const cv::Mat& image, const RemoveOptions& options, cv::Size small, double scale);
