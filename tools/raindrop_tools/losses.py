@@ -10,7 +10,9 @@ from pytorch_msssim import ssim
 def detection_loss(logits: torch.Tensor, mask: torch.Tensor, weight: torch.Tensor | None = None) -> torch.Tensor:
     """RDN: binary cross-entropy, mean over pixels, in the numerically stable logits form.
     ``weight`` (one value per crop, shape (N,)) scales each crop's term; the mean stays over all
-    pixels of the batch, so a crop of weight 0 adds nothing and the others keep their scale."""
+    pixels of the batch, so a crop of weight 0 adds nothing to the loss or its gradient and the
+    others keep their scale. (A batch of weight-0 crops only gives a zero gradient, but Adam's
+    momentum still moves the weights a little on that step.)"""
     if weight is None:
         return F.binary_cross_entropy_with_logits(logits, mask)
     w = weight.to(logits.dtype).reshape(-1, *([1] * (logits.dim() - 1)))
