@@ -316,8 +316,7 @@ def collect_rendered(root, rng, crops_per_image, limit=None, splits=None,
     for s in samples:
         rainy, clean = read_rgb_strict(s.rainy), read_rgb_strict(s.clean)
         if rough is not None:
-            mask = RP.rough_mask(rainy, clean, rough.blur, rough.threshold, rough.open_size, rough.close_size,
-                                 rough.min_area)
+            mask = rough.mask(rainy, clean)
         else:
             mask = read_mask_strict(s.mask)
         group = s.id.rsplit("_v", 1)[0]  # variants of one source image stay in one fold

@@ -90,6 +90,10 @@ class MaskParams:
     close_size: int = 7  # elliptical closing (px); 1 = none
     min_area: int = 16  # connected components (8-connected) smaller than this are dropped
 
+    def mask(self, rainy: np.ndarray, clean: np.ndarray) -> np.ndarray:
+        """``rough_mask`` of a rainy/clean pair with these parameters."""
+        return rough_mask(rainy, clean, self.blur, self.threshold, self.open_size, self.close_size, self.min_area)
+
 
 def group_of(pair_id: str) -> str:
     """``X_t<n>`` -> ``X``; an id without such a tail is its own group."""
@@ -246,7 +250,7 @@ def pair_mask(pair: Pair, params: MaskParams | None = None) -> tuple[np.ndarray,
     """(rainy, clean, rough mask 0/255) of a pair."""
     p = params or MaskParams()
     rainy, clean = load_pair(pair)
-    return rainy, clean, rough_mask(rainy, clean, p.blur, p.threshold, p.open_size, p.close_size, p.min_area)
+    return rainy, clean, p.mask(rainy, clean)
 
 
 def prepare(

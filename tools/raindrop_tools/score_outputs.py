@@ -21,23 +21,17 @@ from pathlib import Path
 import numpy as np
 
 from . import metrics
+from .data import DatasetError, read_manifest
 from .imageio import read_rgb_strict
 
 
 def split_names(data: Path, split: str) -> set[str]:
-    """The rainy file names of the samples whose manifest ``split`` is ``split``."""
-    manifest = data / "manifest.jsonl"
-    if not manifest.is_file():
-        raise SystemExit(f"score_outputs: --split needs {manifest}")
-    names = set()
-    for line in manifest.read_text().splitlines():
-        if line.strip():
-            rec = json.loads(line)
-            if rec.get("split") == split:
-                names.add(Path(rec["rainy"]).name)
-    if not names:
-        raise SystemExit(f"score_outputs: no sample of {manifest} has split {split!r}")
-    return names
+    """The rainy file names of the samples whose manifest ``split`` is ``split`` (the data set's
+    manifest, read as training reads it)."""
+    try:
+        return {s.rainy.name for s in read_manifest(data, [split])}
+    except DatasetError as e:
+        raise SystemExit(f"score_outputs: --split: {e}") from None
 
 
 def score(data: Path, outputs: Path, split: str | None = None) -> dict:

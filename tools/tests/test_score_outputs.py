@@ -56,7 +56,8 @@ def test_no_matching_outputs_is_an_error(tmp_path):
 
 def test_split_keeps_only_that_splits_samples(tmp_path):
     data, outs = make_set(tmp_path, 3)
-    rows = [{"rainy": f"rainy/{i}.png", "split": "test" if i != 1 else "train"} for i in range(3)]
+    rows = [{"id": str(i), "rainy": f"rainy/{i}.png", "clean": f"clean/{i}.png", "mask": f"mask/{i}.png",
+             "width": 48, "height": 32, "split": "test" if i != 1 else "train"} for i in range(3)]
     (data / "manifest.jsonl").write_text("\n".join(json.dumps(r) for r in rows) + "\n")
     r = SO.score(data, outs, "test")
     assert [p["name"] for p in r["per_image"]] == ["0.png", "2.png"]
