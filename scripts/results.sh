@@ -3,6 +3,7 @@
 # and scripts/setup-tools.sh; needs a folder of real photographs, $RAINDROP_SHARED_DATA
 # (default ../shared/data), for the real frames). Sections can be chosen:
 # scripts/results.sh data render stats eval remove tradeoffs sheets photoreal scale flatroad largedrops coarsetrain
+# largedropmodels
 #
 # Nothing here is committed automatically: images derived from Cityscapes, CamVid or the
 # real raindrop photographs stay under out/ (their licences forbid redistribution).
@@ -13,16 +14,19 @@ py=.venv/bin/python
 out=out/results
 mkdir -p "$out"
 sections=("$@")
-((${#sections[@]})) || sections=(data render stats eval remove tradeoffs sheets photoreal scale flatroad largedrops coarsetrain)
+((${#sections[@]})) || sections=(data render stats eval remove tradeoffs sheets photoreal scale flatroad largedrops coarsetrain
+                                  largedropmodels)
 want() { [[ " ${sections[*]} " == *" $1 "* ]]; }
-# link_set SRC DST SPLIT: the first 100 samples of data set SRC (of manifest split SPLIT; "-" =
-# all) linked into DST/rainy and DST/clean under plainly named files (older renders named some
-# samples '..-...', which folder walks skip as hidden), DST emptied first.
+# link_set SRC DST SPLIT [LIMIT]: the first LIMIT (default 100; 0: all) samples of data set SRC
+# (of manifest split SPLIT; "-" = all) linked into DST/rainy and DST/clean under plainly named
+# files (older renders named some samples '..-...', which folder walks skip as hidden), DST
+# emptied first.
 link_set() {
   rm -rf "$2" && mkdir -p "$2/rainy" "$2/clean"
-  $py - "$1" "$2" "$3" <<'PY'
+  $py - "$1" "$2" "$3" "${4:-100}" <<'PY'
 import json, os, sys
-src, dst, split = sys.argv[1:]
+src, dst, split, limit = sys.argv[1:]
+limit = int(limit)
 n = 0
 for line in open(os.path.join(src, "manifest.jsonl")):
     r = json.loads(line)
@@ -32,7 +36,7 @@ for line in open(os.path.join(src, "manifest.jsonl")):
     for kind in ("rainy", "clean"):
         os.symlink(os.path.abspath(os.path.join(src, r[kind])), os.path.join(dst, kind, name))
     n += 1
-    if n == 100:
+    if n == limit:
         break
 PY
 }
@@ -235,7 +239,9 @@ if want largedrops; then
       for set in real-pairs:test test:- val-paper:- val-lens-cover:- val-windshield-day:-; do
         name="${set%%:*}" split="${set##*:}" dir="$out/largedrops/$m${flags:+-off}-$name"
         rm -rf "$dir" && link_set "data/$name" "$dir/set" "$split"
-        build/raindrop-remove "$dir/set/rainy" "$dir/out" --model-config "$m" -q $flags
+        # --large-drop-models: each model's own networks take its large drops, as when 4.6 was
+        # measured (models/compact/LARGE_DROPS now hands them to another model: 4.8).
+        build/raindrop-remove "$dir/set/rainy" "$dir/out" --model-config "$m" -q ${flags:---large-drop-models models/$m}
         $py -m raindrop_tools.score_outputs --data "$dir/set" --outputs "$dir/out" --label "$m $name ${flags:-(default)}"
       done
     done
@@ -258,11 +264,11 @@ if want coarsetrain; then
       IFS=: read -r name split flags <<<"$run"
       d="$set_dir/$m-$name${flags:+-off}"
       rm -rf "$d" && link_set "data/$name" "$d/set" "$split"
-      build/raindrop-remove "$d/set/rainy" "$d/out" --models "$dir" -q $flags
+      build/raindrop-remove "$d/set/rainy" "$d/out" --models "$dir" -q ${flags:---large-drop-models $dir}
       $py -m raindrop_tools.score_outputs --data "$d/set" --outputs "$d/out" --label "$m $name ${flags:-(default)}"
     done
     build/raindrop-remove "$set_dir/street/rainy/street_v00.png" "$set_dir/$m-street.png" --models "$dir" \
-      --mask "$set_dir/$m-street-mask.png" -q
+      --large-drop-models "$dir" --mask "$set_dir/$m-street-mask.png" -q
     $py - "$set_dir" "$m" <<'PY'
 import sys
 import numpy as np
@@ -273,4 +279,40 @@ found = np.asarray(Image.open(f"{d}/{m}-street-mask.png")) > 0
 print(f"{m} demo street mask IoU {(truth & found).sum() / max((truth | found).sum(), 1):.3f}")
 PY
   done | tee "$out/coarsetrain.txt"
+fi
+
+if want largedropmodels; then
+  # docs/RESULTS.md 4.8: which models reconstruct the coarse pass's large drops. `compact` with
+  # its own networks throughout (as before models/compact/LARGE_DROPS), `compact` as shipped
+  # (large drops by compact-real-coarse-long), and compact-real-coarse-long throughout: the real
+  # pairs' test and train splits, the first 100 paper-preset test frames, all 470 sparse frames,
+  # and the mask IoU on both demo frames (checkerboard, street).
+  set_dir="$out/largedropmodels"
+  rm -rf "$set_dir" && build/raindrop-render --demo --size 512x256 --seed 7 --out "$set_dir/demo" -q
+  for run in "compact-alone:--model-config compact --large-drop-models models/compact" \
+             "compact-shipped:--model-config compact" \
+             "compact-real-coarse-long:--model-config compact-real-coarse-long"; do
+    label="${run%%:*}" flags="${run#*:}"
+    for set in real-pairs:test:100 real-pairs:train:100 test:-:100 test-sparse:-:0; do
+      IFS=: read -r name split limit <<<"$set"
+      d="$set_dir/$label-$name-$split"
+      link_set "data/$name" "$d/set" "$split" "$limit"
+      # shellcheck disable=SC2086
+      build/raindrop-remove "$d/set/rainy" "$d/out" -q $flags
+      $py -m raindrop_tools.score_outputs --data "$d/set" --outputs "$d/out" --label "$label $name $split"
+    done
+    # shellcheck disable=SC2086
+    build/raindrop-remove "$set_dir/demo/rainy" "$set_dir/$label-demo" --mask-dir "$set_dir/$label-demo-masks" -q $flags
+    $py - "$set_dir" "$label" <<'PY'
+import sys
+from pathlib import Path
+import numpy as np
+from PIL import Image
+d, label = Path(sys.argv[1]), sys.argv[2]
+for truth_file in sorted((d / "demo/mask").iterdir()):
+    truth = np.asarray(Image.open(truth_file)) > 0
+    found = np.asarray(Image.open(d / f"{label}-demo-masks" / truth_file.name)) > 0
+    print(f"{label} demo {truth_file.stem} mask IoU {(truth & found).sum() / max((truth | found).sum(), 1):.3f}")
+PY
+  done | tee "$out/largedropmodels.txt"
 fi

@@ -159,7 +159,10 @@ void print_coarse_pass_cost(const std::vector<std::string>& model_dirs, cv::Size
         t_on.push_back(w_on);
       }
       const double a = bench::median(t_off), b = bench::median(t_on);
-      std::cout << "| " << fs::path(dir).filename().string() << " | " << (all_one_drop ? "all one drop" : "as found")
+      const std::string large = remover.large_drop_model_dir().empty()
+                                    ? std::string()
+                                    : " (large drops: " + remover.large_drop_model_dir().filename().string() + ")";
+      std::cout << "| " << fs::path(dir).filename().string() << large << " | " << (all_one_drop ? "all one drop" : "as found")
                 << " | " << fmt(a) << " | " << fmt(b) << " | " << fmt(b / a, "%.2f") << " | "
                 << fmt((r_on.network_pixels + r_on.reconstructed_pixels) /
                            (r_off.network_pixels + r_off.reconstructed_pixels),

@@ -166,7 +166,7 @@ int run(int argc, char** argv) {
       "is copied).\n"
       "Exit codes: 0 success; 1 error (one line on stderr, no partial output); 2 bad command line;\n"
       "3 folder run with --keep-going finished but some images failed.");
-  std::string input, output, models_dir, model_config, mask, mask_dir, sheet, shard_text;
+  std::string input, output, models_dir, model_config, large_drop_models, mask, mask_dir, sheet, shard_text;
   Device device = Device::cpu;
   GraphOpt graph_opt = GraphOpt::all;
   std::optional<double> threshold, scale;
@@ -190,10 +190,15 @@ int run(int argc, char** argv) {
                  "Scale the networks see the image at, in (0, 1] (default: the image's long side brought to the models' "
                  "working size, 512 for the committed models; never enlarged). Outside the mask the output is the input")
       ->check(CLI::Range(0.0, 1.0));
+  auto* large_opt = app.add_option("--large-drop-models", large_drop_models,
+                 "Model folder whose 3RN and RFN reconstruct the drops the coarse pass finds large (default: the "
+                 "configuration the models' LARGE_DROPS file names, else the models themselves; give the models' own "
+                 "folder to use them throughout)");
   app.add_flag("--no-large-drops", no_large_drops,
                "Skip the coarse pass at a third of that scale that takes over drops too large for the networks there "
                "(mask regions with the area of a disk 60 px across at the working scale, clusters included, e.g. on a "
-               "lens cover)");
+               "lens cover)")
+      ->excludes(large_opt);
   app.add_option("-j,--threads", threads, "CPU threads (0: one per core; more than the cores: capped, with a warning); with 2 or more, RDN and 3RN run side by side on half each")
       ->capture_default_str()->check(CLI::Range(0, 1024));
   app.add_option("--device", device, "Execution device")->transform(cli::names_to(device_names()))->default_str("cpu");
@@ -299,7 +304,8 @@ int run(int argc, char** argv) {
   ModelSearch search = default_model_search();
   if (!models_dir.empty()) search.explicit_dir = fs::path(models_dir);
   if (!model_config.empty()) search.config = model_config;
-  Remover remover(find_models(search), session);
+  Remover remover(find_models(search), session,
+                  large_drop_models.empty() ? std::nullopt : std::optional<fs::path>(large_drop_models));
 
   Settings s;
   s.options.threshold = threshold;
@@ -313,9 +319,13 @@ int run(int argc, char** argv) {
     const ModelInfo& mi = remover.info();
     const std::string thread_text = threads == 0 ? std::string("threads: one per core")
                                                   : std::to_string(threads) + (threads == 1 ? " thread" : " threads");
-    std::fprintf(stderr, "raindrop-remove: models '%s' (config %s, threshold %g, dilation %d), %s, %s, %s\n",
+    const std::string large = no_large_drops                           ? "no coarse pass"
+                              : remover.large_drop_model_dir().empty() ? "large drops by the same models"
+                                                                       : "large drops by '" + remover.large_drop_model_dir().string() + "'";
+    std::fprintf(stderr, "raindrop-remove: models '%s' (config %s, threshold %g, dilation %d; %s), %s, %s, %s\n",
                  remover.model_dir().string().c_str(), mi.config.c_str(), threshold.value_or(mi.threshold),
-                 dilation.value_or(mi.dilation), ort_description().c_str(), to_string(device), thread_text.c_str());
+                 dilation.value_or(mi.dilation), large.c_str(), ort_description().c_str(), to_string(device),
+                 thread_text.c_str());
   }
 
   std::vector<std::vector<cv::Mat>> rows;

@@ -26,10 +26,9 @@ void check_config_name(const std::string& name) {
     throw Error("model configuration name '" + name + "' is not a plain folder name");
 }
 
-}  // namespace
-
-std::optional<std::string> read_default_config(const fs::path& models_root) {
-  std::ifstream in(models_root / "DEFAULT");
+// The first line of a small text file, trimmed; std::nullopt if the file is missing or blank.
+std::optional<std::string> read_first_line(const fs::path& file) {
+  std::ifstream in(file);
   if (!in) return std::nullopt;
   std::string line;
   std::getline(in, line);
@@ -37,6 +36,39 @@ std::optional<std::string> read_default_config(const fs::path& models_root) {
   const auto last = line.find_last_not_of(" \t\r");
   if (first == std::string::npos) return std::nullopt;
   return line.substr(first, last - first + 1);
+}
+
+}  // namespace
+
+std::optional<std::string> read_default_config(const fs::path& models_root) { return read_first_line(models_root / "DEFAULT"); }
+
+std::optional<fs::path> large_drop_companion(const fs::path& model_dir) {
+  const auto name = read_first_line(model_dir / "LARGE_DROPS");
+  if (!name) return std::nullopt;
+  check_config_name(*name);
+  // A sibling of the folder itself, however it was written ("models/compact/", ".").
+  std::error_code ec;
+  fs::path dir = fs::weakly_canonical(fs::absolute(model_dir, ec), ec);
+  if (ec) dir = fs::absolute(model_dir).lexically_normal();
+  if (!dir.has_filename()) dir = dir.parent_path();
+  return dir.parent_path() / *name;
+}
+
+void check_model_files(const fs::path& dir) {
+  std::error_code ec;
+  for (const char* file : {"rdn.onnx", "rrn.onnx", "rfn.onnx"}) {
+    if (!fs::is_regular_file(dir / file, ec))
+      throw Error("model folder '" + dir.string() + "' has no " + file + " (it needs rdn.onnx, rrn.onnx and rfn.onnx)");
+  }
+}
+
+bool same_folder(const fs::path& a, const fs::path& b) {
+  std::error_code ec;
+  const fs::path ca = fs::weakly_canonical(a, ec);
+  if (ec) return a.lexically_normal() == b.lexically_normal();
+  const fs::path cb = fs::weakly_canonical(b, ec);
+  if (ec) return a.lexically_normal() == b.lexically_normal();
+  return ca == cb;
 }
 
 ModelSearch default_model_search() {

@@ -13,6 +13,7 @@
 #include "raindrop/common/stopwatch.h"
 #include "raindrop/remove/edge_map.h"
 #include "raindrop/remove/mask.h"
+#include "raindrop/remove/model_paths.h"
 #include "raindrop/remove/pixels.h"
 
 #include <opencv2/imgproc.hpp>
@@ -118,7 +119,21 @@ std::vector<float> reconstruct(Network& rrn, const TileInputs& in, StageTimes& t
 
 }  // namespace
 
-Remover::Remover(const std::filesystem::path& model_dir, const SessionConfig& config) : models_(model_dir, config) {}
+Remover::Remover(const std::filesystem::path& model_dir, const SessionConfig& config,
+                 const std::optional<std::filesystem::path>& large_drop_dir)
+    : models_(model_dir, config), config_(config) {
+  const std::optional<std::filesystem::path> dir = large_drop_dir ? large_drop_dir : large_drop_companion(model_dir);
+  if (dir && !same_folder(*dir, model_dir)) {
+    check_model_files(*dir);
+    large_drop_dir_ = *dir;
+  }
+}
+
+Models& Remover::large_drop_models() {
+  if (large_drop_dir_.empty()) return models_;
+  std::call_once(large_once_, [&] { large_models_ = std::make_unique<Models>(large_drop_dir_, config_); });
+  return *large_models_;
+}
 
 RemoveResult Remover::run(const cv::Mat& image, const RemoveOptions& opt) {
   check_input_format(image);
@@ -222,7 +237,13 @@ void Remover::add_large_drops(const cv::Mat& image, const RemoveOptions& opt, do
     large = large_drop_mask(mask, &res.large_drops);
     return res.large_drops > 0;
   };
-  const RemoveResult c = run_native(coarse_native, sub, only_with_large_drops);
+  // The coarse copy's detector is the main models' (it decides what is large, as it decides
+  // what is a drop at the working scale); the large drops' own models reconstruct them, made
+  // on the first large drop (docs/RESULTS.md 4.8: their detectors, fine-tuned on real pairs,
+  // take flat road for drops; the main detector with their 3RN and RFN did as well on real
+  // pairs without that).
+  const RemoveResult c =
+      run_native(coarse_native, sub, only_with_large_drops, [this]() -> Models& { return large_drop_models(); });
   t += c.times;
   res.network_pixels += c.network_pixels;
   res.reconstructed_pixels += c.reconstructed_pixels;
@@ -238,15 +259,20 @@ void Remover::add_large_drops(const cv::Mat& image, const RemoveOptions& opt, do
   t.output += lap_ms(clock);
 }
 
-RemoveResult Remover::run_native(const cv::Mat& image, const RemoveOptions& opt, const MaskGate& gate) {
-  const double threshold = opt.threshold.value_or(info().threshold);
+RemoveResult Remover::run_native(const cv::Mat& image, const RemoveOptions& opt, const MaskGate& gate,
+                                 const std::function<Models&()>& reconstruction) {
+  Models& det = models_;
+  const double threshold = opt.threshold.value_or(det.info().threshold);
   if (!std::isfinite(threshold)) throw Error("--threshold must be a finite number");
-  const int k = opt.dilation.value_or(info().dilation);
+  const int k = opt.dilation.value_or(det.info().dilation);
   // The models' own value was checked when they loaded (Models), so a bad k here is the option's.
   if (k < 1 || k > kMaxDilation)
     throw Error("--dilation must be between 1 and " + std::to_string(kMaxDilation) + ", got " + std::to_string(k));
 
-  const int H = image.rows, W = image.cols, m = info().pad_multiple;
+  // A gated pass decides from the mask whether to reconstruct: the reconstruction's models
+  // (made on first use) are asked for only then, and their padding is applied to the same
+  // canvas (both are 1 or 2 for the committed models, so the detector's canvas serves).
+  const int H = image.rows, W = image.cols, m = det.info().pad_multiple;
   const int Hp = round_up(H, m), Wp = round_up(W, m);
   const int align = std::lcm(2, m);
   const AxisLayout ly = layout_axis(Hp, opt.tile, opt.overlap, align);
@@ -261,7 +287,7 @@ RemoveResult Remover::run_native(const cv::Mat& image, const RemoveOptions& opt,
   // Pass 1: detection, thresholded into the whole-image mask from each pixel's owning tile.
   // A single tile's 3RN runs here too, beside its RDN, when there are threads for both
   // (Models::branches): it needs only the input.
-  const int branches = single && !gate ? models_.branches() : 1;
+  const int branches = single && !gate && !reconstruction ? det.branches() : 1;
   cv::Mat mask0(Hp, Wp, CV_8U, cv::Scalar(0));
   TileInputs kept;                // the single tile's inputs, reused by pass 2
   std::vector<float> kept_ihat;   // and its 3RN output when it ran beside the RDN
@@ -271,10 +297,10 @@ RemoveResult Remover::run_native(const cv::Mat& image, const RemoveOptions& opt,
     kept = build_inputs(image, 0, ly.end[0], 0, lx.end[0], t);
     const cv::Rect whole(0, 0, kept.w, kept.h);
     if (branches > 1) {
-      run_side_by_side({[&] { detect(models_.rdn_beside(), kept, whole, threshold, mask0, worker_times[0]); },
+      run_side_by_side({[&] { detect(det.rdn_beside(), kept, whole, threshold, mask0, worker_times[0]); },
                         [&] { kept_ihat = reconstruct(models_.rrn_beside(), kept, worker_times[1]); }});
     } else {
-      detect(models_.rdn_beside(), kept, whole, threshold, mask0, t);
+      detect(det.rdn_beside(), kept, whole, threshold, mask0, t);
     }
   } else {
     for (int iy = 0; iy < ly.count(); ++iy) {
@@ -283,7 +309,7 @@ RemoveResult Remover::run_native(const cv::Mat& image, const RemoveOptions& opt,
         const TileInputs in = build_inputs(image, y0, ly.end[iy], x0, lx.end[ix], t);
         const cv::Rect owned(lx.owned_begin(ix), ly.owned_begin(iy), lx.owned_end(ix) - lx.owned_begin(ix),
                              ly.owned_end(iy) - ly.owned_begin(iy));
-        detect(models_.rdn(), in, owned - cv::Point(x0, y0), threshold, mask0(owned), t);
+        detect(det.rdn(), in, owned - cv::Point(x0, y0), threshold, mask0(owned), t);
       }
     }
   }
@@ -300,6 +326,10 @@ RemoveResult Remover::run_native(const cv::Mat& image, const RemoveOptions& opt,
     return res;
   }
   res.reconstructed_pixels = res.network_pixels;
+  Models& rec = reconstruction ? reconstruction() : models_;
+  if (rec.info().pad_multiple > 0 && (Hp % rec.info().pad_multiple || Wp % rec.info().pad_multiple))
+    throw Error("the large drops' models '" + rec.dir().string() + "' need sizes padded to a multiple of " +
+                std::to_string(rec.info().pad_multiple) + ", the main models to " + std::to_string(m));
 
   // Pass 2: reconstruction, blend, refinement; tile outputs blended into a strip of rows
   // that is finished (quantised into the output) as soon as no later tile row reaches it.
@@ -328,10 +358,10 @@ RemoveResult Remover::run_native(const cv::Mat& image, const RemoveOptions& opt,
       // 3RN (already run beside the RDN for a single tile on two threads).
       // A single tile whose 3RN did not run beside its RDN (a gated pass, or one thread) uses the
       // same half-thread session: the all-thread sessions are made only for tiled images, so a
-      // coarse pass never creates sessions of its own (it runs on a ninth-size copy, where
-      // half the threads cost little).
+      // coarse pass creates no sessions beyond those its models load with (it runs on a
+      // ninth-size copy, where half the threads cost little).
       std::vector<float> ihat = !kept_ihat.empty() ? std::move(kept_ihat)
-                                                   : reconstruct(single ? models_.rrn_beside() : models_.rrn(), in, t);
+                                                   : reconstruct(single ? rec.rrn_beside() : rec.rrn(), in, t);
       const size_t plane = static_cast<size_t>(in.h) * in.w;
       clock = Clock::now();
       // B = M * Ihat + (1 - M) * R with M in {0, 1} is exactly a choice between the two
@@ -349,7 +379,7 @@ RemoveResult Remover::run_native(const cv::Mat& image, const RemoveOptions& opt,
       }
       t.blend += lap_ms(clock);
       std::vector<float> out(3 * plane);
-      models_.rfn().run({blend.data()}, in.h, in.w, out.data());
+      rec.rfn().run({blend.data()}, in.h, in.w, out.data());
       clamp_all(out);
       t.rfn += lap_ms(clock);
       std::vector<float> wx(in.w);

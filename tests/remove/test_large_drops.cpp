@@ -5,6 +5,7 @@
 
 #include <opencv2/imgproc.hpp>
 
+#include "raindrop/common/error.h"
 #include "raindrop/remove/large_drops.h"
 #include "raindrop/remove/remover.h"
 #include "remove_test_util.h"
@@ -16,6 +17,22 @@ namespace {
 using namespace raindrop::removal;
 
 Remover& smoke() { return smoke_remover(); }
+
+// What `remover` makes of `img` at `coarse_scale` with every pixel a drop, brought back to
+// full size as the coarse pass does (bilinear), as 8-bit.
+cv::Mat coarse_result_upsampled(Remover& remover, const cv::Mat& img, double coarse_scale) {
+  cv::Mat small, expected, expected8;
+  cv::resize(img, small, scaled_size(img.size(), coarse_scale), 0, 0, cv::INTER_AREA);
+  RemoveOptions native;
+  native.threshold = -1.0;  // P > -1 always
+  native.scale = 1.0;
+  native.keep_float = true;
+  native.large_drops = false;
+  const RemoveResult s = remover.run(small, native);
+  cv::resize(s.rgb, expected, img.size(), 0, 0, cv::INTER_LINEAR);
+  expected.convertTo(expected8, CV_8U, 255.0);
+  return expected8;
+}
 
 TEST(LargeDrops, PartsAtLeastTheDiameterAcrossAreLarge) {
   cv::Mat mask(120, 200, CV_8U, cv::Scalar(0));
@@ -74,16 +91,7 @@ TEST(LargeDrops, AFullMaskIsTheCoarseCopysResultUpsampled) {
   const double coarse_scale = r.scale / kLargeDropScaleDivisor;
   EXPECT_DOUBLE_EQ(r.coarse_scale, coarse_scale);
   EXPECT_EQ(cv::countNonZero(r.mask), static_cast<int>(r.mask.total()));
-  cv::Mat small, expected, expected8;
-  cv::resize(img, small, scaled_size(img.size(), coarse_scale), 0, 0, cv::INTER_AREA);
-  RemoveOptions native = all;
-  native.scale = 1.0;
-  native.keep_float = true;
-  native.large_drops = false;
-  const RemoveResult s = smoke().run(small, native);
-  cv::resize(s.rgb, expected, img.size(), 0, 0, cv::INTER_LINEAR);
-  expected.convertTo(expected8, CV_8U, 255.0);
-  EXPECT_LE(max_abs_diff(r.image, expected8), 1);
+  EXPECT_LE(max_abs_diff(r.image, coarse_result_upsampled(smoke(), img, coarse_scale)), 1);
 }
 
 // The coarse pass keeps what the working-scale pass keeps: size, channels, depth, alpha.
@@ -109,6 +117,55 @@ TEST(LargeDrops, FormatsAreKept) {
       EXPECT_EQ(cv::countNonZero(in_planes[3] != out_planes[3]), 0) << "alpha must be copied through";
     }
   }
+}
+
+// Large drops can go to other models than the working-scale pass's (Remover's large_drop_dir,
+// models/<config>/LARGE_DROPS): with a mask over everything, the output is those models' result
+// on the coarse copy, upsampled, and not the main models'.
+TEST(LargeDropModels, ReconstructTheLargeDrops) {
+  const fs::path other = source_dir() / "models" / "compact";
+  Remover with_other(smoke_models(), {}, other);
+  EXPECT_EQ(with_other.large_drop_model_dir(), other);
+  const cv::Mat img = make_image(600, 300, 9);
+  RemoveOptions all;
+  all.threshold = -1.0;  // every detector's mask covers everything: one large drop
+  const RemoveResult r = with_other.run(img, all);
+  ASSERT_EQ(r.large_drops, 1);
+  const double coarse_scale = r.scale / kLargeDropScaleDivisor;
+  Remover other_alone(other);
+  const cv::Mat expected8 = coarse_result_upsampled(other_alone, img, coarse_scale);
+  EXPECT_LE(max_abs_diff(r.image, expected8), 1);
+  EXPECT_GT(max_abs_diff(smoke().run(img, all).image, expected8), 10) << "the test cannot tell the models apart";
+}
+
+// They are loaded on the first large drop: a photograph without one never pays for them (here:
+// unreadable graphs that are never needed), and the first that has one gets a one-line error
+// naming the file.
+TEST(LargeDropModels, LoadOnlyForALargeDrop) {
+  TempDir tmp;
+  for (const char* f : {"rdn.onnx", "rrn.onnx", "rfn.onnx"}) write_file(tmp / "broken" / f, "not a graph");
+  Remover r(smoke_models(), {}, tmp / "broken");
+  const cv::Mat img = make_image(600, 300, 10);
+  RemoveOptions none;
+  none.threshold = 1.0;  // no drop at all
+  EXPECT_EQ(max_abs_diff(r.run(img, none).image, smoke().run(img, none).image), 0);
+  RemoveOptions all;
+  all.threshold = -1.0;
+  try {
+    r.run(img, all);
+    FAIL() << "expected an error";
+  } catch (const raindrop::Error& e) {
+    EXPECT_NE(std::string(e.what()).find("broken"), std::string::npos) << e.what();
+  }
+}
+
+// A folder without the three graphs is refused when the Remover is made, before any image.
+TEST(LargeDropModels, AFolderWithoutTheGraphsIsRefusedAtOnce) {
+  TempDir tmp;
+  write_file(tmp / "half" / "rdn.onnx", "x");
+  EXPECT_THROW(Remover(smoke_models(), {}, tmp / "half"), raindrop::Error);
+  Remover same(smoke_models(), {}, smoke_models() / "");
+  EXPECT_TRUE(same.large_drop_model_dir().empty()) << "the models' own folder: one set of models";
 }
 
 }  // namespace

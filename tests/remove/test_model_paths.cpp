@@ -63,8 +63,42 @@ TEST_F(ModelSearchTest, InstalledLocationBeforeSourceTree) {
   }
 }
 
+TEST_F(ModelSearchTest, LargeDropModelsAreTheSiblingThatLargeDropsNames) {
+  make_models(tmp / "root" / "compact");
+  EXPECT_FALSE(large_drop_companion(tmp / "root" / "compact").has_value()) << "no LARGE_DROPS file: none";
+  write_file(tmp / "root" / "compact" / "LARGE_DROPS", "  coarse \n");
+  const fs::path expected = fs::weakly_canonical(tmp / "root") / "coarse";
+  EXPECT_EQ(large_drop_companion(tmp / "root" / "compact"), expected);
+  EXPECT_EQ(large_drop_companion(tmp / "root" / "compact" / ""), expected) << "a trailing slash names the same folder";
+  EXPECT_EQ(large_drop_companion(tmp / "root" / "." / "compact"), expected);
+  write_file(tmp / "root" / "compact" / "LARGE_DROPS", "../../escape\n");
+  EXPECT_THROW(large_drop_companion(tmp / "root" / "compact"), raindrop::Error);
+}
+
+TEST_F(ModelSearchTest, ModelFilesAreCheckedByName) {
+  make_models(tmp / "full");
+  EXPECT_NO_THROW(check_model_files(tmp / "full"));
+  fs::remove(tmp / "full" / "rfn.onnx");
+  try {
+    check_model_files(tmp / "full");
+    FAIL() << "expected an error";
+  } catch (const raindrop::Error& e) {
+    EXPECT_NE(std::string(e.what()).find("rfn.onnx"), std::string::npos) << e.what();
+  }
+  EXPECT_TRUE(same_folder(tmp / "full", tmp / "." / "full" / ""));
+  EXPECT_FALSE(same_folder(tmp / "full", tmp / "other"));
+}
+
 TEST(ModelDefault, SourceTreeNamesCompact) {
   EXPECT_EQ(read_default_config(source_dir() / "models").value_or("<none>"), "compact");
+}
+
+// The default's large drops go to a committed sibling that holds all three graphs.
+TEST(ModelDefault, CompactsLargeDropModelsAreCommitted) {
+  const auto large = large_drop_companion(source_dir() / "models" / "compact");
+  ASSERT_TRUE(large.has_value()) << "models/compact/LARGE_DROPS is missing";
+  EXPECT_NO_THROW(check_model_files(*large));
+  EXPECT_FALSE(same_folder(*large, source_dir() / "models" / "compact"));
 }
 
 }  // namespace

@@ -92,7 +92,8 @@ TEST_F(RemoveCli, HelpVersionAndUsageErrors) {
        {std::vector<std::string>{}, {"in.png"}, {"in.png", "out.png", "--device", "tpu"},
         {"in.png", "out.png", "--graph-opt", "max"}, {"in.png", "out.png", "--tile", "10"},
         {"in.png", "out.png", "--tile", "256", "--tile-overlap", "200"}, {"in.png", "out.png", "--threshold", "2"},
-        {"in.png", "out.png", "--dilation", "0"}, {"in.png", "out.png", "--no-such-option"}}) {
+        {"in.png", "out.png", "--dilation", "0"}, {"in.png", "out.png", "--no-such-option"},
+        {"in.png", "out.png", "--no-large-drops", "--large-drop-models", "."}}) {
     r = remove(bad);
     EXPECT_EQ(r.code, 2) << r.describe();
     EXPECT_FALSE(fs::exists(tmp / "out.png"));
@@ -135,6 +136,32 @@ TEST_F(RemoveCli, CorruptModelFile) {
   const std::string bytes = read_file(tmp / "models" / "rrn.onnx");
   write_file(tmp / "models" / "rrn.onnx", bytes.substr(0, bytes.size() / 2));
   expect_clean_failure(remove({"in.png", "out.png", "--models", "models"}), "rrn.onnx");
+}
+
+TEST_F(RemoveCli, MissingLargeDropModels) {
+  expect_clean_failure(remove({"in.png", "out.png", "--large-drop-models", "nowhere"}), "nowhere");
+}
+
+// --time names the models that take the large drops (the models' LARGE_DROPS, or the option).
+TEST_F(RemoveCli, TimeNamesTheLargeDropModels) {
+  fs::create_directories(tmp / "models" / "main");
+  for (const char* f : {"rdn.onnx", "rrn.onnx", "rfn.onnx"}) {
+    fs::copy_file(smoke_models() / f, tmp / "models" / "main" / f);
+    fs::create_directories(tmp / "models" / "big");
+    fs::copy_file(smoke_models() / f, tmp / "models" / "big" / f);
+  }
+  write_file(tmp / "models" / "main" / "LARGE_DROPS", "big\n");
+  RunResult r = remove({"in.png", "out.png", "--time", "--models", "models/main"});
+  ASSERT_EQ(r.code, 0) << r.describe();
+  EXPECT_NE(r.err.find("large drops by '" + fs::weakly_canonical(tmp / "models" / "big").string() + "'"), std::string::npos)
+      << r.describe();
+  r = remove({"in.png", "out2.png", "--time", "--models", "models/main", "--large-drop-models", "models/main"});
+  ASSERT_EQ(r.code, 0) << r.describe();
+  EXPECT_NE(r.err.find("large drops by the same models"), std::string::npos) << r.describe();
+  fs::remove_all(tmp / "models" / "big");
+  fs::remove(tmp / "out.png");
+  fs::remove(tmp / "out2.png");
+  expect_clean_failure(remove({"in.png", "out.png", "--models", "models/main"}), "big");
 }
 
 TEST_F(RemoveCli, MissingModelFolder) { expect_clean_failure(remove({"in.png", "out.png", "--models", "nowhere"}), "nowhere"); }

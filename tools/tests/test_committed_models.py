@@ -24,6 +24,20 @@ def test_default_names_a_committed_model():
     assert default in {p.name for p in FOLDERS}, f"models/DEFAULT says {default!r}"
 
 
+def test_large_drop_models_are_other_committed_models():
+    """Every LARGE_DROPS file (raindrop-remove's models for the coarse pass's large drops) names a
+    sibling that is committed too, so that a clone and an install (which copies LARGE_DROPS) run
+    what was measured."""
+    if not FOLDERS:
+        pytest.skip(f"no trained models in {MODELS}")
+    names = {p.name for p in FOLDERS}
+    for folder in FOLDERS:
+        file = folder / "LARGE_DROPS"
+        if file.exists():
+            name = file.read_text().strip()
+            assert name in names and name != folder.name, f"{file} names {name!r}"
+
+
 @pytest.mark.parametrize("folder", FOLDERS, ids=[p.name for p in FOLDERS])
 def test_files_match_their_digests_and_the_model_card(folder: Path):
     info = json.loads((folder / "export.json").read_text())

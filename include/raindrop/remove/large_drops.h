@@ -15,6 +15,12 @@
 // Small drops stay with the fine pass: in the coarse copy they are a few pixels wide and their
 // reconstruction there is blurred.
 //
+// The coarse copy's detector is the main models'; its 3RN and RFN can be another model's, one
+// trained for drops at that scale: the folder named by the main models' LARGE_DROPS file
+// (model_paths.h; models/compact names compact-real-coarse-long) or Remover's large_drop_dir.
+// Measured (docs/RESULTS.md 4.8): the default then gains +2.86 dB on real lens-cover pairs
+// instead of +1.45, and nothing changes on the paper preset's drops or the sparse set.
+//
 // Measured with the shipped compact model (docs/RESULTS.md 4.6): on real lens-cover pairs the
 // PSNR gain goes from +0.2 to about +1.5 dB, on thin-lens windshield renders it rises by
 // 0.26 dB, and on the paper preset's drops it stays within 0.1 dB. The coarse copy has a ninth

@@ -33,4 +33,18 @@ std::filesystem::path find_models(const ModelSearch& search);
 // The configuration name DEFAULT in `models_root` names, if the file exists (trimmed).
 std::optional<std::string> read_default_config(const std::filesystem::path& models_root);
 
+// The folder of the models that reconstruct the coarse pass's large drops for the models in
+// `model_dir` (large_drops.h): the sibling configuration named by the one line of the
+// optional file `model_dir`/LARGE_DROPS, e.g. models/compact/LARGE_DROPS naming
+// compact-real-coarse-long. std::nullopt without the file; raindrop::Error for a name that is
+// not a plain folder name.
+std::optional<std::filesystem::path> large_drop_companion(const std::filesystem::path& model_dir);
+
+// Throws a one-line raindrop::Error unless `dir` holds rdn.onnx, rrn.onnx and rfn.onnx (files
+// only: their contract is checked when they load).
+void check_model_files(const std::filesystem::path& dir);
+
+// Whether two paths name the same folder (after resolving links and dots).
+bool same_folder(const std::filesystem::path& a, const std::filesystem::path& b);
+
 }  // namespace raindrop::removal

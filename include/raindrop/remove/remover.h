@@ -22,6 +22,8 @@
 // time of both sides, more than the wall time. Tiled images run in order.
 #include <filesystem>
 #include <functional>
+#include <memory>
+#include <mutex>
 #include <optional>
 
 #include <opencv2/core.hpp>
@@ -67,8 +69,13 @@ struct RemoveResult {
 class Remover {
  public:
   // Loads and checks rdn.onnx, rrn.onnx and rfn.onnx of `model_dir` (raindrop::Error if
-  // anything is missing or off-contract).
-  explicit Remover(const std::filesystem::path& model_dir, const SessionConfig& config = {});
+  // anything is missing or off-contract). The coarse pass's large drops are reconstructed by
+  // the 3RN and RFN of `large_drop_dir` when given, else of the folder that `model_dir`'s
+  // LARGE_DROPS file names (model_paths.h), else of `model_dir` itself. Those models are
+  // loaded on the first large drop (a photograph without one never pays for them); here their
+  // folder is only checked for the three files.
+  explicit Remover(const std::filesystem::path& model_dir, const SessionConfig& config = {},
+                   const std::optional<std::filesystem::path>& large_drop_dir = std::nullopt);
 
   // image: CV_8U, CV_16U or CV_32F with 1-4 channels (see pixels.h), any size >= 1x1.
   // At a scale below 1 the networks run on a downscaled copy and the correction comes back
@@ -78,6 +85,8 @@ class Remover {
 
   const ModelInfo& info() const { return models_.info(); }
   const std::filesystem::path& model_dir() const { return models_.dir(); }
+  // The folder whose 3RN and RFN reconstruct large drops; empty when it is model_dir().
+  const std::filesystem::path& large_drop_model_dir() const { return large_drop_dir_; }
 
  private:
   // Decides after detection whether reconstruction is worth running, from the dilated mask
@@ -87,13 +96,21 @@ class Remover {
   // returns false, it stops after detection: the result then holds the mask and the times
   // only (image empty), and the 3RN does not run beside the RDN (it might be wasted): a single
   // tile then runs both, one after the other, on the half-thread sessions.
-  RemoveResult run_native(const cv::Mat& image, const RemoveOptions& options, const MaskGate& gate = {});
+  // `reconstruction` names the models whose 3RN and RFN run after the detector (default: the
+  // main ones); the detector is always the main models'.
+  RemoveResult run_native(const cv::Mat& image, const RemoveOptions& options, const MaskGate& gate = {},
+                          const std::function<Models&()>& reconstruction = {});
+  // The models for the coarse pass's large drops (made on first use), or models_.
+  Models& large_drop_models();
   // The pipeline on a copy at `small`, brought back to the image's size.
   RemoveResult run_scaled(const cv::Mat& image, const RemoveOptions& options, cv::Size small, double scale);
   // The coarse pass for large drops over `res`, the result at `scale` (large_drops.h).
   void add_large_drops(const cv::Mat& image, const RemoveOptions& options, double scale, RemoveResult& res);
 
   Models models_;
-};
+  SessionConfig config_;
+  std::filesystem::path large_drop_dir_;  // empty: the main models reconstruct large drops too
+  std::unique_ptr<Models> large_models_;
+  std::once_flag large_once_;};
 
 }  // namespace raindrop::removal
