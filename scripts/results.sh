@@ -3,7 +3,7 @@
 # and scripts/setup-tools.sh; needs a folder of real photographs, $RAINDROP_SHARED_DATA
 # (default ../shared/data), for the real frames). Sections can be chosen:
 # scripts/results.sh data render stats eval remove tradeoffs sheets photoreal scale flatroad largedrops coarsetrain
-# largedropmodels
+# largedropmodels sensor
 #
 # Nothing here is committed automatically: images derived from Cityscapes, CamVid or the
 # real raindrop photographs stay under out/ (their licences forbid redistribution).
@@ -15,7 +15,7 @@ out=out/results
 mkdir -p "$out"
 sections=("$@")
 ((${#sections[@]})) || sections=(data render stats eval remove tradeoffs sheets photoreal scale flatroad largedrops coarsetrain
-                                  largedropmodels)
+                                  largedropmodels sensor)
 want() { [[ " ${sections[*]} " == *" $1 "* ]]; }
 # link_set SRC DST SPLIT [LIMIT]: the first LIMIT (default 100; 0: all) samples of data set SRC
 # (of manifest split SPLIT; "-" = all) linked into DST/rainy and DST/clean under plainly named
@@ -315,4 +315,32 @@ for truth_file in sorted((d / "demo/mask").iterdir()):
     print(f"{label} demo {truth_file.stem} mask IoU {(truth & found).sum() / max((truth | found).sum(), 1):.3f}")
 PY
   done | tee "$out/largedropmodels.txt"
+fi
+
+if want sensor; then
+  # docs/RESULTS.md 4.9: the scene effect "sensor" (noise and JPEG on the rainy image only): its
+  # cost per 2048x1024 frame, and the realism of lens-cover-heavy with it (same frames, seed and
+  # drops as data/val-lens-cover-heavy from photoreal above; the sensor draws its own stream).
+  build/raindrop-bench render --sections effects --frames 2 --repeats 3 | tee "$out/bench_effects_sensor.md"
+  mkdir -p "$out/sensor" "$out/cv100"
+  ls "$shared/camvid/val" | head -100 | while read -r f; do ln -sf "$(realpath "$shared/camvid/val/$f")" "$out/cv100/$f"; done
+  sets=()
+  for variant in 'noise:{"noise_levels": [0.5, 1.5]}' 'jpeg:{"noise_levels": 0, "jpeg_quality": [75, 95]}' \
+                 'noise-jpeg:{"noise_levels": [1, 3], "jpeg_quality": [75, 95]}'; do
+    name="${variant%%:*}" sensor="${variant#*:}"
+    $py - "$name" "$sensor" "$out/sensor/lens-cover-heavy-$name.json" <<'PY'
+import json, sys
+name, sensor, path = sys.argv[1:]
+text = open("scenes/lens-cover-heavy.json").read()
+scene = json.loads(text[text.index("{"):])  # after the comment lines
+scene["name"] = f"lens-cover-heavy-{name}"
+scene["effects"]["sensor"] = json.loads(sensor)
+open(path, "w").write(json.dumps(scene, indent=2))
+PY
+    build/raindrop-render -i "$out/cv100" -o "data/val-lens-cover-heavy-$name" --scene "$out/sensor/lens-cover-heavy-$name.json" \
+      --size 512x256 --seed 11 -q
+    sets+=(--rendered "data/val-lens-cover-heavy-$name")
+  done
+  $py -m raindrop_tools.realism --real-pairs "$shared/real-pairs" --rendered data/val-lens-cover-heavy "${sets[@]}" --limit 100 \
+    | tee "$out/realism-sensor.md"
 fi

@@ -33,6 +33,7 @@
 #include "raindrop/render/inputs.h"
 #include "raindrop/render/renderer.h"
 #include "raindrop/render/scene.h"
+#include "raindrop/render/sensor.h"
 
 namespace raindrop {
 namespace fs = std::filesystem;
@@ -259,6 +260,22 @@ void effects_table(const Input& input, int frames, int repeats) {
     for (const auto& f : out) px += static_cast<double>(f.stats.drop_pixels) / out.size();
     std::printf("| %s | %.1f | %.2fx | %.0f |\n", row.name.c_str(), ms, ms / base, px);
     std::fflush(stdout);
+  }
+  // The camera's noise and JPEG (sensor.h) run after the render, on the rainy image only, in the
+  // job; a scene without "sensor" runs neither.
+  std::cout << "\n*sensor* (noise and JPEG on the rainy image, after the render core; one thread, the "
+               "frame above, median of " << repeats << "):\n\n| sensor | ms per frame | vs the paper core |\n|---|---|---|\n";
+  const std::vector<std::pair<std::string, SensorSample>> sensors = {
+      {"noise (sigma 2)", {2.0, 0}}, {"JPEG quality 80", {0.0, 80}}, {"noise and JPEG 80", {2.0, 80}}};
+  for (const auto& [name, sensor] : sensors) {
+    std::vector<double> times;
+    for (int r = 0; r < std::max(repeats, 3); ++r) {
+      cv::Mat rainy = frame.clean.clone();
+      const double t0 = bench::now_ms();
+      apply_sensor(rainy, sensor, static_cast<std::uint64_t>(r));
+      times.push_back(bench::now_ms() - t0);
+    }
+    std::printf("| %s | %.1f | %.2fx |\n", name.c_str(), median(times), median(times) / base);
   }
 }
 

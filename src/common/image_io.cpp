@@ -17,6 +17,7 @@
 #include <unistd.h>
 #include <zlib.h>
 
+#include <OpenImageIO/filesystem.h>
 #include <OpenImageIO/imageio.h>
 
 #include "raindrop/common/error.h"
@@ -355,6 +356,36 @@ std::string write_image_atomic(const cv::Mat& image, const fs::path& path, int p
   }
   move_into_place(tmp, path);
   return lost;
+}
+
+cv::Mat jpeg_round_trip(const cv::Mat& rgb, int quality) {
+  CV_Assert(rgb.type() == CV_8UC3);
+  if (quality < 1 || quality > 100) throw Error("JPEG quality must be 1-100, got " + std::to_string(quality));
+  const cv::Mat data = rgb.isContinuous() ? rgb : rgb.clone();
+  std::vector<unsigned char> bytes;
+  {
+    OIIO::Filesystem::IOVecOutput sink(bytes);
+    auto out = OIIO::ImageOutput::create("memory.jpg");
+    if (!out) throw Error("no JPEG writer (" + first_line(OIIO::geterror()) + ")");
+    OIIO::ImageSpec spec(data.cols, data.rows, 3, OIIO::TypeDesc::UINT8);
+    spec.attribute("Compression", "jpeg:" + std::to_string(quality));
+    bool ok = out->set_ioproxy(&sink) && out->open("memory.jpg", spec);
+    ok = ok && out->write_image(OIIO::TypeDesc::UINT8, data.data);
+    ok = out->close() && ok;
+    if (!ok) throw Error("JPEG encoding failed (" + first_line(out->geterror()) + ")");
+  }
+  // The reader by format name: made from a file name, it would look for the file on disk.
+  OIIO::Filesystem::IOMemReader source(bytes.data(), bytes.size());
+  auto in = OIIO::ImageInput::create("jpeg");
+  if (!in) throw Error("no JPEG reader (" + first_line(OIIO::geterror()) + ")");
+  OIIO::ImageSpec spec;
+  cv::Mat decoded(data.rows, data.cols, CV_8UC3);
+  const bool ok = in->set_ioproxy(&source) && in->open("memory.jpg", spec) && spec.width == data.cols &&
+                  spec.height == data.rows && spec.nchannels == 3 &&
+                  in->read_image(0, 0, 0, 3, OIIO::TypeDesc::UINT8, decoded.data);
+  if (!ok) throw Error("JPEG decoding failed (" + first_line(in->geterror()) + ")");
+  in->close();
+  return decoded;
 }
 
 void check_image_destination(const fs::path& path, bool folder_may_be_created) {

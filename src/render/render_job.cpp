@@ -30,6 +30,7 @@
 #include "raindrop/common/version.h"
 #include "raindrop/render/framing.h"
 #include "raindrop/render/manifest.h"
+#include "raindrop/render/sensor.h"
 #include "raindrop/render/scene.h"
 
 namespace raindrop {
@@ -180,7 +181,7 @@ json effects_auto_record(const SceneConfig& config, const RenderedFrame& rendere
 
 json sample_record(const std::string& id, const InputImage& input, int variant, std::uint64_t seed,
                    const Frame& frame, const SceneConfig& config, const SceneSample& scene,
-                   const RenderedFrame& rendered, const std::string& job) {
+                   const RenderedFrame& rendered, const SensorSample& sensor, const std::string& job) {
   json drops = json::array();
   // The drops as rendered (gravity undone where auto skipped it).
   const std::vector<DropShape> shapes = rendered_shapes(scene, rendered.effects);
@@ -237,6 +238,9 @@ json sample_record(const std::string& id, const InputImage& input, int variant, 
                                                  : "every drop's circle of confusion is under 0.5 px"},
                       {"mask_threshold", config.lens.mask_threshold}};
   }
+  if (config.sensor.enabled)
+    record["sensor"] = {{"noise_sigma", sensor.noise_sigma}, {"jpeg_quality", sensor.jpeg_quality},
+                        {"applies_to", "rainy"}};
   return record;
 }
 
@@ -416,14 +420,21 @@ RenderSummary render_dataset(const std::vector<InputImage>& inputs, const Render
                 Rng rng(seed);
                 const SceneSample scene = sample_scene(o.scene, frame.camera, rng);
                 const RenderedFrame rendered = render_frame(frame.clean, frame.camera, o.scene, scene);
+                // The camera's noise and compression, on the rainy image only (sensor.h).
+                const SensorSample sensor = sample_sensor(o.scene, seed);
+                cv::Mat rainy = rendered.rainy;
+                if (sensor.any()) {
+                  rainy = rendered.rainy.clone();
+                  apply_sensor(rainy, sensor, seed);
+                }
                 // alpha first: a sample whose three main images exist (what resume checks)
                 // then has its alpha too.
                 if (o.scene.lens.enabled)
                   write_image_atomic(alpha16(rendered), o.out_dir / "alpha" / (id + ".png"), o.png_level);
-                write_image_atomic(rendered.rainy, o.out_dir / "rainy" / (id + ".png"), o.png_level);
+                write_image_atomic(rainy, o.out_dir / "rainy" / (id + ".png"), o.png_level);
                 write_image_atomic(frame.clean, o.out_dir / "clean" / (id + ".png"), o.png_level);
                 write_image_atomic(rendered.mask, o.out_dir / "mask" / (id + ".png"), o.png_level);
-                manifest.append(id, sample_record(id, *task.input, v, seed, frame, o.scene, scene, rendered, job).dump());
+                manifest.append(id, sample_record(id, *task.input, v, seed, frame, o.scene, scene, rendered, sensor, job).dump());
                 ++finished;
                 {
                   std::lock_guard<std::mutex> lock(summary_mutex);
@@ -431,7 +442,7 @@ RenderSummary render_dataset(const std::vector<InputImage>& inputs, const Render
                   summary.coverage_sum += rendered.coverage();
                   summary.drops_sum += static_cast<std::int64_t>(scene.drops.size());
                   if (o.contact_sheet_rows > 0) {
-                    summary.samples.push_back({id, frame.clean, rendered.rainy, rendered.mask});
+                    summary.samples.push_back({id, frame.clean, rainy, rendered.mask});
                     std::sort(summary.samples.begin(), summary.samples.end(),
                               [](const SampleView& a, const SampleView& b) { return a.id < b.id; });
                     if (static_cast<int>(summary.samples.size()) > o.contact_sheet_rows) summary.samples.pop_back();

@@ -186,6 +186,7 @@ std::vector<std::string> SceneConfig::effect_names() const {
   if (fresnel.enabled) names.push_back("fresnel");
   if (dispersion.enabled) names.push_back(dispersion.automatic ? "dispersion-auto" : "dispersion");
   if (gravity.enabled) names.push_back(gravity.automatic ? "gravity-auto" : "gravity");
+  if (sensor.enabled) names.push_back("sensor");
   return names;
 }
 
@@ -274,9 +275,10 @@ SceneConfig parse_scene_json(const std::string& text, const std::string& origin)
 
   // Effects: present = on; dispersion and gravity may be "auto" (or carry "auto": true).
   c.blur.enabled = c.fresnel.enabled = c.dispersion.enabled = c.gravity.enabled = c.sky.enabled = false;
+  c.sensor.enabled = false;
   if (r.has("effects")) {
     Reader e = r.child("effects");
-    for (const char* fixed : {"blur", "sky", "fresnel"}) {
+    for (const char* fixed : {"blur", "sky", "fresnel", "sensor"}) {
       if (e.has(fixed) && e.is_auto(fixed))
         e.fail(std::string("'") + fixed + "' has no \"auto\" (only dispersion, gravity and quality.supersample do)");
     }
@@ -298,6 +300,18 @@ SceneConfig parse_scene_json(const std::string& text, const std::string& origin)
       k.number("gain", &c.sky.gain, 0, 10);
       k.reject_unknown();
     }
+    if (e.has("sensor")) {
+      Reader n = e.child("sensor");
+      c.sensor.enabled = true;
+      n.range("noise_levels", &c.sensor.noise_levels, 0, 50);
+      n.range("jpeg_quality", &c.sensor.jpeg_quality, 0, 100);
+      if (c.sensor.jpeg_quality.hi > 0 && c.sensor.jpeg_quality.lo < 1)
+        n.fail("'jpeg_quality' is [0, 0] (not compressed) or a range within 1-100");
+      if (c.sensor.jpeg_quality.lo != std::floor(c.sensor.jpeg_quality.lo) ||
+          c.sensor.jpeg_quality.hi != std::floor(c.sensor.jpeg_quality.hi))
+        n.fail("'jpeg_quality' takes whole numbers");
+      n.reject_unknown();
+    }
     if (e.has("fresnel")) {
       Reader f = e.child("fresnel");
       c.fresnel.enabled = true;
@@ -312,10 +326,10 @@ SceneConfig parse_scene_json(const std::string& text, const std::string& origin)
         *automatic = true;
         return;
       }
-      Reader r = e.child(key);
-      r.boolean("auto", automatic);
-      read(r);
-      r.reject_unknown();
+      Reader sub = e.child(key);
+      sub.boolean("auto", automatic);
+      read(sub);
+      sub.reject_unknown();
     };
     may_be_auto("dispersion", &c.dispersion.enabled, &c.dispersion.automatic,
                 [&](Reader& d) { d.vec3("wavelength_nm", &c.dispersion.wavelength_nm, 380, 780); });
@@ -402,6 +416,8 @@ std::string scene_to_json(const SceneConfig& c) {
     effects["gravity"] = {{"elongation", range(c.gravity.elongation)}, {"flattening", range(c.gravity.flattening)}};
     if (c.gravity.automatic) effects["gravity"]["auto"] = true;
   }
+  if (c.sensor.enabled)
+    effects["sensor"] = {{"noise_levels", range(c.sensor.noise_levels)}, {"jpeg_quality", range(c.sensor.jpeg_quality)}};
   j["effects"] = effects;
   j["quality"] = {{"geometry", c.geometry.describe()},
                   {"samples_per_pixel", c.samples_per_pixel},

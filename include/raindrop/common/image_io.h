@@ -58,6 +58,11 @@ inline constexpr int kDefaultPngLevel = 3;
 // RGBA image: rounded to 8 bits, alpha dropped"), or "" when the file keeps the image whole.
 std::string write_image_atomic(const cv::Mat& image, const std::filesystem::path& path, int png_level = kDefaultPngLevel);
 
+// `rgb` (CV_8UC3) encoded as a baseline JPEG of `quality` (1-100, libjpeg's scale) and decoded
+// again, in memory: what a camera that saves JPEG makes of it. Throws raindrop::Error if the
+// codec fails.
+cv::Mat jpeg_round_trip(const cv::Mat& rgb, int quality);
+
 // Throws a one-line Error naming `path` if write_image_atomic could not write it: no
 // OpenImageIO writer for its extension, a folder by that name, a parent that is missing (unless
 // `folder_may_be_created`), not a folder or not writable, or an existing read-only file. For

@@ -131,6 +131,15 @@ struct SceneConfig {
     double gain = 1.0;        // sky radiance relative to the estimate (overcast ~1, sunny >1)
   } sky;
 
+  // What the camera adds after the optics, to the rainy image only (sensor.h): Gaussian noise
+  // of a sigma drawn per sample (levels of 8 bits), then JPEG at a quality drawn per sample
+  // ([0, 0]: not compressed).
+  struct Sensor {
+    bool enabled = false;
+    Range noise_levels{1, 3};
+    Range jpeg_quality{0, 0};
+  } sensor;
+
   // Quality: the accuracy/time knobs.
   GeometryOptions geometry;
   int samples_per_pixel = 1;      // 1, 4, 16, 64 (square numbers: stratified grid)
