@@ -141,13 +141,14 @@ if want photoreal; then
   build/raindrop-bench render --sections lens --frames 2 --lens-size 2048x1024 | tee "$out/bench_lens_2048.md"
   mkdir -p "$out/cv100"
   ls "$shared/camvid/val" | head -100 | while read -r f; do ln -sf "$(realpath "$shared/camvid/val/$f")" "$out/cv100/$f"; done
-  for scene in paper real-photo lens-cover lens-cover-heavy windshield-day; do
+  for scene in paper real-photo lens-cover lens-cover-heavy lens-cover-merged windshield-day; do
     build/raindrop-render -i "$out/cv100" -o "data/val-$scene" --scene "$scene" --size 512x256 --seed 11 -q
   done
   # Rough masks on both sides (the default), then the renderer's own masks (RESULTS 4.2).
   for masks in rough own; do
     $py -m raindrop_tools.realism --real-pairs "$shared/real-pairs" --rendered data/val-paper --rendered data/val-real-photo \
-      --rendered data/val-lens-cover --rendered data/val-lens-cover-heavy --rendered data/val-windshield-day --limit 100 \
+      --rendered data/val-lens-cover --rendered data/val-lens-cover-heavy --rendered data/val-lens-cover-merged \
+      --rendered data/val-windshield-day --limit 100 \
       --rendered-masks "$masks" --json "$out/realism-$masks.json" | tee "$out/realism-$masks.md"
   done
   # The training sets of models/compact-lens (renders only) and compact-lens-real (+ real pairs).
