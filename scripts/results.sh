@@ -242,8 +242,8 @@ if want largedrops; then
         rm -rf "$dir" && link_set "data/$name" "$dir/set" "$split"
         # --large-drop-models: each model's own networks take its large drops, as when 4.6 was
         # measured (models/compact/LARGE_DROPS now hands them to another model: 4.8).
-        build/raindrop-remove "$dir/set/rainy" "$dir/out" --model-config "$m" -q ${flags:---large-drop-models models/$m}
-        $py -m raindrop_tools.score_outputs --data "$dir/set" --outputs "$dir/out" --label "$m $name ${flags:-(default)}"
+        build/raindrop-remove "$dir/set/rainy" "$dir/out" --models "models/$m" -q ${flags:---large-drop-models models/$m}
+        $py -m raindrop_tools.score_outputs --data "$dir/set" --outputs "$dir/out" --label "$m $name ${flags:-(coarse pass, own networks)}"
       done
     done
   done | tee "$out/largedrops.txt"
@@ -252,7 +252,8 @@ fi
 if want coarsetrain; then
   # docs/RESULTS.md 4.7: models fine-tuned for the coarse pass's scale (tools/configs/
   # compact-real-coarse*.yaml, compact-real-d.yaml; trained and exported to out/models, or
-  # committed under models/), each as raindrop-remove runs it by default: the real pairs' test
+  # committed under models/), each with its own networks throughout (--large-drop-models, as
+  # when 4.7 was measured; the shipped compact now differs, 4.8): the real pairs' test
   # split with and without the coarse pass, the first 100 paper-preset test samples, and the
   # demo street's mask IoU (flatroad above, no noise).
   set_dir="$out/coarsetrain"
@@ -266,7 +267,7 @@ if want coarsetrain; then
       d="$set_dir/$m-$name${flags:+-off}"
       rm -rf "$d" && link_set "data/$name" "$d/set" "$split"
       build/raindrop-remove "$d/set/rainy" "$d/out" --models "$dir" -q ${flags:---large-drop-models $dir}
-      $py -m raindrop_tools.score_outputs --data "$d/set" --outputs "$d/out" --label "$m $name ${flags:-(default)}"
+      $py -m raindrop_tools.score_outputs --data "$d/set" --outputs "$d/out" --label "$m $name ${flags:-(coarse pass, own networks)}"
     done
     build/raindrop-remove "$set_dir/street/rainy/street_v00.png" "$set_dir/$m-street.png" --models "$dir" \
       --large-drop-models "$dir" --mask "$set_dir/$m-street-mask.png" -q
@@ -290,9 +291,9 @@ if want largedropmodels; then
   # and the mask IoU on both demo frames (checkerboard, street).
   set_dir="$out/largedropmodels"
   rm -rf "$set_dir" && build/raindrop-render --demo --size 512x256 --seed 7 --out "$set_dir/demo" -q
-  for run in "compact-alone:--model-config compact --large-drop-models models/compact" \
-             "compact-shipped:--model-config compact" \
-             "compact-real-coarse-long:--model-config compact-real-coarse-long"; do
+  for run in "compact-alone:--models models/compact --large-drop-models models/compact" \
+             "compact-shipped:--models models/compact" \
+             "compact-real-coarse-long:--models models/compact-real-coarse-long"; do
     label="${run%%:*}" flags="${run#*:}"
     for set in real-pairs:test:100 real-pairs:train:100 test:-:100 test-sparse:-:0; do
       IFS=: read -r name split limit <<<"$set"

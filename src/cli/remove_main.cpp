@@ -191,9 +191,9 @@ int run(int argc, char** argv) {
                  "working size, 512 for the committed models; never enlarged). Outside the mask the output is the input")
       ->check(CLI::Range(0.0, 1.0));
   auto* large_opt = app.add_option("--large-drop-models", large_drop_models,
-                 "Model folder whose 3RN and RFN reconstruct the drops the coarse pass finds large (default: the "
-                 "configuration the models' LARGE_DROPS file names, else the models themselves; give the models' own "
-                 "folder to use them throughout)");
+                 "Model folder (rrn.onnx and rfn.onnx) whose 3RN and RFN reconstruct the drops the coarse pass finds "
+                 "large (default: the configuration the models' LARGE_DROPS file names, else the models themselves; "
+                 "give the models' own folder to use them throughout)");
   app.add_flag("--no-large-drops", no_large_drops,
                "Skip the coarse pass at a third of that scale that takes over drops too large for the networks there "
                "(mask regions with the area of a disk 60 px across at the working scale, clusters included, e.g. on a "
@@ -304,8 +304,13 @@ int run(int argc, char** argv) {
   ModelSearch search = default_model_search();
   if (!models_dir.empty()) search.explicit_dir = fs::path(models_dir);
   if (!model_config.empty()) search.config = model_config;
-  Remover remover(find_models(search), session,
-                  large_drop_models.empty() ? std::nullopt : std::optional<fs::path>(large_drop_models));
+  // Without the coarse pass the large-drop models are never needed: the models' own folder
+  // stands in, so a LARGE_DROPS naming a folder that is not there does not stop the run.
+  const fs::path model_dir = find_models(search);
+  std::optional<fs::path> large_dir;
+  if (no_large_drops) large_dir = model_dir;
+  if (!large_drop_models.empty()) large_dir = fs::path(large_drop_models);
+  Remover remover(model_dir, session, large_dir);
 
   Settings s;
   s.options.threshold = threshold;

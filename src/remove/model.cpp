@@ -159,7 +159,7 @@ void Network::run(const std::vector<const float*>& inputs, int h, int w, float* 
   }
 }
 
-Models::Models(const fs::path& dir, const SessionConfig& config) : dir_(dir), config_(config) {
+Models::Models(const fs::path& dir, const SessionConfig& config, Graphs graphs) : dir_(dir), config_(config) {
   std::error_code ec;
   if (!fs::is_directory(dir, ec)) throw Error("model folder " + quoted(dir) + " does not exist");
   if (config.threads < 0) throw Error("--threads must be >= 0 (0: ONNX Runtime's default)");
@@ -169,11 +169,13 @@ Models::Models(const fs::path& dir, const SessionConfig& config) : dir_(dir), co
     branches_ = 2;
     branch.threads = threads / 2;
   }
-  rdn_ = std::make_unique<Network>(dir / "rdn.onnx", "rdn", branch);
+  if (graphs == Graphs::all) rdn_ = std::make_unique<Network>(dir / "rdn.onnx", "rdn", branch);
   rrn_ = std::make_unique<Network>(dir / "rrn.onnx", "rrn", branch);
   rfn_ = std::make_unique<Network>(dir / "rfn.onnx", "rfn", config);
-  const std::string cfg = rdn_->metadata().at("raindrop.config");
-  for (Network* n : {rrn_.get(), rfn_.get()}) {
+  std::vector<Network*> loaded{rrn_.get(), rfn_.get()};
+  if (rdn_) loaded.insert(loaded.begin(), rdn_.get());
+  const std::string cfg = loaded.front()->metadata().at("raindrop.config");
+  for (Network* n : loaded) {
     if (n->metadata().at("raindrop.config") != cfg)
       throw Error("model folder " + quoted(dir) + ": the graphs come from different configurations ('" + cfg + "' and '" +
                   n->metadata().at("raindrop.config") + "')");
@@ -188,12 +190,13 @@ Models::Models(const fs::path& dir, const SessionConfig& config) : dir_(dir), co
   // Replicate-padding to even size removes that (tests/remove/test_trained_models.cpp,
   // TrainedModels.OddSizesAreRestoredAsWellAtTheirBorders).
   int multiple = 2;
-  for (Network* n : {rdn_.get(), rrn_.get(), rfn_.get()}) {
+  for (Network* n : loaded) {
     const int m = parse_int(n->file(), "raindrop.pad_multiple", n->metadata().at("raindrop.pad_multiple"));
     if (m < 1 || m > 1024) throw Error(quoted(n->file()) + ": raindrop.pad_multiple must be between 1 and 1024");
     multiple = std::lcm(multiple, m);
   }
   info_.pad_multiple = multiple;
+  if (!rdn_) return;  // reconstruction only: threshold, dilation and working size are the detector's
   // Checked here, against the same ranges as --threshold and --dilation, so that a bad value
   // is blamed on the model file rather than on an option the user did not give.
   const std::string threshold = rdn_->metadata().at("raindrop.threshold");
@@ -213,18 +216,28 @@ Models::Models(const fs::path& dir, const SessionConfig& config) : dir_(dir), co
   }
 }
 
-Network& Models::rdn() {
-  if (branches_ == 1) return *rdn_;
+Network& Models::rdn_beside() {
+  if (!rdn_) throw Error("model folder " + quoted(dir_) + " was loaded for reconstruction only (no detector)");
+  return *rdn_;
+}
+
+void Models::make_all_thread_sessions() {
   std::call_once(all_threads_once_, [this] {
-    rdn_all_ = std::make_unique<Network>(rdn_->file(), "rdn", config_);
+    if (rdn_) rdn_all_ = std::make_unique<Network>(rdn_->file(), "rdn", config_);
     rrn_all_ = std::make_unique<Network>(rrn_->file(), "rrn", config_);
   });
+}
+
+Network& Models::rdn() {
+  if (branches_ == 1) return rdn_beside();
+  rdn_beside();  // throws without a detector
+  make_all_thread_sessions();
   return *rdn_all_;
 }
 
 Network& Models::rrn() {
   if (branches_ == 1) return *rrn_;
-  rdn();  // makes both
+  make_all_thread_sessions();
   return *rrn_all_;
 }
 

@@ -54,11 +54,13 @@ std::optional<fs::path> large_drop_companion(const fs::path& model_dir) {
   return dir.parent_path() / *name;
 }
 
-void check_model_files(const fs::path& dir) {
+void check_model_files(const fs::path& dir, bool detector) {
   std::error_code ec;
   for (const char* file : {"rdn.onnx", "rrn.onnx", "rfn.onnx"}) {
+    if (!detector && std::string(file) == "rdn.onnx") continue;
     if (!fs::is_regular_file(dir / file, ec))
-      throw Error("model folder '" + dir.string() + "' has no " + file + " (it needs rdn.onnx, rrn.onnx and rfn.onnx)");
+      throw Error("model folder '" + dir.string() + "' has no " + file + " (it needs " +
+                  (detector ? "rdn.onnx, " : "") + "rrn.onnx and rfn.onnx)");
   }
 }
 

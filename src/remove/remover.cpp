@@ -122,16 +122,46 @@ std::vector<float> reconstruct(Network& rrn, const TileInputs& in, StageTimes& t
 Remover::Remover(const std::filesystem::path& model_dir, const SessionConfig& config,
                  const std::optional<std::filesystem::path>& large_drop_dir)
     : models_(model_dir, config), config_(config) {
-  const std::optional<std::filesystem::path> dir = large_drop_dir ? large_drop_dir : large_drop_companion(model_dir);
-  if (dir && !same_folder(*dir, model_dir)) {
-    check_model_files(*dir);
-    large_drop_dir_ = *dir;
+  if (large_drop_dir) {
+    if (!same_folder(*large_drop_dir, model_dir)) {
+      check_model_files(*large_drop_dir, /*detector=*/false);
+      large_drop_dir_ = *large_drop_dir;
+    }
+    return;
+  }
+  const std::filesystem::path file = model_dir / "LARGE_DROPS";
+  try {
+    const std::optional<std::filesystem::path> named = large_drop_companion(model_dir);
+    if (named && !same_folder(*named, model_dir)) {
+      check_model_files(*named, /*detector=*/false);
+      large_drop_dir_ = *named;
+    }
+  } catch (const Error& e) {
+    throw Error("'" + file.string() + "' names the models for large drops, but: " + e.what() +
+                " (choose others with --large-drop-models DIR, or run without the coarse pass: --no-large-drops)");
   }
 }
 
 Models& Remover::large_drop_models() {
   if (large_drop_dir_.empty()) return models_;
-  std::call_once(large_once_, [&] { large_models_ = std::make_unique<Models>(large_drop_dir_, config_); });
+  // Loaded once; a failure is kept and rethrown for every later image (a folder run with
+  // --keep-going then reports it per image without loading the graphs again).
+  std::lock_guard<std::mutex> lock(large_mutex_);
+  if (large_failure_) std::rethrow_exception(large_failure_);
+  if (!large_models_) {
+    try {
+      auto loaded = std::make_unique<Models>(large_drop_dir_, config_, Models::Graphs::reconstruction);
+      // The coarse canvas is padded for the main models: the large-drop models must accept it.
+      if (models_.info().pad_multiple % loaded->info().pad_multiple != 0)
+        throw Error("the large drops' models '" + large_drop_dir_.string() + "' need sizes padded to a multiple of " +
+                    std::to_string(loaded->info().pad_multiple) + ", the main models pad to " +
+                    std::to_string(models_.info().pad_multiple));
+      large_models_ = std::move(loaded);
+    } catch (...) {
+      large_failure_ = std::current_exception();
+      throw;
+    }
+  }
   return *large_models_;
 }
 
@@ -238,10 +268,11 @@ void Remover::add_large_drops(const cv::Mat& image, const RemoveOptions& opt, do
     return res.large_drops > 0;
   };
   // The coarse copy's detector is the main models' (it decides what is large, as it decides
-  // what is a drop at the working scale); the large drops' own models reconstruct them, made
-  // on the first large drop (docs/RESULTS.md 4.8: their detectors, fine-tuned on real pairs,
-  // take flat road for drops; the main detector with their 3RN and RFN did as well on real
-  // pairs without that).
+  // what is a drop at the working scale); the large drops' own models reconstruct them, loaded
+  // on the first large drop. docs/RESULTS.md 4.8: with compact-real-coarse-long's 3RN and RFN,
+  // compact's detector did as well on real pairs as that model's own (+4.63 against +4.65 dB on
+  // the train split), with one detector session instead of two; other fine-tuned detectors
+  // took flat road for large drops.
   const RemoveResult c =
       run_native(coarse_native, sub, only_with_large_drops, [this]() -> Models& { return large_drop_models(); });
   t += c.times;
@@ -270,8 +301,7 @@ RemoveResult Remover::run_native(const cv::Mat& image, const RemoveOptions& opt,
     throw Error("--dilation must be between 1 and " + std::to_string(kMaxDilation) + ", got " + std::to_string(k));
 
   // A gated pass decides from the mask whether to reconstruct: the reconstruction's models
-  // (made on first use) are asked for only then, and their padding is applied to the same
-  // canvas (both are 1 or 2 for the committed models, so the detector's canvas serves).
+  // (made on first use) are asked for only then, on the detector's canvas.
   const int H = image.rows, W = image.cols, m = det.info().pad_multiple;
   const int Hp = round_up(H, m), Wp = round_up(W, m);
   const int align = std::lcm(2, m);
@@ -326,10 +356,7 @@ RemoveResult Remover::run_native(const cv::Mat& image, const RemoveOptions& opt,
     return res;
   }
   res.reconstructed_pixels = res.network_pixels;
-  Models& rec = reconstruction ? reconstruction() : models_;
-  if (rec.info().pad_multiple > 0 && (Hp % rec.info().pad_multiple || Wp % rec.info().pad_multiple))
-    throw Error("the large drops' models '" + rec.dir().string() + "' need sizes padded to a multiple of " +
-                std::to_string(rec.info().pad_multiple) + ", the main models to " + std::to_string(m));
+  Models& rec = reconstruction ? reconstruction() : models_;  // pads as the main models do (large_drop_models)
 
   // Pass 2: reconstruction, blend, refinement; tile outputs blended into a strip of rows
   // that is finished (quantised into the output) as soon as no later tile row reaches it.

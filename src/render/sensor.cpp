@@ -14,8 +14,8 @@ constexpr std::uint64_t kDrawStream = hash_string("sensor: draw");
 constexpr std::uint64_t kNoiseStream = hash_string("sensor: noise");
 
 // Standard normal quantiles at (i + 0.5) / 65536: a Gaussian draw is then one table lookup per
-// 16 random bits (four per 64-bit draw), about ten times faster than Box-Muller's log, sqrt and
-// cos per pair, and still exact to rounding where it matters (noise is rounded to whole levels;
+// 16 random bits (four per 64-bit draw), about five times faster than Box-Muller's log, sqrt
+// and cos per pair (docs/RESULTS.md 4.9), and still exact to rounding where it matters (noise is rounded to whole levels;
 // the table's tails end at 4.3 sigma, leaving out 2e-5 of the mass).
 const std::vector<float>& normal_quantiles() {
   static const std::vector<float> table = [] {

@@ -75,11 +75,15 @@ class Network {
 // networks on 2048x1024), from RDN and 3RN sessions made on the first tiled image.
 class Models {
  public:
-  Models(const std::filesystem::path& dir, const SessionConfig& config);
+  // Which graphs to load: all three, or the 3RN and RFN only (models that reconstruct what
+  // another model's detector found: the large drops of large_drops.h). Without a detector,
+  // info() holds the config name and pad multiple only, and rdn()/rdn_beside() throw.
+  enum class Graphs { all, reconstruction };
+  Models(const std::filesystem::path& dir, const SessionConfig& config, Graphs graphs = Graphs::all);
   // 2 when RDN and 3RN run side by side (CPU, two or more threads), else 1.
   int branches() const { return branches_; }
   // Sessions on branches() == 2's half of the threads (all of them when branches() == 1).
-  Network& rdn_beside() { return *rdn_; }
+  Network& rdn_beside();
   Network& rrn_beside() { return *rrn_; }
   // Sessions on all the threads (thread-safe; made on first use when branches() == 2).
   Network& rdn();
@@ -89,6 +93,8 @@ class Models {
   const std::filesystem::path& dir() const { return dir_; }
 
  private:
+  void make_all_thread_sessions();
+
   std::filesystem::path dir_;
   SessionConfig config_;
   std::unique_ptr<Network> rdn_, rrn_, rfn_;

@@ -40,9 +40,9 @@ std::optional<std::string> read_default_config(const std::filesystem::path& mode
 // not a plain folder name.
 std::optional<std::filesystem::path> large_drop_companion(const std::filesystem::path& model_dir);
 
-// Throws a one-line raindrop::Error unless `dir` holds rdn.onnx, rrn.onnx and rfn.onnx (files
-// only: their contract is checked when they load).
-void check_model_files(const std::filesystem::path& dir);
+// Throws a one-line raindrop::Error unless `dir` holds rdn.onnx (unless !detector), rrn.onnx
+// and rfn.onnx (files only: their contract is checked when they load).
+void check_model_files(const std::filesystem::path& dir, bool detector = true);
 
 // Whether two paths name the same folder (after resolving links and dots).
 bool same_folder(const std::filesystem::path& a, const std::filesystem::path& b);

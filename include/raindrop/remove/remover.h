@@ -21,6 +21,7 @@
 // the threads each, then RFN on all of them (Models::branches); StageTimes then sum the busy
 // time of both sides, more than the wall time. Tiled images run in order.
 #include <filesystem>
+#include <exception>
 #include <functional>
 #include <memory>
 #include <mutex>
@@ -71,9 +72,9 @@ class Remover {
   // Loads and checks rdn.onnx, rrn.onnx and rfn.onnx of `model_dir` (raindrop::Error if
   // anything is missing or off-contract). The coarse pass's large drops are reconstructed by
   // the 3RN and RFN of `large_drop_dir` when given, else of the folder that `model_dir`'s
-  // LARGE_DROPS file names (model_paths.h), else of `model_dir` itself. Those models are
-  // loaded on the first large drop (a photograph without one never pays for them); here their
-  // folder is only checked for the three files.
+  // LARGE_DROPS file names (model_paths.h), else of `model_dir` itself. Those models (their
+  // rrn.onnx and rfn.onnx only) are loaded on the first large drop (a photograph without one
+  // never pays for them); here their folder is only checked for the two files.
   explicit Remover(const std::filesystem::path& model_dir, const SessionConfig& config = {},
                    const std::optional<std::filesystem::path>& large_drop_dir = std::nullopt);
 
@@ -110,7 +111,9 @@ class Remover {
   Models models_;
   SessionConfig config_;
   std::filesystem::path large_drop_dir_;  // empty: the main models reconstruct large drops too
-  std::unique_ptr<Models> large_models_;
-  std::once_flag large_once_;};
+  std::unique_ptr<Models> large_models_;  // reconstruction only (no detector)
+  std::mutex large_mutex_;
+  std::exception_ptr large_failure_;       // a failed load, rethrown for every later image
+};
 
 }  // namespace raindrop::removal
