@@ -283,7 +283,11 @@ void Remover::add_large_drops(const cv::Mat& image, const RemoveOptions& opt, do
   clock = Clock::now();
   cv::Mat weight;
   large.convertTo(weight, CV_32F, 1.0 / 255.0);
-  Upsampled up = composite_upsampled(res.image, opt.keep_float ? res.rgb : cv::Mat(), c.rgb, weight, opt.keep_float);
+  // The reconstruction's 2-pixel checkerboard (large_drops.h) would come back as blocks several
+  // pixels wide: smoothed away at the coarse copy's own scale first.
+  cv::Mat smoothed;
+  cv::GaussianBlur(c.rgb, smoothed, cv::Size(0, 0), kLargeDropSmoothing, kLargeDropSmoothing, cv::BORDER_REPLICATE);
+  Upsampled up = composite_upsampled(res.image, opt.keep_float ? res.rgb : cv::Mat(), smoothed, weight, opt.keep_float);
   res.image = up.image;
   res.mask = res.mask | up.mask;
   if (opt.keep_float) res.rgb = up.rgb;

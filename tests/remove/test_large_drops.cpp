@@ -19,7 +19,7 @@ using namespace raindrop::removal;
 Remover& smoke() { return smoke_remover(); }
 
 // What `remover` makes of `img` at `coarse_scale` with every pixel a drop, brought back to
-// full size as the coarse pass does (bilinear), as 8-bit.
+// full size as the coarse pass does (smoothed by kLargeDropSmoothing, then bilinear), as 8-bit.
 cv::Mat coarse_result_upsampled(Remover& remover, const cv::Mat& img, double coarse_scale) {
   cv::Mat small, expected, expected8;
   cv::resize(img, small, scaled_size(img.size(), coarse_scale), 0, 0, cv::INTER_AREA);
@@ -29,7 +29,9 @@ cv::Mat coarse_result_upsampled(Remover& remover, const cv::Mat& img, double coa
   native.keep_float = true;
   native.large_drops = false;
   const RemoveResult s = remover.run(small, native);
-  cv::resize(s.rgb, expected, img.size(), 0, 0, cv::INTER_LINEAR);
+  cv::Mat smoothed;
+  cv::GaussianBlur(s.rgb, smoothed, cv::Size(0, 0), kLargeDropSmoothing, kLargeDropSmoothing, cv::BORDER_REPLICATE);
+  cv::resize(smoothed, expected, img.size(), 0, 0, cv::INTER_LINEAR);
   expected.convertTo(expected8, CV_8U, 255.0);
   return expected8;
 }

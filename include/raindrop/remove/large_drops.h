@@ -18,8 +18,8 @@
 // The coarse copy's detector is the main models'; its 3RN and RFN can be another model's, one
 // trained for drops at that scale: the folder named by the main models' LARGE_DROPS file
 // (model_paths.h; models/compact names compact-real-coarse-long) or Remover's large_drop_dir.
-// Measured (docs/RESULTS.md 4.8): the default then gains +2.86 dB on real lens-cover pairs
-// instead of +1.45, and nothing changes on the paper preset's drops or the sparse set.
+// Measured (docs/RESULTS.md 4.8): the default then gains +2.89 dB on real lens-cover pairs
+// instead of +1.49, and nothing changes on the paper preset's drops or the sparse set.
 //
 // Measured with the shipped compact model (docs/RESULTS.md 4.6): on real lens-cover pairs the
 // PSNR gain goes from +0.2 to about +1.5 dB, on thin-lens windshield renders it rises by
@@ -37,6 +37,13 @@ inline constexpr double kLargeDropScaleDivisor = 3.0;
 // A connected part of the coarse pass's mask is a large drop when its area is at least that of
 // a disk this wide (pixels of the coarse copy).
 inline constexpr int kLargeDropDiameter = 20;
+// Gaussian sigma, in pixels of the coarse copy, that smooths the coarse pass's result before it
+// is upsampled over the large drops. The 3RN and RFN bring their half-resolution body back up
+// with a stride-2 transposed convolution, whose output carries a faint 2-pixel checkerboard;
+// at the working scale it is a pixel or two wide, but the coarse result is enlarged 3x or more,
+// into visible blocks (docs/RESULTS.md 4.8, real photographs). Sigma 1 damps that period to
+// under 1% and blurs only what the enlargement would blur anyway.
+inline constexpr double kLargeDropSmoothing = 1.0;
 
 // Whether a coarse copy of this size can hold a large drop at all (both sides at least two
 // large-drop diameters); smaller images skip the coarse pass.
