@@ -152,3 +152,77 @@ TEST(TrainedModels, OddSizesAreRestoredAsWellAtTheirBorders) {
 
 }  // namespace
 }  // namespace removetest
+
+namespace removetest {
+namespace {
+
+// 8-bit luma as the pinned protocol computes it (tools/raindrop_tools/metrics.py: floor(0.299 R
+// + 0.587 G + 0.114 B + 0.5)), of an 8-bit RGB image.
+cv::Mat luma8(const cv::Mat& rgb) {
+  cv::Mat y(rgb.size(), CV_64F);
+  for (int r = 0; r < rgb.rows; ++r)
+    for (int c = 0; c < rgb.cols; ++c) {
+      const cv::Vec3b p = rgb.at<cv::Vec3b>(r, c);
+      y.at<double>(r, c) = std::floor(0.299 * p[0] + 0.587 * p[1] + 0.114 * p[2] + 0.5);
+    }
+  return y;
+}
+
+double psnr_y(const cv::Mat& a, const cv::Mat& b) {
+  const double mse = cv::norm(luma8(a), luma8(b), cv::NORM_L2SQR) / static_cast<double>(a.total());
+  return mse > 0 ? 10.0 * std::log10(255.0 * 255.0 / mse) : 100.0;
+}
+
+// The shipped default on real photographs: the held-out half of the real lens-cover pairs (the
+// 5 scene groups of the group-wise split that no committed model trained on; tools/raindrop_tools/
+// realpairs.py), as a user runs it. docs/RESULTS.md 4.8 measures +2.89 dB there, of which the
+// large-drop models (models/compact/LARGE_DROPS) give about 1.4 dB: a loose floor on both, so
+// that losing the large-drop models or the coarse pass fails here. Needs the real pairs of the
+// shared data folder; skips without them.
+TEST(TrainedModels, DefaultRemovesRealLensCoverDrops) {
+  const fs::path pairs = fs::path(RAINDROP_SHARED_DATA) / "real-pairs";
+  std::error_code ec;
+  if (std::string(RAINDROP_SHARED_DATA).empty() || !fs::is_directory(pairs, ec))
+    GTEST_SKIP() << "no real pairs in " << pairs << "; the default's real-photograph gain is not checked";
+  const fs::path compact = source_dir() / "models" / "compact";
+  if (!fs::is_regular_file(compact / "LARGE_DROPS")) GTEST_SKIP() << "models/compact has no LARGE_DROPS";
+  const std::vector<std::string> test_groups = {"robotcar_i0", "robotcar_i14400", "robotcar_i4800", "robotcar_i8000",
+                                                "robotcar_i9600"};
+  TempDir tmp;
+  fs::create_directories(tmp / "in");
+  std::vector<std::string> names;
+  for (const auto& e : fs::directory_iterator(pairs)) {
+    const std::string n = e.path().filename().string();
+    const auto tail = n.rfind("_t");
+    if (tail == std::string::npos || n.size() < 9 || n.substr(n.size() - 9) != "_rain.png") continue;
+    if (std::find(test_groups.begin(), test_groups.end(), n.substr(0, tail)) == test_groups.end()) continue;
+    fs::copy_file(e.path(), tmp / "in" / n);
+    names.push_back(n);
+  }
+  ASSERT_EQ(names.size(), 50u) << "the held-out split has 50 pairs";
+  double gain[2] = {0, 0};
+  int k = 0;
+  for (const std::vector<std::string>& extra :
+       {std::vector<std::string>{}, std::vector<std::string>{"--large-drop-models", compact.string()}}) {
+    const fs::path out = tmp / ("out" + std::to_string(k));
+    std::vector<std::string> args{"in", out.string(), "--models", compact.string(), "-q"};
+    args.insert(args.end(), extra.begin(), extra.end());
+    const RunResult r = run_remove(args, tmp.path());
+    ASSERT_EQ(r.code, 0) << r.describe();
+    for (const auto& n : names) {
+      const std::string clean_name = n.substr(0, n.size() - 9) + "_clean.png";
+      const cv::Mat rainy = read_or_fail(tmp / "in" / n), clean = read_or_fail(pairs / clean_name),
+                    removed = read_or_fail(out / n);
+      ASSERT_FALSE(rainy.empty() || clean.empty() || removed.empty());
+      gain[k] += (psnr_y(removed, clean) - psnr_y(rainy, clean)) / static_cast<double>(names.size());
+    }
+    ++k;
+  }
+  std::printf("real lens-cover test split: default +%.2f dB, compact's own networks for large drops +%.2f dB\n", gain[0],
+              gain[1]);
+  EXPECT_GE(gain[0], 2.5) << "the default's gain on held-out real pairs (docs/RESULTS.md 4.8: +2.89)";
+  EXPECT_GE(gain[0] - gain[1], 0.8) << "what the large-drop models add (docs/RESULTS.md 4.8: +1.40)";
+}
+
+}  // namespace
+}  // namespace removetest
