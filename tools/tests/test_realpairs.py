@@ -129,3 +129,12 @@ def test_list_command(tmp_path, capsys):
     out = capsys.readouterr().out.splitlines()
     assert out == ["test\tscene0\tscene0_t0\tscene0_t0_rain.png\tscene0_t0_clean.png",
                    "train\tscene1\tscene1_t0\tscene1_t0_rain.png\tscene1_t0_clean.png"]
+
+
+def test_the_shared_real_pairs_split_is_the_one_the_cpp_test_names():
+    """tests/remove/test_trained_models.cpp (TrainedModels.DefaultRemovesRealLensCoverDrops)
+    names the test groups of the shared real pairs itself; the rule must still give those."""
+    groups = [f"robotcar_i{n}" for n in (0, 1600, 3200, 4800, 6400, 8000, 9600, 11200, 12800, 14400)]
+    split = RP.split_groups(groups)
+    assert sorted(g for g, s in split.items() if s == "test") == [
+        "robotcar_i0", "robotcar_i14400", "robotcar_i4800", "robotcar_i8000", "robotcar_i9600"]
