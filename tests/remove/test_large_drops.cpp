@@ -121,6 +121,45 @@ TEST(LargeDrops, FormatsAreKept) {
   }
 }
 
+// Where the coarse pass finds a large drop in part of the image only, every pixel out of reach of
+// its upsampled mask (and of the working-scale mask) is the working-scale pass's, bit for bit:
+// the coarse result, smoothing included, reaches no further than its drops. Two flat halves give
+// the untrained fixture detector two flat probability levels; a threshold between them makes one
+// half a drop.
+TEST(LargeDrops, PixelsAwayFromLargeDropsAreTheWorkingScalePasss) {
+  cv::Mat img(300, 600, CV_8UC3, cv::Scalar(40, 60, 50));
+  img(cv::Rect(300, 0, 300, 300)).setTo(cv::Scalar(210, 200, 190));
+  bool found = false;
+  for (int i = 1; i < 100 && !found; ++i) {
+    RemoveOptions on;
+    on.threshold = i / 100.0;
+    const RemoveResult with = smoke().run(img, on);
+    const double covered = cv::countNonZero(with.mask) / static_cast<double>(with.mask.total());
+    if (with.large_drops == 0 || covered < 0.2 || covered > 0.8) continue;
+    found = true;
+    RemoveOptions off = on;
+    off.large_drops = false;
+    const RemoveResult without = smoke().run(img, off);
+    // Out of reach: more than two coarse pixels (bilinear upsampling's support) from any pixel
+    // of the written mask, the union of both passes' masks.
+    const int reach = static_cast<int>(std::ceil(2.0 / with.coarse_scale)) + 1;
+    cv::Mat near;
+    cv::dilate(with.mask, near, cv::getStructuringElement(cv::MORPH_RECT, {2 * reach + 1, 2 * reach + 1}));
+    const cv::Mat far = near == 0;
+    ASSERT_GT(cv::countNonZero(far), 1000) << "threshold " << *on.threshold << ": nothing out of reach to compare";
+    cv::Mat diff, channels[3];
+    cv::absdiff(with.image, without.image, diff);
+    cv::split(diff, channels);
+    const cv::Mat largest = cv::max(cv::max(channels[0], channels[1]), channels[2]);
+    double worst = 0;
+    cv::Point at;
+    cv::minMaxLoc(largest, nullptr, &worst, nullptr, &at, far);
+    EXPECT_EQ(worst, 0.0) << "threshold " << *on.threshold << ", covered " << covered << ", at " << at
+                          << ", reach " << reach;
+  }
+  ASSERT_TRUE(found) << "no threshold made part of the image a large drop";
+}
+
 // Large drops can go to other models than the working-scale pass's (Remover's large_drop_dir,
 // models/<config>/LARGE_DROPS): with a mask over everything, the output is those models' result
 // on the coarse copy, upsampled, and not the main models'.
