@@ -288,14 +288,16 @@ if want largedropmodels; then
   # its own networks throughout (as before models/compact/LARGE_DROPS), `compact` as shipped
   # (large drops by compact-real-coarse-long), and compact-real-coarse-long throughout: the real
   # pairs' test and train splits, the first 100 paper-preset test frames, all 470 sparse frames,
-  # and the mask IoU on both demo frames (checkerboard, street).
+  # the first 100 of three thin-lens val sets (photoreal above), and the mask IoU on both demo
+  # frames (checkerboard, street).
   set_dir="$out/largedropmodels"
   rm -rf "$set_dir" && build/raindrop-render --demo --size 512x256 --seed 7 --out "$set_dir/demo" -q
   for run in "compact-alone:--models models/compact --large-drop-models models/compact" \
              "compact-shipped:--models models/compact" \
              "compact-real-coarse-long:--models models/compact-real-coarse-long"; do
     label="${run%%:*}" flags="${run#*:}"
-    for set in real-pairs:test:100 real-pairs:train:100 test:-:100 test-sparse:-:0; do
+    for set in real-pairs:test:100 real-pairs:train:100 test:-:100 test-sparse:-:0 val-lens-cover:-:100 \
+               val-windshield-day:-:100 val-lens-cover-merged:-:100; do
       IFS=: read -r name split limit <<<"$set"
       d="$set_dir/$label-$name-$split"
       link_set "data/$name" "$d/set" "$split" "$limit"
