@@ -122,22 +122,15 @@ std::vector<float> reconstruct(Network& rrn, const TileInputs& in, StageTimes& t
 Remover::Remover(const std::filesystem::path& model_dir, const SessionConfig& config,
                  const std::optional<std::filesystem::path>& large_drop_dir)
     : models_(model_dir, config), config_(config) {
-  if (large_drop_dir) {
-    if (!same_folder(*large_drop_dir, model_dir)) {
-      check_model_files(*large_drop_dir, /*detector=*/false);
-      large_drop_dir_ = *large_drop_dir;
-    }
-    return;
-  }
-  const std::filesystem::path file = model_dir / "LARGE_DROPS";
   try {
-    const std::optional<std::filesystem::path> named = large_drop_companion(model_dir);
-    if (named && !same_folder(*named, model_dir)) {
-      check_model_files(*named, /*detector=*/false);
-      large_drop_dir_ = *named;
+    const std::optional<std::filesystem::path> dir = large_drop_dir ? large_drop_dir : large_drop_companion(model_dir);
+    if (dir && !same_folder(*dir, model_dir)) {
+      check_model_files(*dir, /*detector=*/false);
+      large_drop_dir_ = *dir;
     }
   } catch (const Error& e) {
-    throw Error("'" + file.string() + "' names the models for large drops, but: " + e.what() +
+    if (large_drop_dir) throw;  // the caller's folder: the error names it already
+    throw Error("'" + (model_dir / "LARGE_DROPS").string() + "' names the models for large drops, but: " + e.what() +
                 " (choose others with --large-drop-models DIR, or run without the coarse pass: --no-large-drops)");
   }
 }
@@ -296,17 +289,16 @@ void Remover::add_large_drops(const cv::Mat& image, const RemoveOptions& opt, do
 
 RemoveResult Remover::run_native(const cv::Mat& image, const RemoveOptions& opt, const MaskGate& gate,
                                  const std::function<Models&()>& reconstruction) {
-  Models& det = models_;
-  const double threshold = opt.threshold.value_or(det.info().threshold);
+  const double threshold = opt.threshold.value_or(info().threshold);
   if (!std::isfinite(threshold)) throw Error("--threshold must be a finite number");
-  const int k = opt.dilation.value_or(det.info().dilation);
+  const int k = opt.dilation.value_or(info().dilation);
   // The models' own value was checked when they loaded (Models), so a bad k here is the option's.
   if (k < 1 || k > kMaxDilation)
     throw Error("--dilation must be between 1 and " + std::to_string(kMaxDilation) + ", got " + std::to_string(k));
 
   // A gated pass decides from the mask whether to reconstruct: the reconstruction's models
   // (made on first use) are asked for only then, on the detector's canvas.
-  const int H = image.rows, W = image.cols, m = det.info().pad_multiple;
+  const int H = image.rows, W = image.cols, m = info().pad_multiple;
   const int Hp = round_up(H, m), Wp = round_up(W, m);
   const int align = std::lcm(2, m);
   const AxisLayout ly = layout_axis(Hp, opt.tile, opt.overlap, align);
@@ -321,7 +313,7 @@ RemoveResult Remover::run_native(const cv::Mat& image, const RemoveOptions& opt,
   // Pass 1: detection, thresholded into the whole-image mask from each pixel's owning tile.
   // A single tile's 3RN runs here too, beside its RDN, when there are threads for both
   // (Models::branches): it needs only the input.
-  const int branches = single && !gate && !reconstruction ? det.branches() : 1;
+  const int branches = single && !gate && !reconstruction ? models_.branches() : 1;
   cv::Mat mask0(Hp, Wp, CV_8U, cv::Scalar(0));
   TileInputs kept;                // the single tile's inputs, reused by pass 2
   std::vector<float> kept_ihat;   // and its 3RN output when it ran beside the RDN
@@ -331,10 +323,10 @@ RemoveResult Remover::run_native(const cv::Mat& image, const RemoveOptions& opt,
     kept = build_inputs(image, 0, ly.end[0], 0, lx.end[0], t);
     const cv::Rect whole(0, 0, kept.w, kept.h);
     if (branches > 1) {
-      run_side_by_side({[&] { detect(det.rdn_beside(), kept, whole, threshold, mask0, worker_times[0]); },
+      run_side_by_side({[&] { detect(models_.rdn_beside(), kept, whole, threshold, mask0, worker_times[0]); },
                         [&] { kept_ihat = reconstruct(models_.rrn_beside(), kept, worker_times[1]); }});
     } else {
-      detect(det.rdn_beside(), kept, whole, threshold, mask0, t);
+      detect(models_.rdn_beside(), kept, whole, threshold, mask0, t);
     }
   } else {
     for (int iy = 0; iy < ly.count(); ++iy) {
@@ -343,7 +335,7 @@ RemoveResult Remover::run_native(const cv::Mat& image, const RemoveOptions& opt,
         const TileInputs in = build_inputs(image, y0, ly.end[iy], x0, lx.end[ix], t);
         const cv::Rect owned(lx.owned_begin(ix), ly.owned_begin(iy), lx.owned_end(ix) - lx.owned_begin(ix),
                              ly.owned_end(iy) - ly.owned_begin(iy));
-        detect(det.rdn(), in, owned - cv::Point(x0, y0), threshold, mask0(owned), t);
+        detect(models_.rdn(), in, owned - cv::Point(x0, y0), threshold, mask0(owned), t);
       }
     }
   }

@@ -169,10 +169,7 @@ cv::Mat luma8(const cv::Mat& rgb) {
   return y;
 }
 
-double psnr_y(const cv::Mat& a, const cv::Mat& b) {
-  const double mse = cv::norm(luma8(a), luma8(b), cv::NORM_L2SQR) / static_cast<double>(a.total());
-  return mse > 0 ? 10.0 * std::log10(255.0 * 255.0 / mse) : 100.0;
-}
+double psnr_y(const cv::Mat& a, const cv::Mat& b) { return psnr(luma8(a), luma8(b)); }
 
 // The shipped default on real photographs: the held-out half of the real lens-cover pairs (the
 // 5 scene groups of the group-wise split that no committed model trained on; tools/raindrop_tools/
