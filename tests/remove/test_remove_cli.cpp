@@ -254,6 +254,53 @@ TEST_F(RemoveCli, FloatImagesAreRefusedAndSkippedInFolders) {
   EXPECT_FALSE(fs::exists(tmp / "done" / "lin.exr"));
 }
 
+// PNG and JPEG go through libpng and libjpeg: OpenImageIO, whose libraries cost 200 ms of start-up,
+// is loaded (as the raindrop_oiio plugin) only for another format. The dynamic loader lists
+// every library it loads (LD_DEBUG=files), including those opened with dlopen.
+TEST_F(RemoveCli, OpenImageIOLoadsOnlyForOtherFormats) {
+  write_image(tmp / "in.jpg", make_image(61, 43, 2));
+  write_image(tmp / "in.tif", make_image(61, 43, 3));
+  const std::string models = smoke_models().string();
+  auto loads_oiio = [&](const std::string& in, const std::string& out) {
+    const RunResult r = remove({in, out, "--models", models}, {"LD_DEBUG=files"});
+    EXPECT_EQ(r.code, 0) << r.describe();
+    EXPECT_TRUE(fs::exists(tmp / out)) << r.describe();
+    return r.err.find("raindrop_oiio.so") != std::string::npos && r.err.find("libOpenImageIO") != std::string::npos;
+  };
+  EXPECT_FALSE(loads_oiio("in.png", "out.png"));
+  EXPECT_FALSE(loads_oiio("in.jpg", "out.jpg"));
+  EXPECT_TRUE(loads_oiio("in.tif", "out1.png"));
+  EXPECT_TRUE(loads_oiio("in.png", "out2.tif"));
+}
+
+// Without the plugin, PNG and JPEG still work, and another format fails in one line that says why.
+TEST_F(RemoveCli, MissingOpenImageIOPluginIsOneLine) {
+  write_image(tmp / "in.tif", make_image(61, 43, 3));
+  const std::vector<std::string> no_plugin = {"RAINDROP_OIIO_PLUGIN=" + (tmp / "none.so").string()};
+  const std::string models = smoke_models().string();
+  const RunResult ok = remove({"in.png", "ok.jpg", "--models", models}, no_plugin);
+  EXPECT_EQ(ok.code, 0) << ok.describe();
+  const RunResult r = remove({"in.tif", "out.png", "--models", models}, no_plugin);
+  expect_clean_failure(r, "needs OpenImageIO");
+  EXPECT_NE(r.err.find("none.so"), std::string::npos) << r.describe();
+  expect_clean_failure(remove({"in.png", "out.tif", "--models", models}, no_plugin), "out.tif");
+}
+
+// An installed tree (cmake --install) finds its plugin in lib/raindrop: a TIFF in, a TIFF out.
+TEST_F(RemoveCli, InstalledProgramReadsAndWritesOtherFormats) {
+  const fs::path build = remove_bin().parent_path();
+  const RunResult install = run_command("cmake", {"--install", build.string(), "--prefix", (tmp / "inst").string()}, tmp.path());
+  ASSERT_EQ(install.code, 0) << install.describe();
+  ASSERT_TRUE(fs::exists(tmp / "inst" / "lib" / "raindrop" / "raindrop_oiio.so"));
+  write_image(tmp / "in.tif", make_image(61, 43, 3));
+  const RunResult r = run_command(tmp / "inst" / "bin" / "raindrop-remove",
+                                  {"in.tif", "out.tif", "--models", smoke_models().string()}, tmp.path());
+  ASSERT_EQ(r.code, 0) << r.describe();
+  const auto out = read_image(tmp / "out.tif");
+  ASSERT_TRUE(out);
+  EXPECT_EQ(out->pixels.size(), cv::Size(61, 43));
+}
+
 TEST_F(RemoveCli, ModelsFromTheEnvironment) {
   // A model folder...
   RunResult r = remove({"in.png", "out.png"}, {"RAINDROP_MODELS=" + smoke_models().string()});

@@ -1,6 +1,9 @@
 #pragma once
-// Reading and writing images through OpenImageIO (PNG, JPEG, TIFF, EXR, ... in; any format
-// OIIO writes, by file extension, out). Images in memory are cv::Mat in RGB(A) order.
+// Reading and writing images: PNG and JPEG through libpng and libjpeg; TIFF, EXR, BMP, WebP and
+// the rest through OpenImageIO, in a plugin opened only when such a file is met (OpenImageIO's
+// libraries cost 200 ms of start-up; src/common/oiio_codec.h). In: any format either reads;
+// out: any format either writes, chosen by the file's extension. Images in memory are cv::Mat
+// in RGB(A) order.
 //
 // Writes are atomic: the image goes to a hidden temporary file in the destination folder
 // and is renamed over the final name only when complete, so an interrupted run never leaves
@@ -24,7 +27,7 @@ struct ImageHeader {
   int width = 0, height = 0, channels = 0;
   int bits = 0;        // bits per channel of the stored data (8, 16, 32, ...)
   bool is_float = false;
-  std::string format;  // OIIO format name, e.g. "png"
+  std::string format;  // "png", "jpeg", or OpenImageIO's name for the format
 };
 
 // Throws raindrop::Error naming the file for a missing, empty, unreadable or non-image file.
@@ -43,8 +46,8 @@ cv::Mat read_rgb8(const std::filesystem::path& path, bool convert, int min_size 
 // its first write. Damage inside the pixel data is found only by read_rgb8.
 void check_rgb8_header(const std::filesystem::path& path, bool convert, int min_size = 16);
 
-// The image with its own channels (1-4) and depth: CV_8U or CV_16U (float inputs become
-// CV_16U). For raindrop-remove, which keeps size, channels and bit depth.
+// The image with its own channels (1-4) and depth: CV_8U or CV_16U (float inputs are refused,
+// other integer depths become CV_16U). For raindrop-remove, which keeps size, channels and bit depth.
 cv::Mat read_image_native(const std::filesystem::path& path, int min_size = 1);
 
 // zlib level for PNG output. OpenImageIO's own default is 6; on a 2048x1024 photograph level
@@ -58,13 +61,13 @@ inline constexpr int kDefaultPngLevel = 3;
 // RGBA image: rounded to 8 bits, alpha dropped"), or "" when the file keeps the image whole.
 std::string write_image_atomic(const cv::Mat& image, const std::filesystem::path& path, int png_level = kDefaultPngLevel);
 
-// `rgb` (CV_8UC3) encoded as a baseline JPEG of `quality` (1-100, libjpeg's scale) and decoded
-// again, in memory: what a camera that saves JPEG makes of it. Throws raindrop::Error if the
+// `rgb` (CV_8UC3) encoded as a baseline JPEG of `quality` (1-100, libjpeg's scale, 4:2:0
+// chroma) and decoded again, in memory: what a camera that saves JPEG makes of it. Throws raindrop::Error if the
 // codec fails.
 cv::Mat jpeg_round_trip(const cv::Mat& rgb, int quality);
 
 // Throws a one-line Error naming `path` if write_image_atomic could not write it: no
-// OpenImageIO writer for its extension, a folder by that name, a parent that is missing (unless
+// writer for its extension, a folder by that name, a parent that is missing (unless
 // `folder_may_be_created`), not a folder or not writable, or an existing read-only file. For
 // checking every destination of a run before its first write.
 void check_image_destination(const std::filesystem::path& path, bool folder_may_be_created = false);

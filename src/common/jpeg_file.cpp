@@ -1,0 +1,182 @@
+#include "jpeg_file.h"
+
+#include <csetjmp>
+#include <cstring>
+#include <cerrno>
+#include <string>
+
+// jpeglib.h needs size_t and FILE declared before it.
+#include <jerror.h>
+#include <jpeglib.h>
+
+#include "raindrop/common/error.h"
+
+namespace raindrop::jpeg {
+namespace fs = std::filesystem;
+namespace {
+
+// libjpeg reports through these instead of printing: an error keeps its message and returns to
+// the setjmp of the call; a warning that means lost pixels is kept as the error to report.
+struct ErrorSink {
+  jpeg_error_mgr manager;
+  std::jmp_buf jump;
+  char message[JMSG_LENGTH_MAX] = "";
+  bool damaged = false;
+};
+
+[[noreturn]] void on_error(j_common_ptr info) {
+  auto* sink = reinterpret_cast<ErrorSink*>(info->err);
+  (*info->err->format_message)(info, sink->message);
+  std::longjmp(sink->jump, 1);
+}
+
+void on_message(j_common_ptr info, int level) {
+  auto* sink = reinterpret_cast<ErrorSink*>(info->err);
+  // level -1: a warning about the data. Extraneous bytes before a marker lose nothing.
+  if (level >= 0 || info->err->msg_code == JWRN_EXTRANEOUS_DATA || sink->damaged) return;
+  (*info->err->format_message)(info, sink->message);
+  sink->damaged = true;
+}
+
+void install(ErrorSink& sink) {
+  jpeg_std_error(&sink.manager);
+  sink.manager.error_exit = on_error;
+  sink.manager.emit_message = on_message;
+  sink.manager.output_message = [](j_common_ptr) {};
+}
+
+bool native_colour(const jpeg_decompress_struct& d) {
+  return (d.num_components == 1 && d.jpeg_color_space == JCS_GRAYSCALE) ||
+         (d.num_components == 3 && (d.jpeg_color_space == JCS_YCbCr || d.jpeg_color_space == JCS_RGB));
+}
+
+// Decodes from a source that `attach` sets up; `what` names it in errors.
+template <typename Attach>
+cv::Mat decode_from(Attach attach, const std::string& what) {
+  ErrorSink sink;
+  jpeg_decompress_struct d{};
+  d.err = &sink.manager;
+  install(sink);
+  cv::Mat image;  // before setjmp: a longjmp skips no C++ frame
+  volatile bool created = false;
+  if (setjmp(sink.jump) == 0) {
+    jpeg_create_decompress(&d);
+    created = true;
+    attach(d);
+    jpeg_read_header(&d, TRUE);
+    if (!native_colour(d)) ERREXIT(&d, JERR_CONVERSION_NOTIMPL);
+    d.out_color_space = d.num_components == 1 ? JCS_GRAYSCALE : JCS_RGB;
+    jpeg_start_decompress(&d);
+    image.create(static_cast<int>(d.output_height), static_cast<int>(d.output_width), CV_8UC(d.output_components));
+    while (d.output_scanline < d.output_height) {
+      JSAMPROW row = image.ptr(static_cast<int>(d.output_scanline));
+      jpeg_read_scanlines(&d, &row, 1);
+    }
+    jpeg_finish_decompress(&d);
+  } else {
+    sink.damaged = true;
+  }
+  if (created) jpeg_destroy_decompress(&d);
+  if (sink.damaged) throw Error(what + ": cannot decode (" + sink.message + ")");
+  return image;
+}
+
+template <typename Attach>
+void encode_to(const cv::Mat& image, int quality, Attach attach, const std::string& what) {
+  CV_Assert(image.type() == CV_8UC1 || image.type() == CV_8UC3);
+  ErrorSink sink;
+  jpeg_compress_struct c{};
+  c.err = &sink.manager;
+  install(sink);
+  volatile bool created = false, ok = false;
+  if (setjmp(sink.jump) == 0) {
+    jpeg_create_compress(&c);
+    created = true;
+    attach(c);
+    c.image_width = static_cast<JDIMENSION>(image.cols);
+    c.image_height = static_cast<JDIMENSION>(image.rows);
+    c.input_components = image.channels();
+    c.in_color_space = image.channels() == 1 ? JCS_GRAYSCALE : JCS_RGB;
+    jpeg_set_defaults(&c);  // standard tables, 4:2:0 chroma, as OpenImageIO writes
+    jpeg_set_quality(&c, quality, TRUE);
+    jpeg_start_compress(&c, TRUE);
+    while (c.next_scanline < c.image_height) {
+      JSAMPROW row = const_cast<JSAMPROW>(image.ptr(static_cast<int>(c.next_scanline)));
+      jpeg_write_scanlines(&c, &row, 1);
+    }
+    jpeg_finish_compress(&c);
+    ok = true;
+  }
+  if (created) jpeg_destroy_compress(&c);
+  if (!ok) throw Error(what + ": cannot write (" + sink.message + ")");
+}
+
+}  // namespace
+
+bool has_signature(const unsigned char* first3) {
+  return first3[0] == 0xFF && first3[1] == 0xD8 && first3[2] == 0xFF;
+}
+
+Info read_info(const fs::path& path) {
+  std::FILE* file = std::fopen(path.c_str(), "rb");
+  if (!file) throw Error(quoted(path) + ": cannot open (" + std::strerror(errno) + ")");
+  ErrorSink sink;
+  jpeg_decompress_struct d{};
+  d.err = &sink.manager;
+  install(sink);
+  Info info;
+  volatile bool created = false, ok = false;
+  if (setjmp(sink.jump) == 0) {
+    jpeg_create_decompress(&d);
+    created = true;
+    jpeg_stdio_src(&d, file);
+    jpeg_read_header(&d, TRUE);
+    info.width = static_cast<int>(d.image_width);
+    info.height = static_cast<int>(d.image_height);
+    info.native = native_colour(d);
+    info.channels = d.num_components == 1 ? 1 : 3;
+    ok = true;
+  }
+  if (created) jpeg_destroy_decompress(&d);
+  std::fclose(file);
+  if (!ok) throw Error(quoted(path) + ": not a readable image (" + sink.message + ")");
+  return info;
+}
+
+cv::Mat decode(const fs::path& path) {
+  std::FILE* file = std::fopen(path.c_str(), "rb");
+  if (!file) throw Error(quoted(path) + ": cannot open (" + std::strerror(errno) + ")");
+  try {
+    cv::Mat image = decode_from([file](jpeg_decompress_struct& d) { jpeg_stdio_src(&d, file); }, quoted(path));
+    std::fclose(file);
+    return image;
+  } catch (...) {
+    std::fclose(file);
+    throw;
+  }
+}
+
+cv::Mat decode(const std::vector<unsigned char>& bytes) {
+  return decode_from([&bytes](jpeg_decompress_struct& d) { jpeg_mem_src(&d, bytes.data(), bytes.size()); },
+                     "JPEG in memory");
+}
+
+void encode(const cv::Mat& image, std::FILE* file, int quality, const fs::path& name) {
+  encode_to(image, quality, [file](jpeg_compress_struct& c) { jpeg_stdio_dest(&c, file); }, quoted(name));
+}
+
+std::vector<unsigned char> encode(const cv::Mat& image, int quality) {
+  unsigned char* buffer = nullptr;
+  unsigned long size = 0;
+  try {
+    encode_to(image, quality, [&](jpeg_compress_struct& c) { jpeg_mem_dest(&c, &buffer, &size); }, "JPEG in memory");
+  } catch (...) {
+    std::free(buffer);
+    throw;
+  }
+  std::vector<unsigned char> bytes(buffer, buffer + size);
+  std::free(buffer);
+  return bytes;
+}
+
+}  // namespace raindrop::jpeg

@@ -1,0 +1,251 @@
+#include "png_file.h"
+
+#include <cctype>
+#include <cerrno>
+#include <cstring>
+#include <fstream>
+#include <map>
+#include <set>
+#include <string>
+#include <vector>
+
+#include <png.h>
+#include <zlib.h>
+
+#include "raindrop/common/error.h"
+#include "raindrop/common/image_io.h"
+
+namespace raindrop::png {
+namespace fs = std::filesystem;
+namespace {
+
+std::uint32_t be32(const unsigned char* p) {
+  return (static_cast<std::uint32_t>(p[0]) << 24) | (static_cast<std::uint32_t>(p[1]) << 16) |
+         (static_cast<std::uint32_t>(p[2]) << 8) | p[3];
+}
+
+// The rows of a PNG's filtered image data, in stream order: `count` rows of `bytes` bytes
+// each (the filter-type byte included) per segment; Adam7 has one segment per non-empty pass.
+struct RowRun {
+  std::uint64_t count, bytes;
+};
+
+std::vector<RowRun> png_rows(std::uint32_t width, std::uint32_t height, int bits_per_pixel, bool adam7) {
+  auto row_bytes = [&](std::uint64_t w) { return 1 + (w * bits_per_pixel + 7) / 8; };
+  if (!adam7) return {{height, row_bytes(width)}};
+  static const int kPass[7][4] = {{0, 0, 8, 8}, {4, 0, 8, 8}, {0, 4, 4, 8}, {2, 0, 4, 4},
+                                  {0, 2, 2, 4}, {1, 0, 2, 2}, {0, 1, 1, 2}};  // x0, y0, dx, dy
+  std::vector<RowRun> runs;
+  for (const auto& p : kPass) {
+    const std::uint64_t w = width > static_cast<std::uint32_t>(p[0]) ? (width - p[0] + p[2] - 1) / p[2] : 0;
+    const std::uint64_t h = height > static_cast<std::uint32_t>(p[1]) ? (height - p[1] + p[3] - 1) / p[3] : 0;
+    if (w > 0 && h > 0) runs.push_back({h, row_bytes(w)});
+  }
+  return runs;
+}
+
+// Inflates the image data and checks every row's filter type (0-4) and that the stream holds
+// all rows: what libpng would otherwise find (and print) while decoding.
+void check_png_image_data(const fs::path& path, const std::string& idat, const std::vector<RowRun>& rows) {
+  z_stream z{};
+  if (::inflateInit(&z) != Z_OK) throw Error(quoted(path) + ": cannot check the PNG data (zlib: out of memory)");
+  std::vector<unsigned char> out(1 << 16);
+  size_t fed = 0, run = 0;
+  std::uint64_t row = 0, left_in_row = 0;  // position in the expected rows
+  bool done = rows.empty(), end = false;
+  int ret = Z_OK;
+  while (true) {
+    if (z.avail_in == 0 && fed < idat.size()) {
+      const size_t n = std::min<size_t>(idat.size() - fed, 1u << 30);
+      z.next_in = reinterpret_cast<Bytef*>(const_cast<char*>(idat.data() + fed));
+      z.avail_in = static_cast<uInt>(n);
+      fed += n;
+    }
+    z.next_out = out.data();
+    z.avail_out = static_cast<uInt>(out.size());
+    ret = ::inflate(&z, Z_NO_FLUSH);
+    const size_t produced = out.size() - z.avail_out;
+    for (size_t i = 0; i < produced && !done;) {
+      if (left_in_row == 0) {  // a row starts with its filter type
+        if (out[i] > 4) {
+          ::inflateEnd(&z);
+          throw Error(quoted(path) + ": corrupt PNG (bad filter type " + std::to_string(out[i]) + " in the image data)");
+        }
+        left_in_row = rows[run].bytes;
+      }
+      const std::uint64_t step = std::min<std::uint64_t>(left_in_row, produced - i);
+      i += step;
+      left_in_row -= step;
+      if (left_in_row == 0 && ++row == rows[run].count) {
+        row = 0;
+        done = ++run == rows.size();
+      }
+    }
+    end = ret == Z_STREAM_END;
+    // Stop at the last row, as libpng does (data past it is ignored, and a stream that
+    // inflates far beyond the declared size costs nothing), at the end of the stream, or
+    // when zlib can make no progress (Z_BUF_ERROR: the data ran out) or finds an error.
+    if (done || ret != Z_OK) break;
+  }
+  const std::string why = z.msg ? z.msg : "";
+  ::inflateEnd(&z);
+  if (ret != Z_OK && ret != Z_STREAM_END && ret != Z_BUF_ERROR)
+    throw Error(quoted(path) + ": corrupt PNG (bad compressed image data" + (why.empty() ? "" : ": " + why) + ")");
+  // A stream cut short after the last row is harmless to libpng; fewer rows than declared is not.
+  if (!done) throw Error(quoted(path) + ": truncated PNG (the image data " + (end ? "ends" : "is cut off") +
+                         " before the last row)");
+}
+
+}  // namespace
+
+bool has_signature(const unsigned char* first8) {
+  static const unsigned char kPng[8] = {0x89, 'P', 'N', 'G', '\r', '\n', 0x1a, '\n'};
+  return std::memcmp(first8, kPng, 8) == 0;
+}
+
+Info check(const fs::path& path, std::uintmax_t size, bool check_data) {
+  std::ifstream f(path, std::ios::binary);
+  unsigned char signature[8] = {0};
+  f.read(reinterpret_cast<char*>(signature), 8);
+  if (!f || size < 8 || !has_signature(signature)) throw Error(quoted(path) + ": not a PNG file");
+  std::vector<unsigned char> data(size - 8);
+  f.read(reinterpret_cast<char*>(data.data()), static_cast<std::streamsize>(data.size()));
+  size_t at = 0;
+  bool first = true, palette = false, trns = false;
+  std::string idat;
+  std::vector<unsigned char> ihdr;
+  while (true) {
+    if (at + 12 > data.size()) throw Error(quoted(path) + ": truncated PNG (ends inside a chunk, no IEND)");
+    const std::uint32_t length = be32(&data[at]);
+    if (length > data.size() - at - 12) throw Error(quoted(path) + ": truncated PNG (a chunk runs past the end of the file)");
+    const std::string type(reinterpret_cast<const char*>(&data[at + 4]), 4);
+    const std::uint32_t crc = static_cast<std::uint32_t>(
+        ::crc32(::crc32(0L, Z_NULL, 0), &data[at + 4], static_cast<uInt>(4 + length)));
+    if (crc != be32(&data[at + 8 + length])) throw Error(quoted(path) + ": corrupt PNG (CRC error in a " + type + " chunk)");
+    if (first && type != "IHDR") throw Error(quoted(path) + ": corrupt PNG (first chunk is " + type + ", not IHDR)");
+    const bool critical = std::isupper(static_cast<unsigned char>(type[0]));
+    if (critical && type != "IHDR" && type != "PLTE" && type != "IDAT" && type != "IEND")
+      throw Error(quoted(path) + ": corrupt PNG (unknown critical chunk " + type + ")");
+    if (first) ihdr.assign(&data[at + 8], &data[at + 8] + length);
+    first = false;
+    palette = palette || (type == "PLTE" && idat.empty());
+    trns = trns || type == "tRNS";
+    if (type == "IDAT") idat.append(reinterpret_cast<const char*>(&data[at + 8]), length);
+    if (type == "IEND") break;
+    at += 12 + length;
+  }
+  if (idat.empty()) throw Error(quoted(path) + ": corrupt PNG (no image data)");
+  const std::string bad_ihdr = quoted(path) + ": corrupt PNG (invalid IHDR: ";
+  if (ihdr.size() != 13) throw Error(bad_ihdr + "length " + std::to_string(ihdr.size()) + ", not 13)");
+  const std::uint32_t width = be32(&ihdr[0]), height = be32(&ihdr[4]);
+  const int depth = ihdr[8], colour = ihdr[9];
+  // libpng's own limits: 2^31 - 1 by the format, 1000000 a side by default (PNG_USER_WIDTH_MAX).
+  if (width == 0 || height == 0 || width > 1000000 || height > 1000000)
+    throw Error(bad_ihdr + "size " + std::to_string(width) + "x" + std::to_string(height) +
+                ", each side must be 1 to 1000000)");
+  static const std::map<int, std::pair<int, std::set<int>>> kColour = {  // channels, allowed depths
+      {0, {1, {1, 2, 4, 8, 16}}}, {2, {3, {8, 16}}}, {3, {1, {1, 2, 4, 8}}}, {4, {2, {8, 16}}}, {6, {4, {8, 16}}}};
+  const auto c = kColour.find(colour);
+  if (c == kColour.end()) throw Error(bad_ihdr + "colour type " + std::to_string(colour) + ")");
+  if (c->second.second.count(depth) == 0)
+    throw Error(bad_ihdr + "bit depth " + std::to_string(depth) + " with colour type " + std::to_string(colour) + ")");
+  if (ihdr[10] != 0 || ihdr[11] != 0 || ihdr[12] > 1)
+    throw Error(bad_ihdr + "compression, filter or interlace method)");
+  if (colour == 3 && !palette) throw Error(quoted(path) + ": corrupt PNG (palette image without a PLTE before its data)");
+  Info info;
+  info.width = width;
+  info.height = height;
+  info.depth = depth;
+  info.colour_type = colour;
+  info.has_trns = trns;
+  info.channels = (colour == 3 ? 3 : c->second.first) + (trns && (colour == 0 || colour == 2 || colour == 3) ? 1 : 0);
+  // A declared size past the pixel limit is refused by the caller before anything is inflated.
+  if (static_cast<double>(width) * height > kMaxImagePixels || !check_data) return info;
+  check_png_image_data(path, idat, png_rows(width, height, c->second.first * depth, ihdr[12] == 1));
+  return info;
+}
+
+
+namespace {
+
+// libpng reports errors through these instead of printing them: the message is kept for the
+// Error, and control returns to the setjmp in decode() or encode(). Warnings (a bad ancillary
+// chunk, an unknown sRGB profile) change nothing in the pixels and are dropped.
+struct ErrorSink {
+  char message[256] = "unknown libpng error";
+};
+
+[[noreturn]] void on_error(png_structp png, png_const_charp message) {
+  auto* sink = static_cast<ErrorSink*>(png_get_error_ptr(png));
+  std::snprintf(sink->message, sizeof sink->message, "%s", message ? message : "unknown libpng error");
+  png_longjmp(png, 1);
+}
+
+void on_warning(png_structp, png_const_charp) {}
+
+int colour_type_for(int channels) {
+  static const int kType[5] = {-1, PNG_COLOR_TYPE_GRAY, PNG_COLOR_TYPE_GRAY_ALPHA, PNG_COLOR_TYPE_RGB,
+                               PNG_COLOR_TYPE_RGB_ALPHA};
+  return kType[channels];
+}
+
+}  // namespace
+
+cv::Mat decode(const fs::path& path, const Info& info) {
+  CV_Assert(info.native());
+  // Everything with a destructor exists before setjmp: a longjmp skips no C++ frame.
+  cv::Mat image(static_cast<int>(info.height), static_cast<int>(info.width),
+                info.depth == 16 ? CV_16UC(info.channels) : CV_8UC(info.channels));
+  std::vector<png_bytep> rows(image.rows);
+  for (int y = 0; y < image.rows; ++y) rows[y] = image.ptr(y);
+  std::FILE* file = std::fopen(path.c_str(), "rb");
+  if (!file) throw Error(quoted(path) + ": cannot open (" + std::strerror(errno) + ")");
+  ErrorSink sink;
+  png_structp png = png_create_read_struct(PNG_LIBPNG_VER_STRING, &sink, on_error, on_warning);
+  png_infop png_info = png ? png_create_info_struct(png) : nullptr;
+  volatile bool ok = false;
+  if (png && png_info && setjmp(png_jmpbuf(png)) == 0) {
+    png_init_io(png, file);
+    png_set_user_limits(png, 1000000, 1000000);
+    png_read_info(png, png_info);
+    if (info.depth == 16) png_set_swap(png);  // PNG stores 16-bit samples big-endian
+    png_set_interlace_handling(png);
+    png_read_update_info(png, png_info);
+    if (png_get_rowbytes(png, png_info) != image.step[0] || png_get_image_width(png, png_info) != info.width ||
+        png_get_image_height(png, png_info) != info.height)
+      png_error(png, "the image changed while it was read");
+    png_read_image(png, rows.data());
+    png_read_end(png, nullptr);
+    ok = true;
+  }
+  png_destroy_read_struct(png ? &png : nullptr, png_info ? &png_info : nullptr, nullptr);
+  std::fclose(file);
+  if (!ok) throw Error(quoted(path) + ": cannot decode (" + sink.message + ")");
+  return image;
+}
+
+void encode(const cv::Mat& image, std::FILE* file, int level, const fs::path& name) {
+  CV_Assert((image.depth() == CV_8U || image.depth() == CV_16U) && image.channels() >= 1 && image.channels() <= 4);
+  std::vector<png_bytep> rows(image.rows);
+  for (int y = 0; y < image.rows; ++y) rows[y] = const_cast<png_bytep>(image.ptr(y));
+  ErrorSink sink;
+  png_structp png = png_create_write_struct(PNG_LIBPNG_VER_STRING, &sink, on_error, on_warning);
+  png_infop png_info = png ? png_create_info_struct(png) : nullptr;
+  volatile bool ok = false;
+  if (png && png_info && setjmp(png_jmpbuf(png)) == 0) {
+    png_init_io(png, file);
+    png_set_compression_level(png, std::min(std::max(level, 0), 9));
+    png_set_IHDR(png, png_info, static_cast<png_uint_32>(image.cols), static_cast<png_uint_32>(image.rows),
+                 image.depth() == CV_16U ? 16 : 8, colour_type_for(image.channels()), PNG_INTERLACE_NONE,
+                 PNG_COMPRESSION_TYPE_DEFAULT, PNG_FILTER_TYPE_DEFAULT);
+    png_write_info(png, png_info);
+    if (image.depth() == CV_16U) png_set_swap(png);
+    png_write_image(png, rows.data());
+    png_write_end(png, nullptr);
+    ok = true;
+  }
+  png_destroy_write_struct(png ? &png : nullptr, png_info ? &png_info : nullptr);
+  if (!ok) throw Error(quoted(name) + ": cannot write (" + sink.message + ")");
+}
+
+}  // namespace raindrop::png

@@ -1,0 +1,44 @@
+#pragma once
+// PNG through libpng directly, for the formats the programs meet every day (8- and 16-bit grey,
+// grey+alpha, RGB and RGBA): loading OpenImageIO for them costs raindrop-remove 200 ms of start-up
+// (image_io.cpp). Everything else a PNG can hold (palettes, 1-4-bit grey, tRNS transparency) goes
+// to OpenImageIO, as every other format does. Internal to raindrop_common.
+#include <cstdint>
+#include <cstdio>
+#include <filesystem>
+
+#include <opencv2/core.hpp>
+
+namespace raindrop::png {
+
+// What the file's IHDR and chunk list say.
+struct Info {
+  std::uint32_t width = 0, height = 0;
+  int depth = 0;        // bits per sample as stored (1, 2, 4, 8, 16)
+  int colour_type = 0;  // 0 grey, 2 RGB, 3 palette, 4 grey+alpha, 6 RGBA
+  int channels = 0;     // as decoded: a palette becomes RGB, tRNS adds alpha (OpenImageIO's rule)
+  bool has_trns = false;
+  // This file's pixels decode here (decode()); otherwise through OpenImageIO.
+  bool native() const { return (depth == 8 || depth == 16) && colour_type != 3 && !has_trns; }
+};
+
+// Whether the file starts with PNG's signature.
+bool has_signature(const unsigned char* first8);
+
+// Checks the file's structure and returns its header. Throws raindrop::Error naming the file for
+// what libpng would otherwise print to stderr itself (through OpenImageIO) or fail on: IHDR first
+// and valid, every chunk within the file with a valid CRC, no unknown critical chunk, a palette
+// before the data where needed, IEND at the end, and (when `check_data`) image data that
+// inflates to every declared row with valid filter types. A declared size over kMaxImagePixels
+// is returned without inflating anything (the caller refuses it).
+Info check(const std::filesystem::path& path, std::uintmax_t size, bool check_data);
+
+// The pixels of a native() file: CV_8UC(n) or CV_16UC(n), n = info.channels, RGB(A) order,
+// alpha as stored. Throws raindrop::Error naming the file on any libpng error (nothing printed).
+cv::Mat decode(const std::filesystem::path& path, const Info& info);
+
+// Writes `image` (CV_8U or CV_16U, 1-4 channels) as PNG to `file` with zlib level `level`
+// (0-9) and libpng's default adaptive row filters. Throws raindrop::Error naming `name`.
+void encode(const cv::Mat& image, std::FILE* file, int level, const std::filesystem::path& name);
+
+}  // namespace raindrop::png

@@ -1,0 +1,113 @@
+// raindrop_oiio.so: image formats through OpenImageIO, for raindrop_common's image_io.cpp
+// (src/common/oiio_codec.h says why this is a plugin). The front end has already checked that
+// the file exists, is not empty and, for a PNG, is structurally sound.
+#include <memory>
+#include <string>
+
+#include <OpenImageIO/imageio.h>
+
+#include "../common/oiio_codec.h"
+#include "raindrop/common/error.h"
+
+namespace raindrop::oiio {
+namespace fs = std::filesystem;
+namespace {
+
+// First line of an OIIO error message (they can be multi-line).
+std::string first_line(std::string s) {
+  const auto nl = s.find('\n');
+  if (nl != std::string::npos) s.resize(nl);
+  return s.empty() ? "unknown error" : s;
+}
+
+bool is_float(const OIIO::TypeDesc& t) {
+  return t.basetype == OIIO::TypeDesc::FLOAT || t.basetype == OIIO::TypeDesc::HALF ||
+         t.basetype == OIIO::TypeDesc::DOUBLE;
+}
+
+std::unique_ptr<OIIO::ImageInput> open_input(const fs::path& path) {
+  // Keep colour values as stored when there is alpha (PNG is unassociated).
+  OIIO::ImageSpec config;
+  config.attribute("oiio:UnassociatedAlpha", 1);
+  auto in = OIIO::ImageInput::open(path.string(), &config);
+  if (!in) throw Error(quoted(path) + ": not a readable image (" + first_line(OIIO::geterror()) + ")");
+  const OIIO::ImageSpec& spec = in->spec();
+  if (spec.width <= 0 || spec.height <= 0 || spec.nchannels <= 0) throw Error(quoted(path) + ": image has no pixels");
+  return in;
+}
+
+ImageHeader read_header(const fs::path& path) {
+  auto in = open_input(path);
+  const OIIO::ImageSpec& spec = in->spec();
+  ImageHeader h;
+  h.width = spec.width;
+  h.height = spec.height;
+  h.channels = spec.nchannels;
+  h.bits = static_cast<int>(spec.format.size() * 8);
+  h.is_float = is_float(spec.format);
+  h.format = in->format_name();
+  in->close();
+  return h;
+}
+
+cv::Mat decode(const fs::path& path) {
+  auto in = open_input(path);
+  const OIIO::ImageSpec spec = in->spec();
+  const int nc = spec.nchannels;
+  if (nc > 4) throw Error(quoted(path) + ": " + std::to_string(nc) + " channels are not supported (grey, grey+alpha, RGB or RGBA)");
+  const bool floating = is_float(spec.format);
+  const bool eight = spec.format == OIIO::TypeDesc::UINT8 || spec.format == OIIO::TypeDesc::INT8;
+  const OIIO::TypeDesc type = floating ? OIIO::TypeDesc::FLOAT : eight ? OIIO::TypeDesc::UINT8 : OIIO::TypeDesc::UINT16;
+  cv::Mat image(spec.height, spec.width, floating ? CV_32FC(nc) : eight ? CV_8UC(nc) : CV_16UC(nc));
+  // A decoder can report a problem and still return success: libjpeg only warns at a premature
+  // end of file and fills the missing rows with grey, which OIIO records as an error on the
+  // ImageInput. Any recorded error is a failed decode.
+  const bool ok = in->read_image(0, 0, 0, nc, type, image.data);
+  if (!ok || in->has_error()) throw Error(quoted(path) + ": cannot decode (" + first_line(in->geterror()) + ")");
+  in->close();
+  return image;
+}
+
+std::string encode(const cv::Mat& image, const fs::path& file, const fs::path& name, int png_level) {
+  CV_Assert(image.depth() == CV_8U || image.depth() == CV_16U);
+  // The plugin is chosen from the final name's extension, then opened on `file`.
+  auto out = OIIO::ImageOutput::create(name.string());
+  if (!out) throw Error(quoted(name) + ": cannot write this format (" + first_line(OIIO::geterror()) + ")");
+  const cv::Mat data = image.isContinuous() ? image : image.clone();
+  OIIO::ImageSpec spec(data.cols, data.rows, data.channels(),
+                       data.depth() == CV_8U ? OIIO::TypeDesc::UINT8 : OIIO::TypeDesc::UINT16);
+  if (data.channels() == 4) spec.alpha_channel = 3;
+  spec.attribute("png:compressionLevel", std::min(std::max(png_level, 0), 9));
+  if (data.channels() == 4 || data.channels() == 2) spec.attribute("oiio:UnassociatedAlpha", 1);
+  bool ok = out->open(file.string(), spec);
+  // What the format cannot hold, known once its writer has opened: it lowers its own spec's
+  // depth (BMP, WebP store 8 bits) and says whether it stores alpha.
+  std::string lost;
+  if (ok) {
+    const bool depth = out->spec().format.size() < spec.format.size();
+    const bool alpha = (data.channels() == 2 || data.channels() == 4) && !out->supports("alpha");
+    static const char* const kChannels[] = {"", "grey", "grey+alpha", "RGB", "RGBA"};
+    if (depth || alpha)
+      lost = std::string(out->format_name()) + " cannot hold this " + std::to_string(spec.format.size() * 8) + "-bit " +
+             kChannels[data.channels()] + " image: " + (depth ? "rounded to 8 bits" : "") +
+             (depth && alpha ? ", " : "") + (alpha ? "alpha dropped" : "");
+  }
+  ok = ok && out->write_image(spec.format, data.data);
+  ok = out->close() && ok;
+  if (!ok) throw Error(quoted(name) + ": cannot write (" + first_line(out->geterror()) + ")");
+  return lost;
+}
+
+void check_writable_format(const fs::path& name) {
+  if (!OIIO::ImageOutput::create(name.string()))
+    throw Error(quoted(name) + ": cannot write this format (" + first_line(OIIO::geterror()) + ")");
+}
+
+const Codec kCodec = {read_header, decode, encode, check_writable_format};
+
+}  // namespace
+}  // namespace raindrop::oiio
+
+extern "C" __attribute__((visibility("default"))) const raindrop::oiio::Codec* raindrop_oiio_codec() {
+  return &raindrop::oiio::kCodec;
+}
