@@ -62,7 +62,8 @@ int run(int argc, char** argv) {
   std::string cityscapes, split = "train", out = "out/render", scene_name = "paper", size_text, sheet, shard_text,
       merge_dir;
   std::vector<std::string> input_paths;
-  int variants = 1, threads = 0, limit = 0, sheet_rows = 4, png_level = kDefaultPngLevel;
+  int variants = 1, threads = 0, limit = 0, sheet_rows = 4;
+  std::string png_level = png_level_name(kDefaultPngLevel);
   std::uint64_t seed = 0;
   bool demo = false, convert = false, keep_going = false, quiet = false, list_scenes = false, print_scene = false;
   app.add_option("--cityscapes", cityscapes, "Cityscapes root: walks leftImg8bit/<split>/<city>/*.png, reads camera/ intrinsics where present");
@@ -85,8 +86,10 @@ int run(int argc, char** argv) {
   app.add_option("--scene", scene_name, "Preset (" + presets + ") or JSON scene file")->capture_default_str();
   app.add_option("--size", size_text, "Output WIDTHxHEIGHT (centre-crop to the aspect, then resize), e.g. 512x256; default: input size");
   app.add_option("--limit", limit, "Render only the first N inputs (0: all)")->check(CLI::Range(0, 100000000));
-  app.add_option("--png-level", png_level, "PNG zlib level: 1 fastest, 9 smallest (OpenImageIO's default is 6)")
-      ->capture_default_str()->check(CLI::Range(0, 9));
+  app.add_option("--png-level", png_level,
+                 "PNG compression: rle (zlib's run-length strategy: fastest, and smaller than level 6 on photographs) "
+                 "or a zlib level 0-9")
+      ->capture_default_str()->check(CLI::IsMember({"rle", "0", "1", "2", "3", "4", "5", "6", "7", "8", "9"}));
   app.add_option("--shard", shard_text,
                  "Render only shard K of N (0 <= K < N, e.g. $SLURM_ARRAY_TASK_ID/$SLURM_ARRAY_TASK_COUNT): the "
                  "inputs whose id hashes to K (all their variants), into the shared output folder with manifest.part-K-of-N.jsonl");
@@ -139,7 +142,7 @@ int run(int argc, char** argv) {
   options.convert = convert;
   options.keep_going = keep_going;
   options.progress = !quiet;
-  options.png_level = png_level;
+  options.png_level = parse_png_level(png_level);
   options.shard = shard;
 
   std::vector<InputImage> inputs;

@@ -249,7 +249,7 @@ std::string write_image_atomic(const cv::Mat& image, const fs::path& path, int p
   } else {
     const oiio::Codec& codec = oiio::codec(quoted(path) + ": writing this format");
     try {
-      lost = codec.encode(image, tmp, path, png_level);
+      lost = codec.encode(image, tmp, path);
     } catch (...) {
       std::error_code ec;
       fs::remove(tmp, ec);
@@ -259,6 +259,14 @@ std::string write_image_atomic(const cv::Mat& image, const fs::path& path, int p
   move_into_place(tmp, path);
   return lost;
 }
+
+int parse_png_level(const std::string& text) {
+  if (text == "rle") return kPngRunLength;
+  if (text.size() == 1 && text[0] >= '0' && text[0] <= '9') return text[0] - '0';
+  throw Error("PNG level must be rle or 0-9, got '" + text + "'");
+}
+
+std::string png_level_name(int png_level) { return png_level == kPngRunLength ? "rle" : std::to_string(png_level); }
 
 cv::Mat jpeg_round_trip(const cv::Mat& rgb, int quality) {
   CV_Assert(rgb.type() == CV_8UC3);

@@ -21,9 +21,8 @@ struct Codec {
   // RGB(A) order, alpha unassociated. Any error the decoder records is a failed decode.
   cv::Mat (*decode)(const std::filesystem::path& path);
   // Writes `image` (CV_8U/CV_16U, 1-4 channels) to `file` in the format `name`'s extension
-  // names. Returns what the format could not hold ("" when nothing), as write_image_atomic does.
-  std::string (*encode)(const cv::Mat& image, const std::filesystem::path& file, const std::filesystem::path& name,
-                        int png_level);
+  // names (never PNG or JPEG, which image_io.cpp writes itself). Returns what the format could not hold ("" when nothing), as write_image_atomic does.
+  std::string (*encode)(const cv::Mat& image, const std::filesystem::path& file, const std::filesystem::path& name);
   // Throws unless OpenImageIO has a writer for `name`'s extension.
   void (*check_writable_format)(const std::filesystem::path& name);
 };

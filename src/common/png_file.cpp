@@ -1,5 +1,6 @@
 #include "png_file.h"
 
+#include <algorithm>
 #include <cctype>
 #include <cerrno>
 #include <cstring>
@@ -234,7 +235,12 @@ void encode(const cv::Mat& image, std::FILE* file, int level, const fs::path& na
   volatile bool ok = false;
   if (png && png_info && setjmp(png_jmpbuf(png)) == 0) {
     png_init_io(png, file);
-    png_set_compression_level(png, std::min(std::max(level, 0), 9));
+    if (level == kPngRunLength) {
+      png_set_compression_strategy(png, Z_RLE);
+      png_set_filter(png, PNG_FILTER_TYPE_BASE, PNG_FILTER_PAETH);
+    } else {
+      png_set_compression_level(png, std::min(std::max(level, 0), 9));
+    }
     png_set_IHDR(png, png_info, static_cast<png_uint_32>(image.cols), static_cast<png_uint_32>(image.rows),
                  image.depth() == CV_16U ? 16 : 8, colour_type_for(image.channels()), PNG_INTERLACE_NONE,
                  PNG_COMPRESSION_TYPE_DEFAULT, PNG_FILTER_TYPE_DEFAULT);

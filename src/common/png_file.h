@@ -37,8 +37,9 @@ Info check(const std::filesystem::path& path, std::uintmax_t size, bool check_da
 // alpha as stored. Throws raindrop::Error naming the file on any libpng error (nothing printed).
 cv::Mat decode(const std::filesystem::path& path, const Info& info);
 
-// Writes `image` (CV_8U or CV_16U, 1-4 channels) as PNG to `file` with zlib level `level`
-// (0-9) and libpng's default adaptive row filters. Throws raindrop::Error naming `name`.
+// Writes `image` (CV_8U or CV_16U, 1-4 channels) as PNG to `file`: with zlib level `level`
+// (0-9) and libpng's adaptive row filters, or (kPngRunLength) zlib's run-length strategy with
+// Paeth filters. Throws raindrop::Error naming `name`.
 void encode(const cv::Mat& image, std::FILE* file, int level, const std::filesystem::path& name);
 
 }  // namespace raindrop::png

@@ -68,7 +68,7 @@ cv::Mat decode(const fs::path& path) {
   return image;
 }
 
-std::string encode(const cv::Mat& image, const fs::path& file, const fs::path& name, int png_level) {
+std::string encode(const cv::Mat& image, const fs::path& file, const fs::path& name) {
   CV_Assert(image.depth() == CV_8U || image.depth() == CV_16U);
   // The plugin is chosen from the final name's extension, then opened on `file`.
   auto out = OIIO::ImageOutput::create(name.string());
@@ -77,7 +77,6 @@ std::string encode(const cv::Mat& image, const fs::path& file, const fs::path& n
   OIIO::ImageSpec spec(data.cols, data.rows, data.channels(),
                        data.depth() == CV_8U ? OIIO::TypeDesc::UINT8 : OIIO::TypeDesc::UINT16);
   if (data.channels() == 4) spec.alpha_channel = 3;
-  spec.attribute("png:compressionLevel", std::min(std::max(png_level, 0), 9));
   if (data.channels() == 4 || data.channels() == 2) spec.attribute("oiio:UnassociatedAlpha", 1);
   bool ok = out->open(file.string(), spec);
   // What the format cannot hold, known once its writer has opened: it lowers its own spec's

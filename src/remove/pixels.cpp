@@ -85,12 +85,13 @@ cv::Mat to_rgb_float(const cv::Mat& image, const cv::Rect& roi) {
   return out;
 }
 
-void store_rgb_float(const cv::Mat& rgb, cv::Mat& output, int y0) {
-  CV_Assert(rgb.type() == CV_32FC3 && rgb.cols == output.cols && y0 >= 0 && y0 + rgb.rows <= output.rows);
-  const int nc = output.channels(), depth = output.depth();
+void store_rgb_float(const cv::Mat& rgb, cv::Mat& output, cv::Point corner) {
+  const cv::Rect region(corner, rgb.size());
+  CV_Assert(rgb.type() == CV_32FC3 && (region & cv::Rect(0, 0, output.cols, output.rows)) == region);
+  const int nc = output.channels(), depth = output.depth(), y0 = corner.y;
   for (int y = 0; y < rgb.rows; ++y) {
     const float* src = rgb.ptr<float>(y);
-    for (int x = 0; x < rgb.cols; ++x, src += 3) {
+    for (int x = corner.x; x < corner.x + rgb.cols; ++x, src += 3) {
       float v[3];
       if (nc <= 2) {
         v[0] = (0.299f * clamp01(src[0]) + 0.587f * clamp01(src[1])) + 0.114f * clamp01(src[2]);

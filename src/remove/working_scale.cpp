@@ -43,13 +43,15 @@ Taps axis_taps(int n, int N, int from, int count) {
   return t;
 }
 
-// Rows [y0, y0 + rows) of `small` (CV_32F, 1 or 3 channels) upsampled bilinearly to `full`,
-// without making the whole full-size image. Float weights throughout: cv::warpAffine's
-// 1/32-pixel interpolation table was off by up to 4 levels of 8 bits on sharp edges.
-cv::Mat upsample_rows(const cv::Mat& small, cv::Size full, int y0, int rows) {
-  const int nc = small.channels();
-  const Taps ty = axis_taps(small.rows, full.height, y0, rows), tx = axis_taps(small.cols, full.width, 0, full.width);
-  cv::Mat out(rows, full.width, small.type());
+}  // namespace
+
+// Each pixel depends on its own position only (axis_taps), so a region is exactly that part of
+// the whole upsampled image. Float weights throughout: cv::warpAffine's 1/32-pixel
+// interpolation table was off by up to 4 levels of 8 bits on sharp edges.
+cv::Mat upsample_region(const cv::Mat& small, cv::Size full, const cv::Rect& region) {
+  const int nc = small.channels(), rows = region.height;
+  const Taps ty = axis_taps(small.rows, full.height, region.y, rows), tx = axis_taps(small.cols, full.width, region.x, region.width);
+  cv::Mat out(rows, region.width, small.type());
   std::vector<float> line(static_cast<size_t>(small.cols) * nc);
   for (int y = 0; y < rows; ++y) {
     const float* a = small.ptr<float>(ty.lo[y]);
@@ -57,7 +59,7 @@ cv::Mat upsample_rows(const cv::Mat& small, cv::Size full, int y0, int rows) {
     const float wy = ty.w[y];
     for (size_t k = 0; k < line.size(); ++k) line[k] = a[k] + wy * (b[k] - a[k]);
     float* o = out.ptr<float>(y);
-    for (int x = 0; x < full.width; ++x) {
+    for (int x = 0; x < region.width; ++x) {
       const float* p = line.data() + static_cast<size_t>(tx.lo[x]) * nc;
       const float* q = p + static_cast<size_t>(tx.step[x]) * nc;
       for (int c = 0; c < nc; ++c) o[x * nc + c] = p[c] + tx.w[x] * (q[c] - p[c]);
@@ -66,17 +68,16 @@ cv::Mat upsample_rows(const cv::Mat& small, cv::Size full, int y0, int rows) {
   return out;
 }
 
-}  // namespace
-
-cv::Mat blend_upsampled_rows(const cv::Mat& in_rows, int y0, cv::Size full, const cv::Mat& output_small,
-                             const cv::Mat& mask_small, cv::Mat& alpha_rows) {
-  alpha_rows = upsample_rows(mask_small, full, y0, in_rows.rows);
-  const cv::Mat up = upsample_rows(output_small, full, y0, in_rows.rows);
-  cv::Mat out = in_rows.clone();
+cv::Mat blend_upsampled(const cv::Mat& in_region, const cv::Rect& region, cv::Size full, const cv::Mat& output_small,
+                        const cv::Mat& mask_small, cv::Mat& alpha) {
+  CV_Assert(in_region.size() == region.size());
+  alpha = upsample_region(mask_small, full, region);
+  const cv::Mat up = upsample_region(output_small, full, region);
+  cv::Mat out = in_region.clone();
   for (int y = 0; y < out.rows; ++y) {
-    const float* a = alpha_rows.ptr<float>(y);
+    const float* a = alpha.ptr<float>(y);
     const float* u = up.ptr<float>(y);
-    const float* in = in_rows.ptr<float>(y);
+    const float* in = in_region.ptr<float>(y);
     float* o = out.ptr<float>(y);
     for (int x = 0; x < out.cols; ++x) {
       if (a[x] <= 0.0f) continue;

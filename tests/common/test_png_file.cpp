@@ -7,6 +7,7 @@
 
 #include <cstdio>
 #include <random>
+#include <set>
 
 #include "raindrop/common/error.h"
 #include "raindrop/common/image_io.h"
@@ -149,13 +150,31 @@ TEST(PngFile, PalettesLowDepthsAndTransparencyReadAsOpenImageIOReadsThem) {
   }
 }
 
-TEST(PngFile, ZlibLevelTradesSizeOnly) {
+// Every compression setting decodes to the same pixels; each one reaches the encoder (the files differ).
+TEST(PngFile, CompressionSettingsChangeBytesNotPixels) {
   testsupport::TempDir tmp("raindrop-png-");
   cv::Mat m(128, 256, CV_8UC3);  // smooth gradients with a little texture: compressible
   for (int y = 0; y < m.rows; ++y)
     for (int x = 0; x < m.cols; ++x) m.at<cv::Vec3b>(y, x) = cv::Vec3b(x, y * 2, ((x * 7) ^ (y * 3)) & 15);
-  write_image_atomic(m, tmp / "l1.png", 1);
-  write_image_atomic(m, tmp / "l9.png", 9);
-  EXPECT_GT(fs::file_size(tmp / "l1.png"), fs::file_size(tmp / "l9.png"));
-  EXPECT_TRUE(same(read_image_native(tmp / "l1.png"), read_image_native(tmp / "l9.png")));
+  const cv::Mat m16 = random_image(40, 30, CV_16U, 4, 3);
+  std::set<std::string> contents;
+  for (int level : {kPngRunLength, 1, 9}) {
+    SCOPED_TRACE(png_level_name(level));
+    write_image_atomic(m, tmp / "a.png", level);
+    write_image_atomic(m16, tmp / "b.png", level);
+    EXPECT_TRUE(same(read_image_native(tmp / "a.png"), m));
+    EXPECT_TRUE(same(read_image_native(tmp / "b.png"), m16));
+    contents.insert(testsupport::read_file(tmp / "a.png"));
+  }
+  EXPECT_EQ(contents.size(), 3u) << "two settings wrote the same file";
+  EXPECT_EQ(kDefaultPngLevel, kPngRunLength);
+}
+
+TEST(PngFile, LevelNamesParse) {
+  EXPECT_EQ(parse_png_level("rle"), kPngRunLength);
+  EXPECT_EQ(parse_png_level("0"), 0);
+  EXPECT_EQ(parse_png_level("9"), 9);
+  for (const char* bad : {"", "10", "-1", "RLE", "3 "}) EXPECT_THROW(parse_png_level(bad), Error) << bad;
+  EXPECT_EQ(png_level_name(parse_png_level("rle")), "rle");
+  EXPECT_EQ(png_level_name(4), "4");
 }

@@ -55,6 +55,27 @@ TEST(WorkingScale, BandsUpsampleLikeAWholeImageResize) {
   }
 }
 
+// Any region (the remover blends only the columns a drop reaches) is exactly that part of the
+// whole rows' blend, wherever it starts.
+TEST(WorkingScale, RegionsBlendExactlyAsTheirPartOfTheWhole) {
+  const cv::Size full(301, 203), small(77, 51);
+  cv::Mat out_small(small, CV_32FC3), mask_small(small, CV_32F);
+  cv::randu(out_small, 0.0f, 1.0f);
+  cv::randu(mask_small, -0.5f, 1.0f);  // a third of it 0 or below: kept pixels inside regions too
+  cv::Mat input(full, CV_32FC3);
+  cv::randu(input, 0.0f, 1.0f);
+  cv::Mat whole_alpha;
+  const cv::Mat whole = blend_upsampled_rows(input, 0, full, out_small, mask_small, whole_alpha);
+  for (const cv::Rect region : {cv::Rect(0, 0, 1, 1), cv::Rect(300, 202, 1, 1), cv::Rect(17, 5, 90, 16),
+                                cv::Rect(123, 190, 178, 13), cv::Rect(0, 40, 301, 3)}) {
+    cv::Mat alpha;
+    const cv::Mat got = blend_upsampled(input(region), region, full, out_small, mask_small, alpha);
+    EXPECT_EQ(max_float_diff(got, whole(region)), 0.0f) << region;
+    EXPECT_EQ(max_float_diff(alpha, whole_alpha(region)), 0.0f) << region;
+    EXPECT_EQ(max_float_diff(upsample_region(out_small, full, region), upsample_region(out_small, full, cv::Rect(0, 0, full.width, full.height))(region)), 0.0f) << region;
+  }
+}
+
 // The mask weights the blend: 0 keeps the input exactly, 1 takes the upsampled output, and
 // the seam of a half-covered image lies where the small mask's edge projects.
 TEST(WorkingScale, MaskWeightsTheBlend) {

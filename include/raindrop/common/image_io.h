@@ -50,13 +50,21 @@ void check_rgb8_header(const std::filesystem::path& path, bool convert, int min_
 // other integer depths become CV_16U). For raindrop-remove, which keeps size, channels and bit depth.
 cv::Mat read_image_native(const std::filesystem::path& path, int min_size = 1);
 
-// zlib level for PNG output. OpenImageIO's own default is 6; on a 2048x1024 photograph level
-// 3 encodes 3.2x faster for a 6% larger file, level 1 5x faster for 13% larger, level 9 6x
-// slower for 4% smaller (measured on this project's machine, docs/RESULTS.md).
-inline constexpr int kDefaultPngLevel = 3;
+// PNG compression: a zlib level 0-9 with libpng's adaptive row filters, or kPngRunLength:
+// zlib's run-length strategy over Paeth-filtered rows. On photographs, renders, masks and
+// coverage maps alike, run-length is both the fastest and the smallest (a 2048x1024 street
+// frame: 2.2x faster than level 3 and 12% smaller, smaller even than level 6, OpenImageIO's
+// default; docs/RESULTS.md), because after the Paeth filter a photograph's rows hold few
+// repeated strings for LZ77 to find, and Huffman coding of the residuals is most of the gain.
+inline constexpr int kPngRunLength = -1;
+inline constexpr int kDefaultPngLevel = kPngRunLength;
 
-// Writes CV_8U/CV_16U images with 1, 3 or 4 channels (RGB order) atomically; the format
-// comes from the extension. Throws raindrop::Error on failure, leaving no file behind.
+// "rle" or "0".."9" as a png level; throws raindrop::Error otherwise.
+int parse_png_level(const std::string& text);
+std::string png_level_name(int png_level);
+
+// Writes CV_8U/CV_16U images with 1-4 channels (RGB(A) order) atomically; the format comes
+// from the extension (`png_level` applies to PNG). Throws raindrop::Error on failure, leaving no file behind.
 // Returns what the format could not hold, in a few words (e.g. "jpeg cannot hold this 16-bit
 // RGBA image: rounded to 8 bits, alpha dropped"), or "" when the file keeps the image whole.
 std::string write_image_atomic(const cv::Mat& image, const std::filesystem::path& path, int png_level = kDefaultPngLevel);

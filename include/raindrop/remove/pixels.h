@@ -25,10 +25,12 @@ void check_input_format(const cv::Mat& image);
 // The pixels of `roi` (inside the image) as CV_32FC3 RGB in [0, 1]. NaN float inputs become 0.
 cv::Mat to_rgb_float(const cv::Mat& image, const cv::Rect& roi);
 
-// Writes float RGB rows (CV_32FC3, values clamped here; NaN -> 0) into rows
-// [y0, y0 + rgb.rows) of `output`, which has the input's type; colour columns only (alpha is
+// Writes float RGB pixels (CV_32FC3, values clamped here; NaN -> 0) into `output`, which has
+// the input's type, with their top-left corner at `corner`; colour channels only (alpha is
 // copied separately with copy_alpha).
-void store_rgb_float(const cv::Mat& rgb, cv::Mat& output, int y0);
+void store_rgb_float(const cv::Mat& rgb, cv::Mat& output, cv::Point corner);
+// The same for whole rows [y0, y0 + rgb.rows).
+inline void store_rgb_float(const cv::Mat& rgb, cv::Mat& output, int y0) { store_rgb_float(rgb, output, cv::Point(0, y0)); }
 
 // Copies the alpha channel of `input` (2 or 4 channels) into `output`; no-op otherwise.
 void copy_alpha(const cv::Mat& input, cv::Mat& output);

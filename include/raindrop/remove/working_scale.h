@@ -37,11 +37,21 @@ double auto_working_scale(cv::Size size, int working_size);
 // The size of the networks' copy at `scale` (each side rounded, at least 1 pixel).
 cv::Size scaled_size(cv::Size size, double scale);
 
-// Full-size float RGB rows [y0, y0 + rows) of the result: the input's own rows `in_rows`
-// (CV_32FC3, in [0, 1]) blended with the upsampled networks' output `output_small`
+// `region` of `small` (CV_32F, 1 or 3 channels) upsampled bilinearly to `full` (pixel centres
+// aligned, edges replicated: cv::resize's INTER_LINEAR mapping), without making the whole
+// full-size image; exactly that part of the whole.
+cv::Mat upsample_region(const cv::Mat& small, cv::Size full, const cv::Rect& region);
+
+// `region` of the full-size float RGB result: the input's own pixels there, `in_region`
+// (CV_32FC3, in [0, 1]), blended with the upsampled networks' output `output_small`
 // (CV_32FC3) by the upsampled mask `mask_small` (CV_32F in [0, 1]). `full` is the image's
-// full size. Returns the blended rows and, in `alpha_rows`, the blend weight (CV_32F).
-cv::Mat blend_upsampled_rows(const cv::Mat& in_rows, int y0, cv::Size full, const cv::Mat& output_small,
-                             const cv::Mat& mask_small, cv::Mat& alpha_rows);
+// full size. Returns the blended pixels and, in `alpha`, the blend weight (CV_32F).
+cv::Mat blend_upsampled(const cv::Mat& in_region, const cv::Rect& region, cv::Size full, const cv::Mat& output_small,
+                        const cv::Mat& mask_small, cv::Mat& alpha);
+// The same for whole rows [y0, y0 + in_rows.rows).
+inline cv::Mat blend_upsampled_rows(const cv::Mat& in_rows, int y0, cv::Size full, const cv::Mat& output_small,
+                                    const cv::Mat& mask_small, cv::Mat& alpha_rows) {
+  return blend_upsampled(in_rows, cv::Rect(0, y0, full.width, in_rows.rows), full, output_small, mask_small, alpha_rows);
+}
 
 }  // namespace raindrop::removal

@@ -32,7 +32,7 @@ struct RenderOptions {
   bool convert = false;          // accept 16-bit / grey / RGBA inputs by converting them
   bool keep_going = false;       // render the rest after a failing input
   bool progress = true;
-  int png_level = kDefaultPngLevel;  // zlib level of the PNGs written (0-9)
+  int png_level = kDefaultPngLevel;  // PNG compression (image_io.h: kPngRunLength or a zlib level 0-9)
   int contact_sheet_rows = 0;    // > 0: keep this many samples for a contact sheet
   // Render only this shard's inputs (all their variants), into manifest.part-K-of-N.jsonl (shard.h); the
   // folder is shared with the other shards. A run without shard also takes over the
