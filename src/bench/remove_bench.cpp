@@ -8,6 +8,7 @@
 
 #include <algorithm>
 #include <cstdio>
+#include <functional>
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
@@ -123,20 +124,21 @@ std::function<int()> add_remove_bench(CLI::App& parent) {
 
 namespace {
 
-// What the coarse pass for large drops (large_drops.h) adds to Remover::run, measured on the
-// street image with the pass on and off in alternate runs (so load changes hit both alike):
-// as found (the street's drops are small: only the coarse copy's detector runs), and with a
-// threshold below 0, which makes the whole frame one large drop (every network runs twice).
-void print_coarse_pass_cost(const std::vector<std::string>& model_dirs, cv::Size size, SessionConfig session, int runs,
-                            int warmup) {
+// What an option of Remover::run costs, measured on the street image with it on and off in
+// alternate runs (so load changes hit both alike): as found, and with a threshold below 0,
+// which makes the whole frame one drop (a large one, for the coarse pass), so that every
+// network of both passes runs. `set(options, on)` turns the option on or off.
+void print_option_cost(const std::vector<std::string>& model_dirs, cv::Size size, SessionConfig session, int runs,
+                       int warmup, const std::string& title, const std::string& what, const std::string& off_name,
+                       const std::string& on_name, const std::function<void(RemoveOptions&, bool)>& set) {
   const int threads = session.threads;
-  std::cout << "\n## raindrop-remove: what the coarse pass for large drops costs\n\n"
+  std::cout << "\n## raindrop-remove: " << title << "\n\n"
             << size.width << "x" << size.height << " street image (--process-size), " << threads << " thread" << (threads == 1 ? "" : "s")
-            << ", default working scale; Remover::run with the coarse pass and without it (--no-large-drops) in "
-               "alternate runs, median of "
-            << runs << " each after " << warmup << " warm-up pair" << (warmup == 1 ? "" : "s")
-            << ". \"all one drop\": threshold -1, every pixel a drop, so the coarse copy's 3RN and RFN run too.\n\n"
-               "| models | mask | without (ms) | with (ms) | with / without | pixels through the networks, with / without | large drops |\n"
+            << ", default working scale; Remover::run " << what << " in alternate runs, median of " << runs
+            << " each after " << warmup << " warm-up pair" << (warmup == 1 ? "" : "s")
+            << ". \"all one drop\": threshold -1, every pixel a drop, so every network of both passes runs.\n\n"
+               "| models | mask | " << off_name << " (ms) | " << on_name << " (ms) | " << on_name << " / " << off_name
+            << " | pixels through the networks, " << on_name << " / " << off_name << " | large drops |\n"
                "|---|---|---|---|---|---|---|\n";
   const cv::Mat image = demo_street(size.width, size.height);
   for (const auto& dir : model_dirs) {
@@ -144,7 +146,8 @@ void print_coarse_pass_cost(const std::vector<std::string>& model_dirs, cv::Size
     for (const bool all_one_drop : {false, true}) {
       RemoveOptions on, off;
       if (all_one_drop) on.threshold = off.threshold = -1.0;
-      off.large_drops = false;
+      set(on, true);
+      set(off, false);
       std::vector<double> t_on, t_off;
       RemoveResult r_on, r_off;
       for (int i = 0; i < warmup + runs; ++i) {
@@ -306,7 +309,14 @@ int run_remove_bench(RemoveBenchOptions o) {
   }
   if (process) {  // the --process-size image, the last --threads value, the same graph optimisation
     session.threads = thread_counts.back();
-    print_coarse_pass_cost(model_dirs, *process, session, runs, warmup);
+    // The coarse pass for large drops (large_drops.h): off is --no-large-drops.
+    print_option_cost(model_dirs, *process, session, runs, warmup, "what the coarse pass for large drops costs",
+                      "with the coarse pass and without it (--no-large-drops)", "without", "with",
+                      [](RemoveOptions& opts, bool on) { opts.large_drops = on; });
+    // --mirror-average: the working-scale pass's 3RN and RFN also averaged with the mirror image's.
+    print_option_cost(model_dirs, *process, session, runs, warmup, "what --mirror-average costs",
+                      "with the working-scale pass's 3RN and RFN averaged with their run on the mirror image "
+                      "(--mirror-average) and without", "without", "with", [](RemoveOptions& opts, bool on) { opts.mirror_average = on; });
   }
   std::cout << "\n## raindrop-remove: GFLOP/s\n\nGFLOPs from each model folder's export.json (at 256x512), scaled by "
                "the pixels the networks ran on (tiles and their overlaps included).\n\n"

@@ -172,7 +172,7 @@ int run(int argc, char** argv) {
   std::optional<double> threshold, scale;
   std::optional<int> dilation;
   int threads = 0, tile = kDefaultTile, overlap = kDefaultOverlap;
-  bool time = false, quiet = false, keep_going = false, no_large_drops = false;
+  bool time = false, quiet = false, keep_going = false, no_large_drops = false, mirror_average = false;
   Shard shard;
   app.add_option("input", input, "Input image, or folder of images")->required();
   app.add_option("output", output, "Output image (format from the extension), or folder")->required();
@@ -199,6 +199,9 @@ int run(int argc, char** argv) {
                "(mask regions with the area of a disk 60 px across at the working scale, clusters included, e.g. on a "
                "lens cover)")
       ->excludes(large_opt);
+  app.add_flag("--mirror-average", mirror_average,
+               "Also at the working scale, run the 3RN and RFN on the image and on its mirror image and average the two "
+               "(the coarse pass for large drops always does): about 1.5x the time, for slightly better fills");
   app.add_option("-j,--threads", threads, "CPU threads (0: one per core; more than the cores: capped, with a warning); with 2 or more, RDN and 3RN run side by side on half each")
       ->capture_default_str()->check(CLI::Range(0, 1024));
   app.add_option("--device", device, "Execution device")->transform(cli::names_to(device_names()))->default_str("cpu");
@@ -319,6 +322,7 @@ int run(int argc, char** argv) {
   s.options.overlap = overlap;
   s.options.scale = scale;
   s.options.large_drops = !no_large_drops;
+  s.options.mirror_average = mirror_average;
   s.time = time;
   if (time) {
     const ModelInfo& mi = remover.info();

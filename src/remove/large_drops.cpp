@@ -34,4 +34,38 @@ cv::Mat large_drop_mask(const cv::Mat& mask, int* count) {
   return out;
 }
 
+namespace {
+
+// Planar channels mirrored left to right.
+std::vector<float> mirrored(const float* planes, int channels, int h, int w) {
+  std::vector<float> out(static_cast<size_t>(channels) * h * w);
+  for (size_t row = 0; row < static_cast<size_t>(channels) * h; ++row) {
+    const float* src = planes + row * w;
+    float* dst = out.data() + row * w;
+    for (int x = 0; x < w; ++x) dst[x] = src[w - 1 - x];
+  }
+  return out;
+}
+
+}  // namespace
+
+void run_mirror_averaged(Network& net, const std::vector<const float*>& inputs, const std::vector<int>& channels, int h,
+                         int w, int out_channels, float* output) {
+  CV_Assert(inputs.size() == channels.size());
+  std::vector<std::vector<float>> flipped;
+  std::vector<const float*> flipped_inputs;
+  flipped.reserve(inputs.size());
+  for (size_t i = 0; i < inputs.size(); ++i) {
+    flipped.push_back(mirrored(inputs[i], channels[i], h, w));
+    flipped_inputs.push_back(flipped.back().data());
+  }
+  const size_t size = static_cast<size_t>(out_channels) * h * w;
+  std::vector<float> direct(size), other(size);
+  net.run(inputs, h, w, direct.data());
+  net.run(flipped_inputs, h, w, other.data());
+  const std::vector<float> back = mirrored(other.data(), out_channels, h, w);
+  // (a + b) / 2 with the same operands in either view: the result is exactly mirror-equivariant.
+  for (size_t i = 0; i < size; ++i) output[i] = 0.5f * (direct[i] + back[i]);
+}
+
 }  // namespace raindrop::removal

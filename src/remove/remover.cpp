@@ -12,6 +12,7 @@
 #include "raindrop/common/error.h"
 #include "raindrop/common/stopwatch.h"
 #include "raindrop/remove/edge_map.h"
+#include "raindrop/remove/large_drops.h"
 #include "raindrop/remove/mask.h"
 #include "raindrop/remove/model_paths.h"
 #include "raindrop/remove/pixels.h"
@@ -107,11 +108,16 @@ void detect(Network& rdn, const TileInputs& in, const cv::Rect& owned, double th
   t.mask += lap_ms(clock);
 }
 
-// 3RN on one tile's inputs, clamped to [0, 1].
-std::vector<float> reconstruct(Network& rrn, const TileInputs& in, StageTimes& t) {
+// 3RN on one tile's inputs, clamped to [0, 1]; with `mirror`, averaged with its run on the
+// mirror image (large_drops.h: kLargeDropMirrorAverage).
+std::vector<float> reconstruct(Network& rrn, const TileInputs& in, StageTimes& t, bool mirror = false) {
   auto clock = Clock::now();
   std::vector<float> ihat(3 * static_cast<size_t>(in.h) * in.w);
-  rrn.run({in.r.data(), in.e.data()}, in.h, in.w, ihat.data());
+  if (mirror) {
+    run_mirror_averaged(rrn, {in.r.data(), in.e.data()}, {3, 1}, in.h, in.w, 3, ihat.data());
+  } else {
+    rrn.run({in.r.data(), in.e.data()}, in.h, in.w, ihat.data());
+  }
   clamp_all(ihat);
   t.rrn += lap_ms(clock);
   return ihat;
@@ -269,6 +275,7 @@ void Remover::add_large_drops(const cv::Mat& image, const RemoveOptions& opt, do
   sub.scale = 1.0;
   sub.keep_float = true;
   sub.large_drops = false;
+  sub.mirror_average = opt.mirror_average || kLargeDropMirrorAverage;
   // Most photographs have no large drop: the coarse copy's detector decides before its 3RN and
   // RFN run, which are about two thirds of its cost.
   cv::Mat large;
@@ -340,7 +347,7 @@ RemoveResult Remover::run_native(const cv::Mat& image, const RemoveOptions& opt,
     const cv::Rect whole(0, 0, kept.w, kept.h);
     if (branches > 1) {
       run_side_by_side({[&] { detect(models_.rdn_beside(), kept, whole, threshold, mask0, worker_times[0]); },
-                        [&] { kept_ihat = reconstruct(models_.rrn_beside(), kept, worker_times[1]); }});
+                        [&] { kept_ihat = reconstruct(models_.rrn_beside(), kept, worker_times[1], opt.mirror_average); }});
     } else {
       detect(models_.rdn_beside(), kept, whole, threshold, mask0, t);
     }
@@ -369,6 +376,7 @@ RemoveResult Remover::run_native(const cv::Mat& image, const RemoveOptions& opt,
   }
   res.reconstructed_pixels = res.network_pixels;
   Models& rec = reconstruction ? reconstruction() : models_;  // pads as the main models do (large_drop_models)
+  const bool mirror = opt.mirror_average;
 
   // Pass 2: reconstruction, blend, refinement; tile outputs blended into a strip of rows
   // that is finished (quantised into the output) as soon as no later tile row reaches it.
@@ -400,7 +408,7 @@ RemoveResult Remover::run_native(const cv::Mat& image, const RemoveOptions& opt,
       // coarse pass creates no sessions beyond those its models load with (it runs on a
       // ninth-size copy, where half the threads cost little).
       std::vector<float> ihat = !kept_ihat.empty() ? std::move(kept_ihat)
-                                                   : reconstruct(single ? rec.rrn_beside() : rec.rrn(), in, t);
+                                                   : reconstruct(single ? rec.rrn_beside() : rec.rrn(), in, t, mirror);
       const size_t plane = static_cast<size_t>(in.h) * in.w;
       clock = Clock::now();
       // B = M * Ihat + (1 - M) * R with M in {0, 1} is exactly a choice between the two
@@ -418,7 +426,11 @@ RemoveResult Remover::run_native(const cv::Mat& image, const RemoveOptions& opt,
       }
       t.blend += lap_ms(clock);
       std::vector<float> out(3 * plane);
-      rec.rfn().run({blend.data()}, in.h, in.w, out.data());
+      if (mirror) {
+        run_mirror_averaged(rec.rfn(), {blend.data()}, {3}, in.h, in.w, 3, out.data());
+      } else {
+        rec.rfn().run({blend.data()}, in.h, in.w, out.data());
+      }
       clamp_all(out);
       t.rfn += lap_ms(clock);
       std::vector<float> wx(in.w);

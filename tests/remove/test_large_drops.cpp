@@ -19,7 +19,8 @@ using namespace raindrop::removal;
 Remover& smoke() { return smoke_remover(); }
 
 // What `remover` makes of `img` at `coarse_scale` with every pixel a drop, brought back to
-// full size as the coarse pass does (smoothed by kLargeDropSmoothing, then bilinear), as 8-bit.
+// full size as the coarse pass does (its 3RN and RFN averaged with the mirror image's, the
+// result smoothed by kLargeDropSmoothing, then bilinear), as 8-bit.
 cv::Mat coarse_result_upsampled(Remover& remover, const cv::Mat& img, double coarse_scale) {
   cv::Mat small, expected, expected8;
   cv::resize(img, small, scaled_size(img.size(), coarse_scale), 0, 0, cv::INTER_AREA);
@@ -28,6 +29,7 @@ cv::Mat coarse_result_upsampled(Remover& remover, const cv::Mat& img, double coa
   native.scale = 1.0;
   native.keep_float = true;
   native.large_drops = false;
+  native.mirror_average = kLargeDropMirrorAverage;
   const RemoveResult s = remover.run(small, native);
   cv::Mat smoothed;
   cv::GaussianBlur(s.rgb, smoothed, cv::Size(0, 0), kLargeDropSmoothing, kLargeDropSmoothing, cv::BORDER_REPLICATE);
@@ -158,6 +160,37 @@ TEST(LargeDrops, PixelsAwayFromLargeDropsAreTheWorkingScalePasss) {
                           << ", reach " << reach;
   }
   ASSERT_TRUE(found) << "no threshold made part of the image a large drop";
+}
+
+// Mirror averaging (the coarse pass's, and --mirror-average's): the mean of the network's output
+// and of its output on the mirror image mirrored back, for every input and channel count; so
+// exactly mirror-equivariant, which the network alone is not.
+TEST(LargeDrops, MirrorAveragingIsTheMeanOfBothViews) {
+  Models models(smoke_models(), {});
+  const int h = 24, w = 37;  // odd width: the mirror has no fixed column pair
+  cv::Mat r(3 * h, w, CV_32F), e(h, w, CV_32F);
+  cv::randu(r, 0.0f, 1.0f);
+  cv::randu(e, 0.0f, 2.0f);
+  auto mirror = [](const cv::Mat& planes) {
+    cv::Mat m;
+    cv::flip(planes, m, 1);
+    return m;
+  };
+  auto run = [&](const cv::Mat& rr, const cv::Mat& ee, bool averaged) {
+    cv::Mat out(3 * h, w, CV_32F);
+    if (averaged) {
+      run_mirror_averaged(models.rrn(), {rr.ptr<float>(), ee.ptr<float>()}, {3, 1}, h, w, 3, out.ptr<float>());
+    } else {
+      models.rrn().run({rr.ptr<float>(), ee.ptr<float>()}, h, w, out.ptr<float>());
+    }
+    return out;
+  };
+  const cv::Mat rm = mirror(r), em = mirror(e);  // flipping the stacked planes flips each plane
+  const cv::Mat direct = run(r, e, false), other = mirror(run(rm, em, false));
+  const cv::Mat averaged = run(r, e, true);
+  EXPECT_LE(cv::norm(averaged, 0.5f * (direct + other), cv::NORM_INF), 1e-6);
+  EXPECT_EQ(cv::norm(run(rm, em, true), mirror(averaged), cv::NORM_INF), 0.0) << "not exactly mirror-equivariant";
+  EXPECT_GT(cv::norm(direct, other, cv::NORM_INF), 1e-3) << "the network is mirror-equivariant: the test cannot fail";
 }
 
 // Large drops can go to other models than the working-scale pass's (Remover's large_drop_dir,

@@ -301,6 +301,27 @@ TEST_F(RemoveCli, InstalledProgramReadsAndWritesOtherFormats) {
   EXPECT_EQ(out->pixels.size(), cv::Size(61, 43));
 }
 
+// --mirror-average changes the fills (the 3RN and RFN also run on the mirror image), not the mask.
+// (Without the coarse pass, which would take the whole image over as one large drop: it mirrors
+// either way.)
+TEST_F(RemoveCli, MirrorAverageChangesTheFillsNotTheMask) {
+  write_image(tmp / "big.png", make_image(200, 120, 5));
+  const std::string models = (source_dir() / "models" / "compact").string();  // the smoke models' fills are too flat
+  const std::vector<std::string> common = {"big.png", "--threshold", "0", "--no-large-drops", "--models", models};
+  auto with = [&](std::vector<std::string> args) {
+    args.insert(args.begin(), common.begin(), common.end());
+    return remove(args);
+  };
+  ASSERT_EQ(with({"a.png", "--mask", "ma.png"}).code, 0);
+  const RunResult r = with({"b.png", "--mask", "mb.png", "--mirror-average"});
+  ASSERT_EQ(r.code, 0) << r.describe();
+  const auto a = read_image(tmp / "a.png"), b = read_image(tmp / "b.png");
+  const auto ma = read_image(tmp / "ma.png"), mb = read_image(tmp / "mb.png");
+  ASSERT_TRUE(a && b && ma && mb);
+  EXPECT_EQ(max_abs_diff(ma->pixels, mb->pixels), 0);
+  EXPECT_GT(max_abs_diff(a->pixels, b->pixels), 0) << "--mirror-average changed nothing";
+}
+
 TEST_F(RemoveCli, ModelsFromTheEnvironment) {
   // A model folder...
   RunResult r = remove({"in.png", "out.png"}, {"RAINDROP_MODELS=" + smoke_models().string()});

@@ -50,6 +50,11 @@ struct RemoveOptions {
   // After the pass at that scale, a coarse pass at a third of it for drops too large for the
   // networks there (large_drops.h). Off: the working-scale pass alone.
   bool large_drops = true;
+  // Runs the 3RN and RFN on the image and on its mirror image and averages the two
+  // (large_drops.h: run_mirror_averaged): twice their time for a better guess at what drops
+  // hide. The coarse pass always does (kLargeDropMirrorAverage); this turns it on for the
+  // working-scale pass too (raindrop-remove --mirror-average).
+  bool mirror_average = false;
 };
 
 struct RemoveResult {
