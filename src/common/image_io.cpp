@@ -46,7 +46,10 @@ Opened open_image(const fs::path& path, bool check_data = true) {
   unsigned char first[8] = {0};
   {
     std::ifstream f(path, std::ios::binary);
+    if (!f) throw Error(quoted(path) + ": cannot open (" + std::strerror(errno) + ")");
     f.read(reinterpret_cast<char*>(first), sizeof first);
+    if (f.gcount() < static_cast<std::streamsize>(std::min<std::uintmax_t>(size, sizeof first)))
+      throw Error(quoted(path) + ": cannot read (" + std::strerror(errno) + ")");
   }
   Opened o;
   if (size >= 8 && png::has_signature(first)) {

@@ -1,6 +1,7 @@
 #include "jpeg_file.h"
 
 #include <csetjmp>
+#include <cstdio>
 #include <cstring>
 #include <cerrno>
 #include <string>
@@ -26,7 +27,10 @@ struct ErrorSink {
 
 [[noreturn]] void on_error(j_common_ptr info) {
   auto* sink = reinterpret_cast<ErrorSink*>(info->err);
+  const int os_error = errno;  // a failed fwrite's cause, which libjpeg's message leaves out
   (*info->err->format_message)(info, sink->message);
+  if (info->err->msg_code == JERR_FILE_WRITE && os_error != 0)
+    std::snprintf(sink->message, sizeof sink->message, "%s", std::strerror(os_error));
   std::longjmp(sink->jump, 1);
 }
 
@@ -165,17 +169,46 @@ void encode(const cv::Mat& image, std::FILE* file, int quality, const fs::path& 
   encode_to(image, quality, [file](jpeg_compress_struct& c) { jpeg_stdio_dest(&c, file); }, quoted(name));
 }
 
-std::vector<unsigned char> encode(const cv::Mat& image, int quality) {
-  unsigned char* buffer = nullptr;
-  unsigned long size = 0;
-  try {
-    encode_to(image, quality, [&](jpeg_compress_struct& c) { jpeg_mem_dest(&c, &buffer, &size); }, "JPEG in memory");
-  } catch (...) {
-    std::free(buffer);
-    throw;
+namespace {
+
+// A libjpeg destination that appends to a vector. (jpeg_mem_dest's buffer pointer goes stale
+// when the library grows it, so freeing it after an error mid-encode would free memory twice.)
+struct VectorDestination {
+  jpeg_destination_mgr manager{};
+  std::vector<unsigned char>* bytes = nullptr;
+  unsigned char block[16384];
+
+  static VectorDestination& of(j_compress_ptr c) { return *reinterpret_cast<VectorDestination*>(c->dest); }
+  static void append(j_compress_ptr c, size_t n) {
+    VectorDestination& d = of(c);
+    try {
+      d.bytes->insert(d.bytes->end(), d.block, d.block + n);
+    } catch (...) {
+      ERREXIT(c, JERR_OUT_OF_MEMORY);  // an error through libjpeg's own path, not an exception through C
+    }
   }
-  std::vector<unsigned char> bytes(buffer, buffer + size);
-  std::free(buffer);
+  static void init(j_compress_ptr c) {
+    of(c).manager.next_output_byte = of(c).block;
+    of(c).manager.free_in_buffer = sizeof of(c).block;
+  }
+  static boolean empty(j_compress_ptr c) {
+    append(c, sizeof of(c).block);
+    init(c);
+    return TRUE;
+  }
+  static void term(j_compress_ptr c) { append(c, sizeof of(c).block - of(c).manager.free_in_buffer); }
+};
+
+}  // namespace
+
+std::vector<unsigned char> encode(const cv::Mat& image, int quality) {
+  std::vector<unsigned char> bytes;
+  VectorDestination destination;
+  destination.bytes = &bytes;
+  destination.manager.init_destination = VectorDestination::init;
+  destination.manager.empty_output_buffer = VectorDestination::empty;
+  destination.manager.term_destination = VectorDestination::term;
+  encode_to(image, quality, [&](jpeg_compress_struct& c) { c.dest = &destination.manager; }, "JPEG in memory");
   return bytes;
 }
 

@@ -15,6 +15,9 @@ namespace raindrop::oiio {
 
 // The plugin's entry points. Each throws raindrop::Error with a one-line message naming the file.
 struct Codec {
+  // kInterface of the build the plugin comes from: a plugin from another build (a stale
+  // lib/raindrop) is refused instead of being called with the wrong layout.
+  int interface;
   // Opens the file and returns its header (format: OpenImageIO's name for it).
   ImageHeader (*read_header)(const std::filesystem::path& path);
   // The whole image as stored: CV_8UC(n), CV_16UC(n) or, for float files, CV_32FC(n), n = 1-4,
@@ -26,6 +29,9 @@ struct Codec {
   // Throws unless OpenImageIO has a writer for `name`'s extension.
   void (*check_writable_format)(const std::filesystem::path& name);
 };
+
+// Changes whenever Codec does.
+inline constexpr int kInterface = 1;
 
 // The plugin's one exported symbol returns its Codec.
 inline constexpr const char* kEntryPoint = "raindrop_oiio_codec";

@@ -29,10 +29,12 @@ struct Loaded {
 Loaded load() {
   std::vector<fs::path> candidates;
   if (const char* env = std::getenv("RAINDROP_OIIO_PLUGIN"); env && *env) {
-    candidates.emplace_back(env);
-  } else {
-    const fs::path here = program_folder();
+    std::error_code ec;
+    candidates.push_back(fs::absolute(env, ec));  // absolute: dlopen must not search the library path
+  } else if (const fs::path here = program_folder(); !here.empty()) {
     candidates = {here / kPluginName, here / ".." / "lib" / "raindrop" / kPluginName};
+  } else {
+    return {nullptr, "the program's own folder is unknown (/proc/self/exe); set RAINDROP_OIIO_PLUGIN"};
   }
   std::string tried;
   for (const auto& path : candidates) {
@@ -45,7 +47,12 @@ Loaded load() {
     if (!handle) return {nullptr, one_line(::dlerror())};
     auto entry = reinterpret_cast<const Codec* (*)()>(::dlsym(handle, kEntryPoint));
     if (!entry) return {nullptr, quoted(path) + " has no " + kEntryPoint};
-    return {entry(), ""};
+    const Codec* codec = entry();
+    if (!codec || codec->interface != kInterface)
+      return {nullptr, quoted(path) + " is from another build of raindrop (interface " +
+                           std::to_string(codec ? codec->interface : -1) + ", this program needs " +
+                           std::to_string(kInterface) + ")"};
+    return {codec, ""};
   }
   return {nullptr, tried};
 }

@@ -184,6 +184,25 @@ struct ErrorSink {
 
 void on_warning(png_structp, png_const_charp) {}
 
+// libpng's own writer loses errno (a full disk reads "Write Error"): this one keeps it.
+void write_data(png_structp png, png_bytep data, size_t length) {
+  auto* file = static_cast<std::FILE*>(png_get_io_ptr(png));
+  if (std::fwrite(data, 1, length, file) != length) png_error(png, std::strerror(errno));
+}
+
+void flush_data(png_structp png) {
+  if (std::fflush(static_cast<std::FILE*>(png_get_io_ptr(png))) != 0) png_error(png, std::strerror(errno));
+}
+
+// PNG stores 16-bit samples big-endian; cv::Mat holds them in the machine's order.
+void swap_16_bit_samples(png_structp png) {
+#if __BYTE_ORDER__ == __ORDER_LITTLE_ENDIAN__
+  png_set_swap(png);
+#else
+  (void)png;
+#endif
+}
+
 int colour_type_for(int channels) {
   static const int kType[5] = {-1, PNG_COLOR_TYPE_GRAY, PNG_COLOR_TYPE_GRAY_ALPHA, PNG_COLOR_TYPE_RGB,
                                PNG_COLOR_TYPE_RGB_ALPHA};
@@ -209,7 +228,7 @@ cv::Mat decode(const fs::path& path, const Info& info) {
     png_init_io(png, file);
     png_set_user_limits(png, 1000000, 1000000);
     png_read_info(png, png_info);
-    if (info.depth == 16) png_set_swap(png);  // PNG stores 16-bit samples big-endian
+    if (info.depth == 16) swap_16_bit_samples(png);
     png_set_interlace_handling(png);
     png_read_update_info(png, png_info);
     if (png_get_rowbytes(png, png_info) != image.step[0] || png_get_image_width(png, png_info) != info.width ||
@@ -234,7 +253,7 @@ void encode(const cv::Mat& image, std::FILE* file, int level, const fs::path& na
   png_infop png_info = png ? png_create_info_struct(png) : nullptr;
   volatile bool ok = false;
   if (png && png_info && setjmp(png_jmpbuf(png)) == 0) {
-    png_init_io(png, file);
+    png_set_write_fn(png, file, write_data, flush_data);
     if (level == kPngRunLength) {
       png_set_compression_strategy(png, Z_RLE);
       png_set_filter(png, PNG_FILTER_TYPE_BASE, PNG_FILTER_PAETH);
@@ -245,7 +264,7 @@ void encode(const cv::Mat& image, std::FILE* file, int level, const fs::path& na
                  image.depth() == CV_16U ? 16 : 8, colour_type_for(image.channels()), PNG_INTERLACE_NONE,
                  PNG_COMPRESSION_TYPE_DEFAULT, PNG_FILTER_TYPE_DEFAULT);
     png_write_info(png, png_info);
-    if (image.depth() == CV_16U) png_set_swap(png);
+    if (image.depth() == CV_16U) swap_16_bit_samples(png);
     png_write_image(png, rows.data());
     png_write_end(png, nullptr);
     ok = true;

@@ -102,7 +102,7 @@ void check_writable_format(const fs::path& name) {
     throw Error(quoted(name) + ": cannot write this format (" + first_line(OIIO::geterror()) + ")");
 }
 
-const Codec kCodec = {read_header, decode, encode, check_writable_format};
+const Codec kCodec = {kInterface, read_header, decode, encode, check_writable_format};
 
 }  // namespace
 }  // namespace raindrop::oiio

@@ -172,7 +172,7 @@ Models::Models(const fs::path& dir, const SessionConfig& config, Graphs graphs) 
   }
   // Loading a graph (parsing, optimising, packing its weights) runs on one thread: the first
   // graph loads on a second thread beside the others (on two cores, a process that removes
-  // drops from a 32x32 image took a median 68 ms instead of 75: docs/RESULTS.md 3.5). An error
+  // drops from a 32x32 image took a median 68 ms instead of 75: docs/RESULTS.md 3.6). An error
   // from either is thrown here.
   const bool detector = graphs == Graphs::all;
   auto load = [&dir](const char* name, const SessionConfig& c) {

@@ -197,7 +197,7 @@ Upsampled composite_upsampled(const cv::Mat& base, const cv::Mat& base_rgb, cons
   const size_t pixel_bytes = base.elemSize();
   // Bands of rows, and within a band only the columns that a drop reaches: most of a
   // photograph is the base's own bytes, copied (float work there was half of the full-size
-  // cost: docs/RESULTS.md 3.5).
+  // cost: docs/RESULTS.md 3.6).
   constexpr int kBand = 16;
   for (int y0 = 0; y0 < full.height; y0 += kBand) {
     const int rows = std::min(kBand, full.height - y0);

@@ -47,7 +47,7 @@ Ort::Env& ort_env() {
   // photograph's drops through memory it touches for the first time, and each first touch of a
   // page costs a page fault: the shared arena saves a quarter of them (94,000 to 70,000 on a
   // 1280x720 photograph), about 40 ms of its 0.5 s, and a third of the peak memory (358 to
-  // 252 MB), with the same output (docs/RESULTS.md 3.5).
+  // 252 MB), with the same output (docs/RESULTS.md 3.6).
   static Ort::Env env = [] {
     Ort::Env e(ORT_LOGGING_LEVEL_FATAL, "raindrop-remove");
     const Ort::MemoryInfo cpu = Ort::MemoryInfo::CreateCpu(OrtArenaAllocator, OrtMemTypeDefault);

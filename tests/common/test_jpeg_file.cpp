@@ -116,7 +116,7 @@ TEST(JpegFile, FilesThatEndEarlyAreRefused) {
   EXPECT_NO_THROW(read_image_native(tmp / "whole.jpg"));
 }
 
-// Damaged files, every way a byte can go wrong (cut at each length, single bytes changed):
+// Damaged files: cut at about 100 lengths, and 300 copies with one byte changed each:
 // each read either decodes the image whole or throws raindrop::Error with one line naming the
 // file; nothing else escapes, nothing crashes (run under the sanitizers: scripts/test-sanitizers.sh),
 // and libpng/libjpeg print nothing of their own.
@@ -145,7 +145,7 @@ TEST(ImageFiles, DamagedPngAndJpegFailInOneLine) {
     for (size_t cut = 0; cut < bytes.size(); cut += std::max<size_t>(1, bytes.size() / 97)) attempt(bytes.substr(0, cut));
     for (int i = 0; i < 300; ++i) {
       std::string damaged = bytes;
-      damaged[rng() % damaged.size()] = static_cast<char>(rng());
+      damaged[rng() % damaged.size()] ^= static_cast<char>(1 + rng() % 255);  // never the same byte
       attempt(damaged);
     }
     const std::string printed = testing::internal::GetCapturedStderr();

@@ -5,7 +5,13 @@
 #include <gtest/gtest.h>
 #include <png.h>
 
+#include <csignal>
 #include <cstdio>
+#include <cstring>
+
+#include <sys/resource.h>
+#include <sys/wait.h>
+#include <unistd.h>
 #include <random>
 #include <set>
 
@@ -133,9 +139,7 @@ TEST(PngFile, PalettesLowDepthsAndTransparencyReadAsOpenImageIOReadsThem) {
     const size_t row_bytes = (static_cast<size_t>(w) * c.samples * c.depth + 7) / 8;
     std::vector<png_byte> data(row_bytes * h);
     for (auto& b : data) b = static_cast<png_byte>(rng());
-    if (c.colour_type == PNG_COLOR_TYPE_PALETTE) {
-      for (auto& b : data) b &= 0xFF;  // 4-bit indices: every value is within the 16-entry palette
-    }
+    // (4-bit palette indices: every nibble is within the 16-entry palette.)
     const auto file = tmp / (std::string(c.name) + ".png");
     write_png_raw(file, w, h, c.depth, c.colour_type, c.trns, c.interlace, data);
     std::string why;
@@ -177,4 +181,36 @@ TEST(PngFile, LevelNamesParse) {
   for (const char* bad : {"", "10", "-1", "RLE", "3 "}) EXPECT_THROW(parse_png_level(bad), Error) << bad;
   EXPECT_EQ(png_level_name(parse_png_level("rle")), "rle");
   EXPECT_EQ(png_level_name(4), "4");
+}
+
+// A write that the file system refuses part-way (here: a file size limit, as a full disk does
+// with ENOSPC) names the cause, for PNG and JPEG alike, and leaves no file behind.
+TEST(PngFile, AFailedWriteSaysWhy) {
+  testsupport::TempDir tmp("raindrop-png-");
+  const cv::Mat m = random_image(300, 400, CV_8U, 3, 5);  // incompressible: far over the limit
+  for (const char* name : {"big.png", "big.jpg"}) {
+    const pid_t child = ::fork();
+    ASSERT_GE(child, 0);
+    if (child == 0) {
+      std::signal(SIGXFSZ, SIG_IGN);  // the write fails with EFBIG instead of killing the process
+      const rlimit limit{20000, 20000};
+      ::setrlimit(RLIMIT_FSIZE, &limit);
+      int code = 1;
+      try {
+        write_image_atomic(m, tmp / name);
+      } catch (const Error& e) {
+        const std::string what = e.what();
+        code = what.find(std::strerror(EFBIG)) != std::string::npos && what.find(name) != std::string::npos ? 0 : 2;
+        if (code) std::fprintf(stderr, "%s\n", e.what());
+      }
+      std::_Exit(code);
+    }
+    int status = 0;
+    ASSERT_EQ(::waitpid(child, &status, 0), child);
+    ASSERT_TRUE(WIFEXITED(status));
+    EXPECT_EQ(WEXITSTATUS(status), 0) << name << ": 1 = written despite the limit, 2 = the error does not say why";
+    std::size_t left = 0;
+    for (const auto& e : fs::directory_iterator(tmp.path())) left += e.path().filename() != "." ? 1 : 0;
+    EXPECT_EQ(left, 0u) << name << ": a file was left behind";
+  }
 }
