@@ -53,8 +53,13 @@ Opened open_image(const fs::path& path, bool check_data = true) {
   }
   Opened o;
   if (size >= 8 && png::has_signature(first)) {
-    // Checked even where OpenImageIO decodes it: libpng would print its complaints to stderr.
-    o.png = png::check(path, size, check_data);
+    // Every chunk is checked (whole, CRCs, order), so that a cut or damaged file is named as
+    // such. The image data is inflated and checked row by row only where OpenImageIO decodes it:
+    // its libpng would print its complaints to stderr. png_file decodes with its own error
+    // handler, which reports the same problems in one line (and checking first would inflate the
+    // image twice: 22 ms of a 2048x1024 frame's 65 ms decode).
+    o.png = png::check(path, size, /*check_data=*/false);
+    if (check_data && !o.png.native()) o.png = png::check(path, size, /*check_data=*/true);
     if (o.png.native()) {
       o.route = Route::png;
       o.header = {static_cast<int>(o.png.width), static_cast<int>(o.png.height), o.png.channels, o.png.depth, false, "png"};

@@ -240,7 +240,12 @@ cv::Mat decode(const fs::path& path, const Info& info) {
   }
   png_destroy_read_struct(png ? &png : nullptr, png_info ? &png_info : nullptr, nullptr);
   std::fclose(file);
-  if (!ok) throw Error(quoted(path) + ": cannot decode (" + sink.message + ")");
+  if (!ok) {
+    // The words check() uses for the same fault, which libpng calls "Not enough image data".
+    if (std::strcmp(sink.message, "Not enough image data") == 0)
+      throw Error(quoted(path) + ": truncated PNG (the image data ends before the last row)");
+    throw Error(quoted(path) + ": cannot decode (" + sink.message + ")");
+  }
   return image;
 }
 
