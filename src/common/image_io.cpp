@@ -34,8 +34,9 @@ struct Opened {
   png::Info png;
 };
 
-// The file's header, from the codec its first bytes call for. `check_data`: false reads the
-// header alone (a PNG's image data is then checked by the decode, not here). Throws a one-line
+// The file's header, from the codec its first bytes call for. `check_data`: true for a file
+// that is about to be decoded, so that the image data of a PNG that OpenImageIO decodes is
+// checked row by row first (below); false reads the header alone. Throws a one-line
 // Error naming the file for a missing, empty, unreadable or oversized image.
 Opened open_image(const fs::path& path, bool check_data = true) {
   std::error_code ec;
@@ -49,7 +50,7 @@ Opened open_image(const fs::path& path, bool check_data = true) {
     if (!f) throw Error(quoted(path) + ": cannot open (" + std::strerror(errno) + ")");
     f.read(reinterpret_cast<char*>(first), sizeof first);
     if (f.gcount() < static_cast<std::streamsize>(std::min<std::uintmax_t>(size, sizeof first)))
-      throw Error(quoted(path) + ": cannot read (" + std::strerror(errno) + ")");
+      throw Error(quoted(path) + ": cannot read (" + (errno ? std::strerror(errno) : "it is shorter than its size") + ")");
   }
   Opened o;
   if (size >= 8 && png::has_signature(first)) {
@@ -57,7 +58,8 @@ Opened open_image(const fs::path& path, bool check_data = true) {
     // such. The image data is inflated and checked row by row only where OpenImageIO decodes it:
     // its libpng would print its complaints to stderr. png_file decodes with its own error
     // handler, which reports the same problems in one line (and checking first would inflate the
-    // image twice: 22 ms of a 2048x1024 frame's 65 ms decode).
+    // image twice: a 2048x1024 frame decoded in 65 ms, 46 without; docs/RESULTS.md section 1).
+    // A PNG for OpenImageIO is read twice here: those (palettes, low bit depths) are rare.
     o.png = png::check(path, size, /*check_data=*/false);
     if (check_data && !o.png.native()) o.png = png::check(path, size, /*check_data=*/true);
     if (o.png.native()) {

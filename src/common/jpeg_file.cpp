@@ -181,11 +181,15 @@ struct VectorDestination {
   static VectorDestination& of(j_compress_ptr c) { return *reinterpret_cast<VectorDestination*>(c->dest); }
   static void append(j_compress_ptr c, size_t n) {
     VectorDestination& d = of(c);
+    bool failed = false;
     try {
       d.bytes->insert(d.bytes->end(), d.block, d.block + n);
     } catch (...) {
-      ERREXIT(c, JERR_OUT_OF_MEMORY);  // an error through libjpeg's own path, not an exception through C
+      failed = true;
     }
+    // An error through libjpeg's own path (a longjmp), not an exception through C frames; and
+    // outside the catch block, which a longjmp must not leave.
+    if (failed) ERREXIT1(c, JERR_OUT_OF_MEMORY, 0);
   }
   static void init(j_compress_ptr c) {
     of(c).manager.next_output_byte = of(c).block;

@@ -30,11 +30,12 @@ struct Codec {
   void (*check_writable_format)(const std::filesystem::path& name);
 };
 
-// Changes whenever Codec does.
+// Changes whenever Codec or ImageHeader does.
 inline constexpr int kInterface = 1;
 
-// The plugin's one exported symbol returns its Codec.
-inline constexpr const char* kEntryPoint = "raindrop_oiio_codec";
+// The plugin's one exported symbol returns its Codec. The name carries the interface too, so
+// that a plugin from before the interface field fails at dlsym instead of being misread.
+inline constexpr const char* kEntryPoint = "raindrop_oiio_codec_v1";
 inline constexpr const char* kPluginName = "raindrop_oiio.so";
 
 // The loaded plugin: found beside the program (the build tree), then in ../lib/raindrop (an

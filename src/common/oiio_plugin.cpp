@@ -46,7 +46,7 @@ Loaded load() {
     void* handle = ::dlopen(path.c_str(), RTLD_NOW | RTLD_LOCAL);
     if (!handle) return {nullptr, one_line(::dlerror())};
     auto entry = reinterpret_cast<const Codec* (*)()>(::dlsym(handle, kEntryPoint));
-    if (!entry) return {nullptr, quoted(path) + " has no " + kEntryPoint};
+    if (!entry) return {nullptr, quoted(path) + " is from another build of raindrop (it has no " + kEntryPoint + ")"};
     const Codec* codec = entry();
     if (!codec || codec->interface != kInterface)
       return {nullptr, quoted(path) + " is from another build of raindrop (interface " +

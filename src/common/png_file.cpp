@@ -112,8 +112,8 @@ Info check(const fs::path& path, std::uintmax_t size, bool check_data) {
   std::vector<unsigned char> data(size - 8);
   f.read(reinterpret_cast<char*>(data.data()), static_cast<std::streamsize>(data.size()));
   size_t at = 0;
-  bool first = true, palette = false, trns = false;
-  std::string idat;
+  bool first = true, palette = false, trns = false, idat_ended = false;
+  std::string idat, previous;
   std::vector<unsigned char> ihdr;
   while (true) {
     if (at + 12 > data.size()) throw Error(quoted(path) + ": truncated PNG (ends inside a chunk, no IEND)");
@@ -127,9 +127,21 @@ Info check(const fs::path& path, std::uintmax_t size, bool check_data) {
     const bool critical = std::isupper(static_cast<unsigned char>(type[0]));
     if (critical && type != "IHDR" && type != "PLTE" && type != "IDAT" && type != "IEND")
       throw Error(quoted(path) + ": corrupt PNG (unknown critical chunk " + type + ")");
+    // What libpng refuses (and, decoding through OpenImageIO, prints) in a file whose chunks are
+    // all intact: the image data split by another chunk, a second IHDR or PLTE, a palette of
+    // no entries, more than 256, or a length that is not whole entries.
+    const std::string corrupt = quoted(path) + ": corrupt PNG (";
+    if (!first && type == "IHDR") throw Error(corrupt + "a second IHDR chunk)");
+    if (type == "PLTE" && palette) throw Error(corrupt + "a second PLTE chunk)");
+    if (type == "PLTE" && (length == 0 || length % 3 != 0 || length > 3 * 256))
+      throw Error(corrupt + "a palette of " + std::to_string(length) + " bytes, not 1-256 entries of 3)");
+    if (type == "IDAT" && idat_ended) throw Error(corrupt + "the image data is split by a " + previous + " chunk)");
+    idat_ended = idat_ended || (previous == "IDAT" && type != "IDAT");
+    previous = type;
     if (first) ihdr.assign(&data[at + 8], &data[at + 8] + length);
     first = false;
-    palette = palette || (type == "PLTE" && idat.empty());
+    if (type == "PLTE" && !idat.empty()) throw Error(corrupt + "the palette comes after the image data)");
+    palette = palette || type == "PLTE";
     trns = trns || type == "tRNS";
     if (type == "IDAT") idat.append(reinterpret_cast<const char*>(&data[at + 8]), length);
     if (type == "IEND") break;

@@ -107,6 +107,7 @@ const Codec kCodec = {kInterface, read_header, decode, encode, check_writable_fo
 }  // namespace
 }  // namespace raindrop::oiio
 
-extern "C" __attribute__((visibility("default"))) const raindrop::oiio::Codec* raindrop_oiio_codec() {
+// The name is kEntryPoint (oiio_codec.h).
+extern "C" __attribute__((visibility("default"))) const raindrop::oiio::Codec* raindrop_oiio_codec_v1() {
   return &raindrop::oiio::kCodec;
 }

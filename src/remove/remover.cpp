@@ -374,7 +374,7 @@ RemoveResult Remover::run_native(const cv::Mat& image, const RemoveOptions& opt,
     res.mask = mask(cv::Rect(0, 0, W, H)) * 255;
     return res;
   }
-  res.reconstructed_pixels = res.network_pixels;
+  res.reconstructed_pixels = res.network_pixels * (opt.mirror_average ? 2 : 1);
   Models& rec = reconstruction ? reconstruction() : models_;  // pads as the main models do (large_drop_models)
   const bool mirror = opt.mirror_average;
 

@@ -4,9 +4,11 @@
 // and come back as OpenImageIO reads them.
 #include <gtest/gtest.h>
 #include <png.h>
+#include <zlib.h>
 
 #include <csignal>
 #include <cstdio>
+#include <fstream>
 #include <cstring>
 
 #include <sys/resource.h>
@@ -212,5 +214,83 @@ TEST(PngFile, AFailedWriteSaysWhy) {
     std::size_t left = 0;
     for (const auto& e : fs::directory_iterator(tmp.path())) left += e.path().filename() != "." ? 1 : 0;
     EXPECT_EQ(left, 0u) << name << ": a file was left behind";
+  }
+}
+
+namespace {
+
+struct Chunk {
+  std::string type, data;
+};
+
+std::vector<Chunk> chunks_of(const std::string& file) {
+  std::vector<Chunk> chunks;
+  for (size_t at = 8; at + 12 <= file.size();) {
+    const auto* p = reinterpret_cast<const unsigned char*>(file.data() + at);
+    const std::uint32_t length = (std::uint32_t{p[0]} << 24) | (p[1] << 16) | (p[2] << 8) | p[3];
+    chunks.push_back({file.substr(at + 4, 4), file.substr(at + 8, length)});
+    at += 12 + length;
+  }
+  return chunks;
+}
+
+// The file again, every CRC correct: only the structure is wrong.
+std::string file_of(const std::vector<Chunk>& chunks) {
+  std::string out = "\x89PNG\r\n\x1a\n";
+  auto be32 = [&out](std::uint32_t v) {
+    for (int s = 24; s >= 0; s -= 8) out += static_cast<char>((v >> s) & 0xFF);
+  };
+  for (const Chunk& c : chunks) {
+    be32(static_cast<std::uint32_t>(c.data.size()));
+    const std::string body = c.type + c.data;
+    out += body;
+    be32(static_cast<std::uint32_t>(::crc32(0L, reinterpret_cast<const Bytef*>(body.data()), static_cast<uInt>(body.size()))));
+  }
+  return out;
+}
+
+}  // namespace
+
+// Intact chunks in an order or number libpng refuses: refused before libpng sees them (through
+// OpenImageIO, for a palette image, libpng printed "libpng error: ..." on its own), in one line.
+TEST(PngFile, MisplacedChunksFailInOneLine) {
+  testsupport::TempDir tmp("raindrop-png-");
+  write_image_atomic(random_image(90, 90, CV_8U, 3, 8), tmp / "rgb.png");  // incompressible: several IDATs
+  std::vector<png_byte> indices(300 * 150);  // 4-bit, random: incompressible too
+  std::mt19937 rng(3);
+  for (auto& b : indices) b = static_cast<png_byte>(rng());
+  write_png_raw(tmp / "palette.png", 300, 300, 4, PNG_COLOR_TYPE_PALETTE, false, false, indices);
+  for (const std::string base : {"rgb.png", "palette.png"}) {
+    const std::vector<Chunk> good = chunks_of(testsupport::read_file(tmp / base));
+    ASSERT_NO_THROW(read_image_native(tmp / base)) << base;
+    size_t first_idat = 0, idats = 0;
+    for (size_t i = 0; i < good.size(); ++i) {
+      if (good[i].type == "IDAT" && idats++ == 0) first_idat = i;
+    }
+    ASSERT_GE(idats, 2u) << base << ": the test needs the image data in several chunks";
+    std::vector<std::pair<std::string, std::vector<Chunk>>> cases;
+    auto with = [&](const std::string& why, size_t at, const Chunk& extra, int copies = 1) {
+      std::vector<Chunk> c = good;
+      c.insert(c.begin() + static_cast<std::ptrdiff_t>(at), static_cast<size_t>(copies), extra);
+      cases.emplace_back(why, c);
+    };
+    with("image data split", first_idat + 1, {"tEXt", std::string("Comment\0split", 13)});
+    with("second IHDR", 1, good[0]);
+    with("palette of 5 bytes", first_idat, {"PLTE", "12345"});
+    with("palette of 300 entries", first_idat, {"PLTE", std::string(900, 'x')});
+    with("two more palettes", first_idat, {"PLTE", "abc"}, 2);
+    for (const auto& [why, c] : cases) {
+      SCOPED_TRACE(base + ": " + why);
+      std::ofstream(tmp / "bad.png", std::ios::binary | std::ios::trunc) << file_of(c);
+      testing::internal::CaptureStderr();
+      try {
+        read_image_native(tmp / "bad.png");
+        ADD_FAILURE() << "decoded";
+      } catch (const Error& e) {
+        EXPECT_NE(std::string(e.what()).find("corrupt PNG"), std::string::npos) << e.what();
+      }
+      EXPECT_THROW(check_rgb8_header(tmp / "bad.png", true, 1), Error);
+      EXPECT_EQ(testing::internal::GetCapturedStderr(), "");
+    }
   }
 }

@@ -91,7 +91,11 @@ TEST(LargeDrops, AFullMaskIsTheCoarseCopysResultUpsampled) {
   all.threshold = -1.0;  // P > -1 always
   const RemoveResult r = smoke().run(img, all);
   ASSERT_EQ(r.large_drops, 1);
-  EXPECT_EQ(r.reconstructed_pixels, r.network_pixels);  // both passes ran whole
+  // Both passes ran whole, the coarse one's 3RN and RFN twice (mirror averaging).
+  RemoveOptions fine_only = all;
+  fine_only.large_drops = false;
+  const double fine = smoke().run(img, fine_only).network_pixels;
+  EXPECT_EQ(r.reconstructed_pixels, fine + (kLargeDropMirrorAverage ? 2 : 1) * (r.network_pixels - fine));
   const double coarse_scale = r.scale / kLargeDropScaleDivisor;
   EXPECT_DOUBLE_EQ(r.coarse_scale, coarse_scale);
   EXPECT_EQ(cv::countNonZero(r.mask), static_cast<int>(r.mask.total()));

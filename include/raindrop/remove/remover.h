@@ -65,7 +65,7 @@ struct RemoveResult {
   int tiles_x = 1, tiles_y = 1;
   double network_pixels = 0;  // pixels the detector ran on (sum of the tiles' padded areas)
   // Pixels the 3RN and RFN ran on: network_pixels, less a coarse pass that found no large
-  // drop (it stops after its detector).
+  // drop (it stops after its detector); a mirror-averaged pass counts twice (it runs them twice).
   double reconstructed_pixels = 0;
   double scale = 1.0;         // the scale the networks saw the image at
   double coarse_scale = 0;    // the coarse pass's scale (large_drops.h); 0 when it did not run
