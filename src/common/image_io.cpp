@@ -14,6 +14,7 @@
 
 #include <unistd.h>
 
+#include "format_loss.h"
 #include "jpeg_file.h"
 #include "oiio_codec.h"
 #include "png_file.h"
@@ -23,6 +24,13 @@
 namespace raindrop {
 namespace fs = std::filesystem;
 namespace {
+
+// 16-bit samples rounded to 8 bits: round(v / 257), 65535 -> 255 (as OpenImageIO converts).
+cv::Mat round_to_8_bits(const cv::Mat& sixteen) {
+  cv::Mat eight;
+  sixteen.convertTo(eight, CV_8U, 1.0 / 257.0);
+  return eight;
+}
 
 // Where a file's pixels come from: libpng and libjpeg directly for everyday PNG and JPEG files,
 // OpenImageIO's plugin (oiio_codec.h) for everything else.
@@ -55,13 +63,12 @@ Opened open_image(const fs::path& path, bool check_data = true) {
   Opened o;
   if (size >= 8 && png::has_signature(first)) {
     // Every chunk is checked (whole, CRCs, order), so that a cut or damaged file is named as
-    // such. The image data is inflated and checked row by row only where OpenImageIO decodes it:
-    // its libpng would print its complaints to stderr. png_file decodes with its own error
-    // handler, which reports the same problems in one line (and checking first would inflate the
-    // image twice: a 2048x1024 frame decoded in 65 ms, 46 without; docs/RESULTS.md section 1).
-    // A PNG for OpenImageIO is read twice here: those (palettes, low bit depths) are rare.
-    o.png = png::check(path, size, /*check_data=*/false);
-    if (check_data && !o.png.native()) o.png = png::check(path, size, /*check_data=*/true);
+    // such. The image data is inflated and checked row by row only where OpenImageIO decodes it
+    // (png::check): its libpng would print its complaints to stderr. png_file decodes with its
+    // own error handler, which reports the same problems in one line (and checking first would
+    // inflate the image twice: a 2048x1024 frame decoded in 65 ms, 46 without; docs/RESULTS.md
+    // section 1).
+    o.png = png::check(path, size, check_data);
     if (o.png.native()) {
       o.route = Route::png;
       o.header = {static_cast<int>(o.png.width), static_cast<int>(o.png.height), o.png.channels, o.png.depth, false, "png"};
@@ -161,7 +168,7 @@ cv::Mat read_rgb8(const fs::path& path, bool convert, int min_size) {
       }
     }
   } else if (stored.depth() == CV_16U) {
-    stored.convertTo(raw, CV_8U, 1.0 / 257.0);  // round(v / 257): 65535 -> 255
+    raw = round_to_8_bits(stored);
   } else {
     raw = stored;
   }
@@ -200,22 +207,14 @@ bool is_jpeg_name(const fs::path& p) {
 cv::Mat for_jpeg(const cv::Mat& image, std::string* lost) {
   const int nc = image.channels();
   const bool depth = image.depth() == CV_16U, alpha = nc == 2 || nc == 4;
-  cv::Mat eight;
-  if (depth) {
-    image.convertTo(eight, CV_8U, 1.0 / 257.0);
-  } else {
-    eight = image;
-  }
+  cv::Mat eight = depth ? round_to_8_bits(image) : image;
   if (alpha) {
     cv::Mat colour(eight.rows, eight.cols, CV_8UC(nc - 1));
     const int from_to[] = {0, 0, 1, 1, 2, 2};
     cv::mixChannels(&eight, 1, &colour, 1, from_to, nc - 1);
     eight = colour;
   }
-  static const char* const kChannels[] = {"", "grey", "grey+alpha", "RGB", "RGBA"};
-  if (depth || alpha)
-    *lost = std::string("jpeg cannot hold this ") + (depth ? "16" : "8") + "-bit " + kChannels[nc] + " image: " +
-            (depth ? "rounded to 8 bits" : "") + (depth && alpha ? ", " : "") + (alpha ? "alpha dropped" : "");
+  *lost = format_loss("jpeg", depth ? 16 : 8, nc, depth, alpha);
   return eight;
 }
 

@@ -173,7 +173,7 @@ Info check(const fs::path& path, std::uintmax_t size, bool check_data) {
   info.has_trns = trns;
   info.channels = (colour == 3 ? 3 : c->second.first) + (trns && (colour == 0 || colour == 2 || colour == 3) ? 1 : 0);
   // A declared size past the pixel limit is refused by the caller before anything is inflated.
-  if (static_cast<double>(width) * height > kMaxImagePixels || !check_data) return info;
+  if (static_cast<double>(width) * height > kMaxImagePixels || !check_data || info.native()) return info;
   check_png_image_data(path, idat, png_rows(width, height, c->second.first * depth, ihdr[12] == 1));
   return info;
 }

@@ -28,9 +28,11 @@ bool has_signature(const unsigned char* first8);
 // Checks the file's structure and returns its header. Throws raindrop::Error naming the file for
 // what libpng would otherwise print to stderr itself (through OpenImageIO) or fail on: IHDR first
 // and valid, every chunk within the file with a valid CRC, no unknown critical chunk, a palette
-// before the data where needed, IEND at the end, and (when `check_data`) image data that
-// inflates to every declared row with valid filter types. A declared size over kMaxImagePixels
-// is returned without inflating anything (the caller refuses it).
+// before the data where needed, IEND at the end, chunks in an order libpng takes, and (when
+// `check_data`, for a file that is not native(): OpenImageIO's libpng decodes it and would print)
+// image data that inflates to every declared row with valid filter types. A native() file's data
+// is left to decode(), whose error handler reports the same faults in one line. A declared size
+// over kMaxImagePixels is returned without inflating anything (the caller refuses it).
 Info check(const std::filesystem::path& path, std::uintmax_t size, bool check_data);
 
 // The pixels of a native() file: CV_8UC(n) or CV_16UC(n), n = info.channels, RGB(A) order,

@@ -6,6 +6,7 @@
 
 #include <OpenImageIO/imageio.h>
 
+#include "../common/format_loss.h"
 #include "../common/oiio_codec.h"
 #include "raindrop/common/error.h"
 
@@ -81,16 +82,11 @@ std::string encode(const cv::Mat& image, const fs::path& file, const fs::path& n
   bool ok = out->open(file.string(), spec);
   // What the format cannot hold, known once its writer has opened: it lowers its own spec's
   // depth (BMP, WebP store 8 bits) and says whether it stores alpha.
-  std::string lost;
-  if (ok) {
-    const bool depth = out->spec().format.size() < spec.format.size();
-    const bool alpha = (data.channels() == 2 || data.channels() == 4) && !out->supports("alpha");
-    static const char* const kChannels[] = {"", "grey", "grey+alpha", "RGB", "RGBA"};
-    if (depth || alpha)
-      lost = std::string(out->format_name()) + " cannot hold this " + std::to_string(spec.format.size() * 8) + "-bit " +
-             kChannels[data.channels()] + " image: " + (depth ? "rounded to 8 bits" : "") +
-             (depth && alpha ? ", " : "") + (alpha ? "alpha dropped" : "");
-  }
+  const std::string lost =
+      ok ? format_loss(out->format_name(), static_cast<int>(spec.format.size() * 8), data.channels(),
+                       out->spec().format.size() < spec.format.size(),
+                       (data.channels() == 2 || data.channels() == 4) && !out->supports("alpha"))
+         : "";
   ok = ok && out->write_image(spec.format, data.data);
   ok = out->close() && ok;
   if (!ok) throw Error(quoted(name) + ": cannot write (" + first_line(out->geterror()) + ")");

@@ -376,7 +376,6 @@ RemoveResult Remover::run_native(const cv::Mat& image, const RemoveOptions& opt,
   }
   res.reconstructed_pixels = res.network_pixels * (opt.mirror_average ? 2 : 1);
   Models& rec = reconstruction ? reconstruction() : models_;  // pads as the main models do (large_drop_models)
-  const bool mirror = opt.mirror_average;
 
   // Pass 2: reconstruction, blend, refinement; tile outputs blended into a strip of rows
   // that is finished (quantised into the output) as soon as no later tile row reaches it.
@@ -408,7 +407,7 @@ RemoveResult Remover::run_native(const cv::Mat& image, const RemoveOptions& opt,
       // coarse pass creates no sessions beyond those its models load with (it runs on a
       // ninth-size copy, where half the threads cost little).
       std::vector<float> ihat = !kept_ihat.empty() ? std::move(kept_ihat)
-                                                   : reconstruct(single ? rec.rrn_beside() : rec.rrn(), in, t, mirror);
+                                                   : reconstruct(single ? rec.rrn_beside() : rec.rrn(), in, t, opt.mirror_average);
       const size_t plane = static_cast<size_t>(in.h) * in.w;
       clock = Clock::now();
       // B = M * Ihat + (1 - M) * R with M in {0, 1} is exactly a choice between the two
@@ -426,7 +425,7 @@ RemoveResult Remover::run_native(const cv::Mat& image, const RemoveOptions& opt,
       }
       t.blend += lap_ms(clock);
       std::vector<float> out(3 * plane);
-      if (mirror) {
+      if (opt.mirror_average) {
         run_mirror_averaged(rec.rfn(), {blend.data()}, {3}, in.h, in.w, 3, out.data());
       } else {
         rec.rfn().run({blend.data()}, in.h, in.w, out.data());

@@ -12,7 +12,7 @@
 // sample from the scene's range (levels of 8 bits), rounded and clipped as a camera's
 // quantiser does. Signal-independent (read noise); a shot-noise term is not modelled.
 // JPEG: the noisy image encoded and decoded at a quality drawn per sample (libjpeg's scale,
-// 1-100, through OpenImageIO), so that a model sees the block edges and ringing of a
+// 1-100, in memory through libjpeg with 4:2:0 chroma, as OpenImageIO would), so that a model sees the block edges and ringing of a
 // compressed photograph.
 #include <cstdint>
 
