@@ -3,7 +3,7 @@
 # and scripts/setup-tools.sh; needs a folder of real photographs, $RAINDROP_SHARED_DATA
 # (default ../shared/data), for the real frames). Sections can be chosen:
 # scripts/results.sh data render stats eval remove tradeoffs sheets photoreal scale flatroad largedrops coarsetrain
-# largedropmodels sensor
+# largedropmodels sensor mirroraverage
 #
 # Nothing here is committed automatically: images derived from Cityscapes, CamVid or the
 # real raindrop photographs stay under out/ (their licences forbid redistribution).
@@ -15,7 +15,7 @@ out=out/results
 mkdir -p "$out"
 sections=("$@")
 ((${#sections[@]})) || sections=(data render stats eval remove tradeoffs sheets photoreal scale flatroad largedrops coarsetrain
-                                  largedropmodels sensor)
+                                  largedropmodels sensor mirroraverage)
 want() { [[ " ${sections[*]} " == *" $1 "* ]]; }
 # link_set SRC DST SPLIT [LIMIT]: the first LIMIT (default 100; 0: all) samples of data set SRC
 # (of manifest split SPLIT; "-" = all) linked into DST/rainy and DST/clean under plainly named
@@ -39,6 +39,21 @@ for line in open(os.path.join(src, "manifest.jsonl")):
     if n == limit:
         break
 PY
+}
+
+# score_sets DIR LABEL FLAGS SET...: raindrop-remove with FLAGS on each SET (name:split:limit of
+# a data set under data/, linked by link_set into DIR/LABEL-name-split), scored by score_outputs.
+score_sets() {
+  local dir="$1" label="$2" flags="$3" set name split limit d
+  shift 3
+  for set in "$@"; do
+    IFS=: read -r name split limit <<<"$set"
+    d="$dir/$label-$name-$split"
+    link_set "data/$name" "$d/set" "$split" "$limit"
+    # shellcheck disable=SC2086
+    build/raindrop-remove "$d/set/rainy" "$d/out" -q $flags
+    $py -m raindrop_tools.score_outputs --data "$d/set" --outputs "$d/out" --label "$label $name $split"
+  done
 }
 
 if want data; then
@@ -296,15 +311,8 @@ if want largedropmodels; then
              "compact-shipped:--models models/compact" \
              "compact-real-coarse-long:--models models/compact-real-coarse-long"; do
     label="${run%%:*}" flags="${run#*:}"
-    for set in real-pairs:test:100 real-pairs:train:100 test:-:100 test-sparse:-:0 val-lens-cover:-:100 \
-               val-windshield-day:-:100 val-lens-cover-merged:-:100; do
-      IFS=: read -r name split limit <<<"$set"
-      d="$set_dir/$label-$name-$split"
-      link_set "data/$name" "$d/set" "$split" "$limit"
-      # shellcheck disable=SC2086
-      build/raindrop-remove "$d/set/rainy" "$d/out" -q $flags
-      $py -m raindrop_tools.score_outputs --data "$d/set" --outputs "$d/out" --label "$label $name $split"
-    done
+    score_sets "$set_dir" "$label" "$flags" real-pairs:test:100 real-pairs:train:100 test:-:100 test-sparse:-:0 \
+               val-lens-cover:-:100 val-windshield-day:-:100 val-lens-cover-merged:-:100
     # shellcheck disable=SC2086
     build/raindrop-remove "$set_dir/demo/rainy" "$set_dir/$label-demo" --mask-dir "$set_dir/$label-demo-masks" -q $flags
     $py - "$set_dir" "$label" <<'PY'
@@ -347,4 +355,18 @@ PY
   done
   $py -m raindrop_tools.realism --real-pairs "$shared/real-pairs" --rendered data/val-lens-cover-heavy "${sets[@]}" --limit 100 \
     | tee "$out/realism-sensor.md"
+fi
+
+if want mirroraverage; then
+  # docs/RESULTS.md 4.11: the shipped default (its coarse pass mirror-averages its fills) with and
+  # without --mirror-average (the working-scale pass too): the real pairs' test and train
+  # splits, all 470 paper-preset test frames and all 470 sparse frames, the first 100 of two
+  # thin-lens val sets (photoreal above); then the bench's table of what the option costs.
+  set_dir="$out/mirroraverage"
+  for run in "default:" "mirror-average:--mirror-average"; do
+    label="${run%%:*}" flags="${run#*:}"
+    score_sets "$set_dir" "$label" "$flags" real-pairs:test:100 real-pairs:train:100 test:-:0 test-sparse:-:0 \
+               val-lens-cover:-:100 val-windshield-day:-:100
+  done | tee "$out/mirroraverage.txt"
+  build/raindrop-bench remove --threads 2 --size 1280x720 --runs 9 | tee "$out/bench_remove_mirroraverage.md"
 fi

@@ -201,7 +201,7 @@ int run(int argc, char** argv) {
       ->excludes(large_opt);
   app.add_flag("--mirror-average", mirror_average,
                "Also at the working scale, run the 3RN and RFN on the image and on its mirror image and average the two "
-               "(the coarse pass for large drops always does): about 1.9x the time of the networks' pass, for "
+               "(the coarse pass for large drops always does): about twice the time of the networks' pass, for "
                "+0.15-0.18 dB on the paper preset's drops, up to +0.04 on thin-lens renders and +0.01 on real ones "
                "(docs/RESULTS.md 4.11)");
   app.add_option("-j,--threads", threads, "CPU threads (0: one per core; more than the cores: capped, with a warning); with 2 or more, RDN and 3RN run side by side on half each")

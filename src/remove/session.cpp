@@ -43,11 +43,10 @@ Ort::Env& ort_env() {
   // One CPU memory arena for every session (session.use_env_allocators in
   // make_session_options): RDN and 3RN (side by side), then RFN, then the large-drop pass's
   // networks draw on the same memory, where each session's own arena would take its own fresh
-  // memory. A process removes one
-  // photograph's drops through memory it touches for the first time, and each first touch of a
-  // page costs a page fault: the shared arena saves a quarter of them (94,000 to 70,000 on a
-  // 1280x720 photograph), about 40 ms of its 0.5 s, and a third of the peak memory (358 to
-  // 252 MB), with the same output (docs/RESULTS.md 3.6).
+  // memory. A process removes one image's drops through memory it touches for the first time,
+  // and each first touch of a page costs a page fault: the shared arena saves a quarter of them
+  // (95,000 to 69,000 on a rendered 1280x720 frame), 13-30 ms of its 0.4 s, and a third of the
+  // peak memory (357 to 253 MB), with the same output (docs/RESULTS.md 3.6).
   static Ort::Env env = [] {
     Ort::Env e(ORT_LOGGING_LEVEL_FATAL, "raindrop-remove");
     const Ort::MemoryInfo cpu = Ort::MemoryInfo::CreateCpu(OrtArenaAllocator, OrtMemTypeDefault);
