@@ -51,10 +51,10 @@ void check_rgb8_header(const std::filesystem::path& path, bool convert, int min_
 cv::Mat read_image_native(const std::filesystem::path& path, int min_size = 1);
 
 // PNG compression: a zlib level 0-9 with libpng's adaptive row filters, or kPngRunLength:
-// zlib's run-length strategy over Paeth-filtered rows. On photographs, renders, masks and
-// coverage maps alike, run-length is both the fastest and the smallest (a 2048x1024 street
-// frame: 2.2x faster than level 3 and 12% smaller, smaller even than level 6, OpenImageIO's
-// default; docs/RESULTS.md), because after the Paeth filter a photograph's rows hold few
+// zlib's run-length strategy over Paeth-filtered rows: both faster and smaller than a zlib
+// level (a 2048x1024 street frame: 2.2x faster than level 3 and 12% smaller, smaller even than
+// level 6, OpenImageIO's default; a rendered frame's rainy, clean and mask PNGs 12% smaller;
+// docs/RESULTS.md section 1), because after the Paeth filter a photograph's rows hold few
 // repeated strings for LZ77 to find, and Huffman coding of the residuals is most of the gain.
 inline constexpr int kPngRunLength = -1;
 inline constexpr int kDefaultPngLevel = kPngRunLength;
