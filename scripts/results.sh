@@ -3,7 +3,7 @@
 # and scripts/setup-tools.sh; needs a folder of real photographs, $RAINDROP_SHARED_DATA
 # (default ../shared/data), for the real frames). Sections can be chosen:
 # scripts/results.sh data render stats eval remove tradeoffs sheets photoreal scale flatroad largedrops coarsetrain
-# largedropmodels sensor mirroraverage
+# largedropmodels sensor mirroraverage highlights
 #
 # Nothing here is committed automatically: images derived from Cityscapes, CamVid or the
 # real raindrop photographs stay under out/ (their licences forbid redistribution).
@@ -15,7 +15,7 @@ out=out/results
 mkdir -p "$out"
 sections=("$@")
 ((${#sections[@]})) || sections=(data render stats eval remove tradeoffs sheets photoreal scale flatroad largedrops coarsetrain
-                                  largedropmodels sensor mirroraverage)
+                                  largedropmodels sensor mirroraverage highlights)
 want() { [[ " ${sections[*]} " == *" $1 "* ]]; }
 # link_set SRC DST SPLIT [LIMIT]: the first LIMIT (default 100; 0: all) samples of data set SRC
 # (of manifest split SPLIT; "-" = all) linked into DST/rainy and DST/clean under plainly named
@@ -369,4 +369,64 @@ if want mirroraverage; then
                val-lens-cover:-:100 val-windshield-day:-:100
   done | tee "$out/mirroraverage.txt"
   build/raindrop-bench remove --threads 2 --size 1280x720 --runs 9 | tee "$out/bench_remove_mirroraverage.md"
+fi
+
+if want highlights; then
+  # docs/RESULTS.md 4.12: the scene effect "highlights" (clipped pixels lifted before the lens
+  # spreads them). Each thin-lens day preset is rendered as it is (without the effect) and with
+  # it (same frames, seed and drops: its gain is drawn last), and lens-cover-merged with several
+  # gain ranges, all measured against the real pairs' train split; then 4.10's renders-only
+  # recipe is retrained on lens-cover-merged with gains 4-16 and 2-8 and scored on all 100 real
+  # pairs (none trained on) beside compact-lens-merged; and the effect's cost.
+  hl="$out/highlights"
+  mkdir -p "$hl" "$out/cv100"
+  ls "$shared/camvid/val" | head -100 | while read -r f; do ln -sf "$(realpath "$shared/camvid/val/$f")" "$out/cv100/$f"; done
+  # with_highlights PRESET THRESHOLD LO HI: the preset with effects.highlights, written to
+  # $hl/PRESET-highlights-LO-HI.json (printed).
+  with_highlights() {
+    local file="$hl/$1-highlights-$3-$4.json"
+    build/raindrop-render --scene "$1" --print-scene | $py -c '
+import json, sys
+scene = json.load(sys.stdin)
+t, lo, hi = (float(v) for v in sys.argv[1:4])
+scene["effects"]["highlights"] = {"threshold": t, "gain": [lo, hi]}
+scene["name"] += f"-highlights-{sys.argv[2]}-{sys.argv[3]}"
+print(json.dumps(scene, indent=2))' "$2" "$3" "$4" >"$file"
+    echo "$file"
+  }
+  render_val() { rm -rf "$hl/val-$1" && build/raindrop-render -i "$out/cv100" -o "$hl/val-$1" --scene "$2" --size 512x256 --seed 11 -q; }
+  sets=()
+  for scene in paper lens-cover lens-cover-heavy lens-cover-merged windshield-day real-photo; do
+    render_val "$scene" "$scene"
+    sets+=(--rendered "$hl/val-$scene")
+    [[ $scene == paper ]] && continue
+    render_val "$scene-highlights-4-16" "$(with_highlights "$scene" 0.9 4 16)"
+    sets+=(--rendered "$hl/val-$scene-highlights-4-16")
+  done
+  for gain in 2:8 4:32 8:32 16:64 8:8; do
+    render_val "lens-cover-merged-highlights-${gain/:/-}" "$(with_highlights lens-cover-merged 0.9 "${gain%:*}" "${gain#*:}")"
+    sets+=(--rendered "$hl/val-lens-cover-merged-highlights-${gain/:/-}")
+  done
+  $py -m raindrop_tools.realism --real-pairs "$shared/real-pairs" "${sets[@]}" --limit 100 \
+    --json "$hl/realism.json" | tee "$hl/realism.md"
+  # Transfer: tools/configs/compact-lens-merged-hl.yaml (gain 4-16) and -hl28.yaml (2-8), whose
+  # headers list these renders, against compact-lens-merged (4.10); renders only.
+  for run in hl:4:16 hl28:2:8; do
+    IFS=: read -r tag lo hi <<<"$run"
+    scene_file="$(with_highlights lens-cover-merged 0.9 "$lo" "$hi")"
+    build/raindrop-render -i "$shared/camvid/train" -o "data/train-lens-cover-merged-$tag" --scene "$scene_file" \
+      --size 512x256 --variants 4 --seed 7 -q
+    build/raindrop-render --cityscapes "$shared/cityscapes-mini" --split train -o "data/train-cs-lens-merged-$tag" \
+      --scene "$scene_file" --size 512x256 --variants 20 --seed 8 -q
+    [[ -d "data/train-mix-merged-$tag" ]] || $py -m raindrop_tools.merge_datasets --out "data/train-mix-merged-$tag" \
+      "data/train-lens-cover-merged-$tag" data/train-windshield-day "data/train-cs-lens-merged-$tag"
+    [[ -f "out/models/compact-lens-merged-$tag/rdn.onnx" ]] || {
+      $py -m raindrop_tools.train --config "tools/configs/compact-lens-merged-$tag.yaml" --out "tools/runs/compact-lens-merged-$tag"
+      $py -m raindrop_tools.export --run "tools/runs/compact-lens-merged-$tag" --out "out/models/compact-lens-merged-$tag"
+    }
+  done
+  for m in compact-lens-merged compact-lens-merged-hl28 compact-lens-merged-hl; do
+    score_sets "$hl" "$m" "--models out/models/$m --large-drop-models out/models/$m" real-pairs:test:0 real-pairs:train:0
+  done | tee "$hl/real-pairs.txt"
+  build/raindrop-bench render --sections effects --frames 2 --repeats 3 | tee "$hl/bench_effects.md"
 fi

@@ -276,6 +276,46 @@ void effects_table(const Input& input, int frames, int repeats) {
     }
     std::printf("| %s | %.1f | %.2fx |\n", name.c_str(), median(times), median(times) / base);
   }
+  // Highlights (highlights.h) act where the lens spreads light, so they are measured on
+  // lens-cover, with and without, frame by frame in turn (a change of the machine's load falls
+  // on both alike), as the wall time of the whole render_frame call: it includes the check for
+  // clipped pixels, which the stage timings above do not. Then the same frame dimmed below the
+  // threshold, where the effect is skipped.
+  std::cout << "\n*highlights* (lens-cover, the frame above; render_frame wall time, 2 threads, median of "
+            << repeats << " x " << frames << " frames, in turn):\n\n"
+               "| frame | without ms | with highlights (gain 8) ms | ratio |\n|---|---|---|---|\n";
+  cv::Mat dim;
+  frame.clean.convertTo(dim, -1, 200.0 / 255.0);
+  for (int dimmed = 0; dimmed < 2; ++dimmed) {
+    const cv::Mat& clean = dimmed ? dim : frame.clean;
+    SceneConfig configs[2] = {scene_preset("lens-cover"), scene_preset("lens-cover")};
+    configs[0].highlights.enabled = false;
+    configs[1].highlights.enabled = true;
+    configs[1].highlights.gain = {8, 8};
+    const std::vector<SceneSample> scenes = scenes_for(configs[1], frame.camera, frames);
+    std::vector<double> wall[2];
+    with_threads(2, [&] {
+      for (int k = 0; k < 2; ++k) render_frame(clean, frame.camera, configs[k], scenes[0]);  // warm-up
+      for (int r = 0; r < repeats; ++r) {
+        for (const SceneSample& scene : scenes) {
+          for (int k = 0; k < 2; ++k) {
+            const double t0 = bench::now_ms();
+            const RenderedFrame f = render_frame(clean, frame.camera, configs[k], scene);
+            wall[k].push_back(bench::now_ms() - t0);
+          }
+        }
+      }
+    });
+    cv::Mat brightest;
+    cv::Mat channels[3];
+    cv::split(clean, channels);
+    cv::max(cv::max(channels[0], channels[1]), channels[2], brightest);
+    const double lifted = 100.0 * cv::countNonZero(brightest >= 230) / static_cast<double>(brightest.total());
+    std::printf("| %s (%.2f%% of pixels at or above the threshold) | %.1f | %.1f | %.2fx |\n",
+                dimmed ? "dimmed to 200/255: skipped" : "as it is", lifted, median(wall[0]), median(wall[1]),
+                median(wall[1]) / median(wall[0]));
+    std::fflush(stdout);
+  }
 }
 
 // Errors of `test` against `ref` over pixels in either mask.

@@ -80,6 +80,7 @@ DefocusedFrame composite_layers_exact(const cv::Mat& clean, const TraceResult& t
           const float v = std::isfinite(rgb[x][c]) ? std::min(std::max(rgb[x][c], 0.0f), 1.0f) : 0.0f;
           r[c] = static_cast<float>(srgb_to_linear(v));
         }
+        scene.highlights.apply(r.val);
         aR.at<cv::Vec3f>(y - region.y, x - region.x) = r;
       }
     }
@@ -98,7 +99,7 @@ DefocusedFrame composite_layers_exact(const cv::Mat& clean, const TraceResult& t
     const auto* b = clean.ptr<cv::Vec3b>(y);
     float* coverage = out.coverage.ptr<float>(y);
     auto* rainy = out.rainy.ptr<cv::Vec3b>(y);
-    for (int x = 0; x < clean.cols; ++x) mix_layers(a[x], c[x].val, b[x].val, &coverage[x], rainy[x].val);
+    for (int x = 0; x < clean.cols; ++x) mix_layers(a[x], c[x].val, b[x].val, scene.highlights, &coverage[x], rainy[x].val);
   }
   return out;
 }

@@ -179,16 +179,18 @@ struct Layer {
   cv::Rect reach;  // the pixels of the frame its spread layer can reach
 };
 
-// The drop's pixel (a R, a), decoded from the trace.
-inline f4 traced_value(const cv::Vec3f& rgb, const SrgbTables& srgb) {
-  f4 out{0, 0, 0, 1.0f};
-  for (int c = 0; c < 3; ++c) out[c] = std::isfinite(rgb[c]) ? srgb.decode(rgb[c]) : 0.0f;
-  return out;
+// The drop's pixel (a R, a), decoded from the trace and lifted where it was clipped.
+inline f4 traced_value(const cv::Vec3f& rgb, const SrgbTables& srgb, const HighlightLift& lift) {
+  float r[3];
+  for (int c = 0; c < 3; ++c) r[c] = std::isfinite(rgb[c]) ? srgb.decode(rgb[c]) : 0.0f;
+  lift.apply(r);
+  return f4{r[0], r[1], r[2], 1.0f};
 }
 
 // Fills the layer from the trace and spreads it where it is coarse; `layer.rows.y0` and
 // `extent` hold the drop's pixels (frame coordinates).
-void build_layer(Layer& layer, int index, const TraceResult& traced, double diameter, cv::Size frame) {
+void build_layer(Layer& layer, int index, const TraceResult& traced, double diameter, const HighlightLift& lift,
+                 cv::Size frame) {
   const SrgbTables& srgb = SrgbTables::get();
   Rows& px = layer.rows;
   const int n_rows = static_cast<int>(px.extent.size());
@@ -207,7 +209,7 @@ void build_layer(Layer& layer, int index, const TraceResult& traced, double diam
       const int* label = traced.label.ptr<int>(px.y0 + j);
       const auto* rgb = traced.color.ptr<cv::Vec3f>(px.y0 + j);
       for (int x = e.first; x <= e.second; ++x) {
-        if (label[x] == index) px.at(j, x) = traced_value(rgb[x], srgb);
+        if (label[x] == index) px.at(j, x) = traced_value(rgb[x], srgb, lift);
       }
     }
     px.sum_rows();
@@ -244,7 +246,7 @@ void build_layer(Layer& layer, int index, const TraceResult& traced, double diam
     const int* label = traced.label.ptr<int>(y);
     const auto* rgb = traced.color.ptr<cv::Vec3f>(y);
     for (int x = e.first; x <= e.second; ++x) {
-      if (label[x] == index) cell.at(jc, x / s - layer.cell_x0) += area * traced_value(rgb[x], srgb);
+      if (label[x] == index) cell.at(jc, x / s - layer.cell_x0) += area * traced_value(rgb[x], srgb, lift);
     }
   }
   cell.sum_rows();
@@ -380,7 +382,7 @@ DefocusedFrame composite_layers(const cv::Mat& clean, const TraceResult& traced,
   tbb::parallel_for(size_t{0}, present.size(), [&](size_t i) {
     const int d = present[i];
     out.coc_px[d] = layer_blur_diameter(scene, drops[d], camera.fx, clean.size());
-    build_layer(layers[d], d, traced, out.coc_px[d], clean.size());
+    build_layer(layers[d], d, traced, out.coc_px[d], scene.highlights, clean.size());
   });
 
   int y_begin = H, y_end = 0;
@@ -420,7 +422,7 @@ DefocusedFrame composite_layers(const cv::Mat& clean, const TraceResult& traced,
       for (const auto& [xa, xb] : spans) {
         for (int x = xa; x <= xb; ++x) {
           const float c[3] = {acc[x][0], acc[x][1], acc[x][2]};
-          mix_layers(acc[x][3], c, b[x].val, &coverage[x], rainy[x].val);
+          mix_layers(acc[x][3], c, b[x].val, scene.highlights, &coverage[x], rainy[x].val);
         }
       }
     }

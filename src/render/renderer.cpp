@@ -8,6 +8,8 @@
 #include "raindrop/render/blur.h"
 #include "raindrop/render/defocus.h"
 #include "raindrop/render/drop_accel.h"
+#include "raindrop/render/sky.h"
+#include "raindrop/render/srgb.h"
 
 namespace raindrop {
 namespace {
@@ -59,6 +61,24 @@ RenderedFrame render_defocused(const cv::Mat& clean, const Camera& camera, const
   return frame;
 }
 
+// Whether the highlights' lift (highlights.h) can change the frame: some channel of some pixel,
+// of the sky that refracted rays see, or of the car's interior that Fresnel reflection mixes in,
+// decodes above its threshold. A traced colour is a mix of those, so it is lifted only if one
+// of them is.
+bool highlights_present(const cv::Mat& clean, const SceneConfig& config, const HighlightLift& lift) {
+  const auto& lin = srgb8_to_linear_table();
+  int first_lifted = 256;  // the smallest 8-bit code the lift changes
+  for (int c = 255; c >= 0 && lin[c] > lift.threshold; --c) first_lifted = c;
+  double brightest = 0;
+  cv::minMaxLoc(clean.reshape(1), nullptr, &brightest);
+  if (brightest >= first_lifted) return true;
+  auto lifted = [&](const glm::dvec3& rgb) {
+    return srgb_to_linear(std::max(rgb.x, std::max(rgb.y, rgb.z))) > lift.threshold;
+  };
+  if (config.fresnel.enabled && lifted(config.fresnel.interior_rgb)) return true;
+  return config.sky.enabled && lifted(estimate_sky_rgb(clean, config.sky.gain));
+}
+
 }  // namespace
 
 double RenderedFrame::coverage() const {
@@ -89,7 +109,16 @@ RenderedFrame render_frame(const cv::Mat& clean, const Camera& camera, const Sce
   accel.set_disjoint(!config.allow_overlap);
   frame.timings.accel_ms = ms_since(t0);
 
-  if (defocus) return render_defocused(clean, camera, config, scene, accel, drops, largest, frame);
+  if (defocus) {
+    if (!scene.highlights.active()) return render_defocused(clean, camera, config, scene, accel, drops, largest, frame);
+    // Highlights: skipped (a copy of the sample with the lift off) where no pixel reaches the
+    // threshold, so that such a frame costs and renders exactly as without the effect.
+    frame.highlights_lifted = highlights_present(clean, config, scene.highlights);
+    if (frame.highlights_lifted) return render_defocused(clean, camera, config, scene, accel, drops, largest, frame);
+    SceneSample unlifted = scene;
+    unlifted.highlights = HighlightLift{};
+    return render_defocused(clean, camera, config, unlifted, accel, drops, largest, frame);
+  }
 
   t0 = Clock::now();
   TraceResult traced = trace_drops(clean, camera, config, scene, accel, &frame.effects);

@@ -6,6 +6,7 @@
 #include <glm/geometric.hpp>
 
 #include "raindrop/common/error.h"
+#include "raindrop/render/srgb.h"
 
 namespace raindrop {
 namespace {
@@ -115,6 +116,10 @@ SceneSample sample_scene(const SceneConfig& config, const Camera& camera, Rng& r
       s.drops.push_back(shape);
       break;
     }
+  }
+  if (config.highlights.enabled) {
+    s.highlights.threshold = static_cast<float>(srgb_to_linear(config.highlights.threshold));
+    s.highlights.gain = static_cast<float>(draw(config.highlights.gain, rng));
   }
   return s;
 }

@@ -186,6 +186,7 @@ std::vector<std::string> SceneConfig::effect_names() const {
   if (fresnel.enabled) names.push_back("fresnel");
   if (dispersion.enabled) names.push_back(dispersion.automatic ? "dispersion-auto" : "dispersion");
   if (gravity.enabled) names.push_back(gravity.automatic ? "gravity-auto" : "gravity");
+  if (highlights.enabled) names.push_back("highlights");
   if (sensor.enabled) names.push_back("sensor");
   return names;
 }
@@ -275,10 +276,10 @@ SceneConfig parse_scene_json(const std::string& text, const std::string& origin)
 
   // Effects: present = on; dispersion and gravity may be "auto" (or carry "auto": true).
   c.blur.enabled = c.fresnel.enabled = c.dispersion.enabled = c.gravity.enabled = c.sky.enabled = false;
-  c.sensor.enabled = false;
+  c.sensor.enabled = c.highlights.enabled = false;
   if (r.has("effects")) {
     Reader e = r.child("effects");
-    for (const char* fixed : {"blur", "sky", "fresnel", "sensor"}) {
+    for (const char* fixed : {"blur", "sky", "fresnel", "highlights", "sensor"}) {
       if (e.has(fixed) && e.is_auto(fixed))
         e.fail(std::string("'") + fixed + "' has no \"auto\" (only dispersion, gravity and quality.supersample do)");
     }
@@ -299,6 +300,14 @@ SceneConfig parse_scene_json(const std::string& text, const std::string& origin)
       k.number("fade_rows", &c.sky.fade_rows, 0, 10);
       k.number("gain", &c.sky.gain, 0, 10);
       k.reject_unknown();
+    }
+    if (e.has("highlights")) {
+      Reader h = e.child("highlights");
+      c.highlights.enabled = true;
+      // Below 0.5 of full scale nothing is clipped; a gain under 1 would darken highlights.
+      h.number("threshold", &c.highlights.threshold, 0.5, 0.999);
+      h.range("gain", &c.highlights.gain, 1, 1000);
+      h.reject_unknown();
     }
     if (e.has("sensor")) {
       Reader n = e.child("sensor");
@@ -342,6 +351,8 @@ SceneConfig parse_scene_json(const std::string& text, const std::string& origin)
 
   if (c.lens.enabled && c.blur.enabled)
     r.fail("a scene with a 'camera' is defocused by its lens: remove 'effects.blur' (the paper's disk blur)");
+  if (c.highlights.enabled && !c.lens.enabled)
+    r.fail("'effects.highlights' lifts the light a lens spreads: it needs a 'camera' section");
 
   if (r.has("quality")) {
     Reader q = r.child("quality");
@@ -416,6 +427,8 @@ std::string scene_to_json(const SceneConfig& c) {
     effects["gravity"] = {{"elongation", range(c.gravity.elongation)}, {"flattening", range(c.gravity.flattening)}};
     if (c.gravity.automatic) effects["gravity"]["auto"] = true;
   }
+  if (c.highlights.enabled)
+    effects["highlights"] = {{"threshold", c.highlights.threshold}, {"gain", range(c.highlights.gain)}};
   if (c.sensor.enabled)
     effects["sensor"] = {{"noise_levels", range(c.sensor.noise_levels)}, {"jpeg_quality", range(c.sensor.jpeg_quality)}};
   j["effects"] = effects;

@@ -509,6 +509,7 @@ ApertureResult run_aperture(const cv::Mat& clean, const Camera& camera, const Sc
   out.linear = cv::Mat(camera.height, camera.width, CV_32FC3, cv::Scalar::all(0));
   out.coverage = cv::Mat(camera.height, camera.width, CV_32F, cv::Scalar(0));
   const auto& lin = srgb8_to_linear_table();
+  const HighlightLift& lift = scene.highlights;
   const int k = std::max(1, static_cast<int>(std::lround(std::sqrt(samples))));
   const double radius = 0.5 * scene.aperture_cm();
   // Lens points: a k x k stratified grid, jittered per pixel and stratum by a hash (so the
@@ -558,7 +559,9 @@ ApertureResult run_aperture(const cv::Mat& clean, const Camera& camera, const Sc
       for (const auto& [x0, x1] : rows[y]) {
         for (int x = x0; x <= x1; ++x) {
           const glm::dvec3 focus = T * camera.ray_direction(x, y);
-          const glm::dvec3 own(lin[src[x][0]], lin[src[x][1]], lin[src[x][2]]);
+          float own_rgb[3] = {lin[src[x][0]], lin[src[x][1]], lin[src[x][2]]};
+          lift.apply(own_rgb);  // what the pixel's clipped bytes stood for (highlights.h)
+          const glm::dvec3 own(own_rgb[0], own_rgb[1], own_rgb[2]);
           glm::dvec3 sum(0.0);
           int hits = 0;
           for (int sample = 0; sample < k * k; ++sample) {
@@ -570,7 +573,10 @@ ApertureResult run_aperture(const cv::Mat& clean, const Camera& camera, const Sc
               continue;
             }
             ++hits;
-            for (int c = 0; c < 3; ++c) sum[c] += srgb_to_linear(std::min(std::max(s.rgb[c], 0.0), 1.0));
+            double rgb[3];
+            for (int c = 0; c < 3; ++c) rgb[c] = srgb_to_linear(std::min(std::max(s.rgb[c], 0.0), 1.0));
+            lift.apply(rgb);
+            for (int c = 0; c < 3; ++c) sum[c] += rgb[c];
           }
           if (hits == 0) continue;
           sum /= static_cast<double>(k * k);

@@ -30,7 +30,12 @@ on 8-bit luma Y (``metrics.LUMA_WEIGHTS``, float):
   are capped at 21 px by the window;
 * ``veil``: std of Y(rainy) outside the mask divided by std of Y(clean) outside the mask (< 1 =
   a low-contrast haze over the whole glass; 1 where rainy == clean outside the mask, as
-  CONTRACTS.md section 1 asks of rendered sets). NaN when less than 5% of the image is outside.
+  CONTRACTS.md section 1 asks of rendered sets). NaN when less than 5% of the image is outside;
+* ``highlights``: the fraction of clipped pixels (brightest channel >= ``CLIPPED``) in the rainy
+  image divided by that in the clean one (1 = a wet glass keeps the highlights; < 1 = drops
+  darken them; > 1 = they bloom). NaN when under ``MIN_CLIPPED`` of the clean image is clipped.
+  A drop over a clipped sky or lamp sees light far above full scale, so it stays clipped in a
+  real photograph; a render that spreads the stored values instead darkens it.
 
 Per data set: means, medians and quantiles of these (drop sizes and eccentricities pooled
 over all drops).
@@ -74,10 +79,13 @@ EDGE_WINDOW = 21
 EDGE_MIN_CONTRAST = 8.0
 MIN_OUTSIDE = 0.05
 CROP = 64
+CLIPPED = 250
+MIN_CLIPPED = 0.01
 # per-image statistics and the per-drop ones, in table order
-IMAGE_STATS = ("coverage", "drops", "brightness", "sharpness", "edge_width", "veil")
+IMAGE_STATS = ("coverage", "drops", "brightness", "sharpness", "edge_width", "veil", "highlights")
 DROP_STATS = ("diameter_px", "diameter_frac", "eccentricity")
-DISTANCE_STATS = ("coverage", "drops", "diameter_frac", "eccentricity", "brightness", "sharpness", "edge_width", "veil")
+DISTANCE_STATS = ("coverage", "drops", "diameter_frac", "eccentricity", "brightness", "sharpness", "edge_width", "veil",
+                  "highlights")
 
 
 def drop_components(mask: np.ndarray) -> tuple[list[float], list[float]]:
@@ -141,6 +149,9 @@ def image_stats(rainy: np.ndarray, clean: np.ndarray, mask: np.ndarray) -> dict:
         out["veil"] = float(yr[outside].std() / yc[outside].std())
     else:
         out["veil"] = nan
+    clipped_clean = float((clean.max(axis=2) >= CLIPPED).mean())
+    out["highlights"] = (float((rainy.max(axis=2) >= CLIPPED).mean()) / clipped_clean
+                         if clipped_clean >= MIN_CLIPPED else nan)
     return out
 
 
@@ -338,6 +349,7 @@ LABELS = {
     "sharpness": "sharpness (|Laplacian| rainy / clean, in mask)",
     "edge_width": "edge width (px)",
     "veil": "veil (std rainy / clean outside mask)",
+    "highlights": "highlights (clipped pixels rainy / clean)",
 }
 
 
@@ -346,7 +358,7 @@ def stats_table(st: SetStats) -> str:
     lines = [f"### {st.name}: {s['images']} images, {s['drops_total']} drops", "",
              "| statistic | mean | p10 | median | p90 |", "| --- | ---: | ---: | ---: | ---: |"]
     for stat in ("coverage", "drops", "diameter_px", "diameter_frac", "eccentricity", "brightness", "sharpness",
-                 "edge_width", "veil"):
+                 "edge_width", "veil", "highlights"):
         v = s[stat]
         d = 4 if stat == "diameter_frac" else (1 if stat in ("diameter_px", "brightness", "drops") else 3)
         lines.append(f"| {LABELS[stat]} | {_f(v['mean'], d)} | {_f(v['p10'], d)} | {_f(v['median'], d)} | "

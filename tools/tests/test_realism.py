@@ -57,6 +57,27 @@ def test_image_stats_of_known_drops():
     assert widths[2] == pytest.approx(2.5 * 3.0, rel=0.25)
 
 
+def test_highlights_counts_the_clipped_pixels_drops_keep():
+    clean = np.full((40, 100, 3), 90, np.uint8)
+    clean[:20] = 255  # a clipped sky over the top half: 50% clipped
+    mask = np.zeros((40, 100), np.uint8)
+    mask[:20, :50] = 255
+    # drops that darken the sky they cover keep half of its clipped pixels
+    darkened = clean.copy()
+    darkened[:20, :50] = 200
+    assert RM.image_stats(darkened, clean, mask)["highlights"] == pytest.approx(0.5)
+    # drops that keep it clipped (the light behind them was far above full scale), and a bloom
+    # that spreads it into the street below
+    assert RM.image_stats(clean, clean, mask)["highlights"] == 1.0
+    bloom = clean.copy()
+    bloom[20:30] = (250, 255, 251)
+    assert RM.image_stats(bloom, clean, mask)["highlights"] == pytest.approx(1.5)
+    # a frame with (almost) nothing clipped says nothing
+    dark = np.full((40, 100, 3), 90, np.uint8)
+    dark[0, :39] = 255  # under MIN_CLIPPED of the frame
+    assert math.isnan(RM.image_stats(dark, dark, mask)["highlights"])
+
+
 def test_no_drops_gives_nan_not_an_error():
     img = procedural_image(32, 32, 1)
     st = RM.image_stats(img, img, np.zeros((32, 32), np.uint8))

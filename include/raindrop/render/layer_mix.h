@@ -8,6 +8,7 @@
 #include <array>
 #include <cstdint>
 
+#include "raindrop/render/highlights.h"
 #include "raindrop/render/srgb.h"
 
 namespace raindrop {
@@ -16,15 +17,19 @@ namespace raindrop {
 // keeps its clean bytes and coverage 0.
 inline constexpr float kNoCoverage = 1e-5f;
 
-// `A`, `C`: the pixel's sums; `clean`: its 8-bit RGB. Returns false where A <= kNoCoverage
-// (nothing to write); else sets `coverage` (A clamped to 1) and `out` (8-bit sRGB).
-inline bool mix_layers(float A, const float* C, const std::uint8_t* clean, float* coverage, std::uint8_t* out) {
+// `A`, `C`: the pixel's sums; `clean`: its 8-bit RGB, lifted by `lift` like the drops' radiance
+// in C (highlights.h). Returns false where A <= kNoCoverage (nothing to write); else sets
+// `coverage` (A clamped to 1) and `out` (8-bit sRGB).
+inline bool mix_layers(float A, const float* C, const std::uint8_t* clean, const HighlightLift& lift, float* coverage,
+                       std::uint8_t* out) {
   if (!(A > kNoCoverage)) return false;
   const auto& lin = srgb8_to_linear_table();
   const SrgbTables& srgb = SrgbTables::get();
   const float scale = A > 1.0f ? 1.0f / A : 1.0f;
   const float a = std::min(A, 1.0f);
-  for (int k = 0; k < 3; ++k) out[k] = srgb.encode((1.0f - a) * lin[clean[k]] + scale * C[k]);
+  float b[3] = {lin[clean[0]], lin[clean[1]], lin[clean[2]]};
+  lift.apply(b);
+  for (int k = 0; k < 3; ++k) out[k] = srgb.encode((1.0f - a) * b[k] + scale * C[k]);
   *coverage = a;
   return true;
 }

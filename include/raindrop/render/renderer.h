@@ -30,6 +30,8 @@ struct RenderedFrame {
   cv::Mat alpha;
   std::vector<double> coc_px;
   bool defocused = false;  // the lens path ran (false: pinhole, or every circle < 0.5 px)
+  // The highlights' lift ran (false: off, not defocused, or no pixel reached its threshold).
+  bool highlights_lifted = false;
   EffectPlan effects;      // what the scene's "auto" effects decided, per drop
   TraceStats stats;
   FrameTimings timings;

@@ -8,6 +8,7 @@
 #include "raindrop/render/camera.h"
 #include "raindrop/render/drop.h"
 #include "raindrop/render/glass.h"
+#include "raindrop/render/highlights.h"
 #include "raindrop/render/scene_config.h"
 
 namespace raindrop {
@@ -32,6 +33,9 @@ struct SceneSample {
     const double z = glass.point(d.center).z;
     return z > 0 ? coc_px(z, fx) : INFINITY;
   }
+  // The highlights' lift (SceneConfig::highlights; off unless the scene names it). Its gain is
+  // drawn after everything else, so turning it on changes no other draw of the sample.
+  HighlightLift highlights;
   std::vector<DropShape> drops;
   int drops_requested = 0;               // may exceed drops.size() if the glass was too full
 };

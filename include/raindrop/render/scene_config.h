@@ -131,6 +131,16 @@ struct SceneConfig {
     double gain = 1.0;        // sky radiance relative to the estimate (overcast ~1, sunny >1)
   } sky;
 
+  // Clipped highlights lifted back to a brighter linear value before the lens spreads them
+  // (highlights.h), with a thin-lens camera only: the brightest channel above `threshold`
+  // (a fraction of full scale, as stored) is scaled up to `gain` at full scale, the gain drawn
+  // per sample. A frame with no pixel at or above the threshold skips it.
+  struct Highlights {
+    bool enabled = false;
+    double threshold = 0.9;
+    Range gain{4, 16};
+  } highlights;
+
   // What the camera adds after the optics, to the rainy image only (sensor.h): Gaussian noise
   // of a sigma drawn per sample (levels of 8 bits), then JPEG at a quality drawn per sample
   // ([0, 0]: not compressed).
