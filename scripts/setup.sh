@@ -16,7 +16,7 @@ run_demo=1
 packages=(build-essential cmake ninja-build pkg-config ca-certificates dpkg
           libopencv-dev libembree-dev libopenimageio-dev openimageio-tools python3-imath
           libglm-dev libtbb-dev
-          nlohmann-json3-dev libcli11-dev libgtest-dev zlib1g-dev libpng-dev libjpeg62-turbo-dev
+          nlohmann-json3-dev libcli11-dev libgtest-dev zlib1g-dev libpng-dev libjpeg62-turbo-dev libdeflate-dev
           python3 python3-pip python3-venv)
 missing=()
 for p in "${packages[@]}"; do

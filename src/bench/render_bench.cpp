@@ -565,7 +565,8 @@ void png_table(const Input& input, int repeats, const fs::path& tmp) {
   const Setting settings[] = {{6, "level 6, adaptive filters (OpenImageIO's default)"},
                               {3, "level 3, adaptive filters (the default until run-length)"},
                               {1, "level 1, adaptive filters"},
-                              {kPngRunLength, "run-length, Paeth filter (the default, --png-level rle)"}};
+                              {kPngRunLength, "run-length, Paeth filter (--png-level rle)"},
+                              {kPngFast, "libdeflate level 1, Paeth filter (the default, --png-level fast)"}};
   std::cout << "\n### PNG encoding (" << image.cols << "x" << image.rows << " RGB, best of " << repeats
             << ")\n\n| setting | encode ms | vs level 3 | bytes | vs level 6 | pixels |\n|---|---|---|---|---|---|\n";
   const fs::path file = tmp / "png-bench.png";

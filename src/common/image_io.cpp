@@ -270,12 +270,15 @@ std::string write_image_atomic(const cv::Mat& image, const fs::path& path, int p
 }
 
 int parse_png_level(const std::string& text) {
+  if (text == "fast") return kPngFast;
   if (text == "rle") return kPngRunLength;
   if (text.size() == 1 && text[0] >= '0' && text[0] <= '9') return text[0] - '0';
-  throw Error("PNG level must be rle or 0-9, got '" + text + "'");
+  throw Error("PNG level must be fast, rle or 0-9, got '" + text + "'");
 }
 
-std::string png_level_name(int png_level) { return png_level == kPngRunLength ? "rle" : std::to_string(png_level); }
+std::string png_level_name(int png_level) {
+  return png_level == kPngFast ? "fast" : png_level == kPngRunLength ? "rle" : std::to_string(png_level);
+}
 
 cv::Mat jpeg_round_trip(const cv::Mat& rgb, int quality) {
   CV_Assert(rgb.type() == CV_8UC3);

@@ -6,10 +6,12 @@
 #include <cstring>
 #include <fstream>
 #include <map>
+#include <optional>
 #include <set>
 #include <string>
 #include <vector>
 
+#include <libdeflate.h>
 #include <png.h>
 #include <zlib.h>
 
@@ -172,8 +174,13 @@ Info check(const fs::path& path, std::uintmax_t size, bool check_data) {
   info.colour_type = colour;
   info.has_trns = trns;
   info.channels = (colour == 3 ? 3 : c->second.first) + (trns && (colour == 0 || colour == 2 || colour == 3) ? 1 : 0);
+  info.interlaced = ihdr[12] == 1;
   // A declared size past the pixel limit is refused by the caller before anything is inflated.
-  if (static_cast<double>(width) * height > kMaxImagePixels || !check_data || info.native()) return info;
+  if (static_cast<double>(width) * height > kMaxImagePixels || !check_data) return info;
+  if (info.native()) {
+    if (!info.interlaced) info.image_data = std::move(idat);
+    return info;
+  }
   check_png_image_data(path, idat, png_rows(width, height, c->second.first * depth, ihdr[12] == 1));
   return info;
 }
@@ -223,8 +230,96 @@ int colour_type_for(int channels) {
 
 }  // namespace
 
+namespace {
+
+int paeth_predictor(int a, int b, int c) {
+  const int pa = std::abs(b - c), pb = std::abs(a - c), pc = std::abs(a + b - 2 * c);
+  const int b_or_c = pb <= pc ? b : c;  // two selects the compiler makes branch-free
+  return pa <= pb && pa <= pc ? a : b_or_c;
+}
+
+// Undoes the Paeth filter of one row in place, a pixel at a time: each of the BPP byte chains
+// depends on its own left neighbour only, so the BPP chains run side by side (a 2048x1024 RGB
+// frame: 13 ms, against 21 for the plain byte loop).
+template <std::size_t BPP>
+void unpaeth(std::uint8_t* row, const std::uint8_t* above, std::size_t stride) {
+  int left[BPP] = {0}, upper_left[BPP] = {0};  // zeros before the first pixel: Paeth is then Up
+  for (std::size_t i = 0; i < stride; i += BPP) {
+    for (std::size_t k = 0; k < BPP; ++k) {
+      const int up = above[i + k];
+      left[k] = static_cast<std::uint8_t>(row[i + k] + paeth_predictor(left[k], up, upper_left[k]));
+      row[i + k] = static_cast<std::uint8_t>(left[k]);
+      upper_left[k] = up;
+    }
+  }
+}
+
+}  // namespace
+
+std::optional<cv::Mat> decode_image_data(const Info& info) {
+  if (info.image_data.empty() || info.interlaced || !info.native()) return std::nullopt;
+  const std::size_t sample = info.depth / 8, bpp = sample * static_cast<std::size_t>(info.channels);
+  const std::size_t stride = bpp * info.width;
+  std::vector<std::uint8_t> raw((stride + 1) * info.height);
+  libdeflate_decompressor* inflater = libdeflate_alloc_decompressor();
+  if (!inflater) return std::nullopt;
+  const libdeflate_result result = libdeflate_zlib_decompress(inflater, info.image_data.data(), info.image_data.size(),
+                                                              raw.data(), raw.size(), nullptr);
+  libdeflate_free_decompressor(inflater);
+  if (result != LIBDEFLATE_SUCCESS) return std::nullopt;
+  // Unfiltered in place, each row against the one above (zeros above the first).
+  const std::vector<std::uint8_t> zero(stride, 0);
+  const std::uint8_t* above = zero.data();
+  for (std::size_t y = 0; y < info.height; ++y) {
+    std::uint8_t* row = raw.data() + y * (stride + 1) + 1;
+    const std::uint8_t type = row[-1];
+    switch (type) {
+      case 0:
+        break;
+      case 1:
+        for (std::size_t i = bpp; i < stride; ++i) row[i] = static_cast<std::uint8_t>(row[i] + row[i - bpp]);
+        break;
+      case 2:
+        for (std::size_t i = 0; i < stride; ++i) row[i] = static_cast<std::uint8_t>(row[i] + above[i]);
+        break;
+      case 3:
+        for (std::size_t i = 0; i < bpp; ++i) row[i] = static_cast<std::uint8_t>(row[i] + (above[i] >> 1));
+        for (std::size_t i = bpp; i < stride; ++i)
+          row[i] = static_cast<std::uint8_t>(row[i] + ((row[i - bpp] + above[i]) >> 1));
+        break;
+      case 4:
+        switch (bpp) {
+          case 1: unpaeth<1>(row, above, stride); break;
+          case 2: unpaeth<2>(row, above, stride); break;
+          case 3: unpaeth<3>(row, above, stride); break;
+          case 4: unpaeth<4>(row, above, stride); break;
+          case 6: unpaeth<6>(row, above, stride); break;
+          default: unpaeth<8>(row, above, stride); break;  // 16-bit RGBA
+        }
+        break;
+      default:
+        return std::nullopt;
+    }
+    above = row;
+  }
+  cv::Mat image(static_cast<int>(info.height), static_cast<int>(info.width),
+                info.depth == 16 ? CV_16UC(info.channels) : CV_8UC(info.channels));
+  const bool swap = sample == 2 && __BYTE_ORDER__ == __ORDER_LITTLE_ENDIAN__;
+  for (int y = 0; y < image.rows; ++y) {
+    const std::uint8_t* row = raw.data() + static_cast<std::size_t>(y) * (stride + 1) + 1;
+    std::uint8_t* out = image.ptr<std::uint8_t>(y);
+    if (!swap) {
+      std::memcpy(out, row, stride);
+    } else {
+      for (std::size_t i = 0; i < stride; i += 2) out[i] = row[i + 1], out[i + 1] = row[i];
+    }
+  }
+  return image;
+}
+
 cv::Mat decode(const fs::path& path, const Info& info) {
   CV_Assert(info.native());
+  if (std::optional<cv::Mat> image = decode_image_data(info)) return *image;
   // Everything with a destructor exists before setjmp: a longjmp skips no C++ frame.
   cv::Mat image(static_cast<int>(info.height), static_cast<int>(info.width),
                 info.depth == 16 ? CV_16UC(info.channels) : CV_8UC(info.channels));
@@ -261,8 +356,88 @@ cv::Mat decode(const fs::path& path, const Info& info) {
   return image;
 }
 
+namespace {
+
+// Paeth residuals of one row of `bytes` bytes with `bpp` bytes per pixel against the row above
+// (all zero for the first row, where Paeth is the Sub filter). The predictor reads only unfiltered
+// bytes, so there is no dependency between iterations and the compiler vectorises the loop
+// (at -O3, 6 ms for a 2048x1024 RGB frame against libpng's scalar filter inside its 84 ms).
+void paeth_row(const std::uint8_t* __restrict row, const std::uint8_t* __restrict above, std::uint8_t* __restrict out,
+               std::size_t bytes, std::size_t bpp) {
+  for (std::size_t i = 0; i < bpp && i < bytes; ++i) out[i] = static_cast<std::uint8_t>(row[i] - above[i]);
+  for (std::size_t i = bpp; i < bytes; ++i)
+    out[i] = static_cast<std::uint8_t>(row[i] - paeth_predictor(row[i - bpp], above[i], above[i - bpp]));
+}
+
+void put32(std::vector<std::uint8_t>& out, std::uint32_t v) {
+  for (int shift = 24; shift >= 0; shift -= 8) out.push_back(static_cast<std::uint8_t>(v >> shift));
+}
+
+// One chunk: length, type, data, CRC of type and data.
+void put_chunk(std::vector<std::uint8_t>& out, const char* type, const std::uint8_t* data, std::size_t length) {
+  put32(out, static_cast<std::uint32_t>(length));
+  const std::size_t start = out.size();
+  out.insert(out.end(), type, type + 4);
+  out.insert(out.end(), data, data + length);
+  put32(out, static_cast<std::uint32_t>(libdeflate_crc32(0, out.data() + start, length + 4)));
+}
+
+// kPngFast: every row Paeth-filtered, the whole image deflated in one call by libdeflate at its
+// level 1, and the chunks written here (libpng's writer can only use zlib). On a 2048x1024
+// street frame 2.3x faster than kPngRunLength for 13% more bytes: the size of zlib level 3 (the
+// default before run-length) and 8% over level 6 (docs/RESULTS.md section 1).
+void encode_fast(const cv::Mat& image, std::FILE* file, const fs::path& name) {
+  const std::size_t sample = image.depth() == CV_16U ? 2 : 1;
+  const std::size_t bpp = sample * static_cast<std::size_t>(image.channels());
+  const std::size_t stride = bpp * static_cast<std::size_t>(image.cols);
+  std::vector<std::uint8_t> filtered((stride + 1) * static_cast<std::size_t>(image.rows));
+  // PNG's 16-bit samples are big-endian: such rows are converted first, into two row buffers.
+  std::vector<std::uint8_t> zero(stride, 0), big[2];
+  const bool swap = sample == 2 && __BYTE_ORDER__ == __ORDER_LITTLE_ENDIAN__;
+  if (swap) big[0].resize(stride), big[1].resize(stride);
+  const std::uint8_t* above = zero.data();
+  for (int y = 0; y < image.rows; ++y) {
+    const std::uint8_t* row = image.ptr<std::uint8_t>(y);
+    if (swap) {
+      std::uint8_t* b = big[y & 1].data();
+      for (std::size_t i = 0; i < stride; i += 2) b[i] = row[i + 1], b[i + 1] = row[i];
+      row = b;
+    }
+    std::uint8_t* out = filtered.data() + static_cast<std::size_t>(y) * (stride + 1);
+    out[0] = 4;  // Paeth
+    paeth_row(row, above, out + 1, stride, bpp);
+    above = row;
+  }
+  libdeflate_compressor* compressor = libdeflate_alloc_compressor(1);
+  if (!compressor) throw Error(quoted(name) + ": cannot write (out of memory)");
+  std::vector<std::uint8_t> deflated(libdeflate_zlib_compress_bound(compressor, filtered.size()));
+  const std::size_t deflated_size =
+      libdeflate_zlib_compress(compressor, filtered.data(), filtered.size(), deflated.data(), deflated.size());
+  libdeflate_free_compressor(compressor);
+  if (deflated_size == 0) throw Error(quoted(name) + ": cannot write (compression failed)");
+
+  std::vector<std::uint8_t> png{0x89, 'P', 'N', 'G', '\r', '\n', 0x1a, '\n'};
+  png.reserve(deflated_size + 1024);
+  std::vector<std::uint8_t> ihdr;
+  put32(ihdr, static_cast<std::uint32_t>(image.cols));
+  put32(ihdr, static_cast<std::uint32_t>(image.rows));
+  ihdr.push_back(static_cast<std::uint8_t>(8 * sample));
+  ihdr.push_back(static_cast<std::uint8_t>(colour_type_for(image.channels())));
+  ihdr.insert(ihdr.end(), {0, 0, 0});  // deflate, adaptive filtering, no interlace
+  put_chunk(png, "IHDR", ihdr.data(), ihdr.size());
+  constexpr std::size_t kIdatBytes = 1 << 20;  // chunks of 1 MiB, as encoders commonly write
+  for (std::size_t at = 0; at < deflated_size; at += kIdatBytes)
+    put_chunk(png, "IDAT", deflated.data() + at, std::min(kIdatBytes, deflated_size - at));
+  put_chunk(png, "IEND", nullptr, 0);
+  if (std::fwrite(png.data(), 1, png.size(), file) != png.size() || std::fflush(file) != 0)
+    throw Error(quoted(name) + ": cannot write (" + std::strerror(errno) + ")");
+}
+
+}  // namespace
+
 void encode(const cv::Mat& image, std::FILE* file, int level, const fs::path& name) {
   CV_Assert((image.depth() == CV_8U || image.depth() == CV_16U) && image.channels() >= 1 && image.channels() <= 4);
+  if (level == kPngFast) return encode_fast(image, file, name);
   std::vector<png_bytep> rows(image.rows);
   for (int y = 0; y < image.rows; ++y) rows[y] = const_cast<png_bytep>(image.ptr(y));
   ErrorSink sink;

@@ -19,6 +19,7 @@
 
 #include "raindrop/common/error.h"
 #include "raindrop/common/image_io.h"
+#include "../../src/common/png_file.h"  // decode_image_data, our decoding path on its own
 #include "test_images.h"
 #include "test_support.h"
 
@@ -47,14 +48,16 @@ bool same(const cv::Mat& a, const cv::Mat& b) {
 }
 
 // A PNG that only a full decoder takes: written with libpng's low-level calls.
+// `filters`: libpng's row filter choice (PNG_FILTER_* flags; 0: its default).
 void write_png_raw(const fs::path& p, int width, int height, int depth, int colour_type, bool trns, bool interlace,
-                   const std::vector<png_byte>& packed_rows) {
+                   const std::vector<png_byte>& packed_rows, int filters = 0) {
   std::FILE* f = std::fopen(p.c_str(), "wb");
   ASSERT_TRUE(f);
   png_structp png = png_create_write_struct(PNG_LIBPNG_VER_STRING, nullptr, nullptr, nullptr);
   png_infop info = png_create_info_struct(png);
   ASSERT_EQ(setjmp(png_jmpbuf(png)), 0);
   png_init_io(png, f);
+  if (filters != 0) png_set_filter(png, PNG_FILTER_TYPE_BASE, filters);
   png_set_IHDR(png, info, width, height, depth, colour_type, interlace ? PNG_INTERLACE_ADAM7 : PNG_INTERLACE_NONE,
                PNG_COMPRESSION_TYPE_DEFAULT, PNG_FILTER_TYPE_DEFAULT);
   std::vector<png_color> palette;
@@ -89,7 +92,7 @@ TEST(PngFile, WrittenFilesReadBackExactlyInBothLibraries) {
     for (int channels = 1; channels <= 4; ++channels) {
       SCOPED_TRACE("depth " + std::to_string(depth) + ", channels " + std::to_string(channels));
       const cv::Mat m = random_image(37, 53, depth, channels, seed++);
-      // Ours written, both read.
+      // Ours written (the default, and each of our own writers at odd sizes), both read.
       const auto ours = tmp / ("ours" + std::to_string(seed) + ".png");
       EXPECT_EQ(write_image_atomic(m, ours), "");
       std::string why;
@@ -97,6 +100,17 @@ TEST(PngFile, WrittenFilesReadBackExactlyInBothLibraries) {
       ASSERT_TRUE(by_oiio) << why;
       EXPECT_TRUE(same(by_oiio->pixels, m)) << "OpenImageIO reads our PNG differently";
       EXPECT_TRUE(same(read_image_native(ours), m)) << "we read our PNG differently";
+      for (int level : {kPngFast, kPngRunLength}) {
+        for (const cv::Size size : {cv::Size(1, 1), cv::Size(1, 9), cv::Size(7, 1), cv::Size(2, 3), cv::Size(33, 17)}) {
+          const cv::Mat small = random_image(size.height, size.width, depth, channels, seed++);
+          const auto file = tmp / ("small" + std::to_string(seed) + ".png");
+          write_image_atomic(small, file, level);
+          const auto read = read_image(file, &why);
+          ASSERT_TRUE(read) << why;
+          EXPECT_TRUE(same(read->pixels, small)) << png_level_name(level) << " " << size;
+          EXPECT_TRUE(same(read_image_native(file), small)) << png_level_name(level) << " " << size;
+        }
+      }
       // OpenImageIO's written, we read.
       const auto theirs = tmp / ("theirs" + std::to_string(seed) + ".png");
       write_image(theirs, m);
@@ -164,7 +178,7 @@ TEST(PngFile, CompressionSettingsChangeBytesNotPixels) {
     for (int x = 0; x < m.cols; ++x) m.at<cv::Vec3b>(y, x) = cv::Vec3b(x, y * 2, ((x * 7) ^ (y * 3)) & 15);
   const cv::Mat m16 = random_image(40, 30, CV_16U, 4, 3);
   std::set<std::string> contents;
-  for (int level : {kPngRunLength, 1, 9}) {
+  for (int level : {kPngFast, kPngRunLength, 1, 9}) {
     SCOPED_TRACE(png_level_name(level));
     write_image_atomic(m, tmp / "a.png", level);
     write_image_atomic(m16, tmp / "b.png", level);
@@ -172,11 +186,58 @@ TEST(PngFile, CompressionSettingsChangeBytesNotPixels) {
     EXPECT_TRUE(same(read_image_native(tmp / "b.png"), m16));
     contents.insert(testsupport::read_file(tmp / "a.png"));
   }
-  EXPECT_EQ(contents.size(), 3u) << "two settings wrote the same file";
-  EXPECT_EQ(kDefaultPngLevel, kPngRunLength);
+  EXPECT_EQ(contents.size(), 4u) << "two settings wrote the same file";
+  EXPECT_EQ(kDefaultPngLevel, kPngFast);
+}
+
+// The fast writer's file, chunk by chunk: the signature, IHDR with the image's size, depth and
+// colour type, IDAT chunks of at most 1 MiB whose zlib stream inflates to one Paeth filter byte
+// (4) and the row's residuals per row, IEND, every CRC valid.
+TEST(PngFile, TheFastWriterWritesPaethRowsInValidChunks) {
+  testsupport::TempDir tmp("raindrop-png-");
+  const cv::Mat m = random_image(700, 600, CV_8U, 3, 11);  // 1.26 MB incompressible: two IDAT chunks
+  write_image_atomic(m, tmp / "f.png", kPngFast);
+  const std::string bytes = testsupport::read_file(tmp / "f.png");
+  ASSERT_EQ(bytes.substr(0, 8), std::string("\x89PNG\r\n\x1a\n", 8));
+  auto be32 = [&](std::size_t at) {
+    return static_cast<std::uint32_t>(static_cast<unsigned char>(bytes[at])) << 24 |
+           static_cast<std::uint32_t>(static_cast<unsigned char>(bytes[at + 1])) << 16 |
+           static_cast<std::uint32_t>(static_cast<unsigned char>(bytes[at + 2])) << 8 |
+           static_cast<std::uint32_t>(static_cast<unsigned char>(bytes[at + 3]));
+  };
+  std::vector<std::string> types;
+  std::string idat;
+  std::size_t at = 8;
+  while (at < bytes.size()) {
+    const std::uint32_t length = be32(at);
+    const std::string type = bytes.substr(at + 4, 4);
+    types.push_back(type);
+    const auto* p = reinterpret_cast<const Bytef*>(bytes.data() + at + 4);
+    EXPECT_EQ(crc32(0, p, length + 4), be32(at + 8 + length)) << type;
+    if (type == "IHDR") {
+      EXPECT_EQ(be32(at + 8), 600u);
+      EXPECT_EQ(be32(at + 12), 700u);
+      EXPECT_EQ(bytes[at + 16], 8);  // bits per sample
+      EXPECT_EQ(bytes[at + 17], 2);  // RGB
+    }
+    if (type == "IDAT") {
+      EXPECT_LE(length, 1u << 20);
+      idat += bytes.substr(at + 8, length);
+    }
+    at += 12 + length;
+  }
+  EXPECT_EQ(at, bytes.size());
+  EXPECT_EQ(types, (std::vector<std::string>{"IHDR", "IDAT", "IDAT", "IEND"}));
+  std::vector<unsigned char> raw((600 * 3 + 1) * 700 + 1);
+  uLongf raw_size = raw.size();
+  ASSERT_EQ(uncompress(raw.data(), &raw_size, reinterpret_cast<const Bytef*>(idat.data()), idat.size()), Z_OK);
+  ASSERT_EQ(raw_size, (600u * 3 + 1) * 700);
+  for (int y = 0; y < 700; ++y) ASSERT_EQ(raw[y * (600 * 3 + 1)], 4) << "row " << y;
 }
 
 TEST(PngFile, LevelNamesParse) {
+  EXPECT_EQ(parse_png_level("fast"), kPngFast);
+  EXPECT_EQ(png_level_name(kPngFast), "fast");
   EXPECT_EQ(parse_png_level("rle"), kPngRunLength);
   EXPECT_EQ(parse_png_level("0"), 0);
   EXPECT_EQ(parse_png_level("9"), 9);
@@ -255,7 +316,8 @@ std::string file_of(const std::vector<Chunk>& chunks) {
 // OpenImageIO, for a palette image, libpng printed "libpng error: ..." on its own), in one line.
 TEST(PngFile, MisplacedChunksFailInOneLine) {
   testsupport::TempDir tmp("raindrop-png-");
-  write_image_atomic(random_image(90, 90, CV_8U, 3, 8), tmp / "rgb.png");  // incompressible: several IDATs
+  // libpng's writer (rle) splits the data into 8 KiB chunks; incompressible: several IDATs
+  write_image_atomic(random_image(90, 90, CV_8U, 3, 8), tmp / "rgb.png", kPngRunLength);
   std::vector<png_byte> indices(300 * 150);  // 4-bit, random: incompressible too
   std::mt19937 rng(3);
   for (auto& b : indices) b = static_cast<png_byte>(rng());
@@ -291,6 +353,57 @@ TEST(PngFile, MisplacedChunksFailInOneLine) {
       }
       EXPECT_THROW(check_rgb8_header(tmp / "bad.png", true, 1), Error);
       EXPECT_EQ(testing::internal::GetCapturedStderr(), "");
+    }
+  }
+}
+
+// Our own decoding path (libdeflate and our unfiltering, png_file.h: decode_image_data) on
+// files libpng wrote with each of the five row filters forced, at every native depth and
+// channel count (1-8 bytes per pixel), on smooth and random content, at widths that leave a
+// partial last pixel run: the same pixels as written, through decode_image_data itself (so
+// that a fault there is not hidden by the fallback to libpng) and through read_image_native.
+TEST(PngFile, OurDecoderUndoesEveryRowFilter) {
+  testsupport::TempDir tmp("raindrop-png-");
+  const int filters[] = {PNG_FILTER_NONE, PNG_FILTER_SUB, PNG_FILTER_UP, PNG_FILTER_AVG, PNG_FILTER_PAETH};
+  int seed = 40;
+  for (int depth : {CV_8U, CV_16U}) {
+    for (int channels = 1; channels <= 4; ++channels) {
+      cv::Mat m = random_image(23, 31, depth, channels, seed++);
+      cv::Mat smooth(m.size(), m.type());
+      for (int y = 0; y < m.rows; ++y)
+        for (int x = 0; x < m.cols * channels; ++x) {
+          if (depth == CV_8U) smooth.ptr<uchar>(y)[x] = static_cast<uchar>(3 * x + 5 * y);
+          else smooth.ptr<std::uint16_t>(y)[x] = static_cast<std::uint16_t>(700 * x + 1300 * y);
+        }
+      for (const cv::Mat& image : {m, smooth}) {
+        for (int filter : filters) {
+          SCOPED_TRACE("depth " + std::to_string(depth) + ", channels " + std::to_string(channels) + ", filter " +
+                       std::to_string(filter));
+          const auto file = tmp / "f.png";
+          std::vector<png_byte> bytes;  // as PNG stores them: 16-bit samples big-endian
+          for (int y = 0; y < image.rows; ++y) {
+            const uchar* row = image.ptr(y);
+            for (size_t i = 0; i < image.cols * image.elemSize(); i += image.elemSize1()) {
+              if (depth == CV_16U) {
+                const std::uint16_t v = *reinterpret_cast<const std::uint16_t*>(row + i);
+                bytes.push_back(static_cast<png_byte>(v >> 8));
+                bytes.push_back(static_cast<png_byte>(v & 0xff));
+              } else {
+                bytes.push_back(row[i]);
+              }
+            }
+          }
+          const int colour[] = {PNG_COLOR_TYPE_GRAY, PNG_COLOR_TYPE_GRAY_ALPHA, PNG_COLOR_TYPE_RGB, PNG_COLOR_TYPE_RGBA};
+          write_png_raw(file, image.cols, image.rows, depth == CV_16U ? 16 : 8, colour[channels - 1], false, false, bytes,
+                        filter);
+          const png::Info header = png::check(file, fs::file_size(file), true);
+          ASSERT_FALSE(header.image_data.empty());
+          const std::optional<cv::Mat> ours = png::decode_image_data(header);
+          ASSERT_TRUE(ours.has_value());
+          EXPECT_TRUE(same(*ours, image));
+          EXPECT_TRUE(same(read_image_native(file), image));
+        }
+      }
     }
   }
 }
