@@ -369,17 +369,21 @@ void paeth_row(const std::uint8_t* __restrict row, const std::uint8_t* __restric
     out[i] = static_cast<std::uint8_t>(row[i] - paeth_predictor(row[i - bpp], above[i], above[i - bpp]));
 }
 
-void put32(std::vector<std::uint8_t>& out, std::uint32_t v) {
-  for (int shift = 24; shift >= 0; shift -= 8) out.push_back(static_cast<std::uint8_t>(v >> shift));
+void put32(std::uint8_t* out, std::uint32_t v) {
+  for (int k = 0; k < 4; ++k) out[k] = static_cast<std::uint8_t>(v >> (24 - 8 * k));
 }
 
-// One chunk: length, type, data, CRC of type and data.
-void put_chunk(std::vector<std::uint8_t>& out, const char* type, const std::uint8_t* data, std::size_t length) {
-  put32(out, static_cast<std::uint32_t>(length));
-  const std::size_t start = out.size();
-  out.insert(out.end(), type, type + 4);
-  out.insert(out.end(), data, data + length);
-  put32(out, static_cast<std::uint32_t>(libdeflate_crc32(0, out.data() + start, length + 4)));
+// Writes one chunk straight to the file: length, type, data, CRC of type and data. False when
+// the file refuses a byte (errno says why).
+bool write_chunk(std::FILE* file, const char* type, const std::uint8_t* data, std::size_t length) {
+  std::uint8_t head[8], crc[4];
+  put32(head, static_cast<std::uint32_t>(length));
+  std::memcpy(head + 4, type, 4);
+  std::uint32_t sum = libdeflate_crc32(0, type, 4);
+  if (length > 0) sum = libdeflate_crc32(sum, data, length);  // (a null buffer would restart the sum)
+  put32(crc, sum);
+  return std::fwrite(head, 1, 8, file) == 8 && (length == 0 || std::fwrite(data, 1, length, file) == length) &&
+         std::fwrite(crc, 1, 4, file) == 4;
 }
 
 // kPngFast: every row Paeth-filtered, the whole image deflated in one call by libdeflate at its
@@ -416,21 +420,21 @@ void encode_fast(const cv::Mat& image, std::FILE* file, const fs::path& name) {
   libdeflate_free_compressor(compressor);
   if (deflated_size == 0) throw Error(quoted(name) + ": cannot write (compression failed)");
 
-  std::vector<std::uint8_t> png{0x89, 'P', 'N', 'G', '\r', '\n', 0x1a, '\n'};
-  png.reserve(deflated_size + 1024);
-  std::vector<std::uint8_t> ihdr;
+  std::vector<std::uint8_t>().swap(filtered);  // not needed any more: the file is written from `deflated`
+
+  static const std::uint8_t kSignature[8] = {0x89, 'P', 'N', 'G', '\r', '\n', 0x1a, '\n'};
+  std::uint8_t ihdr[13];
   put32(ihdr, static_cast<std::uint32_t>(image.cols));
-  put32(ihdr, static_cast<std::uint32_t>(image.rows));
-  ihdr.push_back(static_cast<std::uint8_t>(8 * sample));
-  ihdr.push_back(static_cast<std::uint8_t>(colour_type_for(image.channels())));
-  ihdr.insert(ihdr.end(), {0, 0, 0});  // deflate, adaptive filtering, no interlace
-  put_chunk(png, "IHDR", ihdr.data(), ihdr.size());
+  put32(ihdr + 4, static_cast<std::uint32_t>(image.rows));
+  ihdr[8] = static_cast<std::uint8_t>(8 * sample);
+  ihdr[9] = static_cast<std::uint8_t>(colour_type_for(image.channels()));
+  ihdr[10] = ihdr[11] = ihdr[12] = 0;  // deflate, adaptive filtering, no interlace
+  bool ok = std::fwrite(kSignature, 1, 8, file) == 8 && write_chunk(file, "IHDR", ihdr, sizeof ihdr);
   constexpr std::size_t kIdatBytes = 1 << 20;  // chunks of 1 MiB, as encoders commonly write
-  for (std::size_t at = 0; at < deflated_size; at += kIdatBytes)
-    put_chunk(png, "IDAT", deflated.data() + at, std::min(kIdatBytes, deflated_size - at));
-  put_chunk(png, "IEND", nullptr, 0);
-  if (std::fwrite(png.data(), 1, png.size(), file) != png.size() || std::fflush(file) != 0)
-    throw Error(quoted(name) + ": cannot write (" + std::strerror(errno) + ")");
+  for (std::size_t at = 0; ok && at < deflated_size; at += kIdatBytes)
+    ok = write_chunk(file, "IDAT", deflated.data() + at, std::min(kIdatBytes, deflated_size - at));
+  ok = ok && write_chunk(file, "IEND", nullptr, 0) && std::fflush(file) == 0;
+  if (!ok) throw Error(quoted(name) + ": cannot write (" + std::strerror(errno) + ")");
 }
 
 }  // namespace
