@@ -428,5 +428,5 @@ print(json.dumps(scene, indent=2))' "$2" "$3" "$4" >"$file"
   for m in compact-lens-merged compact-lens-merged-hl28 compact-lens-merged-hl; do
     score_sets "$hl" "$m" "--models out/models/$m --large-drop-models out/models/$m" real-pairs:test:0 real-pairs:train:0
   done | tee "$hl/real-pairs.txt"
-  build/raindrop-bench render --sections effects --frames 2 --repeats 3 | tee "$hl/bench_effects.md"
+  build/raindrop-bench render --sections effects --frames 2 --repeats 9 | tee "$hl/bench_effects.md"
 fi

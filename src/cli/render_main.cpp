@@ -88,7 +88,7 @@ int run(int argc, char** argv) {
   app.add_option("--limit", limit, "Render only the first N inputs (0: all)")->check(CLI::Range(0, 100000000));
   app.add_option("--png-level", png_level,
                  "PNG compression: fast (Paeth rows deflated by libdeflate: fastest, about zlib level 3's size), "
-                 "rle (zlib's run-length strategy: smaller than level 6 on photographs, 2.3x slower than fast) "
+                 "rle (zlib's run-length strategy: smaller than level 6 on photographs, about 2x slower than fast) "
                  "or a zlib level 0-9")
       ->capture_default_str()->check(CLI::IsMember({"fast", "rle", "0", "1", "2", "3", "4", "5", "6", "7", "8", "9"}));
   app.add_option("--shard", shard_text,

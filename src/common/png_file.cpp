@@ -388,9 +388,13 @@ bool write_chunk(std::FILE* file, const char* type, const std::uint8_t* data, st
 
 // kPngFast: every row Paeth-filtered, the whole image deflated in one call by libdeflate at its
 // level 1, and the chunks written here (libpng's writer can only use zlib). On a 2048x1024
-// street frame 2.3x faster than kPngRunLength for 13% more bytes: the size of zlib level 3 (the
+// street frame 2.05x faster than kPngRunLength for 13% more bytes: the size of zlib level 3 (the
 // default before run-length) and 8% over level 6 (docs/RESULTS.md section 1).
 void encode_fast(const cv::Mat& image, std::FILE* file, const fs::path& name) {
+  // What libpng's writer refuses, and check() would refuse on reading the file back.
+  if (image.empty() || image.cols > 1000000 || image.rows > 1000000)
+    throw Error(quoted(name) + ": cannot write (a PNG's sides are 1 to 1000000 pixels; this image is " +
+                std::to_string(image.cols) + "x" + std::to_string(image.rows) + ")");
   const std::size_t sample = image.depth() == CV_16U ? 2 : 1;
   const std::size_t bpp = sample * static_cast<std::size_t>(image.channels());
   const std::size_t stride = bpp * static_cast<std::size_t>(image.cols);

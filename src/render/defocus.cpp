@@ -12,8 +12,9 @@
 namespace raindrop {
 namespace {
 
-// Writes linear radiance where coverage > kNoCoverage, the clean bytes elsewhere.
-cv::Mat encode(const cv::Mat& clean, const cv::Mat& linear, const cv::Mat& coverage) {
+// Writes linear radiance where coverage > kNoCoverage (stored again through the highlights'
+// inverse lift), the clean bytes elsewhere.
+cv::Mat encode(const cv::Mat& clean, const cv::Mat& linear, const cv::Mat& coverage, const HighlightLift& lift) {
   cv::Mat rainy = clean.clone();
   const SrgbTables& srgb = SrgbTables::get();
   for (int y = 0; y < clean.rows; ++y) {
@@ -22,7 +23,9 @@ cv::Mat encode(const cv::Mat& clean, const cv::Mat& linear, const cv::Mat& cover
     auto* out = rainy.ptr<cv::Vec3b>(y);
     for (int x = 0; x < clean.cols; ++x) {
       if (!(a[x] > kNoCoverage)) continue;
-      for (int c = 0; c < 3; ++c) out[x][c] = srgb.encode(rgb[x][c]);
+      float light[3] = {rgb[x][0], rgb[x][1], rgb[x][2]};
+      lift.restore(light);
+      for (int c = 0; c < 3; ++c) out[x][c] = srgb.encode(light[c]);
     }
   }
   return rainy;
@@ -104,9 +107,9 @@ DefocusedFrame composite_layers_exact(const cv::Mat& clean, const TraceResult& t
   return out;
 }
 
-DefocusedFrame encode_aperture(const cv::Mat& clean, const ApertureResult& reference) {
+DefocusedFrame encode_aperture(const cv::Mat& clean, const ApertureResult& reference, const HighlightLift& lift) {
   DefocusedFrame out;
-  out.rainy = encode(clean, reference.linear, reference.coverage);
+  out.rainy = encode(clean, reference.linear, reference.coverage, lift);
   out.coverage = reference.coverage.clone();
   return out;
 }

@@ -242,9 +242,10 @@ json sample_record(const std::string& id, const InputImage& input, int variant, 
     record["highlights"] = {{"gain", scene.highlights.gain},
                             {"threshold", config.highlights.threshold},
                             {"on", rendered.highlights_lifted},
-                            {"why", rendered.highlights_lifted ? "some pixel is at or above the threshold"
-                                    : rendered.defocused       ? "no pixel reaches the threshold"
-                                                               : "the lens was skipped (nothing is spread)"}};
+                            {"why", rendered.highlights_lifted    ? "some pixel is at or above the threshold"
+                                    : !scene.highlights.active() ? "the gain is 1 (nothing to lift)"
+                                    : rendered.defocused         ? "no pixel reaches the threshold"
+                                                                 : "the lens was skipped (nothing is spread)"}};
   if (config.sensor.enabled)
     record["sensor"] = {{"noise_sigma", sensor.noise_sigma}, {"jpeg_quality", sensor.jpeg_quality},
                         {"applies_to", "rainy"}};

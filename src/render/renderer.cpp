@@ -8,7 +8,6 @@
 #include "raindrop/render/blur.h"
 #include "raindrop/render/defocus.h"
 #include "raindrop/render/drop_accel.h"
-#include "raindrop/render/sky.h"
 #include "raindrop/render/srgb.h"
 
 namespace raindrop {
@@ -38,8 +37,9 @@ RenderedFrame render_defocused(const cv::Mat& clean, const Camera& camera, const
   auto t0 = Clock::now();
   DefocusedFrame out;
   if (config.lens.method == DefocusMethod::Aperture) {
-    out = encode_aperture(wide, trace_aperture(wide, wide_camera, config, scene, accel, config.lens.aperture_samples,
-                                               &frame.effects));
+    out = encode_aperture(wide,
+                          trace_aperture(wide, wide_camera, config, scene, accel, config.lens.aperture_samples, &frame.effects),
+                          scene.highlights);
     frame.timings.trace_ms = ms_since(t0);
     for (const Drop& d : drops) out.coc_px.push_back(scene.drop_coc_px(d.shape(), camera.fx));
   } else {
@@ -76,7 +76,9 @@ bool highlights_present(const cv::Mat& clean, const SceneConfig& config, const H
     return srgb_to_linear(std::max(rgb.x, std::max(rgb.y, rgb.z))) > lift.threshold;
   };
   if (config.fresnel.enabled && lifted(config.fresnel.interior_rgb)) return true;
-  return config.sky.enabled && lifted(estimate_sky_rgb(clean, config.sky.gain));
+  // The sky is a mean of the frame's pixels times its gain (sky.h), so never brighter than this
+  // bound, whichever frame (this one or the tracer's widened copy) it is estimated from.
+  return config.sky.enabled && lifted(glm::dvec3(std::min(1.0, brightest / 255.0 * config.sky.gain)));
 }
 
 }  // namespace
@@ -110,6 +112,12 @@ RenderedFrame render_frame(const cv::Mat& clean, const Camera& camera, const Sce
   frame.timings.accel_ms = ms_since(t0);
 
   if (defocus) {
+    if (!config.highlights.enabled && scene.highlights.active()) {
+      // A sample drawn with highlights rendered with a config without them: the config decides.
+      SceneSample unlifted = scene;
+      unlifted.highlights = HighlightLift{};
+      return render_defocused(clean, camera, config, unlifted, accel, drops, largest, frame);
+    }
     if (!scene.highlights.active()) return render_defocused(clean, camera, config, scene, accel, drops, largest, frame);
     // Highlights: skipped (a copy of the sample with the lift off) where no pixel reaches the
     // threshold, so that such a frame costs and renders exactly as without the effect.

@@ -105,6 +105,8 @@ TEST(PngFile, WrittenFilesReadBackExactlyInBothLibraries) {
           const cv::Mat small = random_image(size.height, size.width, depth, channels, seed++);
           const auto file = tmp / ("small" + std::to_string(seed) + ".png");
           write_image_atomic(small, file, level);
+          // Our own decoding path reads it (not only libpng behind it).
+          EXPECT_TRUE(png::decode_image_data(png::check(file, fs::file_size(file), true)).has_value());
           const auto read = read_image(file, &why);
           ASSERT_TRUE(read) << why;
           EXPECT_TRUE(same(read->pixels, small)) << png_level_name(level) << " " << size;
@@ -406,4 +408,66 @@ TEST(PngFile, OurDecoderUndoesEveryRowFilter) {
       }
     }
   }
+}
+
+// Image data that our decoder refuses although every chunk is intact (CRCs valid): a zlib
+// stream cut short, a wrong Adler-32 checksum, a row filter byte past 4, data for one row too
+// few. decode_image_data gives up (nullopt) and the file goes to libpng, whose verdict is one
+// line of ours with nothing printed; a stream with a row too many is inflated by libpng, which
+// ignores the excess, as before.
+TEST(PngFile, DataOurDecoderRefusesGoesToLibpng) {
+  testsupport::TempDir tmp("raindrop-png-");
+  const int w = 20, h = 6;
+  auto zlib_of = [](const std::string& raw) {
+    std::vector<Bytef> out(compressBound(raw.size()));
+    uLongf size = out.size();
+    EXPECT_EQ(compress(out.data(), &size, reinterpret_cast<const Bytef*>(raw.data()), raw.size()), Z_OK);
+    return std::string(reinterpret_cast<const char*>(out.data()), size);
+  };
+  std::string rows;  // RGB, filter type 0
+  for (int y = 0; y < h; ++y) {
+    rows += '\0';
+    for (int x = 0; x < 3 * w; ++x) rows += static_cast<char>(x * 7 + y);
+  }
+  write_image_atomic(cv::Mat(h, w, CV_8UC3, cv::Scalar(1, 2, 3)), tmp / "good.png", kPngFast);
+  const std::vector<Chunk> good = chunks_of(testsupport::read_file(tmp / "good.png"));
+  ASSERT_EQ(good.front().type, "IHDR");
+  auto with_data = [&](const std::string& idat) {
+    return file_of({good.front(), {"IDAT", idat}, {"IEND", ""}});
+  };
+  std::string bad_filter = rows;
+  bad_filter[(3 * w + 1) * 2] = 7;
+  std::string bad_adler = zlib_of(rows);
+  bad_adler.back() = static_cast<char>(bad_adler.back() ^ 1);
+  const std::pair<const char*, std::string> refused[] = {
+      {"cut stream", zlib_of(rows).substr(0, zlib_of(rows).size() / 2)},
+      {"wrong Adler-32", bad_adler},
+      {"filter byte 7", zlib_of(bad_filter)},
+      {"a row too few", zlib_of(rows.substr(0, (3 * w + 1) * (h - 1)))},
+  };
+  for (const auto& [why, idat] : refused) {
+    SCOPED_TRACE(why);
+    std::ofstream(tmp / "bad.png", std::ios::binary | std::ios::trunc) << with_data(idat);
+    const png::Info header = png::check(tmp / "bad.png", fs::file_size(tmp / "bad.png"), true);
+    EXPECT_FALSE(png::decode_image_data(header).has_value());
+    testing::internal::CaptureStderr();
+    try {
+      read_image_native(tmp / "bad.png");
+      ADD_FAILURE() << "decoded";
+    } catch (const Error& e) {
+      EXPECT_EQ(std::string(e.what()).find('\n'), std::string::npos) << e.what();
+      EXPECT_NE(std::string(e.what()).find("bad.png"), std::string::npos) << e.what();
+    }
+    EXPECT_EQ(testing::internal::GetCapturedStderr(), "");
+  }
+  // One row too many: ours refuses it (the stream does not fit the declared rows), libpng
+  // decodes the declared rows.
+  std::string extra = rows;
+  extra += rows.substr(0, 3 * w + 1);
+  std::ofstream(tmp / "long.png", std::ios::binary | std::ios::trunc) << with_data(zlib_of(extra));
+  const png::Info header = png::check(tmp / "long.png", fs::file_size(tmp / "long.png"), true);
+  EXPECT_FALSE(png::decode_image_data(header).has_value());
+  const cv::Mat read = read_image_native(tmp / "long.png");
+  ASSERT_EQ(read.size(), cv::Size(w, h));
+  EXPECT_EQ(read.at<cv::Vec3b>(5, 3), cv::Vec3b(9 * 7 + 5, 10 * 7 + 5, 11 * 7 + 5));  // byte i of row y: 7 i + y
 }

@@ -55,7 +55,7 @@ cv::Mat read_image_native(const std::filesystem::path& path, int min_size = 1);
 // 2048x1024 street frame: 2.2x faster than level 3 and 12% smaller, smaller even than level 6,
 // OpenImageIO's default), because after the Paeth filter a photograph's rows hold few repeated
 // strings for LZ77 to find and Huffman coding of the residuals is most of the gain; kPngFast (the
-// default): the same Paeth residuals deflated by libdeflate at its fastest level, 2.3x faster
+// default): the same Paeth residuals deflated by libdeflate at its fastest level, 2x faster
 // again for 13% more bytes than run-length (docs/RESULTS.md section 1).
 inline constexpr int kPngRunLength = -1;
 inline constexpr int kPngFast = -2;

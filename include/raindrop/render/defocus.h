@@ -55,8 +55,8 @@ DefocusedFrame composite_layers(const cv::Mat& clean, const TraceResult& traced,
 DefocusedFrame composite_layers_exact(const cv::Mat& clean, const TraceResult& traced, const Camera& camera,
                                       const SceneSample& scene, const std::vector<Drop>& drops);
 
-// The reference's result in the same form: linear radiance where coverage > 0, the clean
-// bytes elsewhere.
-DefocusedFrame encode_aperture(const cv::Mat& clean, const ApertureResult& reference);
+// The reference's result in the same form: linear radiance where coverage > 0 (stored through
+// `lift`'s inverse where it lifted the light it traced; highlights.h), the clean bytes elsewhere.
+DefocusedFrame encode_aperture(const cv::Mat& clean, const ApertureResult& reference, const HighlightLift& lift = {});
 
 }  // namespace raindrop

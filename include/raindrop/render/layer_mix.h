@@ -18,7 +18,7 @@ namespace raindrop {
 inline constexpr float kNoCoverage = 1e-5f;
 
 // `A`, `C`: the pixel's sums; `clean`: its 8-bit RGB, lifted by `lift` like the drops' radiance
-// in C (highlights.h). Returns false where A <= kNoCoverage (nothing to write); else sets
+// in C, and the mix stored again through its inverse (highlights.h). Returns false where A <= kNoCoverage (nothing to write); else sets
 // `coverage` (A clamped to 1) and `out` (8-bit sRGB).
 inline bool mix_layers(float A, const float* C, const std::uint8_t* clean, const HighlightLift& lift, float* coverage,
                        std::uint8_t* out) {
@@ -29,7 +29,10 @@ inline bool mix_layers(float A, const float* C, const std::uint8_t* clean, const
   const float a = std::min(A, 1.0f);
   float b[3] = {lin[clean[0]], lin[clean[1]], lin[clean[2]]};
   lift.apply(b);
-  for (int k = 0; k < 3; ++k) out[k] = srgb.encode((1.0f - a) * b[k] + scale * C[k]);
+  float mixed[3];
+  for (int k = 0; k < 3; ++k) mixed[k] = (1.0f - a) * b[k] + scale * C[k];
+  lift.restore(mixed);
+  for (int k = 0; k < 3; ++k) out[k] = srgb.encode(mixed[k]);
   *coverage = a;
   return true;
 }
