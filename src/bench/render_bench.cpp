@@ -310,7 +310,9 @@ void effects_table(const Input& input, int frames, int repeats) {
     cv::Mat channels[3];
     cv::split(clean, channels);
     cv::max(cv::max(channels[0], channels[1]), channels[2], brightest);
-    const double lifted = 100.0 * cv::countNonZero(brightest >= 230) / static_cast<double>(brightest.total());
+    // The codes at or above the threshold (a fraction of full scale as stored): what the lift changes.
+    const double lifted = 100.0 * cv::countNonZero(brightest >= 255.0 * configs[1].highlights.threshold) /
+                          static_cast<double>(brightest.total());
     std::printf("| %s (%.2f%% of pixels at or above the threshold) | %.1f | %.1f | %.2fx |\n",
                 dimmed ? "dimmed to 200/255: skipped" : "as it is", lifted, median(wall[0]), median(wall[1]),
                 median(wall[1]) / median(wall[0]));

@@ -22,6 +22,10 @@ namespace raindrop::png {
 namespace fs = std::filesystem;
 namespace {
 
+// libpng's limit on a side by default (PNG_USER_WIDTH_MAX; the format allows 2^31 - 1): what
+// check() accepts, decode() asks libpng to accept, and encode() writes.
+constexpr std::uint32_t kMaxSide = 1000000;
+
 std::uint32_t be32(const unsigned char* p) {
   return (static_cast<std::uint32_t>(p[0]) << 24) | (static_cast<std::uint32_t>(p[1]) << 16) |
          (static_cast<std::uint32_t>(p[2]) << 8) | p[3];
@@ -122,8 +126,7 @@ Info check(const fs::path& path, std::uintmax_t size, bool check_data) {
     const std::uint32_t length = be32(&data[at]);
     if (length > data.size() - at - 12) throw Error(quoted(path) + ": truncated PNG (a chunk runs past the end of the file)");
     const std::string type(reinterpret_cast<const char*>(&data[at + 4]), 4);
-    const std::uint32_t crc = static_cast<std::uint32_t>(
-        ::crc32(::crc32(0L, Z_NULL, 0), &data[at + 4], static_cast<uInt>(4 + length)));
+    const std::uint32_t crc = libdeflate_crc32(0, &data[at + 4], 4 + length);
     if (crc != be32(&data[at + 8 + length])) throw Error(quoted(path) + ": corrupt PNG (CRC error in a " + type + " chunk)");
     if (first && type != "IHDR") throw Error(quoted(path) + ": corrupt PNG (first chunk is " + type + ", not IHDR)");
     const bool critical = std::isupper(static_cast<unsigned char>(type[0]));
@@ -154,10 +157,9 @@ Info check(const fs::path& path, std::uintmax_t size, bool check_data) {
   if (ihdr.size() != 13) throw Error(bad_ihdr + "length " + std::to_string(ihdr.size()) + ", not 13)");
   const std::uint32_t width = be32(&ihdr[0]), height = be32(&ihdr[4]);
   const int depth = ihdr[8], colour = ihdr[9];
-  // libpng's own limits: 2^31 - 1 by the format, 1000000 a side by default (PNG_USER_WIDTH_MAX).
-  if (width == 0 || height == 0 || width > 1000000 || height > 1000000)
+  if (width == 0 || height == 0 || width > kMaxSide || height > kMaxSide)
     throw Error(bad_ihdr + "size " + std::to_string(width) + "x" + std::to_string(height) +
-                ", each side must be 1 to 1000000)");
+                ", each side must be 1 to " + std::to_string(kMaxSide) + ")");
   static const std::map<int, std::pair<int, std::set<int>>> kColour = {  // channels, allowed depths
       {0, {1, {1, 2, 4, 8, 16}}}, {2, {3, {8, 16}}}, {3, {1, {1, 2, 4, 8}}}, {4, {2, {8, 16}}}, {6, {4, {8, 16}}}};
   const auto c = kColour.find(colour);
@@ -222,15 +224,17 @@ void swap_16_bit_samples(png_structp png) {
 #endif
 }
 
+// Copies `bytes` bytes of 16-bit samples, swapping each sample's two bytes (PNG's big-endian
+// order to or from the order of a little-endian machine's cv::Mat).
+void copy_swapping_16_bit(const std::uint8_t* from, std::uint8_t* to, std::size_t bytes) {
+  for (std::size_t i = 0; i < bytes; i += 2) to[i] = from[i + 1], to[i + 1] = from[i];
+}
+
 int colour_type_for(int channels) {
   static const int kType[5] = {-1, PNG_COLOR_TYPE_GRAY, PNG_COLOR_TYPE_GRAY_ALPHA, PNG_COLOR_TYPE_RGB,
                                PNG_COLOR_TYPE_RGB_ALPHA};
   return kType[channels];
 }
-
-}  // namespace
-
-namespace {
 
 int paeth_predictor(int a, int b, int c) {
   const int pa = std::abs(b - c), pb = std::abs(a - c), pc = std::abs(a + b - 2 * c);
@@ -308,10 +312,10 @@ std::optional<cv::Mat> decode_image_data(const Info& info) {
   for (int y = 0; y < image.rows; ++y) {
     const std::uint8_t* row = raw.data() + static_cast<std::size_t>(y) * (stride + 1) + 1;
     std::uint8_t* out = image.ptr<std::uint8_t>(y);
-    if (!swap) {
-      std::memcpy(out, row, stride);
+    if (swap) {
+      copy_swapping_16_bit(row, out, stride);
     } else {
-      for (std::size_t i = 0; i < stride; i += 2) out[i] = row[i + 1], out[i + 1] = row[i];
+      std::memcpy(out, row, stride);
     }
   }
   return image;
@@ -333,7 +337,7 @@ cv::Mat decode(const fs::path& path, const Info& info) {
   volatile bool ok = false;
   if (png && png_info && setjmp(png_jmpbuf(png)) == 0) {
     png_init_io(png, file);
-    png_set_user_limits(png, 1000000, 1000000);
+    png_set_user_limits(png, kMaxSide, kMaxSide);
     png_read_info(png, png_info);
     if (info.depth == 16) swap_16_bit_samples(png);
     png_set_interlace_handling(png);
@@ -392,8 +396,8 @@ bool write_chunk(std::FILE* file, const char* type, const std::uint8_t* data, st
 // default before run-length) and 8% over level 6 (docs/RESULTS.md section 1).
 void encode_fast(const cv::Mat& image, std::FILE* file, const fs::path& name) {
   // What libpng's writer refuses, and check() would refuse on reading the file back.
-  if (image.empty() || image.cols > 1000000 || image.rows > 1000000)
-    throw Error(quoted(name) + ": cannot write (a PNG's sides are 1 to 1000000 pixels; this image is " +
+  if (image.empty() || static_cast<std::uint32_t>(image.cols) > kMaxSide || static_cast<std::uint32_t>(image.rows) > kMaxSide)
+    throw Error(quoted(name) + ": cannot write (a PNG's sides are 1 to " + std::to_string(kMaxSide) + " pixels; this image is " +
                 std::to_string(image.cols) + "x" + std::to_string(image.rows) + ")");
   const std::size_t sample = image.depth() == CV_16U ? 2 : 1;
   const std::size_t bpp = sample * static_cast<std::size_t>(image.channels());
@@ -407,9 +411,8 @@ void encode_fast(const cv::Mat& image, std::FILE* file, const fs::path& name) {
   for (int y = 0; y < image.rows; ++y) {
     const std::uint8_t* row = image.ptr<std::uint8_t>(y);
     if (swap) {
-      std::uint8_t* b = big[y & 1].data();
-      for (std::size_t i = 0; i < stride; i += 2) b[i] = row[i + 1], b[i + 1] = row[i];
-      row = b;
+      copy_swapping_16_bit(row, big[y & 1].data(), stride);
+      row = big[y & 1].data();
     }
     std::uint8_t* out = filtered.data() + static_cast<std::size_t>(y) * (stride + 1);
     out[0] = 4;  // Paeth

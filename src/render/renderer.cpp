@@ -112,17 +112,13 @@ RenderedFrame render_frame(const cv::Mat& clean, const Camera& camera, const Sce
   frame.timings.accel_ms = ms_since(t0);
 
   if (defocus) {
-    if (!config.highlights.enabled && scene.highlights.active()) {
-      // A sample drawn with highlights rendered with a config without them: the config decides.
-      SceneSample unlifted = scene;
-      unlifted.highlights = HighlightLift{};
-      return render_defocused(clean, camera, config, unlifted, accel, drops, largest, frame);
-    }
-    if (!scene.highlights.active()) return render_defocused(clean, camera, config, scene, accel, drops, largest, frame);
-    // Highlights: skipped (a copy of the sample with the lift off) where no pixel reaches the
-    // threshold, so that such a frame costs and renders exactly as without the effect.
-    frame.highlights_lifted = highlights_present(clean, config, scene.highlights);
-    if (frame.highlights_lifted) return render_defocused(clean, camera, config, scene, accel, drops, largest, frame);
+    // Highlights run where the scene names them (the config decides, whatever the sample was
+    // drawn with) and some pixel reaches the threshold; otherwise a copy of the sample with the
+    // lift off renders the frame exactly as without the effect, at its cost.
+    frame.highlights_lifted =
+        config.highlights.enabled && scene.highlights.active() && highlights_present(clean, config, scene.highlights);
+    if (frame.highlights_lifted || !scene.highlights.active())
+      return render_defocused(clean, camera, config, scene, accel, drops, largest, frame);
     SceneSample unlifted = scene;
     unlifted.highlights = HighlightLift{};
     return render_defocused(clean, camera, config, unlifted, accel, drops, largest, frame);
