@@ -3,7 +3,7 @@
 # and scripts/setup-tools.sh; needs a folder of real photographs, $RAINDROP_SHARED_DATA
 # (default ../shared/data), for the real frames). Sections can be chosen:
 # scripts/results.sh data render stats eval remove tradeoffs sheets photoreal scale flatroad largedrops coarsetrain
-# largedropmodels sensor mirroraverage highlights
+# largedropmodels sensor mirroraverage highlights multiscale
 #
 # Nothing here is committed automatically: images derived from Cityscapes, CamVid or the
 # real raindrop photographs stay under out/ (their licences forbid redistribution).
@@ -15,7 +15,7 @@ out=out/results
 mkdir -p "$out"
 sections=("$@")
 ((${#sections[@]})) || sections=(data render stats eval remove tradeoffs sheets photoreal scale flatroad largedrops coarsetrain
-                                  largedropmodels sensor mirroraverage highlights)
+                                  largedropmodels sensor mirroraverage highlights multiscale)
 want() { [[ " ${sections[*]} " == *" $1 "* ]]; }
 # link_set SRC DST SPLIT [LIMIT]: the first LIMIT (default 100; 0: all) samples of data set SRC
 # (of manifest split SPLIT; "-" = all) linked into DST/rainy and DST/clean under plainly named
@@ -429,4 +429,31 @@ print(json.dumps(scene, indent=2))' "$2" "$3" "$4" >"$file"
     score_sets "$hl" "$m" "--models out/models/$m --large-drop-models out/models/$m" real-pairs:test:0 real-pairs:train:0
   done | tee "$hl/real-pairs.txt"
   build/raindrop-bench render --sections effects --frames 2 --repeats 9 | tee "$hl/bench_effects.md"
+fi
+
+if want multiscale; then
+  # docs/RESULTS.md 3.4, *Networks for any image size*: the default (compact-multiscale) against
+  # compact on the same drops at full size and at the working size, on frames no model trained
+  # on (Cityscapes val at 1280x720 and 512x288, CamVid test at its own 960x720 and at 512x384;
+  # paper preset, seed 9), and on the sets of the model card's criteria. The training set it
+  # was fine-tuned on (besides data/train) is data/train-hi below; the model itself:
+  #   train --config tools/configs/compact-multiscale.yaml --out tools/runs/compact-multiscale --init-from models/compact
+  build/raindrop-render --input "$shared/camvid/train" --input "$shared/camvid/val" \
+    --cityscapes "$shared/cityscapes-mini" --split train --size 1280x640 --variants 3 --seed 3 --out data/train-hi -q
+  ms="$out/multiscale"
+  mkdir -p "$ms"
+  for set in "cs 1280x720" "cs 512x288" "cv 960x720" "cv 512x384"; do
+    read -r src size <<<"$set"
+    if [[ $src == cs ]]; then from=(--cityscapes "$shared/cityscapes-mini" --split val --variants 16)
+    else from=(--input "$shared/camvid/test" --limit 100 --variants 1); fi
+    build/raindrop-render "${from[@]}" --size "$size" --seed 9 --out "$ms/$src-$size" -q
+  done
+  $py -m raindrop_tools.realpairs prepare "$shared/real-pairs" --out data/real-pairs
+  for m in compact compact-multiscale; do
+    for set in cs-1280x720 cs-512x288 cv-960x720 cv-512x384; do
+      rm -rf "$ms/$set-$m" && build/raindrop-remove "$ms/$set/rainy" "$ms/$set-$m" -q --models "models/$m"
+      $py -m raindrop_tools.score_outputs --data "$ms/$set" --outputs "$ms/$set-$m" --label "$m $set"
+    done
+    score_sets "$ms" "$m" "--models models/$m" real-pairs:test:0 test:-:100 test-sparse:-:0
+  done | tee "$ms/scores.txt"
 fi

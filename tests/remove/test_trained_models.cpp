@@ -7,6 +7,7 @@
 
 #include <gtest/gtest.h>
 
+#include "raindrop/remove/model_paths.h"
 #include "remove_test_util.h"
 
 namespace removetest {
@@ -171,10 +172,16 @@ cv::Mat luma8(const cv::Mat& rgb) {
 
 double psnr_y(const cv::Mat& a, const cv::Mat& b) { return psnr(luma8(a), luma8(b)); }
 
+// The folder models/DEFAULT names (what raindrop-remove runs without --models).
+fs::path default_models() {
+  const fs::path root = source_dir() / "models";
+  return root / raindrop::removal::read_default_config(root).value_or("compact");
+}
+
 // The shipped default on real photographs: the held-out half of the real lens-cover pairs (the
 // 5 scene groups of the group-wise split that no committed model trained on; tools/raindrop_tools/
 // realpairs.py), as a user runs it. docs/RESULTS.md 4.11 measures +3.00 dB there, of which the
-// large-drop models (models/compact/LARGE_DROPS) give about 1.5 dB: a loose floor on both, so
+// large-drop models (the default's LARGE_DROPS) give about 1.5 dB: a loose floor on both, so
 // that losing the large-drop models or the coarse pass fails here. Needs the real pairs of the
 // shared data folder; skips without them.
 TEST(TrainedModels, DefaultRemovesRealLensCoverDrops) {
@@ -182,9 +189,9 @@ TEST(TrainedModels, DefaultRemovesRealLensCoverDrops) {
   std::error_code ec;
   if (std::string(RAINDROP_SHARED_DATA).empty() || !fs::is_directory(pairs, ec))
     GTEST_SKIP() << "no real pairs in " << pairs << "; the default's real-photograph gain is not checked";
-  const fs::path compact = source_dir() / "models" / "compact";
+  const fs::path compact = default_models();
   if (!fs::is_regular_file(compact / "rdn.onnx")) GTEST_SKIP() << "no trained models in " << compact;
-  ASSERT_TRUE(fs::is_regular_file(compact / "LARGE_DROPS")) << "models/compact lost its large-drop models";
+  ASSERT_TRUE(fs::is_regular_file(compact / "LARGE_DROPS")) << compact << " lost its large-drop models";
   // The test split of tools/raindrop_tools/realpairs.py's group-wise rule over these pairs' 10
   // groups (tools/tests/test_realpairs.py holds the rule to these 5 names).
   const std::vector<std::string> test_groups = {"robotcar_i0", "robotcar_i14400", "robotcar_i4800", "robotcar_i8000",
@@ -222,10 +229,55 @@ TEST(TrainedModels, DefaultRemovesRealLensCoverDrops) {
     }
     ++k;
   }
-  std::printf("real lens-cover test split: default +%.2f dB, compact's own networks for large drops +%.2f dB\n", gain[0],
+  std::printf("real lens-cover test split: default +%.2f dB, its own networks for large drops +%.2f dB\n", gain[0],
               gain[1]);
   EXPECT_GE(gain[0], 2.5) << "the default's gain on held-out real pairs (docs/RESULTS.md 4.11: +3.00)";
   EXPECT_GE(gain[0] - gain[1], 0.8) << "what the large-drop models add (docs/RESULTS.md 4.11: +3.00 against +1.48)";
+}
+
+// The default gains as much on a large street frame as on the same drops at the size its networks
+// see: drops of the paper preset rendered with one seed (the same drops, relative to the frame)
+// onto the held-out Cityscapes frames at 1280x720 and at 512x288, the size raindrop-remove
+// brings 1280x720 to. Their PSNR-Y gains stay within 1 dB (the target). `compact` alone
+// gained about 2 dB less at 1280x720: it had learnt drops rendered at 512 px, not drops
+// area-averaged down from a larger frame (8.59 against 6.51 dB; docs/RESULTS.md 3.4). Needs the shared Cityscapes
+// frames; skips without them.
+TEST(TrainedModels, DefaultGainsAsMuchOnLargeStreetFrames) {
+  const fs::path cityscapes = fs::path(RAINDROP_SHARED_DATA) / "cityscapes-mini";
+  std::error_code ec;
+  if (std::string(RAINDROP_SHARED_DATA).empty() || !fs::is_directory(cityscapes / "leftImg8bit" / "val", ec))
+    GTEST_SKIP() << "no Cityscapes frames in " << cityscapes << "; the full-size gain is not checked";
+  const fs::path models = default_models();
+  if (!fs::is_regular_file(models / "rdn.onnx")) GTEST_SKIP() << "no trained models in " << models;
+  TempDir tmp;
+  double gain[2] = {0, 0};
+  int k = 0;
+  for (const std::string size : {"512x288", "1280x720"}) {
+    const std::string set = "set-" + size, out = "out-" + size;
+    RunResult r = run_command(RAINDROP_RENDER_BIN,
+                              {"--cityscapes", cityscapes.string(), "--split", "val", "--variants", "16", "--seed", "9",
+                               "--size", size, "--out", set, "-q", "-j", "1"},
+                              tmp.path());
+    ASSERT_EQ(r.code, 0) << r.describe();
+    r = run_remove({set + "/rainy", out, "--models", models.string(), "-q", "-j", "1"}, tmp.path());
+    ASSERT_EQ(r.code, 0) << r.describe();
+    int n = 0;
+    for (const auto& e : fs::directory_iterator(tmp / set / "rainy")) {
+      const std::string name = e.path().filename().string();
+      const cv::Mat rainy = read_or_fail(e.path()), clean = read_or_fail(tmp / set / "clean" / name),
+                    removed = read_or_fail(tmp / out / name);
+      ASSERT_FALSE(rainy.empty() || clean.empty() || removed.empty()) << name;
+      gain[k] += psnr_y(removed, clean) - psnr_y(rainy, clean);
+      ++n;
+    }
+    ASSERT_EQ(n, 32) << "2 held-out frames x 16 variants at " << size;
+    gain[k] /= n;
+    ++k;
+  }
+  std::printf("%s on held-out Cityscapes frames: gain %.2f dB at 512x288, %.2f dB at 1280x720\n",
+              models.filename().string().c_str(), gain[0], gain[1]);
+  EXPECT_GE(gain[1], kMinGainDb);
+  EXPECT_LE(std::abs(gain[0] - gain[1]), 1.0) << gain[0] << " dB at 512x288, " << gain[1] << " dB at 1280x720";
 }
 
 }  // namespace
