@@ -116,7 +116,8 @@ if want sheets; then
   # Removal on real raindrop photographs, with Qian et al.'s published outputs for the five
   # inputs they cover (out/results/real_*; not committed: the photographs' licences).
   rm -rf "$out/real" && mkdir -p "$out/real"
-  build/raindrop-remove "$shared/real-raindrop" "$out/real/removed" --mask-dir "$out/real/masks" -q
+  # (models/compact: the default when RESULTS 3.3 was measured; the default is compact-multiscale now)
+  build/raindrop-remove "$shared/real-raindrop" "$out/real/removed" --mask-dir "$out/real/masks" -q --models models/compact
   $py - "$shared" "$out" <<'PY'
 import sys, cv2, numpy as np
 from pathlib import Path
@@ -173,7 +174,7 @@ if want photoreal; then
   build/raindrop-render --cityscapes "$shared/cityscapes-mini" --split train -o data/train-cs-lens --scene lens-cover \
     --size 512x256 --variants 20 --seed 8 -q
   $py -m raindrop_tools.merge_datasets --out data/train-mix data/train-lens-cover data/train-windshield-day data/train-cs-lens
-  $py -m raindrop_tools.realpairs prepare "$shared/real-pairs" --out data/real-pairs
+  [[ -f data/real-pairs/manifest.jsonl ]] || $py -m raindrop_tools.realpairs prepare "$shared/real-pairs" --out data/real-pairs
   # models/compact, and the unshipped compact-lens models where trained and exported into
   # out/models (docs/RESULTS.md 4.3 has the commands).
   for dir in models/compact out/models/compact-lens out/models/compact-lens-real; do
@@ -191,18 +192,21 @@ fi
 
 if want scale; then
   # raindrop-remove's working scale (docs/RESULTS.md 3.4): the same drops (same seed) rendered
-  # on the 8 real Cityscapes frames at 512x256 and at 2048x1024, removed with the default
-  # model at the default (working) scale and at --scale 1, scored against the clean frames.
+  # on the 8 real Cityscapes frames at 512x256 and at 2048x1024, removed with compact (the
+  # default when 3.4 was measured) and compact-multiscale (the default since) at the default
+  # (working) scale and, with compact, at --scale 1, scored against the clean frames.
   for scene in paper lens-cover; do
     for size in 512x256 2048x1024; do
       set_dir="$out/scale-$scene-$size"
       build/raindrop-render --cityscapes "$shared/cityscapes-mini" --split all --scene $scene --size $size \
         --variants 2 --seed 5 --out "$set_dir" -q
-      build/raindrop-remove "$set_dir/rainy" "$set_dir-auto" -q --no-large-drops
-      $py -m raindrop_tools.score_outputs --data "$set_dir" --outputs "$set_dir-auto" --label "$scene $size default scale"
+      for m in compact compact-multiscale; do
+        rm -rf "$set_dir-auto-$m" && build/raindrop-remove "$set_dir/rainy" "$set_dir-auto-$m" -q --no-large-drops --models "models/$m"
+        $py -m raindrop_tools.score_outputs --data "$set_dir" --outputs "$set_dir-auto-$m" --label "$m $scene $size default scale"
+      done
       if [[ $size != 512x256 ]]; then
-        build/raindrop-remove "$set_dir/rainy" "$set_dir-full" -q --scale 1 --no-large-drops
-        $py -m raindrop_tools.score_outputs --data "$set_dir" --outputs "$set_dir-full" --label "$scene $size --scale 1"
+        rm -rf "$set_dir-full" && build/raindrop-remove "$set_dir/rainy" "$set_dir-full" -q --scale 1 --no-large-drops --models models/compact
+        $py -m raindrop_tools.score_outputs --data "$set_dir" --outputs "$set_dir-full" --label "compact $scene $size --scale 1"
       fi
     done
   done | tee "$out/working_scale.txt"
@@ -225,7 +229,7 @@ for s in (1, 2, 4):
     a = np.asarray(Image.open(f"{d}/set/rainy/street_v00.png").convert("RGB")).astype(float)
     Image.fromarray(np.clip(a + rng.normal(0, s, a.shape), 0, 255).round().astype(np.uint8)).save(f"{d}/in/street_noise{s}.png")
 PY
-  for dir in models/compact out/models/compact-real out/models/compact-real-neg out/models/compact-real-flat \
+  for dir in models/compact models/compact-multiscale out/models/compact-real out/models/compact-real-neg out/models/compact-real-flat \
              out/models/compact-real-noise; do
     [[ -d $dir ]] || continue
     m=$(basename "$dir")
@@ -363,12 +367,13 @@ if want mirroraverage; then
   # splits, all 470 paper-preset test frames and all 470 sparse frames, the first 100 of two
   # thin-lens val sets (photoreal above); then the bench's table of what the option costs.
   set_dir="$out/mirroraverage"
-  for run in "default:" "mirror-average:--mirror-average"; do
+  # (models/compact: the default when 4.11 was measured)
+  for run in "default:--models models/compact" "mirror-average:--models models/compact --mirror-average"; do
     label="${run%%:*}" flags="${run#*:}"
     score_sets "$set_dir" "$label" "$flags" real-pairs:test:100 real-pairs:train:100 test:-:0 test-sparse:-:0 \
                val-lens-cover:-:100 val-windshield-day:-:100
   done | tee "$out/mirroraverage.txt"
-  build/raindrop-bench remove --threads 2 --size 1280x720 --runs 9 | tee "$out/bench_remove_mirroraverage.md"
+  build/raindrop-bench remove --models models/compact --threads 2 --size 1280x720 --runs 9 | tee "$out/bench_remove_mirroraverage.md"
 fi
 
 if want highlights; then
@@ -432,9 +437,9 @@ print(json.dumps(scene, indent=2))' "$2" "$3" "$4" >"$file"
 fi
 
 if want multiscale; then
-  # docs/RESULTS.md 3.4, *Networks for any image size*: the default (compact-multiscale) against
+  # docs/RESULTS.md 3.4, *Networks for frames larger than the working size*: the default (compact-multiscale) against
   # compact on the same drops at full size and at the working size, on frames no model trained
-  # on (Cityscapes val at 1280x720 and 512x288, CamVid test at its own 960x720 and at 512x384;
+  # on (Cityscapes val at 1280x720 and 512x288, CamVid test, 480x360 frames enlarged to 960x720, and at 512x384;
   # paper preset, seed 9), and on the sets of the model card's criteria. The training set it
   # was fine-tuned on (besides data/train) is data/train-hi below; the model itself:
   #   train --config tools/configs/compact-multiscale.yaml --out tools/runs/compact-multiscale --init-from models/compact
@@ -444,16 +449,24 @@ if want multiscale; then
   mkdir -p "$ms"
   for set in "cs 1280x720" "cs 512x288" "cv 960x720" "cv 512x384"; do
     read -r src size <<<"$set"
-    if [[ $src == cs ]]; then from=(--cityscapes "$shared/cityscapes-mini" --split val --variants 16)
+    if [[ $src == cs ]]; then from=(--cityscapes "$shared/cityscapes-mini" --split val --limit 2 --variants 16)
     else from=(--input "$shared/camvid/test" --limit 100 --variants 1); fi
     build/raindrop-render "${from[@]}" --size "$size" --seed 9 --out "$ms/$src-$size" -q
   done
-  $py -m raindrop_tools.realpairs prepare "$shared/real-pairs" --out data/real-pairs
+  [[ -f data/real-pairs/manifest.jsonl ]] || $py -m raindrop_tools.realpairs prepare "$shared/real-pairs" --out data/real-pairs
   for m in compact compact-multiscale; do
     for set in cs-1280x720 cs-512x288 cv-960x720 cv-512x384; do
       rm -rf "$ms/$set-$m" && build/raindrop-remove "$ms/$set/rainy" "$ms/$set-$m" -q --models "models/$m"
       $py -m raindrop_tools.score_outputs --data "$ms/$set" --outputs "$ms/$set-$m" --label "$m $set"
     done
-    score_sets "$ms" "$m" "--models models/$m" real-pairs:test:0 test:-:100 test-sparse:-:0
+    score_sets "$ms" "$m" "--models models/$m" real-pairs:test:0 real-pairs:train:0 test:-:100 test-sparse:-:0
+    # without the coarse pass, and with the model's own networks for its large drops
+    score_sets "$ms" "$m-no-coarse" "--models models/$m --no-large-drops" real-pairs:test:0
+    score_sets "$ms" "$m-own-large" "--models models/$m --large-drop-models models/$m" real-pairs:test:0
   done | tee "$ms/scores.txt"
+  # The model card's Python-reference rows (demo street IoU: the flatroad section).
+  for set in test test-sparse; do
+    OMP_NUM_THREADS=2 $py -m raindrop_tools.evaluate --data "data/$set" --models models/compact-multiscale \
+      --out "out/eval-$set/compact-multiscale" --threads 2
+  done
 fi

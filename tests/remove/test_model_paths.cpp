@@ -89,7 +89,7 @@ TEST_F(ModelSearchTest, ModelFilesAreCheckedByName) {
   EXPECT_FALSE(same_folder(tmp / "full", tmp / "other"));
 }
 
-// compact-multiscale: compact's detector with 3RN and RFN fine-tuned for any image size
+// compact-multiscale: compact's detector with 3RN and RFN fine-tuned for frames larger than the working size
 // (docs/RESULTS.md 3.4); compact stays committed beside it.
 TEST(ModelDefault, SourceTreeNamesCompactMultiscale) {
   EXPECT_EQ(read_default_config(source_dir() / "models").value_or("<none>"), "compact-multiscale");

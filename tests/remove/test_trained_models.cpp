@@ -1,7 +1,8 @@
 // The committed models do their job: on drops that raindrop-render puts on its own demo
 // backgrounds (no data set needed), every model in models/ finds the drops and takes the image
-// closer to the clean one; and, where the shared real pairs are present, the default gains what
-// docs/RESULTS.md 4.8 measured on real lens-cover photographs. This fails for an untrained, corrupted or mis-exported model, and
+// closer to the clean one; and, where the shared data is present, the default gains what
+// docs/RESULTS.md 4.11 measured on real lens-cover photographs, and as much on large street frames
+// as on the same drops at its working size (3.4). This fails for an untrained, corrupted or mis-exported model, and
 // for a pipeline change (threshold, dilation, blending) that breaks the trained networks.
 #include <cmath>
 
@@ -232,7 +233,7 @@ TEST(TrainedModels, DefaultRemovesRealLensCoverDrops) {
   std::printf("real lens-cover test split: default +%.2f dB, its own networks for large drops +%.2f dB\n", gain[0],
               gain[1]);
   EXPECT_GE(gain[0], 2.5) << "the default's gain on held-out real pairs (docs/RESULTS.md 4.11: +3.00)";
-  EXPECT_GE(gain[0] - gain[1], 0.8) << "what the large-drop models add (docs/RESULTS.md 4.11: +3.00 against +1.48)";
+  EXPECT_GE(gain[0] - gain[1], 0.8) << "what the large-drop models add (docs/RESULTS.md 3.4: +3.00 against +1.63 for the default; 4.11: compact +1.48)";
 }
 
 // The default gains as much on a large street frame as on the same drops at the size its networks
@@ -240,8 +241,11 @@ TEST(TrainedModels, DefaultRemovesRealLensCoverDrops) {
 // onto the held-out Cityscapes frames at 1280x720 and at 512x288, the size raindrop-remove
 // brings 1280x720 to. Their PSNR-Y gains stay within 1 dB (the target). `compact` alone
 // gained about 2 dB less at 1280x720: it had learnt drops rendered at 512 px, not drops
-// area-averaged down from a larger frame (8.59 against 6.51 dB; docs/RESULTS.md 3.4). Needs the shared Cityscapes
-// frames; skips without them.
+// area-averaged down from a larger frame (8.59 against 6.51 dB; docs/RESULTS.md 3.4). The default
+// measured 8.30 and 7.45: the 1 dB is the target itself, not a margin around today's model. Both
+// gains must also stay near what they are, so that a model that loses its effect at both sizes
+// alike does not pass. Needs the shared Cityscapes frames (the first two of the val split);
+// skips without them.
 TEST(TrainedModels, DefaultGainsAsMuchOnLargeStreetFrames) {
   const fs::path cityscapes = fs::path(RAINDROP_SHARED_DATA) / "cityscapes-mini";
   std::error_code ec;
@@ -255,7 +259,7 @@ TEST(TrainedModels, DefaultGainsAsMuchOnLargeStreetFrames) {
   for (const std::string size : {"512x288", "1280x720"}) {
     const std::string set = "set-" + size, out = "out-" + size;
     RunResult r = run_command(RAINDROP_RENDER_BIN,
-                              {"--cityscapes", cityscapes.string(), "--split", "val", "--variants", "16", "--seed", "9",
+                              {"--cityscapes", cityscapes.string(), "--split", "val", "--limit", "2", "--variants", "16", "--seed", "9",
                                "--size", size, "--out", set, "-q", "-j", "1"},
                               tmp.path());
     ASSERT_EQ(r.code, 0) << r.describe();
@@ -276,7 +280,8 @@ TEST(TrainedModels, DefaultGainsAsMuchOnLargeStreetFrames) {
   }
   std::printf("%s on held-out Cityscapes frames: gain %.2f dB at 512x288, %.2f dB at 1280x720\n",
               models.filename().string().c_str(), gain[0], gain[1]);
-  EXPECT_GE(gain[1], kMinGainDb);
+  EXPECT_GE(gain[0], 7.5) << "at 512x288 (measured 8.30)";
+  EXPECT_GE(gain[1], 6.5) << "at 1280x720 (measured 7.45)";
   EXPECT_LE(std::abs(gain[0] - gain[1]), 1.0) << gain[0] << " dB at 512x288, " << gain[1] << " dB at 1280x720";
 }
 
