@@ -443,6 +443,7 @@ if want multiscale; then
   # paper preset, seed 9), and on the sets of the model card's criteria. The training set it
   # was fine-tuned on (besides data/train) is data/train-hi below; the model itself:
   #   train --config tools/configs/compact-multiscale.yaml --out tools/runs/compact-multiscale --init-from models/compact
+  # and its int8 copy: quantize --models models/compact-multiscale --data data/train --out models/compact-multiscale-int8
   build/raindrop-render --input "$shared/camvid/train" --input "$shared/camvid/val" \
     --cityscapes "$shared/cityscapes-mini" --split train --size 1280x640 --variants 3 --seed 3 --out data/train-hi -q
   ms="$out/multiscale"
@@ -454,7 +455,7 @@ if want multiscale; then
     build/raindrop-render "${from[@]}" --size "$size" --seed 9 --out "$ms/$src-$size" -q
   done
   [[ -f data/real-pairs/manifest.jsonl ]] || $py -m raindrop_tools.realpairs prepare "$shared/real-pairs" --out data/real-pairs
-  for m in compact compact-multiscale; do
+  for m in compact compact-multiscale compact-multiscale-int8; do
     for set in cs-1280x720 cs-512x288 cv-960x720 cv-512x384; do
       rm -rf "$ms/$set-$m" && build/raindrop-remove "$ms/$set/rainy" "$ms/$set-$m" -q --models "models/$m"
       $py -m raindrop_tools.score_outputs --data "$ms/$set" --outputs "$ms/$set-$m" --label "$m $set"
@@ -466,7 +467,9 @@ if want multiscale; then
   done | tee "$ms/scores.txt"
   # The model card's Python-reference rows (demo street IoU: the flatroad section).
   for set in test test-sparse; do
-    OMP_NUM_THREADS=2 $py -m raindrop_tools.evaluate --data "data/$set" --models models/compact-multiscale \
-      --out "out/eval-$set/compact-multiscale" --threads 2
+    for m in compact-multiscale compact-multiscale-int8; do
+      OMP_NUM_THREADS=2 $py -m raindrop_tools.evaluate --data "data/$set" --models "models/$m" \
+        --out "out/eval-$set/$m" --threads 2
+    done
   done
 fi
