@@ -440,7 +440,8 @@ if want multiscale; then
   # docs/RESULTS.md 3.4, *Networks for frames larger than the working size*: the default (compact-multiscale) against
   # compact on the same drops at full size and at the working size, on frames no model trained
   # on (Cityscapes val at 1280x720 and 512x288, CamVid test, 480x360 frames enlarged to 960x720, and at 512x384;
-  # paper preset, seed 9), and on the sets of the model card's criteria. The training set it
+  # paper preset, seed 9), and on the sets of the model card's criteria (data/test from the data
+  # section, data/test-sparse from the eval section: run those first). The training set it
   # was fine-tuned on (besides data/train) is data/train-hi below; the model itself:
   #   train --config tools/configs/compact-multiscale.yaml --out tools/runs/compact-multiscale --init-from models/compact
   # and its int8 copy: quantize --models models/compact-multiscale --data data/train --out models/compact-multiscale-int8
@@ -469,7 +470,7 @@ if want multiscale; then
   for set in test test-sparse; do
     for m in compact-multiscale compact-multiscale-int8; do
       OMP_NUM_THREADS=2 $py -m raindrop_tools.evaluate --data "data/$set" --models "models/$m" \
-        --out "out/eval-$set/$m" --threads 2
+        --out "out/${set/#test/eval}/$m" --threads 2
     done
   done
 fi

@@ -1,7 +1,7 @@
 // The committed models do their job: on drops that raindrop-render puts on its own demo
 // backgrounds (no data set needed), every model in models/ finds the drops and takes the image
 // closer to the clean one; and, where the shared data is present, the default gains what
-// docs/RESULTS.md 4.11 measured on real lens-cover photographs, and as much on large street frames
+// docs/RESULTS.md 3.4 measured on real lens-cover photographs, and as much on large street frames
 // as on the same drops at its working size (3.4). This fails for an untrained, corrupted or mis-exported model, and
 // for a pipeline change (threshold, dilation, blending) that breaks the trained networks.
 #include <cmath>
@@ -181,8 +181,8 @@ fs::path default_models() {
 
 // The shipped default on real photographs: the held-out half of the real lens-cover pairs (the
 // 5 scene groups of the group-wise split that no committed model trained on; tools/raindrop_tools/
-// realpairs.py), as a user runs it. docs/RESULTS.md 4.11 measures +3.00 dB there, of which the
-// large-drop models (the default's LARGE_DROPS) give about 1.5 dB: a loose floor on both, so
+// realpairs.py), as a user runs it. docs/RESULTS.md 3.4 measures +3.00 dB there for the default, of
+// which the large-drop models (its LARGE_DROPS) give about 1.4 dB (+1.63 without them): a loose floor on both, so
 // that losing the large-drop models or the coarse pass fails here. Needs the real pairs of the
 // shared data folder; skips without them.
 TEST(TrainedModels, DefaultRemovesRealLensCoverDrops) {
