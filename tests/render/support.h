@@ -8,7 +8,9 @@
 #include "raindrop/render/camera.h"
 #include "raindrop/render/drop.h"
 #include "raindrop/render/drop_accel.h"
+#include "raindrop/common/error.h"
 #include "raindrop/render/glass.h"
+#include "raindrop/render/scene_config.h"
 
 namespace raindrop::test {
 
@@ -33,6 +35,17 @@ inline Camera camera(int w, int h, double f) {
   c.width = w;
   c.height = h;
   return c;
+}
+
+// A scene file's text that parse_scene_json must refuse, with a one-line error naming `needle`.
+inline void expect_scene_refused(const std::string& text, const std::string& needle) {
+  try {
+    parse_scene_json(text, "case.json");
+    ADD_FAILURE() << "accepted: " << text;
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find(needle), std::string::npos) << e.what();
+    EXPECT_EQ(std::string(e.what()).find('\n'), std::string::npos) << "one line: " << e.what();
+  }
 }
 
 inline std::vector<GeometryOptions> all_geometries() {

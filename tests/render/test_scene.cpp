@@ -75,15 +75,7 @@ TEST(SceneFile, MistakesAreReportedWithTheKey) {
       {R"({"effects": {"blur": {"auto": true}}})", "unknown key 'auto'"},
       {R"({"quality": {"supersample": "some"}})", "'supersample'"},
   };
-  for (const auto& [text, needle] : cases) {
-    try {
-      parse_scene_json(text, "case.json");
-      ADD_FAILURE() << "accepted: " << text;
-    } catch (const Error& e) {
-      EXPECT_NE(std::string(e.what()).find(needle), std::string::npos) << e.what();
-      EXPECT_EQ(std::string(e.what()).find('\n'), std::string::npos) << "one line: " << e.what();
-    }
-  }
+  for (const auto& [text, needle] : cases) expect_scene_refused(text, needle);
   EXPECT_THROW(load_scene("no-such-preset-or-file"), Error);
 }
 

@@ -7,7 +7,7 @@
 //   4. the source tree's models/<name> (its path is compiled in), for a program run from
 //      its build folder.
 // <name> is --model-config NAME, or else the one line of DEFAULT in that models folder
-// (models/DEFAULT in the source tree names "compact"), or else "compact".
+// (models/DEFAULT in the source tree names "compact-multiscale"), or else "compact".
 #include <filesystem>
 #include <optional>
 #include <string>
