@@ -31,6 +31,7 @@
 #include "raindrop/render/framing.h"
 #include "raindrop/render/manifest.h"
 #include "raindrop/render/sensor.h"
+#include "raindrop/render/veil.h"
 #include "raindrop/render/scene.h"
 
 namespace raindrop {
@@ -181,7 +182,8 @@ json effects_auto_record(const SceneConfig& config, const RenderedFrame& rendere
 
 json sample_record(const std::string& id, const InputImage& input, int variant, std::uint64_t seed,
                    const Frame& frame, const SceneConfig& config, const SceneSample& scene,
-                   const RenderedFrame& rendered, const SensorSample& sensor, const std::string& job) {
+                   const RenderedFrame& rendered, const VeilSample& veil, const SensorSample& sensor,
+                   const std::string& job) {
   json drops = json::array();
   // The drops as rendered (gravity undone where auto skipped it).
   const std::vector<DropShape> shapes = rendered_shapes(scene, rendered.effects);
@@ -246,6 +248,15 @@ json sample_record(const std::string& id, const InputImage& input, int variant, 
                                     : !scene.highlights.active() ? "the gain is 1 (nothing to lift)"
                                     : rendered.defocused         ? "no pixel reaches the threshold"
                                                                  : "the lens was skipped (nothing is spread)"}};
+  if (config.veil.enabled)
+    record["veil"] = {{"optical_depth", veil.optical_depth},
+                      {"scattered_fraction", veil.scattered()},
+                      {"spread_deg", veil.spread_deg},
+                      {"sigma_px", veil.sigma_px},
+                      {"on", veil.visible()},
+                      {"why", veil.visible() ? "the scattered light can move a pixel by half a level or more"
+                                             : "the scattered light cannot move any pixel by half a level"},
+                      {"applies_to", "rainy"}};
   if (config.sensor.enabled)
     record["sensor"] = {{"noise_sigma", sensor.noise_sigma}, {"jpeg_quality", sensor.jpeg_quality},
                         {"applies_to", "rainy"}};
@@ -428,13 +439,15 @@ RenderSummary render_dataset(const std::vector<InputImage>& inputs, const Render
                 Rng rng(seed);
                 const SceneSample scene = sample_scene(o.scene, frame.camera, rng);
                 const RenderedFrame rendered = render_frame(frame.clean, frame.camera, o.scene, scene);
-                // The camera's noise and compression, on the rainy image only (sensor.h).
+                // The wet glass' veil (veil.h), then the camera's noise and compression
+                // (sensor.h): on the rainy image only.
+                const VeilSample veil = sample_veil(o.scene, frame.camera.fx, seed);
                 const SensorSample sensor = sample_sensor(o.scene, seed);
                 cv::Mat rainy = rendered.rainy;
-                if (sensor.any()) {
-                  rainy = rendered.rainy.clone();
-                  apply_sensor(rainy, sensor, seed);
-                }
+                if (veil.visible() || sensor.any()) rainy = rendered.rainy.clone();
+                if (veil.visible())
+                  apply_veil(rainy, veil, rendered.highlights_lifted ? scene.highlights : HighlightLift{});
+                if (sensor.any()) apply_sensor(rainy, sensor, seed);
                 // alpha first: a sample whose three main images exist (what resume checks)
                 // then has its alpha too.
                 if (o.scene.lens.enabled)
@@ -442,7 +455,7 @@ RenderSummary render_dataset(const std::vector<InputImage>& inputs, const Render
                 write_image_atomic(rainy, o.out_dir / "rainy" / (id + ".png"), o.png_level);
                 write_image_atomic(frame.clean, o.out_dir / "clean" / (id + ".png"), o.png_level);
                 write_image_atomic(rendered.mask, o.out_dir / "mask" / (id + ".png"), o.png_level);
-                manifest.append(id, sample_record(id, *task.input, v, seed, frame, o.scene, scene, rendered, sensor, job).dump());
+                manifest.append(id, sample_record(id, *task.input, v, seed, frame, o.scene, scene, rendered, veil, sensor, job).dump());
                 ++finished;
                 {
                   std::lock_guard<std::mutex> lock(summary_mutex);

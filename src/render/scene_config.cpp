@@ -187,6 +187,7 @@ std::vector<std::string> SceneConfig::effect_names() const {
   if (dispersion.enabled) names.push_back(dispersion.automatic ? "dispersion-auto" : "dispersion");
   if (gravity.enabled) names.push_back(gravity.automatic ? "gravity-auto" : "gravity");
   if (highlights.enabled) names.push_back("highlights");
+  if (veil.enabled) names.push_back("veil");
   if (sensor.enabled) names.push_back("sensor");
   return names;
 }
@@ -276,10 +277,10 @@ SceneConfig parse_scene_json(const std::string& text, const std::string& origin)
 
   // Effects: present = on; dispersion and gravity may be "auto" (or carry "auto": true).
   c.blur.enabled = c.fresnel.enabled = c.dispersion.enabled = c.gravity.enabled = c.sky.enabled = false;
-  c.sensor.enabled = c.highlights.enabled = false;
+  c.sensor.enabled = c.highlights.enabled = c.veil.enabled = false;
   if (r.has("effects")) {
     Reader e = r.child("effects");
-    for (const char* fixed : {"blur", "sky", "fresnel", "highlights", "sensor"}) {
+    for (const char* fixed : {"blur", "sky", "fresnel", "highlights", "veil", "sensor"}) {
       if (e.has(fixed) && e.is_auto(fixed))
         e.fail(std::string("'") + fixed + "' has no \"auto\" (only dispersion, gravity and quality.supersample do)");
     }
@@ -320,6 +321,14 @@ SceneConfig parse_scene_json(const std::string& text, const std::string& origin)
           c.sensor.jpeg_quality.hi != std::floor(c.sensor.jpeg_quality.hi))
         n.fail("'jpeg_quality' takes whole numbers");
       n.reject_unknown();
+    }
+    if (e.has("veil")) {
+      Reader v = e.child("veil");
+      c.veil.enabled = true;
+      // Depth 3 scatters 95% of the light (fog on the glass); a lobe needs some width.
+      v.range("optical_depth", &c.veil.optical_depth, 0, 3);
+      v.range("spread_deg", &c.veil.spread_deg, 0.1, 45);
+      v.reject_unknown();
     }
     if (e.has("fresnel")) {
       Reader f = e.child("fresnel");
@@ -429,6 +438,8 @@ std::string scene_to_json(const SceneConfig& c) {
   }
   if (c.highlights.enabled)
     effects["highlights"] = {{"threshold", c.highlights.threshold}, {"gain", range(c.highlights.gain)}};
+  if (c.veil.enabled)
+    effects["veil"] = {{"optical_depth", range(c.veil.optical_depth)}, {"spread_deg", range(c.veil.spread_deg)}};
   if (c.sensor.enabled)
     effects["sensor"] = {{"noise_levels", range(c.sensor.noise_levels)}, {"jpeg_quality", range(c.sensor.jpeg_quality)}};
   j["effects"] = effects;

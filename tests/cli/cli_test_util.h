@@ -177,4 +177,44 @@ inline void expect_clean_failure(const RunResult& r, const fs::path& out_dir, co
                                             << ::testing::PrintToString(sample_files(out_dir));
 }
 
+// A street (256x128) rendered with the paper's imaging model and 20 drops, with or without one
+// more scene effect that acts on the rainy image only (sensor, veil): the tests of such effects
+// compare the two renders of one seed.
+class RainyOnlyEffect : public ::testing::Test {
+ protected:
+  explicit RainyOnlyEffect(std::string effect) : effect_(std::move(effect)) {}
+  void SetUp() override { write_image(tmp / "street.png", make_background(256, 128, 2)); }
+
+  // Renders street.png with the effect's JSON object `settings` ("" for none) into folder
+  // `name`; returns its one manifest record.
+  json render(const std::string& name, const std::string& settings) {
+    const std::string effects = R"("blur": {})" + (settings.empty() ? "" : ", \"" + effect_ + "\": " + settings);
+    write_file(tmp / (name + ".json"), "{\"name\": \"" + effect_ + R"(-test", "glass_distance_cm": 20, "drop_count": 20, "effects": {)" +
+                                           effects + "}}");
+    const auto r = run_render({"-i", "street.png", "--out", name, "--scene", name + ".json", "--seed", "5", "-j", "1", "-q"},
+                              tmp.path());
+    EXPECT_EQ(r.code, 0) << r.describe();
+    const auto records = read_manifest(tmp / name);
+    EXPECT_EQ(records.size(), 1u);
+    return records.empty() ? json() : records[0];
+  }
+
+  // The clean image and the mask of folder `other` are byte for byte those of `plain`, the
+  // drops are the same, and the record names the effect and says it applies to the rainy image.
+  void expect_only_rainy_changed(const json& plain, const json& rec, const std::string& other) {
+    SCOPED_TRACE(other);
+    const std::string id = plain.at("id");
+    EXPECT_EQ(read_file(tmp / "plain/clean" / (id + ".png")), read_file(tmp / other / "clean" / (id + ".png")));
+    EXPECT_EQ(read_file(tmp / "plain/mask" / (id + ".png")), read_file(tmp / other / "mask" / (id + ".png")));
+    EXPECT_EQ(plain.at("drops"), rec.at("drops")) << "turning " << effect_ << " on must not change the scene's draws";
+    EXPECT_NE(std::find(rec.at("effects").begin(), rec.at("effects").end(), effect_), rec.at("effects").end());
+    EXPECT_EQ(rec.at(effect_).at("applies_to"), "rainy");
+  }
+
+  TempDir tmp;
+
+ private:
+  std::string effect_;
+};
+
 }  // namespace clitest

@@ -6,23 +6,9 @@
 namespace clitest {
 namespace {
 
-class RenderSensor : public ::testing::Test {
+class RenderSensor : public RainyOnlyEffect {
  protected:
-  void SetUp() override { write_image(tmp / "street.png", make_background(256, 128, 2)); }
-
-  // Renders street.png with the paper's imaging model and `sensor` (a JSON object, or "" for
-  // none) into folder `name`; returns its one manifest record.
-  json render(const std::string& name, const std::string& sensor) {
-    const std::string effects = R"("blur": {})" + (sensor.empty() ? "" : R"(, "sensor": )" + sensor);
-    write_file(tmp / (name + ".json"),
-               R"({"name": "sensor-test", "glass_distance_cm": 20, "drop_count": 20, "effects": {)" + effects + "}}");
-    const auto r = run_render({"-i", "street.png", "--out", name, "--scene", name + ".json", "--seed", "5", "-j", "1", "-q"},
-                              tmp.path());
-    EXPECT_EQ(r.code, 0) << r.describe();
-    const auto records = read_manifest(tmp / name);
-    EXPECT_EQ(records.size(), 1u);
-    return records.empty() ? json() : records[0];
-  }
+  RenderSensor() : RainyOnlyEffect("sensor") {}
 
   // Mean absolute difference of the two folders' rainy images outside the drops.
   double rainy_change_outside(const std::string& a, const std::string& b, const std::string& id) {
@@ -36,8 +22,6 @@ class RenderSensor : public ::testing::Test {
     EXPECT_GT(cv::countNonZero(outside), 0);
     return cv::mean(diff, outside)[0];
   }
-
-  TempDir tmp;
 };
 
 TEST_F(RenderSensor, OnlyTheRainyImageChanges) {
@@ -47,15 +31,8 @@ TEST_F(RenderSensor, OnlyTheRainyImageChanges) {
   ASSERT_FALSE(plain.is_null() || noise.is_null() || jpeg.is_null());
   const std::string id = plain.at("id");
   EXPECT_FALSE(plain.contains("sensor"));
-  for (const std::string other : {"noise", "jpeg"}) {
-    SCOPED_TRACE(other);
-    const json& rec = other == "noise" ? noise : jpeg;
-    EXPECT_EQ(read_file(tmp / "plain/clean" / (id + ".png")), read_file(tmp / other / "clean" / (id + ".png")));
-    EXPECT_EQ(read_file(tmp / "plain/mask" / (id + ".png")), read_file(tmp / other / "mask" / (id + ".png")));
-    EXPECT_EQ(plain.at("drops"), rec.at("drops")) << "turning the sensor on must not change the scene's draws";
-    EXPECT_NE(std::find(rec.at("effects").begin(), rec.at("effects").end(), "sensor"), rec.at("effects").end());
-    EXPECT_EQ(rec.at("sensor").at("applies_to"), "rainy");
-  }
+  expect_only_rainy_changed(plain, noise, "noise");
+  expect_only_rainy_changed(plain, jpeg, "jpeg");
   // Noise: drawn in range, not compressed, and everywhere: outside the drops the rainy image
   // differs from the plain render by about 0.8 sigma on average (the mean of |N(0, sigma)|).
   const double sigma = noise.at("sensor").at("noise_sigma").get<double>();

@@ -150,6 +150,16 @@ struct SceneConfig {
     Range jpeg_quality{0, 0};
   } sensor;
 
+  // The veil of wet glass (veil.h): a scattering layer of optical depth `optical_depth` (its
+  // thickness times its scattering coefficient; s = 1 - exp(-depth) of the light is scattered)
+  // spreads light over a lobe of angular standard deviation `spread_deg`, on the rainy image
+  // only. Both drawn per sample.
+  struct Veil {
+    bool enabled = false;
+    Range optical_depth{0.01, 0.03};
+    Range spread_deg{2, 10};
+  } veil;
+
   // Quality: the accuracy/time knobs.
   GeometryOptions geometry;
   int samples_per_pixel = 1;      // 1, 4, 16, 64 (square numbers: stratified grid)
