@@ -41,6 +41,18 @@ for line in open(os.path.join(src, "manifest.jsonl")):
 PY
 }
 
+# with_effect PRESET FILE SUFFIX EFFECT JSON: the preset's resolved scene with effects.EFFECT set to
+# JSON and "-SUFFIX" added to its name, written to FILE (printed).
+with_effect() {
+  build/raindrop-render --scene "$1" --print-scene | $py -c '
+import json, sys
+scene = json.load(sys.stdin)
+scene["effects"][sys.argv[1]] = json.loads(sys.argv[2])
+scene["name"] += "-" + sys.argv[3]
+print(json.dumps(scene, indent=2))' "$4" "$5" "$3" >"$2"
+  echo "$2"
+}
+
 # score_sets DIR LABEL FLAGS SET...: raindrop-remove with FLAGS on each SET (name:split:limit of
 # a data set under data/, linked by link_set into DIR/LABEL-name-split), scored by score_outputs.
 score_sets() {
@@ -389,15 +401,7 @@ if want highlights; then
   # with_highlights PRESET THRESHOLD LO HI: the preset with effects.highlights, written to
   # $hl/PRESET-highlights-LO-HI.json (printed).
   with_highlights() {
-    local file="$hl/$1-highlights-$3-$4.json"
-    build/raindrop-render --scene "$1" --print-scene | $py -c '
-import json, sys
-scene = json.load(sys.stdin)
-t, lo, hi = (float(v) for v in sys.argv[1:4])
-scene["effects"]["highlights"] = {"threshold": t, "gain": [lo, hi]}
-scene["name"] += f"-highlights-{sys.argv[2]}-{sys.argv[3]}"
-print(json.dumps(scene, indent=2))' "$2" "$3" "$4" >"$file"
-    echo "$file"
+    with_effect "$1" "$hl/$1-highlights-$3-$4.json" "highlights-$3-$4" highlights "{\"threshold\": $2, \"gain\": [$3, $4]}"
   }
   render_val() { rm -rf "$hl/val-$1" && build/raindrop-render -i "$out/cv100" -o "$hl/val-$1" --scene "$2" --size 512x256 --seed 11 -q; }
   sets=()
@@ -489,14 +493,7 @@ if want veil; then
   # with_veil PRESET LO HI: the preset with effects.veil (optical depth LO-HI, spread 2-10 degrees),
   # written to $vd/PRESET-veil-LO-HI.json (printed).
   with_veil() {
-    local file="$vd/$1-veil-$2-$3.json"
-    build/raindrop-render --scene "$1" --print-scene | $py -c '
-import json, sys
-scene = json.load(sys.stdin)
-scene["effects"]["veil"] = {"optical_depth": [float(sys.argv[1]), float(sys.argv[2])], "spread_deg": [2, 10]}
-scene["name"] += f"-veil-{sys.argv[1]}-{sys.argv[2]}"
-print(json.dumps(scene, indent=2))' "$2" "$3" >"$file"
-    echo "$file"
+    with_effect "$1" "$vd/$1-veil-$2-$3.json" "veil-$2-$3" veil "{\"optical_depth\": [$2, $3], \"spread_deg\": [2, 10]}"
   }
   rm -rf "$vd/val-plain" && build/raindrop-render -i "$out/cv100" -o "$vd/val-plain" --scene lens-cover --size 512x256 --seed 11 -q
   sets=(--rendered "$vd/val-plain")
