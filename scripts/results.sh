@@ -3,7 +3,7 @@
 # and scripts/setup-tools.sh; needs a folder of real photographs, $RAINDROP_SHARED_DATA
 # (default ../shared/data), for the real frames). Sections can be chosen:
 # scripts/results.sh data render stats eval remove tradeoffs sheets photoreal scale flatroad largedrops coarsetrain
-# largedropmodels sensor mirroraverage highlights multiscale veil
+# largedropmodels sensor mirroraverage highlights multiscale veil papermodels
 #
 # Nothing here is committed automatically: images derived from Cityscapes, CamVid or the
 # real raindrop photographs stay under out/ (their licences forbid redistribution).
@@ -15,7 +15,7 @@ out=out/results
 mkdir -p "$out"
 sections=("$@")
 ((${#sections[@]})) || sections=(data render stats eval remove tradeoffs sheets photoreal scale flatroad largedrops coarsetrain
-                                  largedropmodels sensor mirroraverage highlights multiscale veil)
+                                  largedropmodels sensor mirroraverage highlights multiscale veil papermodels)
 want() { [[ " ${sections[*]} " == *" $1 "* ]]; }
 # link_set SRC DST SPLIT [LIMIT]: the first LIMIT (default 100; 0: all) samples of data set SRC
 # (of manifest split SPLIT; "-" = all) linked into DST/rainy and DST/clean under plainly named
@@ -536,4 +536,25 @@ if want veil; then
     score_sets "$vd" "ld-$m" "--large-drop-models $dir" real-pairs:train:100 val-lens-cover:-:100 val-windshield-day:-:100 \
                test:-:100 test-sparse:-:100 real-pairs:test:100
   done | tee "$vd/large-drops-2.txt"
+fi
+
+if want papermodels; then
+  # docs/RESULTS.md 4.14: paper with and without its large-drop networks (models/paper/LARGE_DROPS),
+  # and paper-multiscale, on the sets of its criteria (the multiscale section's Cityscapes renders,
+  # data/test, data/test-sparse, the real pairs, two thin-lens val sets: run those sections first).
+  # The model: train --config tools/configs/paper-multiscale.yaml --out tools/runs/paper-multiscale
+  #   --init-from models/paper, then export --run tools/runs/paper-multiscale --name paper-multiscale
+  pm="$out/papermodels"
+  mkdir -p "$pm"
+  for run in "paper-own:--models models/paper --large-drop-models models/paper" "paper:--models models/paper" \
+             "paper-multiscale:--models models/paper-multiscale"; do
+    label="${run%%:*}" flags="${run#*:}"
+    score_sets "$pm" "$label" "$flags" real-pairs:train:100 real-pairs:test:100 test:-:100 test-sparse:-:100 \
+               val-lens-cover:-:100 val-windshield-day:-:100
+    for size in 1280x720 512x288; do
+      # shellcheck disable=SC2086
+      build/raindrop-remove "$out/multiscale/cs-$size/rainy" "$pm/$label-cs-$size" -q $flags
+      $py -m raindrop_tools.score_outputs --data "$out/multiscale/cs-$size" --outputs "$pm/$label-cs-$size" --label "$label cs $size"
+    done
+  done | tee "$out/papermodels.txt"
 fi
