@@ -500,7 +500,8 @@ if want veil; then
   for depth in 0.005:0.02 0.01:0.03 0.02:0.06 0.04:0.1; do
     lo="${depth%:*}" hi="${depth#*:}"
     rm -rf "$vd/val-$lo-$hi"
-    build/raindrop-render -i "$out/cv100" -o "$vd/val-$lo-$hi" --scene "$(with_veil lens-cover "$lo" "$hi")" --size 512x256 --seed 11 -q
+    veiled="$(with_veil lens-cover "$lo" "$hi")"
+    build/raindrop-render -i "$out/cv100" -o "$vd/val-$lo-$hi" --scene "$veiled" --size 512x256 --seed 11 -q
     sets+=(--rendered "$vd/val-$lo-$hi")
   done
   $py -m raindrop_tools.realism --real-pairs "$shared/real-pairs" "${sets[@]}" --limit 100 --json "$vd/realism.json" | tee "$vd/realism.md"
@@ -547,6 +548,7 @@ if want papermodels; then
   pm="$out/papermodels"
   mkdir -p "$pm"
   for run in "paper-own:--models models/paper --large-drop-models models/paper" "paper:--models models/paper" \
+             "paper-multiscale-own:--models models/paper-multiscale --large-drop-models models/paper-multiscale" \
              "paper-multiscale:--models models/paper-multiscale"; do
     label="${run%%:*}" flags="${run#*:}"
     score_sets "$pm" "$label" "$flags" real-pairs:train:100 real-pairs:test:100 test:-:100 test-sparse:-:100 \

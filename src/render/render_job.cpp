@@ -248,15 +248,17 @@ json sample_record(const std::string& id, const InputImage& input, int variant, 
                                     : !scene.highlights.active() ? "the gain is 1 (nothing to lift)"
                                     : rendered.defocused         ? "no pixel reaches the threshold"
                                                                  : "the lens was skipped (nothing is spread)"}};
-  if (config.veil.enabled)
+  if (config.veil.enabled) {
+    const HighlightLift lift = rendered.highlights_lifted ? scene.highlights : HighlightLift{};
     record["veil"] = {{"optical_depth", veil.optical_depth},
                       {"scattered_fraction", veil.scattered()},
                       {"spread_deg", veil.spread_deg},
                       {"sigma_px", veil.sigma_px},
-                      {"on", veil.visible()},
-                      {"why", veil.visible() ? "the scattered light can move a pixel by half a level or more"
+                      {"on", veil.visible(lift)},
+                      {"why", veil.visible(lift) ? "the scattered light can move a pixel by half a level or more"
                                              : "the scattered light cannot move any pixel by half a level"},
                       {"applies_to", "rainy"}};
+  }
   if (config.sensor.enabled)
     record["sensor"] = {{"noise_sigma", sensor.noise_sigma}, {"jpeg_quality", sensor.jpeg_quality},
                         {"applies_to", "rainy"}};
@@ -442,11 +444,11 @@ RenderSummary render_dataset(const std::vector<InputImage>& inputs, const Render
                 // The wet glass' veil (veil.h), then the camera's noise and compression
                 // (sensor.h): on the rainy image only.
                 const VeilSample veil = sample_veil(o.scene, frame.camera.fx, seed);
+                const HighlightLift veil_lift = rendered.highlights_lifted ? scene.highlights : HighlightLift{};
                 const SensorSample sensor = sample_sensor(o.scene, seed);
                 cv::Mat rainy = rendered.rainy;
-                if (veil.visible() || sensor.any()) rainy = rendered.rainy.clone();
-                if (veil.visible())
-                  apply_veil(rainy, veil, rendered.highlights_lifted ? scene.highlights : HighlightLift{});
+                if (veil.visible(veil_lift) || sensor.any()) rainy = rendered.rainy.clone();
+                if (veil.visible(veil_lift)) apply_veil(rainy, veil, veil_lift);
                 if (sensor.any()) apply_sensor(rainy, sensor, seed);
                 // alpha first: a sample whose three main images exist (what resume checks)
                 // then has its alpha too.

@@ -23,7 +23,10 @@ int fast_factor(double sigma_px) { return std::max(1, static_cast<int>(std::floo
 
 double VeilSample::scattered() const { return 1.0 - std::exp(-optical_depth); }
 
-bool VeilSample::visible() const { return sigma_px > 0 && scattered() >= kVeilSkipFraction; }
+bool VeilSample::visible(const HighlightLift& lift) const {
+  const double reach = lift.active() ? std::max(1.0, static_cast<double>(lift.gain)) : 1.0;
+  return sigma_px > 0 && scattered() * reach >= kVeilSkipFraction;
+}
 
 VeilSample sample_veil(const SceneConfig& config, double fx, std::uint64_t sample_seed) {
   VeilSample v;
@@ -53,7 +56,11 @@ cv::Mat veil_blur(const cv::Mat& linear, double sigma_px, VeilMethod method) {
   CV_Assert(linear.type() == CV_32FC3 && sigma_px > 0);
   cv::Mat out;
   const int k = fast_factor(sigma_px);
-  if (method == VeilMethod::Exact || k == 1) {
+  const int cw = std::max(1, static_cast<int>(std::lround(static_cast<double>(linear.cols) / k)));
+  const int ch = std::max(1, static_cast<int>(std::lround(static_cast<double>(linear.rows) / k)));
+  // A frame a few cells wide gains nothing from the coarse grid (and its mirrored margin would
+  // dwarf it): the exact blur is cheap there.
+  if (method == VeilMethod::Exact || k == 1 || cw < 4 || ch < 4) {
     cv::GaussianBlur(linear, out, cv::Size(0, 0), sigma_px, sigma_px, cv::BORDER_REFLECT);
     return out;
   }
@@ -63,19 +70,17 @@ cv::Mat veil_blur(const cv::Mat& linear, double sigma_px, VeilMethod method) {
   // grid mirrored by the exact kernel's reach (4 sigma, OpenCV's) is the average of the mirrored
   // frame: the surround the exact blur sees, at about 1/k^2 of the cost.
   const int w = linear.cols, h = linear.rows;
-  const int cw = std::max(1, static_cast<int>(std::lround(static_cast<double>(w) / k)));
-  const int ch = std::max(1, static_cast<int>(std::lround(static_cast<double>(h) / k)));
   const double rx = static_cast<double>(w) / cw, ry = static_cast<double>(h) / ch;
   cv::Mat coarse;
   cv::resize(linear, coarse, cv::Size(cw, ch), 0, 0, cv::INTER_AREA);
-  const int margin = static_cast<int>(std::ceil(4 * sigma_px / std::min(rx, ry))) + 2;
-  cv::copyMakeBorder(coarse, coarse, margin, margin, margin, margin, cv::BORDER_REFLECT);
+  const int mx = static_cast<int>(std::ceil(4 * sigma_px / rx)) + 2, my = static_cast<int>(std::ceil(4 * sigma_px / ry)) + 2;
+  cv::copyMakeBorder(coarse, coarse, my, my, mx, mx, cv::BORDER_REFLECT);
   // The cell's box (variance r^2/12) and the interpolation's tent (r^2/6) add to the blur's.
   auto reduced = [&](double r) { return std::sqrt(std::max(sigma_px * sigma_px - 0.25 * r * r, 0.25 * r * r)) / r; };
   cv::GaussianBlur(coarse, coarse, cv::Size(0, 0), reduced(rx), reduced(ry), cv::BORDER_REFLECT);
   // Back to full resolution at the pixel centres: rows first (onto the coarse columns), then
   // columns. The margin keeps every sample inside the blurred grid.
-  const Lerp across(w, rx, margin), down(h, ry, margin);
+  const Lerp across(w, rx, mx), down(h, ry, my);
   cv::Mat rows(h, coarse.cols, CV_32FC3);
   for (int y = 0; y < h; ++y) {
     const float* a = coarse.ptr<float>(down.index[y]);
@@ -101,7 +106,7 @@ cv::Mat veil_blur(const cv::Mat& linear, double sigma_px, VeilMethod method) {
 
 void apply_veil(cv::Mat& rgb, const VeilSample& veil, const HighlightLift& lift, VeilMethod method) {
   CV_Assert(rgb.type() == CV_8UC3);
-  if (!veil.visible() || rgb.empty()) return;
+  if (!veil.visible(lift) || rgb.empty()) return;
   const auto& decode = srgb8_to_linear_table();
   cv::Mat linear(rgb.size(), CV_32FC3);
   for (int y = 0; y < rgb.rows; ++y) {

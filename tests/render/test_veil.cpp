@@ -104,7 +104,7 @@ TEST(Veil, KeepsTheImageMeanLight) {
 // effect to, RMSE under 0.5 and maximum under 4 levels of 8 bits.
 TEST(Veil, FastBlurMatchesTheExactGaussian) {
   std::mt19937 rng(11);
-  std::uniform_real_distribution<double> sigma_of(4, 120), s_of(0.005, 0.78);
+  std::uniform_real_distribution<double> sigma_of(8, 120), s_of(0.005, 0.78);
   double worst_rmse = 0, worst_max = 0;
   for (int trial = 0; trial < 24; ++trial) {
     const int w = 128 + static_cast<int>(rng() % 300), h = 96 + static_cast<int>(rng() % 200);
@@ -122,10 +122,18 @@ TEST(Veil, FastBlurMatchesTheExactGaussian) {
     cv::minMaxLoc(diff.reshape(1), nullptr, &mx);
     worst_rmse = std::max(worst_rmse, rmse);
     worst_max = std::max(worst_max, mx);
-    EXPECT_LT(rmse, 0.5) << "trial " << trial << ": " << w << "x" << h << " sigma " << v.sigma_px << " s "
+    EXPECT_LT(rmse, 0.3) << "trial " << trial << ": " << w << "x" << h << " sigma " << v.sigma_px << " s "
                          << v.scattered();
-    EXPECT_LT(mx, 4) << "trial " << trial << ": " << w << "x" << h << " sigma " << v.sigma_px << " s "
+    EXPECT_LE(mx, 1) << "trial " << trial << ": " << w << "x" << h << " sigma " << v.sigma_px << " s "
                      << v.scattered();
+  }
+  // Frames a few cells wide (and a single pixel) under wide lobes: exact there, and quick.
+  for (const cv::Size size : {cv::Size(1, 1), cv::Size(2, 3), cv::Size(7, 1), cv::Size(3, 1000)}) {
+    const cv::Mat img = street_like(std::max(size.width, 2), std::max(size.height, 2), 5)(cv::Rect(0, 0, size.width, size.height)).clone();
+    cv::Mat fast = img.clone(), exact = img.clone();
+    apply_veil(fast, veil_of(0.3, 300), {}, VeilMethod::Fast);
+    apply_veil(exact, veil_of(0.3, 300), {}, VeilMethod::Exact);
+    EXPECT_EQ(cv::norm(fast, exact, cv::NORM_INF), 0) << size;
   }
   std::cout << "veil fast vs exact over 24 images: worst RMSE " << worst_rmse << ", worst max " << worst_max
             << " levels\n";
@@ -155,6 +163,12 @@ TEST(Veil, SkippedOnlyWhereNoPixelCanMoveHalfALevel) {
     }
   EXPECT_LT(worst, 0.5) << "the skip bound does not hold";
   EXPECT_GT(worst, 0.1) << "the test image does not come near the bound";
+  // Where the highlights' lift ran, lifted light reaches the gain, and so does the bound.
+  HighlightLift lift;
+  lift.threshold = 0.9f;
+  lift.gain = 16.0f;
+  EXPECT_TRUE(below.visible(lift)) << "a lifted frame was skipped by the unlifted bound";
+  EXPECT_FALSE(veil_of(0.99 * kVeilSkipFraction / 16, 8).visible(lift));
   // Above the bound the same image does change.
   cv::Mat applied = img.clone();
   apply_veil(applied, veil_of(0.01, 8));
@@ -204,6 +218,8 @@ TEST(Veil, DrawIsPerSampleAndInTheSceneRange) {
     EXPECT_EQ(a.spread_deg, b.spread_deg);
     EXPECT_GE(a.optical_depth, 0.01);
     EXPECT_LE(a.optical_depth, 0.05);
+    EXPECT_GE(a.spread_deg, 2);
+    EXPECT_LE(a.spread_deg, 10);
     EXPECT_NEAR(a.sigma_px, fx * std::tan(a.spread_deg * kDegToRad), 1e-9);
     lo = std::min(lo, a.optical_depth);
     hi = std::max(hi, a.optical_depth);

@@ -14,8 +14,8 @@
 // lands fx * tan(theta) pixels away in the image, whatever the glass' distance, so a lobe of
 // angular standard deviation `spread` is a Gaussian of sigma = fx * tan(spread) pixels:
 //     rainy' = (1 - s) rainy + s (G_sigma * rainy).
-// Energy is kept (the mean of the image does not change; light from beyond the frame is taken
-// as the frame mirrored at its borders), and contrast at scales well below sigma falls to
+// Energy is kept (the mean of the image changes only through the mirrored borders, light from
+// beyond the frame being taken as the frame mirrored there, and 8-bit storage), and contrast at scales well below sigma falls to
 // (1 - s). The layer lies over the drops, so it acts on the finished rainy image, before the
 // camera's noise and JPEG (sensor.h). Clean image, mask and alpha are as without it: a veil is
 // not a drop, and no model removes it; but rainy != clean outside the mask, as with "sensor".
@@ -23,8 +23,9 @@
 // so a clipped lamp glows through the haze instead of a grey one.
 //
 // Skipped where it cannot change a pixel by half a level of 8 bits: the change in linear light
-// is s |G * rainy - rainy| <= s, and the sRGB curve's steepest slope is 12.92, so a frame
-// whose s is under 0.5 / (255 * 12.92) = 1.5e-4 keeps its pixels and costs nothing.
+// is s |G * rainy - rainy| <= s (s x gain where the highlights' lift ran: lifted light reaches
+// the gain), and the sRGB curve's steepest slope is 12.92, so a frame whose s (times the gain) is
+// under 0.5 / (255 * 12.92) = 1.5e-4 keeps its pixels and costs nothing.
 #include <cstdint>
 #include <string>
 
@@ -40,7 +41,8 @@ struct VeilSample {
   double spread_deg = 0;     // the lobe's angular standard deviation, drawn per sample
   double sigma_px = 0;       // fx * tan(spread)
   double scattered() const;  // s = 1 - exp(-tau)
-  bool visible() const;      // false: skipped (s below kVeilSkipFraction, or no veil)
+  // false: skipped (s times the lift's gain, where a lift ran, below kVeilSkipFraction; or no veil)
+  bool visible(const HighlightLift& lift = {}) const;
 };
 
 // Below this scattered fraction no pixel can move by half a level (see above).
