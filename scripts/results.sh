@@ -53,6 +53,19 @@ print(json.dumps(scene, indent=2))' "$4" "$5" "$3" >"$2"
   echo "$2"
 }
 
+# merged_training_set SUFFIX SCENE: the training set of 4.10's renders-only recipe with its lens-cover
+# renders made by SCENE: CamVid train (4 variants, seed 7) and Cityscapes-mini train (20 variants,
+# seed 8) at 512x256 into data/train-lens-cover-mergedSUFFIX and data/train-cs-lens-mergedSUFFIX,
+# merged with data/train-windshield-day (photoreal) into data/train-mix-mergedSUFFIX.
+merged_training_set() {
+  build/raindrop-render -i "$shared/camvid/train" -o "data/train-lens-cover-merged$1" --scene "$2" \
+    --size 512x256 --variants 4 --seed 7 -q
+  build/raindrop-render --cityscapes "$shared/cityscapes-mini" --split train -o "data/train-cs-lens-merged$1" \
+    --scene "$2" --size 512x256 --variants 20 --seed 8 -q
+  [[ -d "data/train-mix-merged$1" ]] || $py -m raindrop_tools.merge_datasets --out "data/train-mix-merged$1" \
+    "data/train-lens-cover-merged$1" data/train-windshield-day "data/train-cs-lens-merged$1"
+}
+
 # score_sets DIR LABEL FLAGS SET...: raindrop-remove with FLAGS on each SET (name:split:limit of
 # a data set under data/, linked by link_set into DIR/LABEL-name-split), scored by score_outputs.
 score_sets() {
@@ -423,12 +436,7 @@ if want highlights; then
   for run in hl:4:16 hl28:2:8; do
     IFS=: read -r tag lo hi <<<"$run"
     scene_file="$(with_highlights lens-cover-merged 0.9 "$lo" "$hi")"
-    build/raindrop-render -i "$shared/camvid/train" -o "data/train-lens-cover-merged-$tag" --scene "$scene_file" \
-      --size 512x256 --variants 4 --seed 7 -q
-    build/raindrop-render --cityscapes "$shared/cityscapes-mini" --split train -o "data/train-cs-lens-merged-$tag" \
-      --scene "$scene_file" --size 512x256 --variants 20 --seed 8 -q
-    [[ -d "data/train-mix-merged-$tag" ]] || $py -m raindrop_tools.merge_datasets --out "data/train-mix-merged-$tag" \
-      "data/train-lens-cover-merged-$tag" data/train-windshield-day "data/train-cs-lens-merged-$tag"
+    merged_training_set "-$tag" "$scene_file"
     [[ -f "out/models/compact-lens-merged-$tag/rdn.onnx" ]] || {
       $py -m raindrop_tools.train --config "tools/configs/compact-lens-merged-$tag.yaml" --out "tools/runs/compact-lens-merged-$tag"
       $py -m raindrop_tools.export --run "tools/runs/compact-lens-merged-$tag" --out "out/models/compact-lens-merged-$tag"
@@ -509,12 +517,7 @@ if want veil; then
   for tag in "" -veil; do
     scene=lens-cover-merged
     [[ -n $tag ]] && scene="$scene_file"
-    build/raindrop-render -i "$shared/camvid/train" -o "data/train-lens-cover-merged$tag" --scene "$scene" \
-      --size 512x256 --variants 4 --seed 7 -q
-    build/raindrop-render --cityscapes "$shared/cityscapes-mini" --split train -o "data/train-cs-lens-merged$tag" \
-      --scene "$scene" --size 512x256 --variants 20 --seed 8 -q
-    [[ -d "data/train-mix-merged$tag" ]] || $py -m raindrop_tools.merge_datasets --out "data/train-mix-merged$tag" \
-      "data/train-lens-cover-merged$tag" data/train-windshield-day "data/train-cs-lens-merged$tag"
+    merged_training_set "$tag" "$scene"
     for seed in 1234 2; do
       m="compact-lens-merged$tag-s$seed"
       [[ -f "out/models/$m/rdn.onnx" ]] || {

@@ -180,6 +180,12 @@ json effects_auto_record(const SceneConfig& config, const RenderedFrame& rendere
   return out;
 }
 
+// The highlights' lift the frame's light went through, which the veil then scatters (veil.h):
+// the sample's, where it ran on this frame; none otherwise.
+HighlightLift lift_that_ran(const RenderedFrame& rendered, const SceneSample& scene) {
+  return rendered.highlights_lifted ? scene.highlights : HighlightLift{};
+}
+
 json sample_record(const std::string& id, const InputImage& input, int variant, std::uint64_t seed,
                    const Frame& frame, const SceneConfig& config, const SceneSample& scene,
                    const RenderedFrame& rendered, const VeilSample& veil, const SensorSample& sensor,
@@ -249,7 +255,7 @@ json sample_record(const std::string& id, const InputImage& input, int variant, 
                                     : rendered.defocused         ? "no pixel reaches the threshold"
                                                                  : "the lens was skipped (nothing is spread)"}};
   if (config.veil.enabled) {
-    const HighlightLift lift = rendered.highlights_lifted ? scene.highlights : HighlightLift{};
+    const HighlightLift lift = lift_that_ran(rendered, scene);
     record["veil"] = {{"optical_depth", veil.optical_depth},
                       {"scattered_fraction", veil.scattered()},
                       {"spread_deg", veil.spread_deg},
@@ -444,7 +450,7 @@ RenderSummary render_dataset(const std::vector<InputImage>& inputs, const Render
                 // The wet glass' veil (veil.h), then the camera's noise and compression
                 // (sensor.h): on the rainy image only.
                 const VeilSample veil = sample_veil(o.scene, frame.camera.fx, seed);
-                const HighlightLift veil_lift = rendered.highlights_lifted ? scene.highlights : HighlightLift{};
+                const HighlightLift veil_lift = lift_that_ran(rendered, scene);
                 const SensorSample sensor = sample_sensor(o.scene, seed);
                 cv::Mat rainy = rendered.rainy;
                 if (veil.visible(veil_lift) || sensor.any()) rainy = rendered.rainy.clone();
