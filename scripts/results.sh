@@ -3,7 +3,7 @@
 # and scripts/setup-tools.sh; needs a folder of real photographs, $RAINDROP_SHARED_DATA
 # (default ../shared/data), for the real frames). Sections can be chosen:
 # scripts/results.sh data render stats eval remove tradeoffs sheets photoreal scale flatroad largedrops coarsetrain
-# largedropmodels sensor mirroraverage highlights multiscale veil papermodels
+# largedropmodels sensor mirroraverage highlights multiscale veil papermodels outline
 #
 # Nothing here is committed automatically: images derived from Cityscapes, CamVid or the
 # real raindrop photographs stay under out/ (their licences forbid redistribution).
@@ -15,7 +15,7 @@ out=out/results
 mkdir -p "$out"
 sections=("$@")
 ((${#sections[@]})) || sections=(data render stats eval remove tradeoffs sheets photoreal scale flatroad largedrops coarsetrain
-                                  largedropmodels sensor mirroraverage highlights multiscale veil papermodels)
+                                  largedropmodels sensor mirroraverage highlights multiscale veil papermodels outline)
 want() { [[ " ${sections[*]} " == *" $1 "* ]]; }
 # link_set SRC DST SPLIT [LIMIT]: the first LIMIT (default 100; 0: all) samples of data set SRC
 # (of manifest split SPLIT; "-" = all) linked into DST/rainy and DST/clean under plainly named
@@ -64,6 +64,21 @@ merged_training_set() {
     --scene "$2" --size 512x256 --variants 20 --seed 8 -q
   [[ -d "data/train-mix-merged$1" ]] || $py -m raindrop_tools.merge_datasets --out "data/train-mix-merged$1" \
     "data/train-lens-cover-merged$1" data/train-windshield-day "data/train-cs-lens-merged$1"
+}
+
+# merged_models_scored DIR TAG: the renders-only recipe tools/configs/compact-lens-mergedTAG.yaml
+# trained with seeds 1234 and 2 (where out/models lacks them), exported, and scored on both real
+# splits (none trained on) into DIR.
+merged_models_scored() {
+  local m seed
+  for seed in 1234 2; do
+    m="compact-lens-merged$2-s$seed"
+    [[ -f "out/models/$m/rdn.onnx" ]] || {
+      $py -m raindrop_tools.train --config "tools/configs/compact-lens-merged$2.yaml" --out "tools/runs/$m" --set "seed=$seed"
+      $py -m raindrop_tools.export --run "tools/runs/$m" --name "compact-lens-merged$2" --out "out/models/$m"
+    }
+    score_sets "$1" "$m" "--models out/models/$m --large-drop-models out/models/$m" real-pairs:test:0 real-pairs:train:0
+  done
 }
 
 # score_sets DIR LABEL FLAGS SET...: raindrop-remove with FLAGS on each SET (name:split:limit of
@@ -518,14 +533,7 @@ if want veil; then
     scene=lens-cover-merged
     [[ -n $tag ]] && scene="$scene_file"
     merged_training_set "$tag" "$scene"
-    for seed in 1234 2; do
-      m="compact-lens-merged$tag-s$seed"
-      [[ -f "out/models/$m/rdn.onnx" ]] || {
-        $py -m raindrop_tools.train --config "tools/configs/compact-lens-merged$tag.yaml" --out "tools/runs/$m" --set "seed=$seed"
-        $py -m raindrop_tools.export --run "tools/runs/$m" --name "compact-lens-merged$tag" --out "out/models/$m"
-      }
-      score_sets "$vd" "$m" "--models out/models/$m --large-drop-models out/models/$m" real-pairs:test:0 real-pairs:train:0
-    done
+    merged_models_scored "$vd" "$tag"
   done | tee "$vd/real-pairs.txt"
   build/raindrop-bench render --sections effects --frames 2 --repeats 3 | tee "$vd/bench_effects.md"
   # 4.8, second attempt: large-drop networks trained further, in the default's coarse pass.
@@ -562,4 +570,46 @@ if want papermodels; then
       $py -m raindrop_tools.score_outputs --data "$out/multiscale/cs-$size" --outputs "$pm/$label-cs-$size" --label "$label cs $size"
     done
   done | tee "$out/papermodels.txt"
+fi
+
+if want outline; then
+  # docs/RESULTS.md 4.15: the scene effect "outline" (irregular contact lines). lens-cover-merged and
+  # windshield-day rendered on the 100 CamVid val frames of 4.2 as they are and with two peak
+  # ranges, measured against the real pairs' train split (solidity: drop area over its convex
+  # hull's); the renders-only recipe of 4.10 retrained with every rendered part made with outlines
+  # (lens-cover-merged, windshield-day, Cityscapes lens-cover-merged), beside compact-lens-merged,
+  # two seeds each, scored on both real splits (none trained on); the effect's cost.
+  od="$out/outline"
+  mkdir -p "$od" "$out/cv100"
+  ls "$shared/camvid/val" | head -100 | while read -r f; do ln -sf "$(realpath "$shared/camvid/val/$f")" "$out/cv100/$f"; done
+  sets=()
+  for preset in lens-cover-merged windshield-day; do
+    for peak in none 0:0.3 0.1:0.5; do
+      scene=$preset
+      [[ $peak == none ]] || scene="$(with_effect "$preset" "$od/$preset-outline-${peak/:/-}.json" "outline-${peak/:/-}" \
+        outline "{\"peak_deviation\": [${peak/:/, }], \"modes\": 6}")"
+      name="val-$preset-${peak/:/-}"
+      rm -rf "$od/$name" && build/raindrop-render -i "$out/cv100" -o "$od/$name" --scene "$scene" --size 512x256 --seed 11 -q
+      sets+=(--rendered "$od/$name")
+    done
+  done
+  $py -m raindrop_tools.realism --real-pairs "$shared/real-pairs" "${sets[@]}" --limit 100 --json "$od/realism.json" | tee "$od/realism.md"
+  # Transfer: every rendered part of the training mix with outlines (peak 0-0.3), against the same mix without.
+  for preset in lens-cover-merged windshield-day; do
+    with_effect "$preset" "$od/$preset-outline.json" outline outline '{"peak_deviation": [0, 0.3], "modes": 6}' >/dev/null
+  done
+  for tag in "" -outline; do
+    lcm=lens-cover-merged wsd=windshield-day
+    [[ -n $tag ]] && lcm="$od/lens-cover-merged-outline.json" wsd="$od/windshield-day-outline.json"
+    [[ -d data/train-windshield-day$tag ]] || build/raindrop-render -i "$shared/camvid/train" -o "data/train-windshield-day$tag" \
+      --scene "$wsd" --size 512x256 --variants 4 --seed 7 -q
+    build/raindrop-render -i "$shared/camvid/train" -o "data/train-lens-cover-merged$tag" --scene "$lcm" \
+      --size 512x256 --variants 4 --seed 7 -q
+    build/raindrop-render --cityscapes "$shared/cityscapes-mini" --split train -o "data/train-cs-lens-merged$tag" \
+      --scene "$lcm" --size 512x256 --variants 20 --seed 8 -q
+    [[ -d "data/train-mix-merged$tag" ]] || $py -m raindrop_tools.merge_datasets --out "data/train-mix-merged$tag" \
+      "data/train-lens-cover-merged$tag" "data/train-windshield-day$tag" "data/train-cs-lens-merged$tag"
+    merged_models_scored "$od" "$tag"
+  done | tee "$od/real-pairs.txt"
+  build/raindrop-bench render --sections effects --frames 6 --repeats 3 | tee "$od/bench_effects.md"
 fi

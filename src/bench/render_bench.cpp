@@ -236,6 +236,15 @@ void effects_table(const Input& input, int frames, int repeats) {
       {"+ fresnel", [](SceneConfig& c) { c.fresnel.enabled = true; }},
       {"+ dispersion (3 paths per pixel)", [](SceneConfig& c) { c.dispersion.enabled = true; }},
       {"+ gravity (ellipsoidal caps)", [](SceneConfig& c) { c.gravity.enabled = true; }},
+      {"+ irregular outlines (peak 0.1-0.35, 6 modes; searched caps)", [](SceneConfig& c) {
+         c.outline.enabled = true;
+         c.outline.peak_deviation = {0.1, 0.35};
+       }},
+      {"+ irregular outlines as mesh-64-smooth", [](SceneConfig& c) {
+         c.outline.enabled = true;
+         c.outline.peak_deviation = {0.1, 0.35};
+         c.geometry = GeometryOptions::parse("mesh-64-smooth");
+       }},
       {"+ traced internal reflection", [](SceneConfig& c) { c.tir = TirMode::Trace; }},
       {"+ 4 spp at drop edges", [](SceneConfig& c) { c.samples_per_pixel = 4; }},
       {"+ all of the above", [](SceneConfig& c) {

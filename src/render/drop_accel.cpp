@@ -158,7 +158,9 @@ DropAccel::DropAccel(const std::vector<Drop>& drops, const GeometryOptions& opti
       // carries the flat base's normal; sharing the cap's rim vertices would blend the cap's
       // rim normals into the base under smooth shading.
       const unsigned centre = static_cast<unsigned>(verts.size());
-      verts.push_back(glm::vec3(0.5 * (drop.cap_point(tau, 0) + drop.cap_point(tau, M_PI))));
+      // (An irregular outline is star-shaped about the centre, so the fan covers it.)
+      verts.push_back(glm::vec3(drop.shape().outline.circular() ? 0.5 * (drop.cap_point(tau, 0) + drop.cap_point(tau, M_PI))
+                                                                : drop.centre()));
       impl_->vertex_normal.push_back(glm::vec3(drop.base_normal()));
       for (int s = 0; s < segs; ++s) {
         verts.push_back(verts[ring_vertex(rings, s)]);

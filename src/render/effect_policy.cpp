@@ -134,7 +134,7 @@ EffectPlan plan_effects(const SceneConfig& config, const SceneSample& scene, con
     const glm::dvec3 centre = scene.glass.point(shape.center);
     // Seen square on at the centre's depth: an upper bound on the drop's scale in the image.
     const double px_per_cm = centre.z > 0 ? camera.fx / centre.z : INFINITY;
-    d.radius_px = px_per_cm * shape.footprint_radius * shape.elongation;
+    d.radius_px = px_per_cm * shape.footprint_semi_axes().y;
     d.blur_px = drop_blur_px(config, scene, camera, shape, defocused);
     if (plan.dispersion_auto) {
       const double incidence = std::acos(std::min(1.0, std::abs(glm::dot(glm::normalize(centre), normal))));

@@ -152,6 +152,12 @@ json drop_record(const DropShape& d, bool gravity, double coc_px, bool lens) {
     j["elongation"] = d.elongation;
     j["flattening"] = d.flattening;
   }
+  // An irregular contact line: footprint_radius_cm is then the circle it stretches (outline.h).
+  if (!d.outline.circular()) {
+    j["outline"] = {{"peak_deviation", d.outline.peak_deviation()},
+                    {"cos", d.outline.cos_terms()},
+                    {"sin", d.outline.sin_terms()}};
+  }
   return j;
 }
 

@@ -38,11 +38,14 @@ SceneSample sample_scene(const SceneConfig& config, const Camera& camera, Rng& r
   // w / w_max makes the drop centres uniform on the glass. w_max is at a frame corner row
   // (d . n is linear in the row and constant along it) unless some rows miss the glass.
   const glm::dvec3 n = s.glass.normal();
+  // An irregular outline (drawn last, below) stays within this factor of the drop's circle:
+  // placement keeps that circle clear of the others, so footprints stay apart.
+  const double outline_bound = config.outline.enabled ? 1.0 + config.outline.peak_deviation.hi : 1.0;
   const double max_radius_cm =
       (config.size_param == DropSizeParam::FootprintRadius
            ? config.drop_size_cm.hi
            : config.drop_size_cm.hi * std::sin(config.contact_angle_deg.hi * kDeg)) *
-      (config.gravity.enabled ? config.gravity.elongation.hi : 1.0);
+      (config.gravity.enabled ? config.gravity.elongation.hi : 1.0) * outline_bound;
   // Margin: a drop centre may lie this many pixels outside the frame, so drops get cut by
   // the frame edge as in real footage.
   const double margin = std::min(camera.fx * max_radius_cm / s.glass.distance,
@@ -84,7 +87,7 @@ SceneSample sample_scene(const SceneConfig& config, const Camera& camera, Rng& r
     } else {
       shape.center = {p.x, p.y};
     }
-    placed.push_back({shape.center, shape.footprint_radius});
+    placed.push_back({shape.center, shape.footprint_radius * outline_bound});
     s.drops.push_back(shape);
   }
   for (int i = 0; i < random_drops; ++i) {
@@ -100,7 +103,7 @@ SceneSample sample_scene(const SceneConfig& config, const Camera& camera, Rng& r
       shape.elongation = draw(config.gravity.elongation, rng);
       shape.flattening = draw(config.gravity.flattening, rng);
     }
-    const double radius = shape.footprint_radius * shape.elongation;
+    const double radius = shape.footprint_radius * shape.elongation * outline_bound;
     for (int attempt = 0; attempt < kAttempts && w_max > 0; ++attempt) {
       const double px = rng.uniform(x0, x1), py = rng.uniform(y0, y1);
       if (rng.uniform() * w_max > weight(py)) continue;
@@ -120,6 +123,15 @@ SceneSample sample_scene(const SceneConfig& config, const Camera& camera, Rng& r
   if (config.highlights.enabled) {
     s.highlights.threshold = static_cast<float>(srgb_to_linear(config.highlights.threshold));
     s.highlights.gain = static_cast<float>(draw(config.highlights.gain, rng));
+  }
+  // Outlines last, so that turning them on changes no earlier draw (placement only keeps the
+  // larger bounding circles apart). The circle is shrunk to keep the footprint's area.
+  if (config.outline.enabled) {
+    for (DropShape& shape : s.drops) {
+      const double peak = draw(config.outline.peak_deviation, rng);
+      shape.outline = Outline::draw(peak, config.outline.modes, rng);
+      shape.footprint_radius /= std::sqrt(shape.outline.mean_square());
+    }
   }
   return s;
 }

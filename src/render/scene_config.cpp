@@ -186,6 +186,7 @@ std::vector<std::string> SceneConfig::effect_names() const {
   if (fresnel.enabled) names.push_back("fresnel");
   if (dispersion.enabled) names.push_back(dispersion.automatic ? "dispersion-auto" : "dispersion");
   if (gravity.enabled) names.push_back(gravity.automatic ? "gravity-auto" : "gravity");
+  if (outline.enabled) names.push_back("outline");
   if (highlights.enabled) names.push_back("highlights");
   if (veil.enabled) names.push_back("veil");
   if (sensor.enabled) names.push_back("sensor");
@@ -277,10 +278,10 @@ SceneConfig parse_scene_json(const std::string& text, const std::string& origin)
 
   // Effects: present = on; dispersion and gravity may be "auto" (or carry "auto": true).
   c.blur.enabled = c.fresnel.enabled = c.dispersion.enabled = c.gravity.enabled = c.sky.enabled = false;
-  c.sensor.enabled = c.highlights.enabled = c.veil.enabled = false;
+  c.sensor.enabled = c.highlights.enabled = c.veil.enabled = c.outline.enabled = false;
   if (r.has("effects")) {
     Reader e = r.child("effects");
-    for (const char* fixed : {"blur", "sky", "fresnel", "highlights", "veil", "sensor"}) {
+    for (const char* fixed : {"blur", "sky", "fresnel", "highlights", "veil", "sensor", "outline"}) {
       if (e.has(fixed) && e.is_auto(fixed))
         e.fail(std::string("'") + fixed + "' has no \"auto\" (only dispersion, gravity and quality.supersample do)");
     }
@@ -329,6 +330,17 @@ SceneConfig parse_scene_json(const std::string& text, const std::string& origin)
       v.range("optical_depth", &c.veil.optical_depth, 0, 3);
       v.range("spread_deg", &c.veil.spread_deg, 0.1, 45);
       v.reject_unknown();
+    }
+    if (e.has("outline")) {
+      Reader o = e.child("outline");
+      c.outline.enabled = true;
+      // Beyond 0.9 the contact line would nearly reach the drop's centre.
+      o.range("peak_deviation", &c.outline.peak_deviation, 0, 0.9);
+      double modes = c.outline.modes;
+      o.number("modes", &modes, 2, kMaxOutlineModes);
+      if (modes != std::floor(modes)) o.fail("'modes' takes a whole number");
+      c.outline.modes = static_cast<int>(modes);
+      o.reject_unknown();
     }
     if (e.has("fresnel")) {
       Reader f = e.child("fresnel");
@@ -436,6 +448,8 @@ std::string scene_to_json(const SceneConfig& c) {
     effects["gravity"] = {{"elongation", range(c.gravity.elongation)}, {"flattening", range(c.gravity.flattening)}};
     if (c.gravity.automatic) effects["gravity"]["auto"] = true;
   }
+  if (c.outline.enabled)
+    effects["outline"] = {{"peak_deviation", range(c.outline.peak_deviation)}, {"modes", c.outline.modes}};
   if (c.highlights.enabled)
     effects["highlights"] = {{"threshold", c.highlights.threshold}, {"gain", range(c.highlights.gain)}};
   if (c.veil.enabled)

@@ -248,7 +248,8 @@ void convex_hull(std::vector<glm::dvec2> points, std::vector<glm::dvec2>* hull) 
 }
 
 // Per image row, the merged x-intervals that can show a drop. A drop's cap is convex, so
-// its image is the convex hull of its projected surface; the hull of a dense sample of rim
+// its image is the convex hull of its projected surface (of its convex envelope for an
+// irregular outline, drop.h); the hull of a dense sample of rim
 // and cap points, padded by more than the sampling error, bounds it conservatively. Rays
 // outside these intervals cannot meet a drop and are not traced.
 std::vector<std::vector<std::pair<int, int>>> candidate_spans(const Camera& camera,
@@ -269,7 +270,7 @@ std::vector<std::vector<std::pair<int, int>>> candidate_spans(const Camera& came
     const double tau = drop.shape().contact_angle;
     for (int r = 0; r <= kRings && !behind; ++r) {
       for (int a = 0; a < (r == 0 ? 1 : kAzimuths); ++a) {
-        const glm::dvec3 p = drop.cap_point(tau * r / kRings, 2 * M_PI * a / kAzimuths);
+        const glm::dvec3 p = drop.envelope_point(tau * r / kRings, 2 * M_PI * a / kAzimuths);
         if (p.z <= 1e-9) {
           behind = true;
           break;

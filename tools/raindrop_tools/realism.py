@@ -17,7 +17,10 @@ on 8-bit luma Y (``metrics.LUMA_WEIGHTS``, float):
 * drops = 8-connected components of the mask: ``drops`` per image; per drop the equivalent
   diameter ``2 sqrt(area / pi)`` in px and as a fraction of the image width, and the
   eccentricity ``sqrt(1 - l2 / l1)`` of its second central moments (l1 >= l2; 0 = circle,
-  -> 1 = elongated; drops under ``MIN_DROP_AREA`` px are counted but get no eccentricity);
+  -> 1 = elongated; drops under ``MIN_DROP_AREA`` px are counted but get no eccentricity), and
+  the solidity, its outline's area over its convex hull's (1 = convex, as a round or oval drop;
+  lower = lobed, irregular or merged outlines; only drops of ``MIN_SOLIDITY_AREA`` px or more,
+  whose outline is more than a few pixels);
 * ``brightness``: median over mask pixels of ``Y(rainy) - Y(clean)`` (levels; > 0 = drops
   brighter than the scene behind them);
 * ``sharpness``: mean |Laplacian(Y(rainy))| over the mask's interior (the mask eroded by
@@ -75,6 +78,7 @@ from .imageio import ImageError, read_mask_strict, read_rgb_strict
 from .metrics import luma_float
 
 MIN_DROP_AREA = 5
+MIN_SOLIDITY_AREA = 50
 EDGE_WINDOW = 21
 EDGE_MIN_CONTRAST = 8.0
 MIN_OUTSIDE = 0.05
@@ -83,41 +87,54 @@ CLIPPED = 250
 MIN_CLIPPED = 0.01
 # per-image statistics and the per-drop ones, in table order
 IMAGE_STATS = ("coverage", "drops", "brightness", "sharpness", "edge_width", "veil", "highlights")
-DROP_STATS = ("diameter_px", "diameter_frac", "eccentricity")
-DISTANCE_STATS = ("coverage", "drops", "diameter_frac", "eccentricity", "brightness", "sharpness", "edge_width", "veil",
-                  "highlights")
+DROP_STATS = ("diameter_px", "diameter_frac", "eccentricity", "solidity")
+DISTANCE_STATS = ("coverage", "drops", "diameter_frac", "eccentricity", "solidity", "brightness", "sharpness",
+                  "edge_width", "veil", "highlights")
 
 
-def drop_components(mask: np.ndarray) -> tuple[list[float], list[float]]:
-    """(areas, eccentricities) of the 8-connected components of a 0/nonzero mask; NaN
-    eccentricity for components under MIN_DROP_AREA px."""
+def solidity(component: np.ndarray) -> float:
+    """Area of a component's outer outline over that of its convex hull (both polygons through
+    the boundary pixels' centres, so a filled convex shape gives 1 whatever its size)."""
+    contours, _ = cv2.findContours(component, cv2.RETR_EXTERNAL, cv2.CHAIN_APPROX_NONE)
+    outline = max(contours, key=cv2.contourArea)
+    hull = cv2.contourArea(cv2.convexHull(outline))
+    return float(cv2.contourArea(outline) / hull) if hull > 0 else float("nan")
+
+
+def drop_components(mask: np.ndarray) -> tuple[list[float], list[float], list[float]]:
+    """(areas, eccentricities, solidities) of the 8-connected components of a 0/nonzero mask;
+    NaN eccentricity for components under MIN_DROP_AREA px, NaN solidity under
+    MIN_SOLIDITY_AREA px."""
     m = (mask > 0).astype(np.uint8)
     n, labels, stats, _ = cv2.connectedComponentsWithStats(m, connectivity=8)
-    areas, ecc = [], []
+    areas, ecc, sol = [], [], []
     for k in range(1, n):
         area = int(stats[k, cv2.CC_STAT_AREA])
         areas.append(float(area))
         if area < MIN_DROP_AREA:
             ecc.append(float("nan"))
+            sol.append(float("nan"))
             continue
         x, y, w, h = (int(v) for v in stats[k, :4])
-        mo = cv2.moments((labels[y : y + h, x : x + w] == k).astype(np.uint8), binaryImage=True)
+        component = (labels[y : y + h, x : x + w] == k).astype(np.uint8)
+        sol.append(solidity(np.pad(component, 1)) if area >= MIN_SOLIDITY_AREA else float("nan"))
+        mo = cv2.moments(component, binaryImage=True)
         a, b, c = mo["mu20"] / mo["m00"], mo["mu02"] / mo["m00"], mo["mu11"] / mo["m00"]
         root = math.sqrt(max(0.0, ((a - b) / 2) ** 2 + c * c))
         l1, l2 = (a + b) / 2 + root, (a + b) / 2 - root
         ecc.append(math.sqrt(max(0.0, 1.0 - l2 / l1)) if l1 > 0 else 0.0)
-    return areas, ecc
+    return areas, ecc, sol
 
 
 def image_stats(rainy: np.ndarray, clean: np.ndarray, mask: np.ndarray) -> dict:
     """The statistics of one (rainy, clean, mask) triple (module docstring); per-drop lists
-    under ``diameter_px``, ``diameter_frac`` and ``eccentricity``."""
+    under ``diameter_px``, ``diameter_frac``, ``eccentricity`` and ``solidity``."""
     if rainy.shape != clean.shape or rainy.shape[:2] != mask.shape:
         raise ValueError(f"sizes differ: rainy {rainy.shape}, clean {clean.shape}, mask {mask.shape}")
     h, w = mask.shape
     m = mask > 0
     yr, yc = luma_float(rainy), luma_float(clean)
-    areas, ecc = drop_components(mask)
+    areas, ecc, sol = drop_components(mask)
     diam = [2.0 * math.sqrt(a / math.pi) for a in areas]
     nan = float("nan")
     out = {
@@ -126,6 +143,7 @@ def image_stats(rainy: np.ndarray, clean: np.ndarray, mask: np.ndarray) -> dict:
         "diameter_px": diam,
         "diameter_frac": [d / w for d in diam],
         "eccentricity": [e for e in ecc if not math.isnan(e)],
+        "solidity": [v for v in sol if not math.isnan(v)],
         "brightness": float(np.median(yr[m] - yc[m])) if m.any() else nan,
     }
     if m.any():
@@ -345,6 +363,7 @@ LABELS = {
     "diameter_px": "drop diameter (px)",
     "diameter_frac": "drop diameter / image width",
     "eccentricity": "eccentricity",
+    "solidity": "solidity (area / convex hull, per drop)",
     "brightness": "inside-drop brightness vs clean (levels)",
     "sharpness": "sharpness (|Laplacian| rainy / clean, in mask)",
     "edge_width": "edge width (px)",
@@ -357,8 +376,8 @@ def stats_table(st: SetStats) -> str:
     s = st.summary()
     lines = [f"### {st.name}: {s['images']} images, {s['drops_total']} drops", "",
              "| statistic | mean | p10 | median | p90 |", "| --- | ---: | ---: | ---: | ---: |"]
-    for stat in ("coverage", "drops", "diameter_px", "diameter_frac", "eccentricity", "brightness", "sharpness",
-                 "edge_width", "veil", "highlights"):
+    for stat in ("coverage", "drops", "diameter_px", "diameter_frac", "eccentricity", "solidity", "brightness",
+                 "sharpness", "edge_width", "veil", "highlights"):
         v = s[stat]
         d = 4 if stat == "diameter_frac" else (1 if stat in ("diameter_px", "brightness", "drops") else 3)
         lines.append(f"| {LABELS[stat]} | {_f(v['mean'], d)} | {_f(v['p10'], d)} | {_f(v['median'], d)} | "

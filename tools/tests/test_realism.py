@@ -57,6 +57,32 @@ def test_image_stats_of_known_drops():
     assert widths[2] == pytest.approx(2.5 * 3.0, rel=0.25)
 
 
+def test_solidity_is_one_for_convex_drops_and_falls_for_lobed_ones():
+    h, w = 120, 200
+    mask = np.zeros((h, w), np.uint8)
+    mask[_disc(h, w, 30, 30, 15)] = 255  # convex
+    # an L of a 40x10 and a 10x30 bar (700 px); through the boundary pixels' centres its outline
+    # is 39x9 + 30x9 and its hull adds the 30x30 triangle in the corner
+    mask[60:100, 20:30] = 255
+    mask[90:100, 30:60] = 255
+    # two overlapping discs: a merged drop, with a waist
+    mask[_disc(h, w, 40, 120, 14) | _disc(h, w, 40, 145, 14)] = 255
+    # a tiny drop: counted, no solidity
+    mask[100:104, 150:153] = 255
+    st = RM.image_stats(np.zeros((h, w, 3), np.uint8), np.zeros((h, w, 3), np.uint8), mask)
+    assert st["drops"] == 4
+    assert len(st["solidity"]) == 3
+    areas, _, sol = RM.drop_components(mask)
+    by_area = dict(zip(areas, sol))
+    disc = by_area[float((_disc(h, w, 30, 30, 15)).sum())]
+    assert disc > 0.97
+    ell = 39 * 9 + 30 * 9
+    assert by_area[400.0 + 300.0] == pytest.approx(ell / (ell + 0.5 * 30 * 30), rel=2e-3)  # corners: half a pixel
+    merged = [v for a, v in by_area.items() if a > 1000][0]
+    assert 0.85 < merged < 0.97
+    assert math.isnan(by_area[12.0])
+
+
 def test_highlights_counts_the_clipped_pixels_drops_keep():
     clean = np.full((40, 100, 3), 90, np.uint8)
     clean[:20] = 255  # a clipped sky over the top half: 50% clipped

@@ -11,12 +11,18 @@
 // stretched downhill by `elongation` and the height scaled by `flattening`. The cap is then
 // a cap of an ellipsoid; intersection maps the ray into the frame where it is a sphere again,
 // so the sphere is just the case elongation = flattening = 1.
+//
+// An irregular contact line (outline.h, optional) stretches the cap radially per azimuth in
+// that scaled frame. The sphere's closed-form intersection then no longer applies; the ray is
+// searched for sign changes of the surface's implicit function and each root refined
+// (intersect_irregular). A circular outline takes the closed-form path, bit for bit as before.
 #include <optional>
 
 #include <glm/vec2.hpp>
 #include <glm/vec3.hpp>
 
 #include "raindrop/render/glass.h"
+#include "raindrop/render/outline.h"
 
 namespace raindrop {
 
@@ -28,11 +34,16 @@ struct DropShape {
   double contact_angle = 0.6;    // tau, radians, in (0, pi/2]
   double elongation = 1.0;       // downhill footprint semi-axis / a (gravity), >= 1
   double flattening = 1.0;       // height relative to the spherical cap (gravity), (0, 1]
+  Outline outline;               // contact line: rim at a s(phi) across (circle by default)
 
   double sphere_radius() const;
   double height() const;
-  // Semi-axes of the footprint ellipse (across, downhill).
-  glm::dvec2 footprint_semi_axes() const { return {footprint_radius, footprint_radius * elongation}; }
+  // Semi-axes of the ellipse that holds the footprint (across, downhill): the footprint
+  // itself for a circular outline.
+  glm::dvec2 footprint_semi_axes() const {
+    const double a = footprint_radius * outline.s_max();
+    return {a, a * elongation};
+  }
 };
 
 struct SurfaceHit {
@@ -58,10 +69,18 @@ class Drop {
   // Outward unit normal of the curved surface at camera-space point p (on or near it).
   glm::dvec3 cap_normal(const glm::dvec3& p) const;
   glm::dvec3 base_normal() const { return -n_; }
+  glm::dvec3 centre() const { return c_; }  // footprint centre, camera space
 
   // Camera-space point of the curved surface at polar angle theta in [0, tau] from the apex
   // and azimuth phi (theta = tau is the rim). Used to tessellate the cap.
   glm::dvec3 cap_point(double theta, double phi) const;
+  // The same point on the cap of the circular outline of radius a s_max, which holds the drop
+  // (the drop's height at (rho, phi) is cap(rho / s(phi)) <= cap(rho / s_max)) and is convex:
+  // the image of a dense sample of these points bounds the drop's image.
+  glm::dvec3 envelope_point(double theta, double phi) const;
+
+  // Whether camera-space point p lies in the water (on or under the cap, on or above the glass).
+  bool contains(const glm::dvec3& p) const;
 
   // Camera-space axis-aligned bounding box.
   void bounds(glm::dvec3* lo, glm::dvec3* hi) const;
@@ -69,6 +88,11 @@ class Drop {
  private:
   glm::dvec3 to_local(const glm::dvec3& p) const;   // scaled local frame: the cap is spherical
   glm::dvec3 dir_to_local(const glm::dvec3& d) const;
+  // Implicit surface in the scaled frame: rho^2 / s(phi)^2 + (z - centre_height)^2 - R^2,
+  // negative inside the (stretched) sphere.
+  double implicit(const glm::dvec3& l) const;
+  std::optional<SurfaceHit> intersect_irregular(const glm::dvec3& o, const glm::dvec3& d, double t_min,
+                                                double t_max, std::optional<DropSurface> start) const;
 
   DropShape shape_;
   glm::dvec3 c_, u_, v_, n_;  // footprint centre and glass frame (camera space)

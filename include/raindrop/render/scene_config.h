@@ -107,6 +107,15 @@ struct SceneConfig {
     Range flattening{0.6, 1.0};  // height relative to the spherical cap
   } gravity;
 
+  // Irregular contact lines (outline.h): each drop's rim strays from its circle by a peak
+  // fraction drawn per drop from `peak_deviation`, over Fourier modes 2..`modes`; footprint
+  // area is kept. Drawn after every other draw of the sample.
+  struct Outline {
+    bool enabled = false;
+    Range peak_deviation{0.0, 0.3};
+    int modes = 6;
+  } outline;
+
   // A thin-lens camera (optional). Without it the camera is a pinhole and the drops get the
   // paper's disk blur (effects.blur). With it, drops are defocused as a real lens focused on
   // the street sees them: each drop spreads over its circle of confusion and becomes
