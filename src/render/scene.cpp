@@ -38,14 +38,17 @@ SceneSample sample_scene(const SceneConfig& config, const Camera& camera, Rng& r
   // w / w_max makes the drop centres uniform on the glass. w_max is at a frame corner row
   // (d . n is linear in the row and constant along it) unless some rows miss the glass.
   const glm::dvec3 n = s.glass.normal();
-  // An irregular outline (drawn last, below) stays within this factor of the drop's circle:
-  // placement keeps that circle clear of the others, so footprints stay apart.
-  const double outline_bound = config.outline.enabled ? 1.0 + config.outline.peak_deviation.hi : 1.0;
+  // An irregular outline (drawn last, below) stays within this factor of the drop's circle.
+  // Where footprints must stay apart, placement keeps that circle clear of the others; where
+  // they may overlap, the circles placement counts overlaps with are the drops' own, so that
+  // turning outlines on moves no drop.
+  const double outline_bound =
+      config.outline.enabled && !config.allow_overlap ? 1.0 + config.outline.peak_deviation.hi : 1.0;
   const double max_radius_cm =
       (config.size_param == DropSizeParam::FootprintRadius
            ? config.drop_size_cm.hi
            : config.drop_size_cm.hi * std::sin(config.contact_angle_deg.hi * kDeg)) *
-      (config.gravity.enabled ? config.gravity.elongation.hi : 1.0) * outline_bound;
+      (config.gravity.enabled ? config.gravity.elongation.hi : 1.0);
   // Margin: a drop centre may lie this many pixels outside the frame, so drops get cut by
   // the frame edge as in real footage.
   const double margin = std::min(camera.fx * max_radius_cm / s.glass.distance,

@@ -369,10 +369,31 @@ TEST(IrregularDrop, SceneDrawsOutlinesKeepingAreaAndApartFootprints) {
       EXPECT_GT(gap, 0) << i << " " << j;
     }
   }
-  // The first drop's size and contact angle are drawn before any outline, as without them
-  // (where it lands may differ: placement keeps the larger bounding circles apart).
+  // The first drop is drawn and placed before any outline, as without them (later ones may land
+  // elsewhere: placement keeps the larger enclosing circles apart).
   EXPECT_NEAR(s.drops[0].footprint_radius * std::sqrt(s.drops[0].outline.mean_square()), p.drops[0].footprint_radius, 1e-12);
   EXPECT_EQ(s.drops[0].contact_angle, p.drops[0].contact_angle);
+  EXPECT_EQ(s.drops[0].center, p.drops[0].center);
+}
+
+TEST(IrregularDrop, WhereDropsMayOverlapOutlinesMoveNoDrop) {
+  // Overlap allowed: placement counts overlaps with the drops' own circles, and outlines are
+  // drawn last, so every drop keeps its centre, contact angle and footprint area.
+  SceneConfig config = scene_preset("lens-cover-merged");
+  const Camera cam = camera(512, 256, 560);
+  SceneConfig with = config;
+  with.outline.enabled = true;
+  with.outline.peak_deviation = {0.1, 0.5};
+  Rng a(6), b(6);
+  const SceneSample s = sample_scene(config, cam, a), t = sample_scene(with, cam, b);
+  ASSERT_EQ(s.drops.size(), t.drops.size());
+  ASSERT_GT(s.drops.size(), 50u);
+  for (size_t i = 0; i < s.drops.size(); ++i) {
+    EXPECT_FALSE(t.drops[i].outline.circular());
+    EXPECT_EQ(s.drops[i].center, t.drops[i].center);
+    EXPECT_EQ(s.drops[i].contact_angle, t.drops[i].contact_angle);
+    EXPECT_NEAR(t.drops[i].footprint_radius * std::sqrt(t.drops[i].outline.mean_square()), s.drops[i].footprint_radius, 1e-12);
+  }
 }
 
 TEST(IrregularDrop, ZeroPeakIsTheOldSceneExactly) {
