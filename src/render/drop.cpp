@@ -101,9 +101,9 @@ bool Drop::contains(const glm::dvec3& p) const {
 // The stretched cap has no closed-form intersection. Along the pieces of the ray where the
 // surface can be (below), the implicit function is sampled at steps finer than the outline's
 // smallest lobe and than the height, and the first sign change is refined by the Illinois
-// method to the limit of double precision. Sign changes
-// closer together than a step (a ray grazing a lobe) can be missed: the test against a fine
-// march (tests/render/test_outline.cpp) measures how often.
+// method to the limit of double precision. Sign changes closer together than a step (a ray
+// grazing a lobe) can be missed: the test against a fine march (tests/render/test_outline.cpp)
+// measures how often.
 std::optional<SurfaceHit> Drop::intersect_irregular(const glm::dvec3& o, const glm::dvec3& d, double t_min,
                                                     double t_max, std::optional<DropSurface> start) const {
   const Outline& outline = shape_.outline;
