@@ -3,7 +3,7 @@
 # and scripts/setup-tools.sh; needs a folder of real photographs, $RAINDROP_SHARED_DATA
 # (default ../shared/data), for the real frames). Sections can be chosen:
 # scripts/results.sh data render stats eval remove tradeoffs sheets photoreal scale flatroad largedrops coarsetrain
-# largedropmodels sensor mirroraverage highlights multiscale veil papermodels outline
+# largedropmodels sensor mirroraverage highlights multiscale veil papermodels outline trails
 #
 # Nothing here is committed automatically: images derived from Cityscapes, CamVid or the
 # real raindrop photographs stay under out/ (their licences forbid redistribution).
@@ -15,7 +15,7 @@ out=out/results
 mkdir -p "$out"
 sections=("$@")
 ((${#sections[@]})) || sections=(data render stats eval remove tradeoffs sheets photoreal scale flatroad largedrops coarsetrain
-                                  largedropmodels sensor mirroraverage highlights multiscale veil papermodels outline)
+                                  largedropmodels sensor mirroraverage highlights multiscale veil papermodels outline trails)
 want() { [[ " ${sections[*]} " == *" $1 "* ]]; }
 # link_set SRC DST SPLIT [LIMIT]: the first LIMIT (default 100; 0: all) samples of data set SRC
 # (of manifest split SPLIT; "-" = all) linked into DST/rainy and DST/clean under plainly named
@@ -51,6 +51,12 @@ scene["effects"][sys.argv[1]] = json.loads(sys.argv[2])
 scene["name"] += "-" + sys.argv[3]
 print(json.dumps(scene, indent=2))' "$4" "$5" "$3" >"$2"
   echo "$2"
+}
+
+# link_cv100: the first 100 CamVid val frames of 4.2, linked into out/results/cv100.
+link_cv100() {
+  mkdir -p "$out/cv100"
+  ls "$shared/camvid/val" | head -100 | while read -r f; do ln -sf "$(realpath "$shared/camvid/val/$f")" "$out/cv100/$f"; done
 }
 
 # merged_training_set SUFFIX SCENE: the training set of 4.10's renders-only recipe with its lens-cover
@@ -196,7 +202,7 @@ if want photoreal; then
   build/raindrop-bench render --sections lens --frames 2 --repeats 9 | tee "$out/bench_lens.md"
   build/raindrop-bench render --sections lens --frames 2 --lens-size 2048x1024 | tee "$out/bench_lens_2048.md"
   mkdir -p "$out/cv100"
-  ls "$shared/camvid/val" | head -100 | while read -r f; do ln -sf "$(realpath "$shared/camvid/val/$f")" "$out/cv100/$f"; done
+  link_cv100
   for scene in paper real-photo lens-cover lens-cover-heavy lens-cover-merged windshield-day; do
     build/raindrop-render -i "$out/cv100" -o "data/val-$scene" --scene "$scene" --size 512x256 --seed 11 -q
   done
@@ -379,7 +385,7 @@ if want sensor; then
   # drops as data/val-lens-cover-heavy from photoreal above; the sensor draws its own stream).
   build/raindrop-bench render --sections effects --frames 2 --repeats 3 | tee "$out/bench_effects_sensor.md"
   mkdir -p "$out/sensor" "$out/cv100"
-  ls "$shared/camvid/val" | head -100 | while read -r f; do ln -sf "$(realpath "$shared/camvid/val/$f")" "$out/cv100/$f"; done
+  link_cv100
   sets=()
   for variant in 'noise:{"noise_levels": [0.5, 1.5]}' 'jpeg:{"noise_levels": 0, "jpeg_quality": [75, 95]}' \
                  'noise-jpeg:{"noise_levels": [1, 3], "jpeg_quality": [75, 95]}'; do
@@ -425,7 +431,7 @@ if want highlights; then
   # pairs (none trained on) beside compact-lens-merged; and the effect's cost.
   hl="$out/highlights"
   mkdir -p "$hl" "$out/cv100"
-  ls "$shared/camvid/val" | head -100 | while read -r f; do ln -sf "$(realpath "$shared/camvid/val/$f")" "$out/cv100/$f"; done
+  link_cv100
   # with_highlights PRESET THRESHOLD LO HI: the preset with effects.highlights, written to
   # $hl/PRESET-highlights-LO-HI.json (printed).
   with_highlights() {
@@ -512,7 +518,7 @@ if want veil; then
   # default's coarse pass (needs data/train-mix from photoreal, data/real-pairs, the val sets).
   vd="$out/veil"
   mkdir -p "$vd" "$out/cv100"
-  ls "$shared/camvid/val" | head -100 | while read -r f; do ln -sf "$(realpath "$shared/camvid/val/$f")" "$out/cv100/$f"; done
+  link_cv100
   # with_veil PRESET LO HI: the preset with effects.veil (optical depth LO-HI, spread 2-10 degrees),
   # written to $vd/PRESET-veil-LO-HI.json (printed).
   with_veil() {
@@ -581,7 +587,7 @@ if want outline; then
   # two seeds each, scored on both real splits (none trained on); the effect's cost.
   od="$out/outline"
   mkdir -p "$od" "$out/cv100"
-  ls "$shared/camvid/val" | head -100 | while read -r f; do ln -sf "$(realpath "$shared/camvid/val/$f")" "$out/cv100/$f"; done
+  link_cv100
   sets=()
   for preset in lens-cover-merged windshield-day; do
     for peak in none 0:0.3 0.1:0.5; do
@@ -612,4 +618,41 @@ if want outline; then
     merged_models_scored "$od" "$tag"
   done | tee "$od/real-pairs.txt"
   build/raindrop-bench render --sections effects --frames 6 --repeats 3 | tee "$od/bench_effects.md"
+fi
+
+if want trails; then
+  # docs/RESULTS.md 4.16: the scene effect "trails" (drops that slid leave streaks uphill).
+  # lens-cover-merged and windshield-day rendered on the 100 CamVid val frames of 4.2 with and
+  # without trails (defaults), measured against the real pairs' train split; the renders-only
+  # recipe of 4.10 retrained with every rendered part made with trails, beside compact-lens-merged
+  # (the models of the outline section, reused where they exist), two seeds each, scored on both
+  # real splits (none trained on); the effect's cost.
+  td="$out/trails" sets=()
+  link_cv100
+  mkdir -p "$td"
+  for preset in lens-cover-merged windshield-day; do
+    with_effect "$preset" "$td/$preset-trails.json" trails trails '{}' >/dev/null
+    for tag in "" -trails; do
+      scene=$preset
+      [[ -n $tag ]] && scene="$td/$preset-trails.json"
+      rm -rf "$td/val-$preset$tag" && build/raindrop-render -i "$out/cv100" -o "$td/val-$preset$tag" --scene "$scene" \
+        --size 512x256 --seed 11 -q
+      sets+=(--rendered "$td/val-$preset$tag")
+    done
+  done
+  $py -m raindrop_tools.realism --real-pairs "$shared/real-pairs" "${sets[@]}" --limit 100 --json "$td/realism.json" | tee "$td/realism.md"
+  for tag in "" -trails; do
+    lcm=lens-cover-merged wsd=windshield-day
+    [[ -n $tag ]] && lcm="$td/lens-cover-merged-trails.json" wsd="$td/windshield-day-trails.json"
+    [[ -d data/train-windshield-day$tag ]] || build/raindrop-render -i "$shared/camvid/train" -o "data/train-windshield-day$tag" \
+      --scene "$wsd" --size 512x256 --variants 4 --seed 7 -q
+    [[ -d data/train-lens-cover-merged$tag ]] || build/raindrop-render -i "$shared/camvid/train" \
+      -o "data/train-lens-cover-merged$tag" --scene "$lcm" --size 512x256 --variants 4 --seed 7 -q
+    [[ -d data/train-cs-lens-merged$tag ]] || build/raindrop-render --cityscapes "$shared/cityscapes-mini" --split train \
+      -o "data/train-cs-lens-merged$tag" --scene "$lcm" --size 512x256 --variants 20 --seed 8 -q
+    [[ -d "data/train-mix-merged$tag" ]] || $py -m raindrop_tools.merge_datasets --out "data/train-mix-merged$tag" \
+      "data/train-lens-cover-merged$tag" "data/train-windshield-day$tag" "data/train-cs-lens-merged$tag"
+    merged_models_scored "$td" "$tag"
+  done | tee "$td/real-pairs.txt"
+  build/raindrop-bench render --sections effects --frames 6 --repeats 3 | tee "$td/bench_effects.md"
 fi

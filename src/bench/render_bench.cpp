@@ -245,6 +245,7 @@ void effects_table(const Input& input, int frames, int repeats) {
          c.outline.peak_deviation = {0.1, 0.35};
          c.geometry = GeometryOptions::parse("mesh-64-smooth");
        }},
+      {"+ trails (defaults; most of these large drops slide)", [](SceneConfig& c) { c.trails.enabled = true; }},
       {"+ traced internal reflection", [](SceneConfig& c) { c.tir = TirMode::Trace; }},
       {"+ 4 spp at drop edges", [](SceneConfig& c) { c.samples_per_pixel = 4; }},
       {"+ all of the above", [](SceneConfig& c) {

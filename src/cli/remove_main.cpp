@@ -26,6 +26,7 @@
 #include <string>
 #include <system_error>
 #include <thread>
+#include <tuple>
 #include <vector>
 
 #include <CLI/CLI.hpp>
@@ -85,6 +86,16 @@ cv::Mat sheet_panel(const cv::Mat& img) {
   }
   // Kept for the sheet: a panel that is still the image's own buffer (8-bit RGB) is copied.
   return rgb.data == img.data ? rgb.clone() : rgb;
+}
+
+// A hidden file in an output or mask folder that lies inside the input folder: the folder's
+// images are this program's outputs, which a later run may replace.
+constexpr const char* kOwnFolderMarker = ".raindrop-remove-outputs";
+
+// Whether folder `inner` lies inside folder `outer` (and is not it).
+bool strictly_inside(const fs::path& inner, const fs::path& outer) {
+  const fs::path rel = fs::weakly_canonical(fs::absolute(inner)).lexically_relative(fs::weakly_canonical(fs::absolute(outer)));
+  return !rel.empty() && rel != "." && *rel.begin() != "..";
 }
 
 struct Job {
@@ -268,6 +279,25 @@ int run(int argc, char** argv) {
       if (!mask_dir.empty()) j.mask = (fs::path(mask_dir) / rel).replace_extension(".png");
       jobs.push_back(j);
     }
+    // An output or mask folder inside the input folder is left out of the inputs, so an image
+    // already there may be the user's own (photos/2023/a.png, when photos/a.png's output is
+    // photos/2023/a.png): never replaced silently, unless the folder is one this program made
+    // (its marker file says so: then the files are an earlier run's outputs).
+    const bool out_inside = strictly_inside(out_arg, in_path) && !fs::exists(out_arg / kOwnFolderMarker, ec);
+    const bool mask_inside = !mask_dir.empty() && strictly_inside(mask_dir, in_path) &&
+                             !fs::exists(fs::path(mask_dir) / kOwnFolderMarker, ec);
+    for (const auto& j : jobs) {
+      for (const auto& [role, inside, folder, file] :
+           {std::tuple{"output", out_inside, out_arg, std::optional<fs::path>(j.output)},
+            std::tuple{"mask", mask_inside, fs::path(mask_dir), j.mask}}) {
+        if (!file || !inside || !fs::exists(*file, ec)) continue;
+        throw UsageError(std::string("the ") + role + " folder '" + folder.string() + "' lies inside the input folder '" +
+                         input + "', and '" + file->string() +
+                         "' already exists there: it is not an input, and this run would replace it; choose " +
+                         (std::string(role) == "output" ? "an " : "a ") + role +
+                         " folder outside the input folder, or move that file");
+      }
+    }
   } else {
     fs::path out = out_arg;
     if (fs::is_directory(out, ec)) out /= in_path.filename();
@@ -293,6 +323,12 @@ int run(int argc, char** argv) {
   // output and mask sub-folders are made as the run goes; the formats are the inputs'.
   if (!mask_dir.empty()) ensure_writable_dir(mask_dir);
   if (batch) ensure_writable_dir(out_arg);
+  // Folders made inside the input folder are marked as this program's, so that a later run
+  // into them may replace what this one writes (checked above).
+  for (const fs::path& folder : {batch ? out_arg : fs::path(), batch ? fs::path(mask_dir) : fs::path()}) {
+    if (!folder.empty() && strictly_inside(folder, in_path) && !fs::exists(folder / kOwnFolderMarker, ec))
+      write_text_atomic("raindrop-remove writes its outputs here; a later run may replace them.\n", folder / kOwnFolderMarker);
+  }
   std::set<std::string> checked_formats;
   for (const Job& j : jobs) {
     for (const fs::path* p : {&j.output, j.mask ? &*j.mask : nullptr}) {

@@ -40,6 +40,32 @@ std::optional<cv::Size> parse_size(const std::string& text) {
   return cv::Size(w, h);
 }
 
+// The contact sheet is written after the render: checked before it, so that it can neither
+// replace an input or a rendered sample nor fail once the work is done.
+// Paths compared canonically: "./a", "a" and "o/../a" are one, and so are "o/" and "o".
+fs::path canonical_form(const fs::path& p) {
+  fs::path c = fs::weakly_canonical(fs::absolute(p));
+  return c.has_filename() ? c : c.parent_path();
+}
+
+bool same_path(const fs::path& a, const fs::path& b) { return canonical_form(a) == canonical_form(b); }
+
+void check_contact_sheet(const fs::path& sheet, const std::vector<InputImage>& inputs, const fs::path& out) {
+  const auto same = same_path;
+  for (const InputImage& in : inputs) {
+    if (!in.path.empty() && same(sheet, in.path))
+      throw Error("the contact sheet '" + sheet.string() + "' is the input '" + in.path.string() + "'; choose another one");
+  }
+  for (const char* sub : {"rainy", "clean", "mask", "alpha"}) {
+    if (same(sheet.parent_path().empty() ? fs::path(".") : sheet.parent_path(), out / sub))
+      throw Error("the contact sheet '" + sheet.string() + "' would be written among the rendered samples in '" +
+                  (out / sub).string() + "'; choose another folder");
+  }
+  if (same(sheet, out / "manifest.jsonl")) throw Error("the contact sheet '" + sheet.string() + "' is the manifest");
+  // Its folder may be the output folder, made by the render.
+  check_image_destination(sheet, same(sheet.parent_path().empty() ? fs::path(".") : sheet.parent_path(), out));
+}
+
 // The demo's inputs: backgrounds drawn by the program, written as ordinary image files.
 std::vector<InputImage> make_demo_inputs(const fs::path& out) {
   const fs::path dir = out / "backgrounds";
@@ -148,20 +174,38 @@ int run(int argc, char** argv) {
 
   std::vector<InputImage> inputs;
   if (!cityscapes.empty()) inputs = find_cityscapes(cityscapes, split);
+  // The folders this run writes images into: never inputs, even when the output folder is the
+  // input folder itself (then only these are left out of it).
+  const std::vector<fs::path> written = {options.out_dir / "rainy", options.out_dir / "clean",
+                                         options.out_dir / "mask", options.out_dir / "alpha"};
+  std::vector<fs::path> skip = written;
+  skip.push_back(options.out_dir);
   for (const auto& p : input_paths) {
-    auto more = find_images(p, options.out_dir);
+    // A folder this run writes into is no input folder: a re-run would render its renders.
+    for (const fs::path& w : written) {
+      const fs::path rel = canonical_form(p).lexically_relative(canonical_form(w));
+      if (!rel.empty() && *rel.begin() != "..")
+        throw Error("the input '" + p + "' is in '" + w.string() + "', where this run writes its samples; choose another output folder");
+    }
+    auto more = find_images(p, skip);
     inputs.insert(inputs.end(), more.begin(), more.end());
   }
   if (inputs.empty()) demo = true;
   if (demo) {
     if (!cityscapes.empty() || !input_paths.empty()) throw Error("--demo renders its own backgrounds; drop --cityscapes/--input");
-    if (out == "out/render") options.out_dir = "out/demo";
-    inputs = make_demo_inputs(options.out_dir);
+    // The demo's own default folder, unless the user named one (out/render included).
+    if (app.get_option("--out")->count() == 0) options.out_dir = "out/demo";
     // Shards would all write the one default sheet.
     if (sheet.empty() && !shard.sharded()) sheet = (options.out_dir / "contact_sheet.png").string();
+    if (!sheet.empty()) check_contact_sheet(sheet, {}, options.out_dir);  // before the backgrounds are written
+    inputs = make_demo_inputs(options.out_dir);
+  }
+  // Against every input, the ones --limit leaves out included: they are the user's files too.
+  if (!sheet.empty()) {
+    options.contact_sheet_rows = sheet_rows;
+    check_contact_sheet(sheet, inputs, options.out_dir);
   }
   if (limit > 0 && static_cast<int>(inputs.size()) > limit) inputs.resize(limit);
-  if (!sheet.empty()) options.contact_sheet_rows = sheet_rows;
 
   const RenderSummary s = render_dataset(inputs, options);
   if (!s.errors.empty() && !keep_going) throw Error(s.errors.front());

@@ -47,8 +47,16 @@ std::string image_extensions() {
 std::vector<fs::path> list_image_files(const fs::path& dir, bool recursive, const std::vector<fs::path>& skip) {
   std::vector<fs::path> files;
   std::error_code ec;
+  // Only folders strictly inside `dir` are left out: a skip folder that is `dir` itself or
+  // holds it (an output folder given as the input folder or its parent) would otherwise
+  // leave out every subfolder, silently.
+  std::vector<fs::path> inside;
+  for (const fs::path& s : skip) {
+    if (s.empty() || !is_under(s, dir)) continue;
+    if (fs::weakly_canonical(s).lexically_relative(fs::weakly_canonical(dir)) != ".") inside.push_back(s);
+  }
   const auto skipped = [&](const fs::path& p) {
-    return std::any_of(skip.begin(), skip.end(), [&](const fs::path& s) { return !s.empty() && is_under(p, s); });
+    return std::any_of(inside.begin(), inside.end(), [&](const fs::path& s) { return is_under(p, s); });
   };
   if (recursive) {
     for (auto it = fs::recursive_directory_iterator(dir, fs::directory_options::skip_permission_denied, ec);

@@ -84,7 +84,7 @@ std::vector<InputImage> find_cityscapes(const fs::path& root, const std::string&
   return out;
 }
 
-std::vector<InputImage> find_images(const fs::path& source, const fs::path& skip) {
+std::vector<InputImage> find_images(const fs::path& source, const std::vector<fs::path>& skip) {
   std::error_code ec;
   if (!fs::exists(source, ec)) throw Error("'" + source.string() + "': no such file or folder");
   std::vector<InputImage> out;
@@ -96,7 +96,7 @@ std::vector<InputImage> find_images(const fs::path& source, const fs::path& skip
     out.push_back(std::move(in));
   };
   if (fs::is_directory(source)) {
-    for (const auto& file : list_image_files(source, true, {skip})) {
+    for (const auto& file : list_image_files(source, true, skip)) {
       // Lexically: fs::relative resolves symbolic links, naming a linked file after its target.
       fs::path rel = file.lexically_relative(source).replace_extension();
       std::string id = rel.generic_string();

@@ -158,6 +158,8 @@ json drop_record(const DropShape& d, bool gravity, double coc_px, bool lens) {
                     {"cos", d.outline.cos_terms()},
                     {"sin", d.outline.sin_terms()}};
   }
+  // A cap of a trail (trails.h): the index of the drop that left it, in this list.
+  if (d.trail_of >= 0) j["trail_of"] = d.trail_of;
   return j;
 }
 
@@ -475,7 +477,9 @@ RenderSummary render_dataset(const std::vector<InputImage>& inputs, const Render
                   std::lock_guard<std::mutex> lock(summary_mutex);
                   ++summary.rendered;
                   summary.coverage_sum += rendered.coverage();
-                  summary.drops_sum += static_cast<std::int64_t>(scene.drops.size());
+                  // Drops, not the caps of their trails.
+                  summary.drops_sum += std::count_if(scene.drops.begin(), scene.drops.end(),
+                                                     [](const DropShape& d) { return d.trail_of < 0; });
                   if (o.contact_sheet_rows > 0) {
                     summary.samples.push_back({id, frame.clean, rainy, rendered.mask});
                     std::sort(summary.samples.begin(), summary.samples.end(),

@@ -107,8 +107,8 @@ RenderedFrame render_frame(const cv::Mat& clean, const Camera& camera, const Sce
   for (const DropShape& shape : rendered_shapes(scene, frame.effects)) drops.emplace_back(shape, scene.glass);
   DropAccel accel(drops, config.geometry);
   // Non-overlapping footprints mean non-overlapping caps (a cap never reaches past its
-  // footprint for contact angles up to 90 degrees).
-  accel.set_disjoint(!config.allow_overlap);
+  // footprint for contact angles up to 90 degrees). A trail overlaps its drop.
+  accel.set_disjoint(!config.allow_overlap && !config.trails.enabled);
   frame.timings.accel_ms = ms_since(t0);
 
   if (defocus) {

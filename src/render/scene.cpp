@@ -7,6 +7,7 @@
 
 #include "raindrop/common/error.h"
 #include "raindrop/render/srgb.h"
+#include "raindrop/render/trails.h"
 
 namespace raindrop {
 namespace {
@@ -136,6 +137,9 @@ SceneSample sample_scene(const SceneConfig& config, const Camera& camera, Rng& r
       shape.footprint_radius /= std::sqrt(shape.outline.mean_square());
     }
   }
+  // Trails after everything else, so that turning them on changes no other draw; a drop that
+  // slid only shrinks by the water it left behind (trails.h).
+  if (config.trails.enabled) add_trails(&s.drops, config.trails, s.glass.tilt, rng);
   return s;
 }
 

@@ -187,6 +187,7 @@ std::vector<std::string> SceneConfig::effect_names() const {
   if (dispersion.enabled) names.push_back(dispersion.automatic ? "dispersion-auto" : "dispersion");
   if (gravity.enabled) names.push_back(gravity.automatic ? "gravity-auto" : "gravity");
   if (outline.enabled) names.push_back("outline");
+  if (trails.enabled) names.push_back("trails");
   if (highlights.enabled) names.push_back("highlights");
   if (veil.enabled) names.push_back("veil");
   if (sensor.enabled) names.push_back("sensor");
@@ -278,10 +279,10 @@ SceneConfig parse_scene_json(const std::string& text, const std::string& origin)
 
   // Effects: present = on; dispersion and gravity may be "auto" (or carry "auto": true).
   c.blur.enabled = c.fresnel.enabled = c.dispersion.enabled = c.gravity.enabled = c.sky.enabled = false;
-  c.sensor.enabled = c.highlights.enabled = c.veil.enabled = c.outline.enabled = false;
+  c.sensor.enabled = c.highlights.enabled = c.veil.enabled = c.outline.enabled = c.trails.enabled = false;
   if (r.has("effects")) {
     Reader e = r.child("effects");
-    for (const char* fixed : {"blur", "sky", "fresnel", "highlights", "veil", "sensor", "outline"}) {
+    for (const char* fixed : {"blur", "sky", "fresnel", "highlights", "veil", "sensor", "outline", "trails"}) {
       if (e.has(fixed) && e.is_auto(fixed))
         e.fail(std::string("'") + fixed + "' has no \"auto\" (only dispersion, gravity and quality.supersample do)");
     }
@@ -341,6 +342,19 @@ SceneConfig parse_scene_json(const std::string& text, const std::string& origin)
       if (modes != std::floor(modes)) o.fail("'modes' takes a whole number");
       c.outline.modes = static_cast<int>(modes);
       o.reject_unknown();
+    }
+    if (e.has("trails")) {
+      Reader t = e.child("trails");
+      c.trails.enabled = true;
+      // cos(receding) - cos(advancing) lies in [0, 2]; caps finer than 2% of their drop, or
+      // closer than 0.3 of their radii (piles), only cost time.
+      t.range("hysteresis", &c.trails.hysteresis, 0, 2);
+      t.range("length_radii", &c.trails.length_radii, 0, 50);
+      t.range("width", &c.trails.width, 0.02, 1);
+      t.range("contact_angle_deg", &c.trails.contact_angle_deg, 1, 90);
+      t.range("spacing", &c.trails.spacing, 0.3, 3);
+      t.number("max_volume_fraction", &c.trails.max_volume_fraction, 0, 0.9);
+      t.reject_unknown();
     }
     if (e.has("fresnel")) {
       Reader f = e.child("fresnel");
@@ -450,6 +464,13 @@ std::string scene_to_json(const SceneConfig& c) {
   }
   if (c.outline.enabled)
     effects["outline"] = {{"peak_deviation", range(c.outline.peak_deviation)}, {"modes", c.outline.modes}};
+  if (c.trails.enabled)
+    effects["trails"] = {{"hysteresis", range(c.trails.hysteresis)},
+                         {"length_radii", range(c.trails.length_radii)},
+                         {"width", range(c.trails.width)},
+                         {"contact_angle_deg", range(c.trails.contact_angle_deg)},
+                         {"spacing", range(c.trails.spacing)},
+                         {"max_volume_fraction", c.trails.max_volume_fraction}};
   if (c.highlights.enabled)
     effects["highlights"] = {{"threshold", c.highlights.threshold}, {"gain", range(c.highlights.gain)}};
   if (c.veil.enabled)

@@ -307,6 +307,61 @@ TEST(RenderFolder, OutputFolderInsideTheInputIsNotAnInput) {
   EXPECT_EQ(manifest_lines(tmp / "rin" / "out").size(), 2u) << r.describe();
 }
 
+// The output folder is the input folder, or holds it: every image under the input is still an
+// input (skipping the output folder used to skip all their subfolders, silently), and a second
+// run into the input folder itself does not take its rainy/clean/mask images as inputs.
+TEST(RenderFolder, OutputFolderThatIsOrHoldsTheInputSkipsNoSubfolder) {
+  TempDir tmp;
+  for (const char* root : {"r", "p"}) {
+    write_image(tmp / root / "imgs" / "a.png", make_background(96, 64, 0));
+    write_image(tmp / root / "imgs" / "sub" / "b.png", make_background(96, 64, 1));
+  }
+  for (const auto& [in, out] : {std::pair{"r/imgs", "r/imgs"}, std::pair{"r/imgs", "r/imgs"}, std::pair{"p/imgs", "p"}}) {
+    SCOPED_TRACE(out);
+    const auto r = run_render({"-i", in, "-o", out, "-j", "2", "-q"}, tmp.path());
+    ASSERT_EQ(r.code, 0) << r.describe();
+    const auto counts = parse_counts(r.err);
+    ASSERT_TRUE(counts) << r.describe();
+    EXPECT_EQ(counts->rendered + counts->skipped, 2) << r.describe();
+    EXPECT_EQ(manifest_lines(tmp / out).size(), 2u);
+  }
+}
+
+// The contact sheet is checked before the render: it may not replace an input or a rendered
+// sample, and a destination it cannot be written to stops the run before any work.
+TEST(RenderFolder, TheContactSheetNeitherReplacesAFileNorFailsLate) {
+  TempDir tmp;
+  write_image(tmp / "in" / "a.png", make_background(96, 64, 0));
+  const std::string before = read_file(tmp / "in" / "a.png");
+  write_image(tmp / "in" / "b.png", make_background(96, 64, 1));
+  for (const char* sheet : {"in/a.png", "./in/../in/a.png", "in/b.png", "o/rainy/a_v00.png", "o/mask/x.png", "nodir/s.png", "s.jsonl"}) {
+    SCOPED_TRACE(sheet);
+    // --limit 1: in/b.png is not rendered, and still the user's.
+    const auto r = run_render({"-i", "in", "-o", "o", "--limit", "1", "--contact-sheet", sheet, "-q"}, tmp.path());
+    EXPECT_NE(r.code, 0) << r.describe();
+    EXPECT_EQ(r.message_lines().size(), 1u) << r.describe();
+    EXPECT_FALSE(fs::exists(tmp / "o" / "manifest.jsonl")) << "refused only after rendering";
+  }
+  EXPECT_EQ(read_file(tmp / "in" / "a.png"), before);
+  const auto ok = run_render({"-i", "in", "-o", "o/", "--contact-sheet", "o/sheet.png", "-q"}, tmp.path());
+  EXPECT_EQ(ok.code, 0) << ok.describe();
+  EXPECT_TRUE(fs::exists(tmp / "o" / "sheet.png"));
+  // An input inside a folder the run writes into would be rendered again on every re-run.
+  const auto loop = run_render({"-i", "o/rainy", "-o", "o", "-q"}, tmp.path());
+  EXPECT_EQ(loop.code, 1) << loop.describe();
+  EXPECT_EQ(loop.message_lines().size(), 1u) << loop.describe();
+}
+
+// Without inputs the demo renders into out/demo, unless an output folder is named, even the
+// default's own name.
+TEST(RenderFolder, TheDemoWritesWhereItIsTold) {
+  TempDir tmp;
+  const auto r = run_render({"-o", "out/render", "--size", "64x32", "-q"}, tmp.path());
+  ASSERT_EQ(r.code, 0) << r.describe();
+  EXPECT_TRUE(fs::exists(tmp / "out" / "render" / "manifest.jsonl"));
+  EXPECT_FALSE(fs::exists(tmp / "out" / "demo"));
+}
+
 // A folder of symbolic links to images elsewhere (a common way to pick a subset): each is
 // named after its link, not after where it points. Resolving the link made names such as
 // "..-..-data-a_v00.png", hidden files that raindrop-remove's folder mode then skips.

@@ -459,6 +459,47 @@ TEST_F(RemoveCli, FolderModeFailures) {
 }
 
 
+// An output or mask folder inside the input folder is left out of the inputs, so an image
+// already there may be the user's own: photos/a.png's output would be photos/2023/a.png.
+// Refused before anything is written; a fresh folder there is still fine.
+TEST_F(RemoveCli, AFolderInsideTheInputNeverHasAFileReplaced) {
+  write_image(tmp / "photos" / "a.png", make_image(40, 30, 1));
+  write_image(tmp / "photos" / "2023" / "a.png", make_image(50, 20, 2));
+  write_image(tmp / "photos" / "2024" / "a.png", make_image(50, 20, 3));
+  const std::string mine = read_file(tmp / "photos" / "2023" / "a.png");
+  for (const std::vector<std::string>& args : {std::vector<std::string>{"photos", "photos/2023"},
+                                               {"photos", "out", "--mask-dir", "photos/2024"}}) {
+    const RunResult r = remove(args);
+    SCOPED_TRACE(r.command);
+    EXPECT_EQ(r.code, 2) << r.describe();
+    const auto lines = split_lines(r.err);
+    ASSERT_EQ(lines.size(), 1u) << r.describe();
+    EXPECT_NE(lines[0].find("already exists"), std::string::npos) << r.describe();
+    EXPECT_FALSE(fs::exists(tmp / "out"));
+  }
+  EXPECT_EQ(read_file(tmp / "photos" / "2023" / "a.png"), mine);
+  // A folder this program made there may be run into again: its files are its own outputs.
+  for (int run = 0; run < 2; ++run) {
+    const RunResult fresh = remove({"photos", "photos/derained", "--mask-dir", "photos/masks", "-q"});
+    EXPECT_EQ(fresh.code, 0) << "run " << run << "\n" << fresh.describe();
+    EXPECT_TRUE(fs::exists(tmp / "photos" / "derained" / "a.png"));
+    EXPECT_TRUE(fs::exists(tmp / "photos" / "derained" / "2023" / "a.png"));
+    EXPECT_TRUE(fs::exists(tmp / "photos" / "masks" / "2023" / "a.png"));
+  }
+}
+
+// An output folder that holds the input folder: every image under the input is an input
+// (skipping the output folder used to skip all the input's subfolders, silently).
+TEST_F(RemoveCli, AnOutputFolderHoldingTheInputSkipsNoSubfolder) {
+  write_image(tmp / "x" / "imgs" / "a.png", make_image(40, 30, 1));
+  write_image(tmp / "x" / "imgs" / "sub" / "c.png", make_image(20, 30, 2));
+  const RunResult r = remove({"x/imgs", "x"});
+  ASSERT_EQ(r.code, 0) << r.describe();
+  EXPECT_NE(r.err.find("2 of 2 images done"), std::string::npos) << r.describe();
+  EXPECT_TRUE(fs::exists(tmp / "x" / "a.png"));
+  EXPECT_TRUE(fs::exists(tmp / "x" / "sub" / "c.png"));
+}
+
 // Any two of input, output, mask and contact sheet naming one file (or, in folder mode, the
 // mask folder being the input or output folder) would overwrite one with another: refused as
 // a usage error before anything is read or written.

@@ -31,11 +31,13 @@ def summarize(data_dir: Path) -> dict:
         scene, cam = r["scene"], r["camera"]
         psi = math.radians(scene["tilt_deg"])
         to_2048 = 2048.0 / r["width"]
-        drops.append(len(r["drops"]))
+        # The caps of trails (the scene effect "trails") are not drops: they name theirs.
+        own = [d for d in r["drops"] if "trail_of" not in d]
+        drops.append(len(own))
         coverage.append(r["coverage"])
         dark.append(r.get("dark_band_fraction", float("nan")))
         off.append(r.get("off_frame_fraction", float("nan")))
-        for d in r["drops"]:
+        for d in own:
             z = scene["glass_distance_cm"] + d["center_cm"][1] * math.cos(psi)
             if z > 0:
                 diameters.append(2 * d["footprint_radius_cm"] * cam["fx"] / z * to_2048)

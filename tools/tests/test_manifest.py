@@ -55,3 +55,20 @@ def test_no_manifest_at_all(tmp_path):
     assert manifest_lines(tmp_path) == []
     with pytest.raises(DatasetError, match="no manifest.jsonl"):
         read_manifest(tmp_path)
+
+
+def test_trail_caps_are_not_counted_as_drops(tiny_dataset, tmp_path):
+    """The scene effect "trails" lists each trail's caps after the drops, naming theirs in
+    trail_of: drops per frame and drop sizes count the drops only."""
+    root = tmp_path / "ds"
+    shutil.copytree(tiny_dataset, root)
+    path = root / "manifest.jsonl"
+    records = [json.loads(x) for x in path.read_text().splitlines()]
+    drop = {"center_cm": [0.0, 0.0], "footprint_radius_cm": 0.3}
+    cap = {"center_cm": [0.0, -0.4], "footprint_radius_cm": 0.05, "trail_of": 0}
+    for r in records:
+        r["drops"] = [drop, cap, cap]
+    path.write_text("".join(json.dumps(r) + "\n" for r in records))
+    s = dataset_stats.summarize(root)
+    assert s["drops_per_frame"]["mean"] == 1
+    assert s["drops_per_frame"]["p95"] == 1

@@ -22,8 +22,9 @@ bool is_image_name(const std::filesystem::path& p);
 std::string image_extensions();
 
 // Image files in `dir` (recursively or not), sorted, each as `dir / relative name` (lexically:
-// a symbolic link keeps its own name). Folders in `skip` (and what lies under them) are left
-// out: an output folder inside the input folder, whose files are not inputs. Throws
+// a symbolic link keeps its own name). Folders in `skip` that lie strictly inside `dir` (and
+// what lies under them) are left out: an output folder inside the input folder, whose files
+// are not inputs; a skip folder that is `dir` or holds it leaves nothing out. Throws
 // raindrop::Error if `dir` cannot be listed.
 std::vector<std::filesystem::path> list_image_files(const std::filesystem::path& dir, bool recursive,
                                                     const std::vector<std::filesystem::path>& skip = {});

@@ -35,6 +35,7 @@ struct DropShape {
   double elongation = 1.0;       // downhill footprint semi-axis / a (gravity), >= 1
   double flattening = 1.0;       // height relative to the spherical cap (gravity), (0, 1]
   Outline outline;               // contact line: rim at a s(phi) across (circle by default)
+  int trail_of = -1;             // index of the drop whose trail this cap is (trails.h), or -1
 
   double sphere_radius() const;
   double height() const;

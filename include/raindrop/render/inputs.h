@@ -24,10 +24,11 @@ struct InputImage {
 // split: "train", "val", "test" or "all". Throws raindrop::Error if the layout is missing.
 std::vector<InputImage> find_cityscapes(const std::filesystem::path& root, const std::string& split);
 
-// `skip`: a folder whose files are not inputs when walking a folder: the output folder, so
-// that a run into a folder inside its input folder does not take its own outputs as inputs.
+// `skip`: folders whose files are not inputs when walking a folder (those strictly inside it):
+// the output folder and the folders a render writes into, so that a run into a folder inside
+// its input folder, or into the input folder itself, does not take its own outputs as inputs.
 std::vector<InputImage> find_images(const std::filesystem::path& file_folder_or_list,
-                                    const std::filesystem::path& skip = {});
+                                    const std::vector<std::filesystem::path>& skip = {});
 
 // Intrinsics from a Cityscapes camera JSON. Throws raindrop::Error if malformed.
 Camera read_cityscapes_camera(const std::filesystem::path& json_path);

@@ -116,6 +116,21 @@ struct SceneConfig {
     int modes = 6;
   } outline;
 
+  // Trails (trails.h): a drop too heavy for the glass to hold has slid downhill and left a
+  // streak of water behind it, a row of small flat caps that join into a film where `spacing`
+  // is below 1. Which drops slide follows from their size, the glass' slope and the contact
+  // angle hysteresis drawn per drop (Furmidge's balance); each gives its trail the water it
+  // holds. Drawn after every other draw of the sample, outlines included.
+  struct Trails {
+    bool enabled = false;
+    Range hysteresis{0.1, 0.4};        // cos(receding angle) - cos(advancing angle), per drop
+    Range length_radii{2, 8};          // how far the drop slid, in its footprint radii
+    Range width{0.15, 0.3};            // a trail cap's footprint radius / the drop's
+    Range contact_angle_deg{10, 25};   // the trail's caps: a thin film
+    Range spacing{0.7, 1.3};           // centre distance / the sum of two neighbours' radii
+    double max_volume_fraction = 0.5;  // the most of its water a drop leaves behind
+  } trails;
+
   // A thin-lens camera (optional). Without it the camera is a pinhole and the drops get the
   // paper's disk blur (effects.blur). With it, drops are defocused as a real lens focused on
   // the street sees them: each drop spreads over its circle of confusion and becomes
