@@ -11,6 +11,8 @@
 #include <iostream>
 #include <memory>
 #include <optional>
+#include <set>
+#include <sstream>
 #include <string>
 #include <vector>
 
@@ -665,8 +667,28 @@ int run_render_bench(RenderBenchOptions o) {
   int& frames = o.frames;
   int& repeats = o.repeats;
   const bool quick = o.quick;
+  // Named sections, each checked: a misspelt one is an error, not a run that measures nothing.
+  std::set<std::string> wanted;
+  {
+    const std::set<std::string> known{"time", "effects", "auto", "accuracy", "lens", "png"};
+    std::stringstream list(quick ? std::string("time") : sections);
+    for (std::string name; std::getline(list, name, ',');) {
+      if (name.empty()) continue;
+      if (!known.count(name)) throw Error("--sections: unknown section '" + name + "' (time, effects, auto, accuracy, lens, png)");
+      wanted.insert(name);
+    }
+    if (wanted.empty()) throw Error("--sections names no section (time, effects, auto, accuracy, lens, png)");
+  }
   const fs::path tmp = fs::temp_directory_path() / ("raindrop-bench-" + std::to_string(::getpid()));
   ensure_writable_dir(tmp);
+  // Removed however the run ends, an error included.
+  struct RemoveOnExit {
+    fs::path dir;
+    ~RemoveOnExit() {
+      std::error_code ec;
+      fs::remove_all(dir, ec);
+    }
+  } remove_tmp{tmp};
   Input input;
   if (!input_path.empty()) {
     input.png = input_path;
@@ -688,21 +710,18 @@ int run_render_bench(RenderBenchOptions o) {
     frames = 1;
     repeats = 1;
     sizes = {{512, 256}};
-    sections = "time";
   }
   std::cout << "## raindrop-bench render\n\n"
             << "- machine: " << bench::machine_description() << "\n"
             << "- input: " << input.description << "\n"
             << "- scene: paper preset, 70 drops, exact caps, 1 spp, antialiased disk blur unless a row says otherwise\n"
             << "- " << frames << " frames per measurement, median of " << repeats << " repeats\n";
-  if (sections.find("time") != std::string::npos) time_table(input, sizes, frames, repeats, tmp);
-  if (sections.find("png") != std::string::npos) png_table(input, std::max(repeats, 3), tmp);
-  if (sections.find("effects") != std::string::npos) effects_table(input, frames, repeats);
-  if (sections.find("auto") != std::string::npos) auto_table(input, frames, repeats);
-  if (sections.find("accuracy") != std::string::npos) accuracy_table(input, std::min(frames, 3), 1);
-  if (sections.find("lens") != std::string::npos) lens_table(input, std::min(frames, 2), repeats, o.lens_threads, *cli::parse_width_height(o.lens_size));
-  std::error_code ec;
-  fs::remove_all(tmp, ec);
+  if (wanted.count("time")) time_table(input, sizes, frames, repeats, tmp);
+  if (wanted.count("png")) png_table(input, std::max(repeats, 3), tmp);
+  if (wanted.count("effects")) effects_table(input, frames, repeats);
+  if (wanted.count("auto")) auto_table(input, frames, repeats);
+  if (wanted.count("accuracy")) accuracy_table(input, std::min(frames, 3), 1);
+  if (wanted.count("lens")) lens_table(input, std::min(frames, 2), repeats, o.lens_threads, *cli::parse_width_height(o.lens_size));
   return 0;
 }
 
