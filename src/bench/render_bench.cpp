@@ -671,13 +671,15 @@ int run_render_bench(RenderBenchOptions o) {
   std::set<std::string> wanted;
   {
     const std::set<std::string> known{"time", "effects", "auto", "accuracy", "lens", "png"};
+    std::string names;
+    for (const auto& k : known) names += (names.empty() ? "" : ", ") + k;
     std::stringstream list(quick ? std::string("time") : sections);
     for (std::string name; std::getline(list, name, ',');) {
       if (name.empty()) continue;
-      if (!known.count(name)) throw Error("--sections: unknown section '" + name + "' (time, effects, auto, accuracy, lens, png)");
+      if (!known.count(name)) throw Error("--sections: unknown section '" + name + "' (" + names + ")");
       wanted.insert(name);
     }
-    if (wanted.empty()) throw Error("--sections names no section (time, effects, auto, accuracy, lens, png)");
+    if (wanted.empty()) throw Error("--sections names no section (" + names + ")");
   }
   const fs::path tmp = fs::temp_directory_path() / ("raindrop-bench-" + std::to_string(::getpid()));
   ensure_writable_dir(tmp);

@@ -92,12 +92,6 @@ cv::Mat sheet_panel(const cv::Mat& img) {
 // images are this program's outputs, which a later run may replace.
 constexpr const char* kOwnFolderMarker = ".raindrop-remove-outputs";
 
-// Whether folder `inner` lies inside folder `outer` (and is not it).
-bool strictly_inside(const fs::path& inner, const fs::path& outer) {
-  const fs::path rel = fs::weakly_canonical(fs::absolute(inner)).lexically_relative(fs::weakly_canonical(fs::absolute(outer)));
-  return !rel.empty() && rel != "." && *rel.begin() != "..";
-}
-
 struct Job {
   fs::path input, output;
   std::optional<fs::path> mask;
@@ -112,9 +106,7 @@ void refuse_coinciding(const std::vector<std::pair<std::string, fs::path>>& plac
   std::map<fs::path, const std::pair<std::string, fs::path>*> seen;
   for (const auto& place : places) {
     if (place.second.empty()) continue;
-    fs::path key = fs::weakly_canonical(fs::absolute(place.second));
-    if (!key.has_filename()) key = key.parent_path();  // "dir/" is "dir"
-    auto [it, fresh] = seen.emplace(key, &place);
+    auto [it, fresh] = seen.emplace(canonical_form(place.second), &place);
     if (!fresh)
       throw UsageError("the " + it->second->first + " '" + it->second->second.string() + "' and the " + place.first +
                        " '" + place.second.string() + "' are the same " + kind + "; choose another one");
@@ -265,6 +257,12 @@ int run(int argc, char** argv) {
 
   std::vector<Job> jobs;
   if (batch && mask_dir.empty()) std::swap(mask, mask_dir);  // folder mode: --mask is a folder
+  // Folder mode: an output or mask folder inside the input folder that this program did not
+  // make (no marker file): its files are left out of the inputs and may be the user's own.
+  const auto foreign_inside = [&](const fs::path& folder) {
+    return batch && !folder.empty() && strictly_inside(folder, in_path) && !fs::exists(folder / kOwnFolderMarker, ec);
+  };
+  const bool out_inside = foreign_inside(out_arg), mask_inside = foreign_inside(mask_dir);
   if (batch) {
     if (fs::exists(out_arg, ec) && !fs::is_directory(out_arg, ec))
       throw Error("input '" + input + "' is a folder, so the output must be a folder too; '" + output + "' is a file");
@@ -279,13 +277,9 @@ int run(int argc, char** argv) {
       if (!mask_dir.empty()) j.mask = (fs::path(mask_dir) / rel).replace_extension(".png");
       jobs.push_back(j);
     }
-    // An output or mask folder inside the input folder is left out of the inputs, so an image
-    // already there may be the user's own (photos/2023/a.png, when photos/a.png's output is
-    // photos/2023/a.png): never replaced silently, unless the folder is one this program made
-    // (its marker file says so: then the files are an earlier run's outputs).
-    const bool out_inside = strictly_inside(out_arg, in_path) && !fs::exists(out_arg / kOwnFolderMarker, ec);
-    const bool mask_inside = !mask_dir.empty() && strictly_inside(mask_dir, in_path) &&
-                             !fs::exists(fs::path(mask_dir) / kOwnFolderMarker, ec);
+    // Such a folder's images may be the user's own (photos/2023/a.png, when photos/a.png's
+    // output is photos/2023/a.png): never replaced silently. In a folder this program made,
+    // they are an earlier run's outputs.
     for (const auto& j : jobs) {
       for (const auto& [role, inside, folder, file] :
            {std::tuple{"output", out_inside, out_arg, std::optional<fs::path>(j.output)},
@@ -323,11 +317,10 @@ int run(int argc, char** argv) {
   // output and mask sub-folders are made as the run goes; the formats are the inputs'.
   if (!mask_dir.empty()) ensure_writable_dir(mask_dir);
   if (batch) ensure_writable_dir(out_arg);
-  // Folders made inside the input folder are marked as this program's, so that a later run
-  // into them may replace what this one writes (checked above).
-  for (const fs::path& folder : {batch ? out_arg : fs::path(), batch ? fs::path(mask_dir) : fs::path()}) {
-    if (!folder.empty() && strictly_inside(folder, in_path) && !fs::exists(folder / kOwnFolderMarker, ec))
-      write_text_atomic("raindrop-remove writes its outputs here; a later run may replace them.\n", folder / kOwnFolderMarker);
+  // Folders inside the input folder are marked as this program's, so that a later run into
+  // them may replace what this one writes (checked above).
+  for (const auto& [inside, folder] : {std::pair{out_inside, out_arg}, std::pair{mask_inside, fs::path(mask_dir)}}) {
+    if (inside) write_text_atomic("raindrop-remove writes its outputs here; a later run may replace them.\n", folder / kOwnFolderMarker);
   }
   std::set<std::string> checked_formats;
   for (const Job& j : jobs) {

@@ -15,6 +15,7 @@
 #include "options.h"
 #include "raindrop/common/contact_sheet.h"
 #include "raindrop/common/error.h"
+#include "raindrop/common/image_files.h"
 #include "raindrop/common/image_io.h"
 #include "raindrop/common/shard.h"
 #include "raindrop/render/demo.h"
@@ -40,30 +41,26 @@ std::optional<cv::Size> parse_size(const std::string& text) {
   return cv::Size(w, h);
 }
 
-// The contact sheet is written after the render: checked before it, so that it can neither
-// replace an input or a rendered sample nor fail once the work is done.
-// Paths compared canonically: "./a", "a" and "o/../a" are one, and so are "o/" and "o".
-fs::path canonical_form(const fs::path& p) {
-  fs::path c = fs::weakly_canonical(fs::absolute(p));
-  return c.has_filename() ? c : c.parent_path();
-}
-
 bool same_path(const fs::path& a, const fs::path& b) { return canonical_form(a) == canonical_form(b); }
 
-void check_contact_sheet(const fs::path& sheet, const std::vector<InputImage>& inputs, const fs::path& out) {
-  const auto same = same_path;
+// The contact sheet is written after the render: checked before it, so that it can neither
+// replace an input or a rendered sample nor fail once the work is done. `samples`: the folders
+// the render writes its images into, inside `out`.
+void check_contact_sheet(const fs::path& sheet, const std::vector<InputImage>& inputs, const fs::path& out,
+                         const std::vector<fs::path>& samples) {
   for (const InputImage& in : inputs) {
-    if (!in.path.empty() && same(sheet, in.path))
+    if (!in.path.empty() && same_path(sheet, in.path))
       throw Error("the contact sheet '" + sheet.string() + "' is the input '" + in.path.string() + "'; choose another one");
   }
-  for (const char* sub : {"rainy", "clean", "mask", "alpha"}) {
-    if (same(sheet.parent_path().empty() ? fs::path(".") : sheet.parent_path(), out / sub))
+  const fs::path folder = sheet.has_parent_path() ? sheet.parent_path() : fs::path(".");
+  for (const fs::path& s : samples) {
+    if (same_path(folder, s))
       throw Error("the contact sheet '" + sheet.string() + "' would be written among the rendered samples in '" +
-                  (out / sub).string() + "'; choose another folder");
+                  s.string() + "'; choose another folder");
   }
-  if (same(sheet, out / "manifest.jsonl")) throw Error("the contact sheet '" + sheet.string() + "' is the manifest");
+  if (same_path(sheet, out / "manifest.jsonl")) throw Error("the contact sheet '" + sheet.string() + "' is the manifest");
   // Its folder may be the output folder, made by the render.
-  check_image_destination(sheet, same(sheet.parent_path().empty() ? fs::path(".") : sheet.parent_path(), out));
+  check_image_destination(sheet, same_path(folder, out));
 }
 
 // The demo's inputs: backgrounds drawn by the program, written as ordinary image files.
@@ -183,8 +180,7 @@ int run(int argc, char** argv) {
   for (const auto& p : input_paths) {
     // A folder this run writes into is no input folder: a re-run would render its renders.
     for (const fs::path& w : written) {
-      const fs::path rel = canonical_form(p).lexically_relative(canonical_form(w));
-      if (!rel.empty() && *rel.begin() != "..")
+      if (is_under(p, w))
         throw Error("the input '" + p + "' is in '" + w.string() + "', where this run writes its samples; choose another output folder");
     }
     auto more = find_images(p, skip);
@@ -197,13 +193,13 @@ int run(int argc, char** argv) {
     if (app.get_option("--out")->count() == 0) options.out_dir = "out/demo";
     // Shards would all write the one default sheet.
     if (sheet.empty() && !shard.sharded()) sheet = (options.out_dir / "contact_sheet.png").string();
-    if (!sheet.empty()) check_contact_sheet(sheet, {}, options.out_dir);  // before the backgrounds are written
+    if (!sheet.empty()) check_contact_sheet(sheet, {}, options.out_dir, written);  // before the backgrounds are written
     inputs = make_demo_inputs(options.out_dir);
   }
   // Against every input, the ones --limit leaves out included: they are the user's files too.
   if (!sheet.empty()) {
     options.contact_sheet_rows = sheet_rows;
-    check_contact_sheet(sheet, inputs, options.out_dir);
+    check_contact_sheet(sheet, inputs, options.out_dir, written);
   }
   if (limit > 0 && static_cast<int>(inputs.size()) > limit) inputs.resize(limit);
 

@@ -15,12 +15,22 @@ namespace {
 constexpr std::array<std::string_view, 8> kExtensions = {".bmp", ".exr",  ".jpeg", ".jpg",
                                                          ".png", ".tif", ".tiff", ".webp"};
 
+}  // namespace
+
+fs::path canonical_form(const fs::path& p) {
+  fs::path c = fs::weakly_canonical(fs::absolute(p));
+  return c.has_filename() ? c : c.parent_path();  // "dir/" is "dir"
+}
+
 bool is_under(const fs::path& p, const fs::path& dir) {
-  const auto rel = fs::weakly_canonical(p).lexically_relative(fs::weakly_canonical(dir));
+  const auto rel = canonical_form(p).lexically_relative(canonical_form(dir));
   return !rel.empty() && *rel.begin() != "..";
 }
 
-}  // namespace
+bool strictly_inside(const fs::path& p, const fs::path& dir) {
+  const auto rel = canonical_form(p).lexically_relative(canonical_form(dir));
+  return !rel.empty() && rel != "." && *rel.begin() != "..";
+}
 
 std::string lowercase_extension(const fs::path& p) {
   std::string ext = p.extension().string();
@@ -52,8 +62,7 @@ std::vector<fs::path> list_image_files(const fs::path& dir, bool recursive, cons
   // leave out every subfolder, silently.
   std::vector<fs::path> inside;
   for (const fs::path& s : skip) {
-    if (s.empty() || !is_under(s, dir)) continue;
-    if (fs::weakly_canonical(s).lexically_relative(fs::weakly_canonical(dir)) != ".") inside.push_back(s);
+    if (!s.empty() && strictly_inside(s, dir)) inside.push_back(s);
   }
   const auto skipped = [&](const fs::path& p) {
     return std::any_of(inside.begin(), inside.end(), [&](const fs::path& s) { return is_under(p, s); });

@@ -14,9 +14,9 @@ namespace {
 
 constexpr double kDeg = M_PI / 180.0;
 
-double draw(const Range& r, Rng& rng) { return r.lo == r.hi ? r.lo : rng.uniform(r.lo, r.hi); }
-
 }  // namespace
+
+double draw(const Range& r, Rng& rng) { return r.lo == r.hi ? r.lo : rng.uniform(r.lo, r.hi); }
 
 SceneSample sample_scene(const SceneConfig& config, const Camera& camera, Rng& rng) {
   SceneSample s;

@@ -2,12 +2,12 @@
 
 #include <cmath>
 
+#include "raindrop/render/scene.h"
+
 namespace raindrop {
 namespace {
 
 constexpr double kDeg = M_PI / 180.0;
-
-double draw(const Range& r, Rng& rng) { return r.lo == r.hi ? r.lo : rng.uniform(r.lo, r.hi); }
 
 }  // namespace
 

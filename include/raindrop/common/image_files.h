@@ -21,6 +21,14 @@ bool is_image_name(const std::filesystem::path& p);
 // The known extensions for messages: "bmp, exr, jpeg, jpg, png, tif, tiff, webp".
 std::string image_extensions();
 
+// A path compared as a place on disk: absolute and canonical as far as it exists, so that
+// "./a", "a" and "sub/../a" are one, and so are "dir/" and "dir".
+std::filesystem::path canonical_form(const std::filesystem::path& p);
+// Whether `p` is the folder `dir` or lies under it (in canonical form).
+bool is_under(const std::filesystem::path& p, const std::filesystem::path& dir);
+// Whether `p` lies under the folder `dir` and is not `dir` itself.
+bool strictly_inside(const std::filesystem::path& p, const std::filesystem::path& dir);
+
 // Image files in `dir` (recursively or not), sorted, each as `dir / relative name` (lexically:
 // a symbolic link keeps its own name). Folders in `skip` that lie strictly inside `dir` (and
 // what lies under them) are left out: an output folder inside the input folder, whose files

@@ -46,4 +46,7 @@ struct SceneSample {
 // Deterministic in the Rng state.
 SceneSample sample_scene(const SceneConfig& config, const Camera& camera, Rng& rng);
 
+// A value drawn uniformly from the range (its one value when lo == hi, drawing nothing).
+double draw(const Range& r, Rng& rng);
+
 }  // namespace raindrop
