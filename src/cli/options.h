@@ -3,6 +3,8 @@
 // image sizes are WIDTHxHEIGHT everywhere (as OpenCV's cv::Size and image tools write them),
 // and a choice among names is parsed by CLI11 straight into its enum, so a bad value is
 // CLI11's usage error (exit 2) before anything runs.
+#include <charconv>
+#include <cstdint>
 #include <cstdio>
 #include <map>
 #include <optional>
@@ -34,6 +36,22 @@ inline CLI::Validator width_height(int min_side = 1, int max_side = 16384, bool 
                std::to_string(max_side) + ", e.g. 512x256";
       },
       "WxH");
+}
+
+// A validator for an unsigned 64-bit option (a seed): digits only, 0 to 2^64 - 1. CLI11's own
+// conversion wraps "-1" to 2^64 - 1 and clamps a number past the top to it, both silently.
+inline CLI::Validator unsigned_64(const std::string& what) {
+  return CLI::Validator(
+      [what](const std::string& text) -> std::string {
+        std::uint64_t value = 0;
+        const char* end = text.data() + text.size();
+        const auto [ptr, ec] = std::from_chars(text.data(), end, value);
+        if (text.empty() || ec != std::errc() || ptr != end)
+          return "'" + text + "' is not a whole number from 0 to 18446744073709551615 (2^64 - 1)" +
+                 (what.empty() ? "" : " (" + what + ")");
+        return {};
+      },
+      "UINT64");
 }
 
 // Parses an option's value by name straight into an enum: exact names only (not the enum's

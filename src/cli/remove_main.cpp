@@ -300,6 +300,32 @@ int run(int argc, char** argv) {
     if (!mask_dir.empty()) j.mask = (fs::path(mask_dir) / in_path.filename()).replace_extension(".png");
     jobs.push_back(j);
   }
+  // Every name written, before any other check (the path comparisons below fail on a name
+  // the file system refuses) and before the inference (after which it used to fail).
+  for (const Job& j : jobs) {
+    check_file_name_length(j.output);
+    if (j.mask) check_file_name_length(*j.mask);
+  }
+  if (!sheet.empty()) check_file_name_length(sheet);
+  // Folder mode: every input's header is read before the models load and before the first
+  // write, so that a file this program refuses (float, 5 channels, too large, not an image)
+  // stops the run with nothing written, not after hours with part of the outputs there. Damage
+  // inside the pixel data (a cut file) is still found only when the image is decoded. With
+  // --keep-going such inputs are reported as failed at the end instead.
+  std::vector<std::string> errors;
+  if (batch) {
+    std::vector<Job> readable;
+    for (auto& j : jobs) {
+      try {
+        check_native_header(j.input);
+        readable.push_back(std::move(j));
+      } catch (const Error& e) {
+        if (!keep_going) throw;
+        errors.push_back(one_line(e.what()));
+      }
+    }
+    jobs = std::move(readable);
+  }
   // Every file read or written, once: no write may land on an input or on another output
   // (checked before anything is read or written).
   {
@@ -325,8 +351,8 @@ int run(int argc, char** argv) {
   std::set<std::string> checked_formats;
   for (const Job& j : jobs) {
     for (const fs::path* p : {&j.output, j.mask ? &*j.mask : nullptr}) {
-      if (p && (!batch || checked_formats.insert(p->extension().string()).second))
-        check_image_destination(*p, batch);
+      if (!p) continue;
+      if (!batch || checked_formats.insert(p->extension().string()).second) check_image_destination(*p, batch);
     }
   }
   if (!sheet.empty()) check_image_destination(sheet);
@@ -370,7 +396,7 @@ int run(int argc, char** argv) {
 
   std::vector<std::vector<cv::Mat>> rows;
   std::vector<std::string> captions;
-  std::vector<std::string> errors;
+  const std::size_t refused = errors.size();
   Progress progress(static_cast<std::int64_t>(jobs.size()), "remove", batch && !quiet);
   for (const auto& job : jobs) {
     const bool want_panels = !sheet.empty() && static_cast<int>(rows.size()) < kSheetRows;
@@ -392,8 +418,8 @@ int run(int argc, char** argv) {
     write_image_atomic(make_contact_sheet(rows, {"input", "mask", "output"}, captions, kPanelWidth), sheet);
   for (const auto& e : errors) std::cerr << "raindrop-remove: failed: " << e << "\n";
   if (batch && (!quiet || !errors.empty()))
-    std::fprintf(stderr, "raindrop-remove: %zu of %zu images done, %zu failed; output in %s\n", jobs.size() - errors.size(),
-                 jobs.size(), errors.size(), output.c_str());
+    std::fprintf(stderr, "raindrop-remove: %zu of %zu images done, %zu failed; output in %s\n",
+                 jobs.size() + refused - errors.size(), jobs.size() + refused, errors.size(), output.c_str());
   return errors.empty() ? 0 : 3;
 }
 

@@ -89,25 +89,24 @@ int run(int argc, char** argv) {
   std::string png_level = png_level_name(kDefaultPngLevel);
   std::uint64_t seed = 0;
   bool demo = false, convert = false, keep_going = false, quiet = false, list_scenes = false, print_scene = false;
-  app.add_option("--cityscapes", cityscapes, "Cityscapes root: walks leftImg8bit/<split>/<city>/*.png, reads camera/ intrinsics where present");
-  app.add_option("--split", split, "Cityscapes split: train, val, test or all")->capture_default_str();
+  auto* cityscapes_opt = app.add_option("--cityscapes", cityscapes, "Cityscapes root: walks leftImg8bit/<split>/<city>/*.png, reads camera/ intrinsics where present");
+  app.add_option("--split", split, "Cityscapes split: train, val, test or all")
+      ->capture_default_str()
+      ->check(CLI::IsMember({"train", "val", "test", "all"}))
+      ->needs(cityscapes_opt);
   app.add_option("-i,--input", input_paths, "Image file, folder (recursive) or list file; repeatable");
   app.add_flag("--demo", demo, "Render the built-in checkerboard and street backgrounds (the default without inputs)");
   app.add_option("-o,--out", out, "Output folder")->capture_default_str();
   app.add_option("--variants", variants, "Rendered variants per input image")->capture_default_str()->check(CLI::Range(1, 1000));
-  // Unsigned: without the check "-1" would wrap silently to 2^64 - 1.
+  // Unsigned 64-bit: checked as text, since CLI11 wraps "-1" and clamps past 2^64 - 1 silently.
   app.add_option("--seed", seed, "Run seed (0 to 2^64 - 1); each sample derives its own")
       ->capture_default_str()
-      ->check(CLI::Validator(
-          [](std::string& v) {
-            return v.find('-') == std::string::npos ? std::string() : "'" + v + "' is negative (seeds are 0 to 2^64 - 1)";
-          },
-          "SEED"));
+      ->check(cli::unsigned_64("seeds"));
   app.add_option("-j,--threads", threads, "Worker threads (0: all cores)")->capture_default_str()->check(CLI::Range(0, 1024));
   std::string presets;
   for (const auto& n : scene_preset_names()) presets += (presets.empty() ? "" : ", ") + n;
   app.add_option("--scene", scene_name, "Preset (" + presets + ") or JSON scene file")->capture_default_str();
-  app.add_option("--size", size_text, "Output WIDTHxHEIGHT (centre-crop to the aspect, then resize), e.g. 512x256; default: input size");
+  app.add_option("--size", size_text, "Output WIDTHxHEIGHT (centre-crop to the aspect, then resize), e.g. 512x256, or native; default: input size");
   app.add_option("--limit", limit, "Render only the first N inputs (0: all)")->check(CLI::Range(0, 100000000));
   app.add_option("--png-level", png_level,
                  "PNG compression: fast (Paeth rows deflated by libdeflate: fastest, about zlib level 3's size), "
@@ -133,7 +132,9 @@ int run(int argc, char** argv) {
     return app.exit(e) == 0 ? 0 : 2;
   }
   Shard shard;
+  std::optional<cv::Size> size;
   try {
+    size = parse_size(size_text);
     if (!shard_text.empty()) shard = parse_shard(shard_text);
     if (!merge_dir.empty() && (!cityscapes.empty() || !input_paths.empty() || demo || !shard_text.empty()))
       throw Error("--merge-shards only merges; give it no inputs and no --shard");
@@ -162,7 +163,7 @@ int run(int argc, char** argv) {
   options.variants = variants;
   options.seed = seed;
   options.threads = threads;
-  options.size = parse_size(size_text);
+  options.size = size;
   options.convert = convert;
   options.keep_going = keep_going;
   options.progress = !quiet;

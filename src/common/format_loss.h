@@ -7,11 +7,13 @@
 
 namespace raindrop {
 
-inline std::string format_loss(const std::string& format, int bits, int channels, bool depth_lost, bool alpha_lost) {
-  if (!depth_lost && !alpha_lost) return "";
+// `depth_lost`: what happened to the depth ("rounded to 8 bits"), or "" when it was kept.
+inline std::string format_loss(const std::string& format, int bits, int channels, const std::string& depth_lost,
+                               bool alpha_lost) {
+  if (depth_lost.empty() && !alpha_lost) return "";
   static const char* const kChannels[] = {"", "grey", "grey+alpha", "RGB", "RGBA"};
   return format + " cannot hold this " + std::to_string(bits) + "-bit " + kChannels[channels] + " image: " +
-         (depth_lost ? "rounded to 8 bits" : "") + (depth_lost && alpha_lost ? ", " : "") +
+         depth_lost + (!depth_lost.empty() && alpha_lost ? ", " : "") +
          (alpha_lost ? "alpha dropped" : "");
 }
 

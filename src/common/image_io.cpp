@@ -123,7 +123,7 @@ void check_rgb8_spec(const fs::path& path, const ImageHeader& h, bool convert, i
 
 std::string temp_name_for(const fs::path& path) {
   static std::atomic<unsigned> counter{0};
-  return "." + path.filename().string() + ".tmp-" + std::to_string(::getpid()) + "-" +
+  return "." + temporary_stem(path.filename().string()) + ".tmp-" + std::to_string(::getpid()) + "-" +
          std::to_string(counter++);
 }
 
@@ -140,6 +140,19 @@ void move_into_place(const fs::path& tmp, const fs::path& path) {
 }
 
 }  // namespace
+
+std::string temporary_stem(const std::string& file_name) {
+  // ".<stem>.tmp-<pid up to 10 digits>-<counter up to 10 digits>" within the limit.
+  constexpr std::size_t kSuffix = 1 + 5 + 10 + 1 + 10;
+  return file_name.substr(0, kMaxFileNameBytes - kSuffix);
+}
+
+void check_file_name_length(const fs::path& path) {
+  const std::size_t bytes = path.filename().string().size();
+  if (bytes > kMaxFileNameBytes)
+    throw Error(quoted(path) + ": cannot write (the file name is " + std::to_string(bytes) + " bytes, longer than the " +
+                std::to_string(kMaxFileNameBytes) + " a file system takes)");
+}
 
 ImageHeader read_header(const fs::path& path) { return open_image(path).header; }
 
@@ -180,18 +193,31 @@ cv::Mat read_rgb8(const fs::path& path, bool convert, int min_size) {
   return rgb;
 }
 
-cv::Mat read_image_native(const fs::path& path, int min_size) {
-  const Opened o = open_image(path);
-  const int w = o.header.width, h = o.header.height, nc = o.header.channels;
+namespace {
+
+// What read_image_native refuses from the header alone.
+void check_native_spec(const fs::path& path, const ImageHeader& header, int min_size) {
+  const int w = header.width, h = header.height, nc = header.channels;
   if (w < min_size || h < min_size)
     throw Error(quoted(path) + ": image is " + std::to_string(w) + "x" + std::to_string(h) +
                 ", smaller than the " + std::to_string(min_size) + "x" + std::to_string(min_size) + " minimum");
   if (nc < 1 || nc > 4) throw Error(quoted(path) + ": " + std::to_string(nc) + " channels are not supported");
   // Float files (EXR, float TIFF) hold linear light, which 16 bits cannot keep without a
   // transfer curve of our choosing, and which the networks never saw.
-  if (o.header.is_float)
-    throw Error(quoted(path) + ": " + std::to_string(o.header.bits) +
+  if (header.is_float)
+    throw Error(quoted(path) + ": " + std::to_string(header.bits) +
                 "-bit float image (linear light); only 8- and 16-bit images are taken (convert it to PNG or TIFF first)");
+}
+
+}  // namespace
+
+void check_native_header(const fs::path& path, int min_size) {
+  check_native_spec(path, open_image(path, /*check_data=*/false).header, min_size);
+}
+
+cv::Mat read_image_native(const fs::path& path, int min_size) {
+  const Opened o = open_image(path);
+  check_native_spec(path, o.header, min_size);
   return decode(path, o);
 }
 
@@ -214,7 +240,7 @@ cv::Mat for_jpeg(const cv::Mat& image, std::string* lost) {
     cv::mixChannels(&eight, 1, &colour, 1, from_to, nc - 1);
     eight = colour;
   }
-  *lost = format_loss("jpeg", depth ? 16 : 8, nc, depth, alpha);
+  *lost = format_loss("jpeg", depth ? 16 : 8, nc, depth ? "rounded to 8 bits" : "", alpha);
   return eight;
 }
 
@@ -291,6 +317,7 @@ cv::Mat jpeg_round_trip(const cv::Mat& rgb, int quality) {
 void check_image_destination(const fs::path& path, bool folder_may_be_created) {
   std::error_code ec;
   if (fs::is_directory(path, ec)) throw Error(quoted(path) + ": cannot write (it is a folder)");
+  check_file_name_length(path);
   if (!is_png_name(path) && !is_jpeg_name(path))
     oiio::codec(quoted(path) + ": writing this format").check_writable_format(path);
   const fs::path dir = path.has_parent_path() ? path.parent_path() : fs::path(".");

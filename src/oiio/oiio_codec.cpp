@@ -1,8 +1,11 @@
 // raindrop_oiio.so: image formats through OpenImageIO, for raindrop_common's image_io.cpp
 // (src/common/oiio_codec.h says why this is a plugin). The front end has already checked that
 // the file exists, is not empty and, for a PNG, is structurally sound.
+#include <cmath>
+#include <cstdint>
 #include <memory>
 #include <string>
+#include <vector>
 
 #include <OpenImageIO/imageio.h>
 
@@ -69,6 +72,27 @@ cv::Mat decode(const fs::path& path) {
   return image;
 }
 
+// The sRGB transfer curve, decoded: stored 8/16-bit values are sRGB-encoded (as the renderer
+// writes and as photographs are), float formats hold linear light.
+float srgb_to_linear(float v) { return v <= 0.04045f ? v / 12.92f : std::pow((v + 0.055f) / 1.055f, 2.4f); }
+
+// `data` (8/16-bit, sRGB-encoded colour, linear alpha) as linear-light floats, for a format
+// that stores only floats (OpenEXR, Radiance HDR): written as stored, its values would be
+// read back as linear light and show too bright and washed out.
+std::vector<float> to_linear_floats(const cv::Mat& data) {
+  const int nc = data.channels(), colour = nc == 2 || nc == 4 ? nc - 1 : nc;
+  const float scale = data.depth() == CV_8U ? 1.0f / 255.0f : 1.0f / 65535.0f;
+  std::vector<float> out(data.total() * nc);
+  std::size_t i = 0;
+  for (int y = 0; y < data.rows; ++y) {
+    for (int x = 0; x < data.cols * nc; ++x, ++i) {
+      const float v = (data.depth() == CV_8U ? data.ptr<std::uint8_t>(y)[x] : data.ptr<std::uint16_t>(y)[x]) * scale;
+      out[i] = x % nc < colour ? srgb_to_linear(v) : v;
+    }
+  }
+  return out;
+}
+
 std::string encode(const cv::Mat& image, const fs::path& file, const fs::path& name) {
   CV_Assert(image.depth() == CV_8U || image.depth() == CV_16U);
   // The plugin is chosen from the final name's extension, then opened on `file`.
@@ -81,13 +105,25 @@ std::string encode(const cv::Mat& image, const fs::path& file, const fs::path& n
   if (data.channels() == 4 || data.channels() == 2) spec.attribute("oiio:UnassociatedAlpha", 1);
   bool ok = out->open(file.string(), spec);
   // What the format cannot hold, known once its writer has opened: it lowers its own spec's
-  // depth (BMP, WebP store 8 bits) and says whether it stores alpha.
-  const std::string lost =
-      ok ? format_loss(out->format_name(), static_cast<int>(spec.format.size() * 8), data.channels(),
-                       out->spec().format.size() < spec.format.size(),
-                       (data.channels() == 2 || data.channels() == 4) && !out->supports("alpha"))
-         : "";
-  ok = ok && out->write_image(spec.format, data.data);
+  // depth (BMP, WebP store 8 bits; OpenEXR 16-bit half floats hold about 11 bits), says whether
+  // it stores alpha, and GIF keeps a palette of 256 colours.
+  const OIIO::TypeDesc stored = ok ? out->spec().format : spec.format;
+  const bool floats = ok && is_float(stored);
+  const bool palette = ok && std::string(out->format_name()) == "gif";
+  const std::string depth_lost = stored.size() < spec.format.size() ? "rounded to 8 bits"
+                                 : floats && stored.basetype == OIIO::TypeDesc::HALF && data.depth() == CV_16U
+                                     ? "stored as half floats (about 11 bits)"
+                                     : "";
+  std::string lost = ok ? format_loss(out->format_name(), static_cast<int>(spec.format.size() * 8), data.channels(),
+                                      depth_lost, (data.channels() == 2 || data.channels() == 4) && !out->supports("alpha"))
+                        : "";
+  if (palette) lost += (lost.empty() ? "gif holds 256 colours: " : ", ") + std::string("colours quantised to a palette");
+  if (floats) {
+    const std::vector<float> linear = to_linear_floats(data);
+    ok = ok && out->write_image(OIIO::TypeDesc::FLOAT, linear.data());
+  } else {
+    ok = ok && out->write_image(spec.format, data.data);
+  }
   ok = out->close() && ok;
   if (!ok) throw Error(quoted(name) + ": cannot write (" + first_line(out->geterror()) + ")");
   return lost;

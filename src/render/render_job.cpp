@@ -129,13 +129,13 @@ class OutputLock {
 fs::path folder_lock_path(const fs::path& dir) { return dir / ".raindrop-render.lock"; }
 std::string folder_description(const fs::path& dir) { return "output folder '" + dir.string() + "'"; }
 
-// `only`: remove just the temporaries of these file names (a shard's own: the other shards
+// `only`: remove just the temporaries of these file names' stems (temporary_stem) (a shard's own: the other shards
 // may be writing theirs right now); nullptr: all.
 void remove_stale_temporaries(const fs::path& dir, const std::set<std::string>* only = nullptr) {
   std::error_code ec;
   for (auto it = fs::directory_iterator(dir, ec); !ec && it != fs::directory_iterator(); it.increment(ec)) {
     const std::string name = it->path().filename().string();
-    const auto tmp = name.find(".tmp-");  // ".<file name>.tmp-<pid>-<n>"
+    const auto tmp = name.rfind(".tmp-");  // ".<temporary_stem(file name)>.tmp-<pid>-<n>"
     if (!name.empty() && name[0] == '.' && tmp != std::string::npos && (!only || only->count(name.substr(1, tmp - 1))))
       fs::remove(it->path(), ec);
   }
@@ -346,7 +346,11 @@ RenderSummary render_dataset(const std::vector<InputImage>& inputs, const Render
   const std::string manifest_file = manifest_name(o.shard);
   std::set<std::string> own_files{manifest_file};
   for (const auto& t : tasks) {
-    for (int v : t.variants) own_files.insert(variant_id(t.input->id, v) + ".png");
+    for (int v : t.variants) {
+      const std::string name = variant_id(t.input->id, v) + ".png";
+      check_file_name_length(o.out_dir / "rainy" / name);  // before any work, not after the render
+      own_files.insert(temporary_stem(name));
+    }
   }
   const fs::path manifest_path = o.out_dir / manifest_file;
   const std::string job = job_fingerprint(o);

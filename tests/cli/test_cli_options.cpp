@@ -62,3 +62,16 @@ TEST(CliOptions, SizesAreWidthByHeight) {
   EXPECT_FALSE(bad.ok);
   EXPECT_NE(bad.error.find("WIDTHxHEIGHT"), std::string::npos) << bad.error;
 }
+
+TEST(CliOptions, Unsigned64TakesExactlyTheRange) {
+  const auto check = [](std::string text) { return raindrop::cli::unsigned_64("seeds")(text); };
+  EXPECT_EQ(check("0"), "");
+  EXPECT_EQ(check("42"), "");
+  EXPECT_EQ(check("18446744073709551615"), "");  // 2^64 - 1
+  for (const char* bad : {"18446744073709551616", "99999999999999999999", "-1", "-0", "+1", "1.0", "1e3", "0x10", " 1",
+                          "1 ", ""}) {
+    const std::string why = check(bad);
+    EXPECT_NE(why, "") << "'" << bad << "' was accepted";
+    EXPECT_NE(why.find("2^64 - 1"), std::string::npos) << why;
+  }
+}

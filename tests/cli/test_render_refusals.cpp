@@ -6,22 +6,6 @@
 namespace clitest {
 namespace {
 
-// Writes `m` (any depth OpenImageIO takes: here float32) with `channels` channels, the
-// extra ones copies of the first, in the format of `p`'s extension.
-void write_any(const fs::path& p, const cv::Mat& m) {
-  fs::create_directories(p.parent_path());
-  auto out = OIIO::ImageOutput::create(p.string());
-  ASSERT_TRUE(out) << OIIO::geterror();
-  const OIIO::TypeDesc type = m.depth() == CV_32F ? OIIO::TypeDesc::FLOAT
-                              : m.depth() == CV_16U ? OIIO::TypeDesc::UINT16
-                                                    : OIIO::TypeDesc::UINT8;
-  const OIIO::ImageSpec spec(m.cols, m.rows, m.channels(), type);
-  const cv::Mat data = m.isContinuous() ? m : m.clone();
-  ASSERT_TRUE(out->open(p.string(), spec)) << out->geterror();
-  ASSERT_TRUE(out->write_image(type, data.data)) << out->geterror();
-  ASSERT_TRUE(out->close()) << out->geterror();
-}
-
 struct Refused {
   std::string name;  // file name, third in the folder's order
   cv::Mat pixels;
@@ -46,7 +30,7 @@ TEST(RenderRefusal, RefusedThirdInputWritesNothing) {
     TempDir tmp;
     write_image(tmp / "in" / "a.png", make_background(96, 64, 0));
     write_image(tmp / "in" / "b.png", make_background(96, 64, 1));
-    write_any(tmp / "in" / bad.name, bad.pixels);
+    write_image(tmp / "in" / bad.name, bad.pixels);
     const auto r = run_render({"-i", "in", "--out", "out", "-j", "1"}, tmp.path());
     expect_clean_failure(r, tmp / "out", bad.name);
     EXPECT_FALSE(fs::exists(tmp / "out")) << "a refused run must not make the output folder: "

@@ -35,6 +35,65 @@ TEST(ImageIo, FloatInputsAreSrgbEncodedWhenConverted) {
   std::filesystem::remove(path);
 }
 
+// Float formats (OpenEXR, Radiance HDR) hold linear light. The 8-bit sRGB-encoded values we
+// write used to be stored as they were, so an EXR viewer showed them washed out and the
+// renderer read them back brighter (0.5 stored was sRGB 0.735). Written decoded, every 8-bit
+// value comes back as it was, and the file holds the linear value.
+TEST(ImageIo, FloatFormatsAreWrittenInLinearLight) {
+  const auto dir = std::filesystem::temp_directory_path() / ("raindrop_exr_" + std::to_string(::getpid()));
+  std::filesystem::create_directories(dir);
+  cv::Mat ramp(16, 16, CV_8UC3);
+  for (int i = 0; i < 256; ++i) ramp.at<cv::Vec3b>(i / 16, i % 16) = cv::Vec3b(i, 255 - i, (i * 7) % 256);
+  for (const char* name : {"ramp.exr", "ramp.hdr"}) {
+    SCOPED_TRACE(name);
+    const auto path = dir / name;
+    write_image_atomic(ramp, path);
+    const cv::Mat back = read_rgb8(path, true, 1);
+    ASSERT_EQ(back.size(), ramp.size());
+    // Radiance HDR shares one exponent among three 8-bit mantissas: a dark channel beside a
+    // bright one keeps only a few bits.
+    const double tolerance = std::string(name) == "ramp.exr" ? 0 : 12;
+    EXPECT_LE(cv::norm(back, ramp, cv::NORM_INF), tolerance);
+    auto in = OIIO::ImageInput::open(path.string());
+    ASSERT_TRUE(in);
+    std::vector<float> stored(16 * 16 * 3);
+    ASSERT_TRUE(in->read_image(0, 0, 0, 3, OIIO::TypeDesc::FLOAT, stored.data()));
+    const int i = 5 * 16 + 4;  // sRGB 84 = linear 0.0887
+    EXPECT_NEAR(stored[3 * i], std::pow((84 / 255.0 + 0.055) / 1.055, 2.4), 2e-3);
+    EXPECT_NEAR(stored[3 * 255 + 0], 1.0, 2e-3);
+  }
+  std::filesystem::remove_all(dir);
+}
+
+// A name near the file system's 255-byte limit: its hidden temporary (16-27 bytes longer)
+// used to fail with "File name too long" after the work was done. The temporary now cuts the
+// name; a final name past the limit is refused by the destination check.
+TEST(ImageIo, LongFileNamesFitTheirTemporaries) {
+  const auto dir = std::filesystem::temp_directory_path() / ("raindrop_long_" + std::to_string(::getpid()));
+  std::filesystem::create_directories(dir);
+  const cv::Mat img(4, 4, CV_8UC3, cv::Scalar(1, 2, 3));
+  for (const char* ext : {".png", ".tif"}) {
+    const auto longest = dir / (std::string(kMaxFileNameBytes - 4, 'a') + ext);
+    EXPECT_NO_THROW(check_image_destination(longest));
+    EXPECT_NO_THROW(write_image_atomic(img, longest));
+    EXPECT_EQ(read_header(longest).width, 4);
+    EXPECT_NO_THROW(write_text_atomic("x", dir / std::string(kMaxFileNameBytes, 't')));
+    const auto too_long = dir / (std::string(kMaxFileNameBytes - 3, 'b') + ext);
+    try {
+      check_image_destination(too_long);
+      ADD_FAILURE() << "a 256-byte name passed the destination check";
+    } catch (const Error& e) {
+      EXPECT_NE(std::string(e.what()).find("256 bytes, longer than the 255"), std::string::npos) << e.what();
+    }
+  }
+  EXPECT_EQ(temporary_stem("short.png"), "short.png");
+  EXPECT_LE(temporary_stem(std::string(300, 'c')).size() + 27, kMaxFileNameBytes);
+  std::size_t hidden = 0;
+  for (const auto& e : std::filesystem::directory_iterator(dir)) hidden += e.path().filename().string()[0] == '.';
+  EXPECT_EQ(hidden, 0u) << "temporaries left behind";
+  std::filesystem::remove_all(dir);
+}
+
 // A failed rename must report its own error, not that of the clean-up after it (which
 // succeeds, so the message read "(Success)").
 TEST(ImageIo, FailedRenameReportsItsOwnError) {

@@ -47,13 +47,16 @@ inline std::optional<Image> read_image(const std::filesystem::path& p, std::stri
   return img;
 }
 
-// Writes an 8-bit (CV_8U) or 16-bit (CV_16U) image with 1-4 channels in RGB(A) order (2 and 4
-// channels: the last is an unassociated alpha).
+// Writes an 8-bit (CV_8U), 16-bit (CV_16U) or float (CV_32F) image with any channel count in
+// RGB(A) order (2 and 4 channels: the last is an unassociated alpha), as stored: for the
+// refusals too (float, five channels).
 inline void write_image(const std::filesystem::path& p, const cv::Mat& m) {
   if (p.has_parent_path()) std::filesystem::create_directories(p.parent_path());
   auto out = OIIO::ImageOutput::create(p.string());
   ASSERT_TRUE(out) << OIIO::geterror();
-  const OIIO::TypeDesc type = m.depth() == CV_16U ? OIIO::TypeDesc::UINT16 : OIIO::TypeDesc::UINT8;
+  const OIIO::TypeDesc type = m.depth() == CV_32F   ? OIIO::TypeDesc::FLOAT
+                              : m.depth() == CV_16U ? OIIO::TypeDesc::UINT16
+                                                    : OIIO::TypeDesc::UINT8;
   OIIO::ImageSpec spec(m.cols, m.rows, m.channels(), type);
   if (m.channels() == 4 || m.channels() == 2) {
     spec.alpha_channel = m.channels() - 1;

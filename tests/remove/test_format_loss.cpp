@@ -28,6 +28,32 @@ TEST(FormatLoss, Rgba16AsJpegWarnsOnce) {
   EXPECT_EQ(out->format, OIIO::TypeDesc::UINT8);
 }
 
+// GIF keeps a palette of 256 colours: written, but not silently.
+TEST(FormatLoss, GifSaysItQuantises) {
+  TempDir tmp;
+  write_image(tmp / "in.png", make_image(40, 30, 3));
+  const RunResult r = run_remove({"in.png", "out.gif", "--models", smoke_models().string()}, tmp.path());
+  ASSERT_EQ(r.code, 0) << r.describe();
+  const auto lines = split_lines(r.err);
+  ASSERT_EQ(lines.size(), 1u) << r.describe();
+  EXPECT_NE(lines[0].find("'out.gif': gif holds 256 colours: colours quantised to a palette"), std::string::npos)
+      << r.describe();
+}
+
+// OpenEXR stores half floats, about 11 bits: a 16-bit input loses depth there (said), an 8-bit
+// one does not; both hold linear light (image_io's test checks the values).
+TEST(FormatLoss, ExrSaysWhenHalfFloatsLoseDepth) {
+  TempDir tmp;
+  write_image(tmp / "in16.png", rgba16());
+  write_image(tmp / "in8.png", make_image(40, 30, 3));
+  RunResult r = run_remove({"in16.png", "out16.exr", "--models", smoke_models().string()}, tmp.path());
+  ASSERT_EQ(r.code, 0) << r.describe();
+  EXPECT_NE(r.err.find("stored as half floats (about 11 bits)"), std::string::npos) << r.describe();
+  r = run_remove({"in8.png", "out8.exr", "--models", smoke_models().string()}, tmp.path());
+  ASSERT_EQ(r.code, 0) << r.describe();
+  EXPECT_EQ(r.err, "") << r.describe();
+}
+
 TEST(FormatLoss, FormatsThatHoldItSayNothing) {
   TempDir tmp;
   write_image(tmp / "in.png", rgba16());

@@ -413,6 +413,57 @@ TEST_F(RemoveCli, FolderMode) {
   EXPECT_EQ(remove({"batch/a.png", "a_out.png", "--mask", "x.png", "--mask-dir", "m"}).code, 2);
 }
 
+// Folder mode reads every input's header before anything is written: an image refused from
+// its header (here: not an image, a float EXR-like TIFF, five channels), third in the folder,
+// used to stop the run after the first two outputs were written. It is refused before the
+// models load (a missing model folder is not what the error names) and no output folder is made.
+TEST_F(RemoveCli, FolderModeRefusesBadHeadersBeforeTheFirstWrite) {
+  cv::Mat floating(30, 40, CV_32FC3, cv::Scalar(0.5, 0.25, 0.125));
+  cv::Mat grey = make_image(40, 30, 3), five;
+  cv::cvtColor(make_image(40, 30, 3), grey, cv::COLOR_RGB2GRAY);
+  cv::merge(std::vector<cv::Mat>{grey, grey, grey, grey, grey}, five);
+  for (const auto& [name, pixels] : std::vector<std::pair<std::string, cv::Mat>>{
+           {"c.png", cv::Mat()}, {"c.tif", floating}, {"c_five.tif", five}}) {
+    SCOPED_TRACE(name);
+    const fs::path in = tmp / ("h-" + fs::path(name).filename().string());
+    write_image(in / "a.png", make_image(40, 30, 1));
+    write_image(in / "b.png", make_image(40, 30, 2));
+    if (pixels.empty()) {
+      write_file(in / name, "not an image");
+    } else {
+      write_image(in / name, pixels);
+    }
+    const std::string out = "out-" + in.filename().string();
+    RunResult r = remove({in.filename().string(), out, "-q", "-j", "1", "--models", "no-such-models"});
+    EXPECT_EQ(r.code, 1) << r.describe();
+    ASSERT_EQ(r.err_lines().size(), 1u) << r.describe();
+    EXPECT_NE(r.err.find(name), std::string::npos) << r.describe();
+    EXPECT_FALSE(fs::exists(tmp / out)) << "nothing may be written before a refusal found in a header";
+    // --keep-going: the others are done, the refused one is counted as failed.
+    r = remove({in.filename().string(), out, "-q", "--keep-going"});
+    EXPECT_EQ(r.code, 3) << r.describe();
+    EXPECT_TRUE(fs::exists(tmp / out / "a.png"));
+    EXPECT_TRUE(fs::exists(tmp / out / "b.png"));
+    EXPECT_NE(r.err.find("2 of 3 images done, 1 failed"), std::string::npos) << r.describe();
+  }
+}
+
+// An output name the file system refuses (over 255 bytes) is refused before the models load;
+// one at the limit is written (its temporary used to be too long, after the inference).
+TEST_F(RemoveCli, LongOutputNames) {
+  const std::string longest = std::string(251, 'a') + ".png", too_long = std::string(252, 'a') + ".png";
+  RunResult r = remove({"in.png", too_long, "-q", "--models", "no-such-models"});
+  EXPECT_EQ(r.code, 1) << r.describe();
+  ASSERT_EQ(r.err_lines().size(), 1u) << r.describe();
+  EXPECT_NE(r.err.find("256 bytes, longer than the 255"), std::string::npos) << r.describe();
+  r = remove({"in.png", "out.png", "-q", "--mask", too_long, "--models", "no-such-models"});
+  EXPECT_NE(r.err.find("256 bytes"), std::string::npos) << r.describe();
+  EXPECT_FALSE(fs::exists(tmp / "out.png"));
+  r = remove({"in.png", longest, "-q"});
+  EXPECT_EQ(r.code, 0) << r.describe();
+  EXPECT_TRUE(read_image(tmp / longest)) << r.describe();
+}
+
 // A folder of symbolic links to images elsewhere: each output lands under the output folder
 // at its link's name. Resolving the links put the output beside the link's target
 // ("results/../elsewhere/in.png", the input itself, refused as such).

@@ -8,6 +8,7 @@
 // Writes are atomic: the image goes to a hidden temporary file in the destination folder
 // and is renamed over the final name only when complete, so an interrupted run never leaves
 // a half-written image under a final name.
+#include <cstddef>
 #include <cstdint>
 #include <filesystem>
 #include <string>
@@ -50,6 +51,10 @@ void check_rgb8_header(const std::filesystem::path& path, bool convert, int min_
 // other integer depths become CV_16U). For raindrop-remove, which keeps size, channels and bit depth.
 cv::Mat read_image_native(const std::filesystem::path& path, int min_size = 1);
 
+// Throws the Error read_image_native would throw for what the file's header shows, without
+// decoding the pixels (as check_rgb8_header does for read_rgb8).
+void check_native_header(const std::filesystem::path& path, int min_size = 1);
+
 // PNG compression: a zlib level 0-9 with libpng's adaptive row filters; kPngRunLength: zlib's
 // run-length strategy over Paeth-filtered rows, both faster and smaller than a zlib level (a
 // 2048x1024 street frame: 2.2x faster than level 3 and 12% smaller, smaller even than level 6,
@@ -81,6 +86,18 @@ cv::Mat jpeg_round_trip(const cv::Mat& rgb, int quality);
 // `folder_may_be_created`), not a folder or not writable, or an existing read-only file. For
 // checking every destination of a run before its first write.
 void check_image_destination(const std::filesystem::path& path, bool folder_may_be_created = false);
+
+// The longest file name (bytes) that Linux file systems take (NAME_MAX on ext4, XFS, Btrfs).
+inline constexpr std::size_t kMaxFileNameBytes = 255;
+
+// Throws a one-line Error naming `path` if its file name is longer than kMaxFileNameBytes:
+// for checking a run's destinations before its work, not after (check_image_destination
+// does it too).
+void check_file_name_length(const std::filesystem::path& path);
+
+// The part of a file name that its hidden temporary (".<stem>.tmp-<pid>-<n>", beside it in
+// its folder) carries: the name itself, cut where the temporary would pass kMaxFileNameBytes.
+std::string temporary_stem(const std::string& file_name);
 
 // Creates the folder if needed and proves it is writable; throws a one-line Error if not.
 void ensure_writable_dir(const std::filesystem::path& dir);
