@@ -14,11 +14,45 @@ namespace raindrop {
 namespace fs = std::filesystem;
 namespace {
 
-std::string safe_id(std::string s) {
-  for (char& c : s) {
-    if (!(std::isalnum(static_cast<unsigned char>(c)) || c == '-' || c == '_' || c == '.')) c = '_';
+// The length of the well-formed UTF-8 sequence starting at s[i] (RFC 3629: no overlong forms,
+// no surrogates, nothing past U+10FFFF), or 0.
+std::size_t utf8_sequence(const std::string& s, std::size_t i) {
+  const auto byte = [&](std::size_t k) { return k < s.size() ? static_cast<unsigned char>(s[k]) : 0u; };
+  const auto cont = [&](std::size_t k, unsigned lo = 0x80, unsigned hi = 0xBF) { return byte(k) >= lo && byte(k) <= hi; };
+  const unsigned b = byte(i);
+  if (b >= 0xC2 && b <= 0xDF) return cont(i + 1) ? 2 : 0;
+  if (b >= 0xE0 && b <= 0xEF) {
+    const bool second = b == 0xE0 ? cont(i + 1, 0xA0) : b == 0xED ? cont(i + 1, 0x80, 0x9F) : cont(i + 1);
+    return second && cont(i + 2) ? 3 : 0;
   }
-  return s;
+  if (b >= 0xF0 && b <= 0xF4) {
+    const bool second = b == 0xF0 ? cont(i + 1, 0x90) : b == 0xF4 ? cont(i + 1, 0x80, 0x8F) : cont(i + 1);
+    return second && cont(i + 2) && cont(i + 3) ? 4 : 0;
+  }
+  return 0;
+}
+
+// A sample's id as a file name and a JSON string: letters, digits, '-', '_' and '.' stay, and
+// so do non-ASCII characters (well-formed UTF-8: "café" stays "café"; replacing each byte with
+// '_' made "café" and "cafè" one id, and the run was refused); everything else, bytes that are
+// not UTF-8 included, becomes '_'.
+std::string safe_id(const std::string& s) {
+  std::string id;
+  id.reserve(s.size());
+  for (std::size_t i = 0; i < s.size();) {
+    const unsigned char c = static_cast<unsigned char>(s[i]);
+    if (c < 0x80) {
+      id += std::isalnum(c) || c == '-' || c == '_' || c == '.' ? static_cast<char>(c) : '_';
+      ++i;
+    } else if (const std::size_t n = utf8_sequence(s, i)) {
+      id.append(s, i, n);
+      i += n;
+    } else {
+      id += '_';
+      ++i;
+    }
+  }
+  return id;
 }
 
 }  // namespace

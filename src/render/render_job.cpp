@@ -475,7 +475,10 @@ RenderSummary render_dataset(const std::vector<InputImage>& inputs, const Render
                 write_image_atomic(rainy, o.out_dir / "rainy" / (id + ".png"), o.png_level);
                 write_image_atomic(frame.clean, o.out_dir / "clean" / (id + ".png"), o.png_level);
                 write_image_atomic(rendered.mask, o.out_dir / "mask" / (id + ".png"), o.png_level);
-                manifest.append(id, sample_record(id, *task.input, v, seed, frame, o.scene, scene, rendered, veil, sensor, job).dump());
+                // A source path that is not UTF-8 (file names are bytes) cannot be JSON: such
+                // bytes are written as U+FFFD instead of stopping the run after the images.
+                manifest.append(id, sample_record(id, *task.input, v, seed, frame, o.scene, scene, rendered, veil, sensor, job)
+                                        .dump(-1, ' ', false, json::error_handler_t::replace));
                 ++finished;
                 {
                   std::lock_guard<std::mutex> lock(summary_mutex);

@@ -441,3 +441,29 @@ TEST(RenderListFile, LimitTakesTheFirstInputs) {
 
 }  // namespace
 }  // namespace clitest
+
+namespace clitest {
+namespace {
+
+// Ids keep non-ASCII letters: "café" and "cafè" were both "caf__", and the run was refused.
+// A name that is not UTF-8 still gives an id that is valid JSON and a file name (it stopped the
+// run after its images were written: the manifest's source path could not be JSON).
+TEST(RenderIds, NonAsciiNamesKeepTheirLetters) {
+  TempDir tmp;
+  const std::string not_utf8 = std::string("bad") + static_cast<char>(0xFF) + static_cast<char>(0xC3) + "x";
+  for (const std::string& name : std::vector<std::string>{"café", "cafè", "東京 1", not_utf8})
+    write_image(tmp / "in" / (name + ".png"), make_background(64, 48, static_cast<int>(name.size())));
+  const auto r = run_render({"-i", "in", "--out", "out", "-q"}, tmp.path());
+  ASSERT_EQ(r.code, 0) << r.describe();
+  std::set<std::string> ids;
+  for (const auto& rec : read_manifest(tmp / "out")) ids.insert(rec.at("id").get<std::string>());
+  EXPECT_EQ(ids, (std::set<std::string>{"café_v00", "cafè_v00", "東京_1_v00", "bad__x_v00"}));
+  for (const auto& id : ids) EXPECT_TRUE(fs::exists(tmp / "out" / "rainy" / (id + ".png"))) << id;
+  bool replaced = false;
+  for (const auto& rec : read_manifest(tmp / "out"))
+    replaced = replaced || rec.at("source").get<std::string>() == "in/bad\xEF\xBF\xBD\xEF\xBF\xBDx.png";
+  EXPECT_TRUE(replaced) << "the source path's stray bytes as U+FFFD";
+}
+
+}  // namespace
+}  // namespace clitest
