@@ -3,7 +3,7 @@
 # and scripts/setup-tools.sh; needs a folder of real photographs, $RAINDROP_SHARED_DATA
 # (default ../shared/data), for the real frames). Sections can be chosen:
 # scripts/results.sh data render stats eval remove tradeoffs sheets photoreal scale flatroad largedrops coarsetrain
-# largedropmodels sensor mirroraverage highlights multiscale veil papermodels outline trails
+# largedropmodels sensor mirroraverage highlights multiscale veil papermodels outline trails photos
 #
 # Nothing here is committed automatically: images derived from Cityscapes, CamVid or the
 # real raindrop photographs stay under out/ (their licences forbid redistribution).
@@ -15,7 +15,8 @@ out=out/results
 mkdir -p "$out"
 sections=("$@")
 ((${#sections[@]})) || sections=(data render stats eval remove tradeoffs sheets photoreal scale flatroad largedrops coarsetrain
-                                  largedropmodels sensor mirroraverage highlights multiscale veil papermodels outline trails)
+                                  largedropmodels sensor mirroraverage highlights multiscale veil papermodels outline trails
+                                  photos)
 want() { [[ " ${sections[*]} " == *" $1 "* ]]; }
 # link_set SRC DST SPLIT [LIMIT]: the first LIMIT (default 100; 0: all) samples of data set SRC
 # (of manifest split SPLIT; "-" = all) linked into DST/rainy and DST/clean under plainly named
@@ -655,4 +656,26 @@ if want trails; then
     merged_models_scored "$td" "$tag"
   done | tee "$td/real-pairs.txt"
   build/raindrop-bench render --sections effects --frames 6 --repeats 3 | tee "$td/bench_effects.md"
+fi
+
+if want photos; then
+  # docs/RESULTS.md 4.17: the presets against the 44 real raindrop photographs (windshields and
+  # lenses, no clean images: the classifier alone), beside the same CamVid frames without drops
+  # (the rainy images replaced by the clean ones: what the scenes alone tell apart); three seeds.
+  pd="$out/photos" sets=()
+  link_cv100
+  mkdir -p "$pd"
+  for preset in paper real-photo windshield-day lens-cover-merged; do
+    rm -rf "$pd/val-$preset" && build/raindrop-render -i "$out/cv100" -o "$pd/val-$preset" --scene "$preset" \
+      --size 512x256 --seed 11 -q
+    sets+=(--rendered "$pd/val-$preset")
+  done
+  rm -rf "$pd/val-no-drops" && mkdir -p "$pd/val-no-drops"
+  cp "$pd/val-paper/manifest.jsonl" "$pd/val-no-drops/"
+  for sub in clean mask; do cp -r "$pd/val-paper/$sub" "$pd/val-no-drops/$sub"; done
+  cp -r "$pd/val-paper/clean" "$pd/val-no-drops/rainy"
+  for seed in 0 1 2; do
+    $py -m raindrop_tools.realism --real-photos "$shared/real-raindrop" --rendered "$pd/val-no-drops" "${sets[@]}" \
+      --limit 100 --seed "$seed" --json "$pd/realism-photos-s$seed.json" | tee "$pd/realism-photos-s$seed.md"
+  done
 fi

@@ -1,6 +1,6 @@
 """How far rendered drops are from real ones (project issue 9, items 1 and 5).
 
-    python -m raindrop_tools.realism --real-pairs DIR [--split train|test|all] \\
+    python -m raindrop_tools.realism [--real-pairs DIR] [--split train|test|all] [--real-photos DIR] \\
         [--rendered DATASET ...] [--limit N] [--crops-per-image 4] [--folds 5] [--seed 0] [--json FILE]
 
 (a) **Statistics of drops** from (rainy, clean, mask) triples. Real pairs: the rough masks of
@@ -56,6 +56,11 @@ over all drops).
   resolution, and scene content (city, camera, time of day) differs between sets too, so the
   classifier also separates scenes: read it as an upper bound of the drop realism gap.
 
+(d) **Against real photographs without clean images** (``--real-photos DIR``, e.g. windshield
+photographs, which the real pairs, all lens covers, do not represent): only the classifier,
+real photographs' crops against each rendered set's, the photographs resized to 512 px wide
+(the renders' width) first. No mask, so no statistics.
+
 Prints a markdown table of statistics per data set and one of scores; ``--json`` writes it all.
 No torch.
 """
@@ -74,7 +79,7 @@ import numpy as np
 
 from . import realpairs as RP
 from .data import DatasetError, read_manifest
-from .imageio import ImageError, read_mask_strict, read_rgb_strict
+from .imageio import ImageError, read_mask_strict, read_rgb, read_rgb_strict
 from .metrics import luma_float
 
 MIN_DROP_AREA = 5
@@ -84,6 +89,7 @@ EDGE_MIN_CONTRAST = 8.0
 MIN_OUTSIDE = 0.05
 CROP = 64
 CLIPPED = 250
+IMAGE_SUFFIXES = {".png", ".jpg", ".jpeg", ".bmp", ".tif", ".tiff", ".webp"}
 MIN_CLIPPED = 0.01
 # per-image statistics and the per-drop ones, in table order
 IMAGE_STATS = ("coverage", "drops", "brightness", "sharpness", "edge_width", "veil", "highlights")
@@ -353,6 +359,29 @@ def collect_rendered(root, rng, crops_per_image, limit=None, splits=None,
     return st
 
 
+PHOTO_WIDTH = 512
+
+
+def collect_photos(folder, rng, crops_per_image, width=PHOTO_WIDTH) -> tuple[list[np.ndarray], list[str], int]:
+    """Crops of real rainy photographs without clean images (for the classifier alone: no
+    mask, so no drop statistics). Each photograph is first resized to ``width`` px wide, the
+    width of the rendered sets (512x256 renders) and the scale the networks work at, so that
+    a 64x64 crop covers about as much of a scene on both sides. -> (crops, groups, photos)."""
+    files = sorted(p for p in Path(folder).iterdir() if p.is_file() and p.suffix.lower() in IMAGE_SUFFIXES)
+    if not files:
+        raise ValueError(f"{folder}: no images ({', '.join(sorted(IMAGE_SUFFIXES))})")
+    crops, groups = [], []
+    for f in files:
+        rgb = read_rgb(f)
+        if rgb.shape[1] != width:
+            h = max(1, round(rgb.shape[0] * width / rgb.shape[1]))
+            rgb = cv2.resize(rgb, (width, h), interpolation=cv2.INTER_AREA if rgb.shape[1] > width else cv2.INTER_LINEAR)
+        for c in random_crops(rgb, crops_per_image, rng):
+            crops.append(c)
+            groups.append(f"photo:{f.name}")
+    return crops, groups, len(files)
+
+
 def _f(v, digits=3) -> str:
     return "-" if v is None or not np.isfinite(v) else f"{v:.{digits}f}"
 
@@ -398,7 +427,12 @@ def score_table(scores: list[dict]) -> str:
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(prog="python -m raindrop_tools.realism",
                                  description="Statistics of real and rendered drops, and a realism score.")
-    ap.add_argument("--real-pairs", required=True, metavar="DIR", help="folder of X_rain.* / X_clean.* pairs")
+    ap.add_argument("--real-pairs", metavar="DIR", help="folder of X_rain.* / X_clean.* pairs")
+    ap.add_argument("--real-photos", metavar="DIR",
+                    help="folder of real rainy photographs without clean images (e.g. windshield photographs): each "
+                    "rendered set also gets the classifier's accuracy against their crops (no masks, so no drop "
+                    f"statistics), the photographs resized to {PHOTO_WIDTH} px wide first")
+    ap.add_argument("--photo-crops", type=int, default=16, help="crops per real photograph (default 16)")
     ap.add_argument("--split", default="train", choices=["all", "train", "test"],
                     help="real pairs to use (realpairs group split; default train: the test split is kept for "
                     "evaluating removal, so presets are not tuned on it)")
@@ -416,12 +450,21 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--json", help="write everything to this JSON file")
     RP.add_mask_arguments(ap)
     args = ap.parse_args(argv)
+    if not args.real_pairs and not args.real_photos:
+        ap.error("give --real-pairs, --real-photos or both")
+    if args.real_photos and not args.rendered:
+        ap.error("--real-photos scores rendered sets: give at least one --rendered")
     try:
         params = RP.mask_params_from_args(args)
-        real = collect_real(args.real_pairs, args.split, params,
-                            np.random.default_rng([args.seed, 0]), args.crops_per_image,
-                            RP.parse_holdout(args.holdout) if args.holdout else None, args.limit)
-        sets = [real]
+        real = None
+        if args.real_pairs:
+            real = collect_real(args.real_pairs, args.split, params,
+                                np.random.default_rng([args.seed, 0]), args.crops_per_image,
+                                RP.parse_holdout(args.holdout) if args.holdout else None, args.limit)
+        photos = None
+        if args.real_photos:
+            photos = collect_photos(args.real_photos, np.random.default_rng([args.seed, 1000]), args.photo_crops)
+        sets = [real] if real else []
         for i, root in enumerate(args.rendered):
             sets.append(collect_rendered(root, np.random.default_rng([args.seed, i + 1]), args.crops_per_image,
                                          args.limit, args.rendered_split,
@@ -430,14 +473,25 @@ def main(argv: list[str] | None = None) -> int:
         print(f"error: {e}", file=sys.stderr)
         return 2
     scores = []
-    for st in sets[1:]:
+    rendered_sets = sets[1:] if real else sets
+    for st in rendered_sets if real else []:
         scores.append({
             "name": st.name,
             "distance": distances(real, st),
             "classifier": classifier_accuracy(real.crops, st.crops, real.crop_groups, st.crop_groups,
                                               args.folds, args.seed),
         })
+    photo_scores = []
+    for st in rendered_sets if photos else []:
+        photo_scores.append({"name": st.name, "classifier": classifier_accuracy(
+            photos[0], st.crops, photos[1], st.crop_groups, args.folds, args.seed)})
     text = "\n".join(stats_table(st) for st in sets)
+    if photo_scores:
+        text += (f"\n### Classifier against real photographs ({Path(args.real_photos).name}: {photos[2]} photographs, "
+                 f"{len(photos[0])} crops)\n\nBalanced {args.folds}-fold grouped cross-validated accuracy telling "
+                 f"real from rendered rainy {CROP}x{CROP} crops, the photographs at {PHOTO_WIDTH} px wide "
+                 "(0.5 = indistinguishable).\n\n| set | classifier accuracy |\n| --- | ---: |\n" +
+                 "".join(f"| {sc['name']} | {_f(sc['classifier']['accuracy'], 3)} |\n" for sc in photo_scores))
     if scores:
         text += ("\n### Realism score against the real set\n\nDistances: 1-D Wasserstein distance to the real "
                  "distribution in units of its standard deviation (0 = same); classifier: balanced "
@@ -450,6 +504,7 @@ def main(argv: list[str] | None = None) -> int:
             "argv": sys.argv if argv is None else ["python -m raindrop_tools.realism", *argv],
             "sets": [{"name": st.name, "kind": st.kind, **st.summary()} for st in sets],
             "scores": scores,
+            "photo_scores": photo_scores,
         }, indent=2) + "\n")
     return 0
 

@@ -186,3 +186,46 @@ def test_rendered_sets_measured_with_rough_masks_see_only_the_visible_drop(tmp_p
     assert 400 < rough["coverage"]["median"] * 80 * 96 < 24 * 24
     assert rough["brightness"]["median"] == pytest.approx(80.0, abs=1.0)
     assert own["brightness"]["median"] < rough["brightness"]["median"]
+
+
+def test_real_photos_score_rendered_sets_with_the_classifier_alone(tmp_path, capsys):
+    """--real-photos: photographs without clean images. The rendered set's own rainy images,
+    given as photographs, cannot be told apart from it; noisy photographs can. Photographs
+    are brought to 512 px wide first (here: already are)."""
+    from raindrop_tools.imageio import write_rgb
+
+    rendered = write_dataset(tmp_path / "rendered", n=20, h=128, w=512, seed=3)
+    same = tmp_path / "same"
+    same.mkdir()
+    for s in RM.read_manifest(rendered):
+        (same / s.rainy.name).write_bytes(s.rainy.read_bytes())
+    noisy = tmp_path / "noisy"
+    noisy.mkdir()
+    rng = np.random.default_rng(5)
+    for i in range(10):
+        img = procedural_image(256, 1024, 50 + i).astype(int) + rng.normal(0, 30, (256, 1024, 3))
+        write_rgb(noisy / f"photo {i}.jpg", np.clip(img, 0, 255).astype(np.uint8))
+    out = tmp_path / "r.json"
+    accuracy = {}
+    for name in ("same", "noisy"):
+        assert RM.main(["--real-photos", str(tmp_path / name), "--rendered", str(rendered), "--folds", "5",
+                        "--json", str(out)]) == 0
+        text = capsys.readouterr().out
+        assert f"### Classifier against real photographs ({name}: " in text
+        r = json.loads(out.read_text())
+        assert r["scores"] == [] and len(r["photo_scores"]) == 1
+        accuracy[name] = r["photo_scores"][0]["classifier"]["accuracy"]
+    assert accuracy["noisy"] > 0.9
+    assert 0.2 < accuracy["same"] < 0.8
+    # the photographs at 1024 wide were halved: crops of the halved image, 16 per photograph
+    crops, groups, n = RM.collect_photos(noisy, np.random.default_rng(0), 16)
+    assert n == 10 and len(crops) == 160 and len(set(groups)) == 10
+    # neither real set, or photographs without rendered sets: a usage error
+    for argv in (["--rendered", str(rendered)], ["--real-photos", str(noisy)]):
+        with pytest.raises(SystemExit) as e:
+            RM.main(argv)
+        assert e.value.code == 2
+    empty = tmp_path / "empty"
+    empty.mkdir()
+    assert RM.main(["--real-photos", str(empty), "--rendered", str(rendered)]) == 2
+    assert "no images" in capsys.readouterr().err
