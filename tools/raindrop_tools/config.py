@@ -12,6 +12,7 @@ This module does not import torch: the network *configuration* lives here, the n
 from __future__ import annotations
 
 import dataclasses
+import re
 import os
 import typing
 from dataclasses import dataclass, field
@@ -264,11 +265,18 @@ def to_dict(cfg: Any) -> dict:
     return dataclasses.asdict(cfg)
 
 
+def is_safe_name(name: str) -> bool:
+    """A configuration name is also a folder name under models/: one plain word (no path, no
+    '.' or '..', nothing hidden)."""
+    return bool(re.fullmatch(r"[A-Za-z0-9_][A-Za-z0-9._-]*", name or ""))
+
+
 def validate_config(cfg: RunConfig) -> None:
     """Range checks that the type system does not express."""
     problems = []
-    if not cfg.name or any(c in cfg.name for c in "/\\ "):
-        problems.append(f"name must be a file-name-safe word, got {cfg.name!r}")
+    if not is_safe_name(cfg.name):
+        problems.append(f"name must be a file-name-safe word (letters, digits, '.', '_', '-'; not starting with '.' "
+                        f"or '-'), got {cfg.name!r}")
     for net in ("rdn", "rrn"):
         c = getattr(cfg.network, net)
         if c.width < 1 or c.expanded < 1 or c.blocks < 0:

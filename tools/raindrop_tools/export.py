@@ -20,6 +20,7 @@ import io
 import json
 import logging
 import os
+import shutil
 import sys
 import warnings
 from pathlib import Path
@@ -31,7 +32,7 @@ import torch.nn as nn
 
 from . import checkpoint as ckpt
 from . import contract as C
-from .config import RunConfig, config_from_dict, to_dict
+from .config import RunConfig, config_from_dict, is_safe_name, to_dict
 from .flops import gflops, parameter_count
 from .networks import build_networks
 
@@ -163,6 +164,10 @@ def parity(name: str, net: nn.Module, path: Path, inputs: tuple[torch.Tensor, ..
         want = graph_module(name, net).eval()(*inputs).numpy()
     if got.shape != want.shape:
         raise ExportError(f"{name}: ONNX output shape {got.shape} != PyTorch {want.shape}")
+    # NaN compares false with everything: max(0.0, nan) is 0.0, so a network with NaN weights
+    # passed as a perfect match and was shipped writing black images.
+    if not (np.isfinite(got).all() and np.isfinite(want).all()):
+        raise ExportError(f"{name}: the network's outputs are not finite (NaN or Inf weights in the checkpoint?)")
     return float(np.abs(got - want).max())
 
 
@@ -174,7 +179,13 @@ def load_run(run_dir: Path, checkpoint: Path | None = None, allow_incomplete: bo
         if ref is None:
             raise ExportError(f"{run_dir}: no checkpoints (train first)")
         checkpoint = ref.path
-    state = ckpt.load_checkpoint(checkpoint)
+    try:
+        state = ckpt.load_checkpoint(checkpoint)
+    except OSError:
+        raise
+    except Exception as e:  # torch's loader raises whatever the bytes provoke (RuntimeError, UnpicklingError, ...)
+        first = (str(e).splitlines() or [type(e).__name__])[0]
+        raise ExportError(f"{checkpoint}: not a readable checkpoint ({first})") from e
     if not allow_incomplete and not (state["stage"] == 2 and state["complete"]):
         raise ExportError(
             f"{checkpoint}: stage {state['stage']} step {state['step']} of {state['total_steps']}: "
@@ -190,39 +201,50 @@ def load_run(run_dir: Path, checkpoint: Path | None = None, allow_incomplete: bo
 
 
 def export_networks(cfg: RunConfig, nets: dict[str, nn.Module], out_dir: Path, source: dict | None = None) -> dict:
-    """Export, check and describe the three networks into ``out_dir``; returns export.json."""
+    """Export, check and describe the three networks into ``out_dir``; returns export.json.
+
+    Everything is written into a hidden staging folder beside ``out_dir`` and checked there
+    first; only then do the three graphs and export.json replace those in ``out_dir`` (export.json
+    last), so a failed check or an interrupted export leaves the folder's model as it was, not
+    one new graph beside two old ones. Other files in ``out_dir`` (LARGE_DROPS, notes) are kept."""
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
-    g = torch.Generator().manual_seed(0)
-    diffs = {}
-    for name in C.NETWORKS:
-        net = nets[name].eval()
-        path = out_dir / C.FILES[name]
-        export_network(name, net, cfg, path)
-        worst = 0.0
-        for n, h, w in [(1, 37, 53), (1, 1, 1), (2, 64, 48)]:
-            inputs = tuple(torch.rand(n, C.INPUT_CHANNELS[i], h, w, generator=g) for i in C.INPUTS[name])
-            worst = max(worst, parity(name, net, path, inputs))
-        if not worst <= PARITY_TOLERANCE:
-            raise ExportError(f"{name}: ONNX Runtime differs from PyTorch by {worst:g} > {PARITY_TOLERANCE}")
-        diffs[name] = worst
-    info = {
-        "config": cfg.name,
-        "network": to_dict(cfg.network),
-        "pipeline": {"threshold": cfg.pipeline.threshold, "dilation": cfg.pipeline.dilation},
-        "pad_multiple": PAD_MULTIPLE,
-        "opset": OPSET,
-        "gflops_256x512": gflops(cfg.network, 256, 512),
-        "params": {k: parameter_count(v) for k, v in nets.items()},
-        "files": C.graph_files(out_dir),
-        "parity_max_abs_diff": diffs,
-        "checkpoint": source,
-        "exported": _dt.datetime.now(_dt.timezone.utc).isoformat(timespec="seconds"),
-        "versions": {"torch": torch.__version__, "onnx": onnx.__version__},
-    }
-    tmp = out_dir / f".tmp-{C.EXPORT_INFO}"
-    tmp.write_text(json.dumps(info, indent=2) + "\n")
-    os.replace(tmp, out_dir / C.EXPORT_INFO)
+    stage = out_dir.parent / f".{out_dir.name}.export-{os.getpid()}"
+    shutil.rmtree(stage, ignore_errors=True)
+    stage.mkdir()
+    try:
+        g = torch.Generator().manual_seed(0)
+        diffs = {}
+        for name in C.NETWORKS:
+            net = nets[name].eval()
+            path = stage / C.FILES[name]
+            export_network(name, net, cfg, path)
+            worst = 0.0
+            for n, h, w in [(1, 37, 53), (1, 1, 1), (2, 64, 48)]:
+                inputs = tuple(torch.rand(n, C.INPUT_CHANNELS[i], h, w, generator=g) for i in C.INPUTS[name])
+                worst = max(worst, parity(name, net, path, inputs))
+            if not worst <= PARITY_TOLERANCE:
+                raise ExportError(f"{name}: ONNX Runtime differs from PyTorch by {worst:g} > {PARITY_TOLERANCE}")
+            diffs[name] = worst
+        info = {
+            "config": cfg.name,
+            "network": to_dict(cfg.network),
+            "pipeline": {"threshold": cfg.pipeline.threshold, "dilation": cfg.pipeline.dilation},
+            "pad_multiple": PAD_MULTIPLE,
+            "opset": OPSET,
+            "gflops_256x512": gflops(cfg.network, 256, 512),
+            "params": {k: parameter_count(v) for k, v in nets.items()},
+            "files": C.graph_files(stage),
+            "parity_max_abs_diff": diffs,
+            "checkpoint": source,
+            "exported": _dt.datetime.now(_dt.timezone.utc).isoformat(timespec="seconds"),
+            "versions": {"torch": torch.__version__, "onnx": onnx.__version__},
+        }
+        (stage / C.EXPORT_INFO).write_text(json.dumps(info, indent=2) + "\n")
+        for name in [*(C.FILES[n] for n in C.NETWORKS), C.EXPORT_INFO]:
+            os.replace(stage / name, out_dir / name)
+    finally:
+        shutil.rmtree(stage, ignore_errors=True)
     return info
 
 
@@ -243,6 +265,9 @@ def main(argv: list[str] | None = None) -> int:
             Path(args.run), Path(args.checkpoint) if args.checkpoint else None, args.allow_incomplete
         )
         if args.name:
+            if not is_safe_name(args.name):
+                raise ExportError(f"--name {args.name!r} is not a file-name-safe word (letters, digits, '.', '_', '-'; "
+                                  "not starting with '.' or '-')")
             cfg = dataclasses.replace(cfg, name=args.name)
         out = Path(args.out) if args.out else Path("models") / cfg.name
         info = export_networks(cfg, nets, out, source)

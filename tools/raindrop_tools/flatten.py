@@ -14,6 +14,7 @@ Imports without torch.
 from __future__ import annotations
 
 import argparse
+import os
 import sys
 from pathlib import Path
 
@@ -65,13 +66,39 @@ def main(argv: list[str] | None = None) -> int:
     if not frames:
         print(f"flatten: error: no images in {args.input}", file=sys.stderr)
         return 1
+    frames = [p for p in frames if p.is_file()]
     if args.limit > 0:
         frames = frames[: args.limit]
+    # The outputs are <stem>.png: written into the input folder they replaced the frames
+    # (a.png by its own flattened copy), and a.png and a.jpg were both out/a.png.
+    if args.output.resolve() == args.input.resolve():
+        print(f"flatten: error: the output folder {args.output} is the input folder: the flattened frames would "
+              "replace the frames; choose another folder", file=sys.stderr)
+        return 2
+    stems: dict[str, Path] = {}
+    for p in frames:
+        if p.stem in stems:
+            print(f"flatten: error: {stems[p.stem].name} and {p.name} would both be written as {p.stem}.png",
+                  file=sys.stderr)
+            return 2
+        stems[p.stem] = p
+    if args.output.exists() and not args.output.is_dir():
+        print(f"flatten: error: the output {args.output} is not a folder", file=sys.stderr)
+        return 2
     args.output.mkdir(parents=True, exist_ok=True)
     try:
         for p in frames:
-            flatten(Image.open(p), (w, h), args.median, args.colours).save(args.output / (p.stem + ".png"))
-    except ValueError as e:
+            try:
+                image = Image.open(p)
+                image.load()
+            except OSError as e:  # PIL.UnidentifiedImageError is one
+                raise ValueError(f"{p}: cannot read the image ({e})") from e
+            # Written beside its final name and renamed: an interrupted run leaves no half file.
+            final = args.output / (p.stem + ".png")
+            tmp = final.with_name(f".{final.name}.tmp-{os.getpid()}")
+            flatten(image, (w, h), args.median, args.colours).save(tmp, format="PNG")
+            os.replace(tmp, final)
+    except (ValueError, OSError) as e:
         print(f"flatten: error: {e}", file=sys.stderr)
         return 2
     print(f"flatten: {len(frames)} frames -> {args.output}")

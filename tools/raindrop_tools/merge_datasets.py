@@ -13,6 +13,7 @@ from __future__ import annotations
 import argparse
 import json
 import os
+import sys
 from pathlib import Path
 
 from .manifest import manifest_lines
@@ -20,8 +21,26 @@ from .manifest import manifest_lines
 IMAGE_KEYS = ("rainy", "clean", "mask", "alpha")
 
 
+def _is_earlier_merge(out: Path) -> bool:
+    """Whether ``out`` holds a manifest this tool wrote: every image of every record a link."""
+    for _, _, line in manifest_lines(out):
+        r = json.loads(line)
+        if not all((out / r[k]).is_symlink() for k in IMAGE_KEYS if k in r):
+            return False
+    return True
+
+
 def merge(out: Path, sources: list[Path]) -> int:
-    records = []
+    """Links the sources' images into ``out`` and writes its manifest. Everything is checked
+    before the first link: a rendered or prepared data set in ``out`` (its manifest was replaced
+    by the merged one), a source that is ``out``, and clashing ids or links."""
+    resolved = out.resolve()
+    for src in sources:
+        if src.resolve() == resolved:
+            raise ValueError(f"{src} is both a source and --out; merge into a new folder")
+    if manifest_lines(out) and not _is_earlier_merge(out):
+        raise ValueError(f"{out} holds a data set of its own (its manifest would be replaced); merge into a new folder")
+    records, links = [], {}
     for src in sources:
         tag = src.name.removeprefix("train-")
         lines = manifest_lines(src)
@@ -29,26 +48,33 @@ def merge(out: Path, sources: list[Path]) -> int:
             raise ValueError(f"{src}: no manifest.jsonl (nor the parts of a sharded render)")
         for _, _, line in lines:
             r = json.loads(line)
+            if not isinstance(r, dict) or "id" not in r:
+                raise ValueError(f"{src}: a manifest line is not a sample record: {line.strip()[:80]}")
             r["id"] = f"{tag}_{r['id']}"
             for key in IMAGE_KEYS:
                 if key not in r:
                     continue
                 dst = out / key / f"{r['id']}.png"
-                dst.parent.mkdir(parents=True, exist_ok=True)
                 target = (src / r[key]).resolve()
-                if dst.is_symlink() or dst.exists():
-                    if dst.resolve() != target:
-                        raise ValueError(f"{dst} already links elsewhere; merge into an empty folder")
-                else:
-                    os.symlink(target, dst)
+                if dst in links and links[dst] != target:
+                    raise ValueError(f"two sources give the sample id {r['id']}; give the set folders distinct names")
+                if (dst.is_symlink() or dst.exists()) and dst.resolve() != target:
+                    raise ValueError(f"{dst} already links elsewhere; merge into an empty folder")
+                links[dst] = target
                 r[key] = f"{key}/{r['id']}.png"
             records.append(r)
     ids = [r["id"] for r in records]
     if len(set(ids)) != len(ids):
         raise ValueError("two sources give the same sample id; give the set folders distinct names")
+    for dst, target in links.items():
+        if not (dst.is_symlink() or dst.exists()):
+            dst.parent.mkdir(parents=True, exist_ok=True)
+            os.symlink(target, dst)
     records.sort(key=lambda r: r["id"])
     out.mkdir(parents=True, exist_ok=True)
-    (out / "manifest.jsonl").write_text("".join(json.dumps(r) + "\n" for r in records))
+    tmp = out / f".manifest.jsonl.tmp-{os.getpid()}"
+    tmp.write_text("".join(json.dumps(r) + "\n" for r in records))
+    os.replace(tmp, out / "manifest.jsonl")
     return len(records)
 
 
@@ -59,8 +85,8 @@ def main(argv: list[str] | None = None) -> int:
     a = ap.parse_args(argv)
     try:
         n = merge(a.out, a.sources)
-    except (OSError, ValueError, KeyError) as e:
-        print(f"merge_datasets: {e}")
+    except (OSError, ValueError, KeyError) as e:  # json.JSONDecodeError is a ValueError
+        print(f"merge_datasets: error: {e}", file=sys.stderr)
         return 1
     print(f"merge_datasets: {n} samples in {a.out}")
     return 0

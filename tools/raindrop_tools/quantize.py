@@ -61,8 +61,19 @@ def calibration_feeds(models_dir: Path, data_dir: Path, count: int, seed: int) -
     return feeds
 
 
+class QuantizeError(ValueError):
+    """A request quantize refuses, reported on one line."""
+
+
 def quantize_models(models_dir: Path, data_dir: Path, out_dir: Path, count: int = 16, seed: int = 0) -> dict:
     models_dir, data_dir, out_dir = Path(models_dir), Path(data_dir), Path(out_dir)
+    # The int8 graphs take the fp32 ones' file names: written into the models' own folder they
+    # replaced the fp32 model, with nothing left to quantize or compare against.
+    if out_dir.resolve() == models_dir.resolve():
+        raise QuantizeError(f"--out {out_dir} is the --models folder: the int8 graphs would replace the fp32 ones; "
+                            "choose another folder (e.g. models/<name>-int8)")
+    if count < 1:
+        raise QuantizeError(f"--count must be at least 1, got {count}")
     feeds = calibration_feeds(models_dir, data_dir, count, seed)
     out_dir.mkdir(parents=True, exist_ok=True)
     info = json.loads((models_dir / EXPORT_INFO).read_text()) if (models_dir / EXPORT_INFO).is_file() else {}
@@ -124,7 +135,11 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--count", type=int, default=16, help="calibration images")
     ap.add_argument("--seed", type=int, default=0)
     args = ap.parse_args(argv)
-    info = quantize_models(Path(args.models), Path(args.data), Path(args.out), args.count, args.seed)
+    try:
+        info = quantize_models(Path(args.models), Path(args.data), Path(args.out), args.count, args.seed)
+    except (ValueError, OSError) as e:  # QuantizeError, a missing or empty data set, unreadable files
+        print(f"error: {e}", file=sys.stderr)
+        return 2
     print(json.dumps(info["files"], indent=2))
     return 0
 

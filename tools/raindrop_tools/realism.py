@@ -78,6 +78,7 @@ import cv2
 import numpy as np
 
 from . import realpairs as RP
+from .cli_args import at_least
 from .data import DatasetError, read_manifest
 from .imageio import ImageError, read_mask_strict, read_rgb, read_rgb_strict
 from .metrics import luma_float
@@ -432,7 +433,7 @@ def main(argv: list[str] | None = None) -> int:
                     help="folder of real rainy photographs without clean images (e.g. windshield photographs): each "
                     "rendered set also gets the classifier's accuracy against their crops (no masks, so no drop "
                     f"statistics), the photographs resized to {PHOTO_WIDTH} px wide first")
-    ap.add_argument("--photo-crops", type=int, default=16, help="crops per real photograph (default 16)")
+    ap.add_argument("--photo-crops", type=at_least(1), default=16, help="crops per real photograph (default 16)")
     ap.add_argument("--split", default="train", choices=["all", "train", "test"],
                     help="real pairs to use (realpairs group split; default train: the test split is kept for "
                     "evaluating removal, so presets are not tuned on it)")
@@ -443,9 +444,9 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--rendered-masks", choices=["rough", "own"], default="rough",
                     help="masks of the rendered sets: rough (default: derived from each rainy/clean pair like the "
                     "real pairs' masks, so both are measured alike) or own (the renderer's masks)")
-    ap.add_argument("--limit", type=int, help="at most N images per set (rendered: spread over the set)")
-    ap.add_argument("--crops-per-image", type=int, default=4, help=f"{CROP}x{CROP} crops per image for the classifier")
-    ap.add_argument("--folds", type=int, default=5)
+    ap.add_argument("--limit", type=at_least(1), help="at most N images per set (rendered: spread over the set)")
+    ap.add_argument("--crops-per-image", type=at_least(0), default=4, help=f"{CROP}x{CROP} crops per image for the classifier")
+    ap.add_argument("--folds", type=at_least(2), default=5)
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--json", help="write everything to this JSON file")
     RP.add_mask_arguments(ap)

@@ -48,6 +48,7 @@ import json
 import math
 import os
 import re
+import shutil
 import sys
 from dataclasses import asdict, dataclass
 from pathlib import Path
@@ -260,12 +261,30 @@ def prepare(
     params: MaskParams | None = None,
     argv: list[str] | None = None,
 ) -> list[dict]:
-    """Write the data set folder ``out`` from the pairs in ``src``; returns the manifest lines."""
+    """Write the data set folder ``out`` from the pairs in ``src``; returns the manifest lines.
+
+    ``out`` must be new or empty: the set is written into a hidden folder beside it and renamed
+    into place when complete, so a pair that fails leaves nothing behind, and files already in
+    ``out`` (a user's, a rendered or sharded set's) are never replaced."""
     params = params or MaskParams()
     pairs = assign_splits(find_pairs(src), holdout)
-    out = Path(out)
-    if (out / "manifest.jsonl").exists():
-        raise PairsError(f"{out}: already holds a data set (manifest.jsonl); choose a new --out")
+    final = Path(out)
+    if final.exists() and (not final.is_dir() or any(final.iterdir())):
+        what = "is not a folder" if not final.is_dir() else "is not empty"
+        raise PairsError(f"{final}: {what}; choose a new --out")
+    out = final.parent / f".{final.name}.prepare-{os.getpid()}"
+    shutil.rmtree(out, ignore_errors=True)
+    try:
+        records = _write_pairs(src, out, pairs, holdout, params, argv)
+        if final.is_dir():
+            final.rmdir()  # empty, checked above
+        os.replace(out, final)
+    finally:
+        shutil.rmtree(out, ignore_errors=True)
+    return records
+
+
+def _write_pairs(src, out: Path, pairs, holdout, params: MaskParams, argv) -> list[dict]:
     records = []
     for p in pairs:
         rainy, clean, mask = pair_mask(p, params)
@@ -353,7 +372,7 @@ def main(argv: list[str] | None = None) -> int:
             cov = float(np.mean([r["coverage"] for r in records]))
             print(f"{args.out}: {len(records)} pairs ({n['train']} train, {n['test']} test), "
                   f"mean rough-mask coverage {cov:.3f}")
-    except (PairsError, ImageError, ValueError) as e:
+    except (PairsError, ImageError, ValueError, OSError) as e:
         print(f"error: {e}", file=sys.stderr)
         return 2
     return 0

@@ -152,3 +152,46 @@ def test_export_info(exported):
     assert g["total"] == pytest.approx(g["rdn"] + g["rrn"] + g["rfn"])
     assert info["config"] == exported["cfg"].name and info["pad_multiple"] == 1
     assert max(info["parity_max_abs_diff"].values()) <= TOLERANCE
+
+
+def _smoke_nets():
+    cfg = load_config(CONFIGS / "smoke.yaml", resolve_paths=False)
+    torch.manual_seed(0)
+    return cfg, build_networks(cfg.network)
+
+
+def test_a_failed_export_leaves_the_folder_as_it_was(tmp_path):
+    """A network that fails its check (here: NaN weights, which the parity check used to pass,
+    since max(0.0, nan) is 0.0) changes nothing in an existing model folder: the graphs were
+    written one at a time, so a failure left a new rdn beside the old rrn and rfn."""
+    from raindrop_tools.export import ExportError
+
+    cfg, nets = _smoke_nets()
+    out = tmp_path / "model"
+    export_networks(cfg, nets, out, source={"first": True})
+    (out / "LARGE_DROPS").write_text("other\n")
+    before = {p.name: p.read_bytes() for p in out.iterdir()}
+    with torch.no_grad():
+        for p in nets["rrn"].parameters():
+            p.fill_(float("nan"))
+    with pytest.raises(ExportError, match="rrn: the network's outputs are not finite"):
+        export_networks(cfg, nets, out, source={"second": True})
+    assert {p.name: p.read_bytes() for p in out.iterdir()} == before
+    assert [p.name for p in tmp_path.iterdir()] == ["model"], "the staging folder is removed"
+
+
+def test_export_cli_refuses_unsafe_names_and_unreadable_checkpoints(tmp_path, capsys, monkeypatch):
+    from raindrop_tools import export as E
+
+    bad = tmp_path / "bad.pt"
+    bad.write_text("not a checkpoint\n")
+    monkeypatch.chdir(tmp_path)
+    assert E.main(["--run", str(tmp_path), "--checkpoint", str(bad), "--out", str(tmp_path / "m")]) == 2
+    assert "not a readable checkpoint" in capsys.readouterr().err
+    assert not (tmp_path / "m").exists()
+    # --name becomes a folder under models/: "..", hidden or path-like names are refused
+    monkeypatch.setattr(E, "load_run", lambda *a, **k: (_smoke_nets()[0], _smoke_nets()[1], {}))
+    for name in ("..", ".hidden", "a/b", "with space", "-x"):
+        assert E.main(["--run", str(tmp_path), f"--name={name}"]) == 2, name
+        assert "not a file-name-safe word" in capsys.readouterr().err
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["bad.pt"]

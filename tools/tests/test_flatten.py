@@ -42,3 +42,26 @@ def test_cli_writes_the_first_frames_in_name_order(tmp_path):
     assert Image.open(out / "a.png").size == (64, 32)
     assert main([str(tmp_path / "empty"), str(out)]) == 1
     assert main([str(src), str(out), "--size", "64"]) == 2
+
+
+def test_cli_never_replaces_frames_and_stops_on_a_bad_one(tmp_path, capsys):
+    """Output == input replaced every frame by its flattened copy; a.png and a.jpg were both
+    out/a.png; a corrupt frame was a traceback."""
+    src = tmp_path / "in"
+    src.mkdir()
+    textured(0).save(src / "a.png")
+    textured(1).save(src / "b.png")
+    before = {p.name: p.read_bytes() for p in src.iterdir()}
+    for out in (src, tmp_path / "in" / ".." / "in"):
+        assert main([str(src), str(out), "--size", "64x32"]) == 2
+        assert "is the input folder" in capsys.readouterr().err
+    assert {p.name: p.read_bytes() for p in src.iterdir()} == before
+    textured(2).save(src / "a.jpg")
+    assert main([str(src), str(tmp_path / "o1"), "--size", "64x32"]) == 2
+    assert "would both be written as a.png" in capsys.readouterr().err
+    assert not (tmp_path / "o1").exists()
+    (src / "a.jpg").unlink()
+    (src / "c.png").write_bytes(b"not an image")
+    assert main([str(src), str(tmp_path / "o2"), "--size", "64x32"]) == 2
+    assert "cannot read the image" in capsys.readouterr().err
+    assert sorted(p.name for p in (tmp_path / "o2").iterdir()) == ["a.png", "b.png"], "no half-written or hidden file"

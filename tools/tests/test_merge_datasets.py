@@ -44,3 +44,26 @@ def test_colliding_set_names_are_refused(tmp_path):
             (tmp_path / name / sub).mkdir(parents=True)
         _set(tmp_path / name, ["x"], 5)
     assert main(["--out", str(tmp_path / "mix"), str(tmp_path / "train-a"), str(tmp_path / "a")]) == 1
+    assert not (tmp_path / "mix").exists(), "nothing is linked before the ids are checked"
+
+
+def test_a_data_set_in_out_is_never_replaced(tmp_path, capsys):
+    """--out holding a rendered set (or being a source) replaced its manifest with the merged
+    one; a rerun of the same merge into its own earlier output still works."""
+    for name in ("train-a", "train-b"):
+        for sub in ("rainy", "clean", "mask"):
+            (tmp_path / name / sub).mkdir(parents=True)
+    _set(tmp_path / "train-a", ["x"], 10)
+    _set(tmp_path / "train-b", ["y"], 20)
+    before = (tmp_path / "train-a" / "manifest.jsonl").read_bytes()
+    for argv in (["--out", str(tmp_path / "train-a"), str(tmp_path / "train-b")],
+                 ["--out", str(tmp_path / "train-a"), str(tmp_path / "train-a"), str(tmp_path / "train-b")]):
+        assert main(argv) == 1
+        assert capsys.readouterr().err.startswith("merge_datasets: error: ")
+    assert (tmp_path / "train-a" / "manifest.jsonl").read_bytes() == before
+    assert sorted(p.name for p in (tmp_path / "train-a" / "rainy").iterdir()) == ["x.png"]
+    argv = ["--out", str(tmp_path / "mix"), str(tmp_path / "train-a"), str(tmp_path / "train-b")]
+    assert main(argv) == 0
+    first = (tmp_path / "mix" / "manifest.jsonl").read_bytes()
+    assert main(argv) == 0, "the same merge again, into its own output"
+    assert (tmp_path / "mix" / "manifest.jsonl").read_bytes() == first

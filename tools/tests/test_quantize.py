@@ -46,3 +46,24 @@ def test_quantized_graphs_keep_the_contract_and_stay_close(tmp_path, tiny_datase
     for f, entry in info["files"].items():  # the int8 files' digests, not the fp32 ones
         assert entry["sha256"] == hashlib.sha256((out / f).read_bytes()).hexdigest(), f
     assert "parity_max_abs_diff" not in info
+
+
+def test_quantize_refuses_its_own_models_folder_and_bad_input(tmp_path, tiny_dataset, capsys):
+    """--out equal to --models replaced the fp32 graphs with int8 ones, exit 0."""
+    import shutil
+
+    from raindrop_tools import quantize as Q
+
+    models = tmp_path / "m"
+    shutil.copytree(FIXTURE_MODELS, models)
+    before = {p.name: p.read_bytes() for p in models.iterdir()}
+    for out in (models, tmp_path / "m" / ".." / "m"):
+        assert Q.main(["--models", str(models), "--data", str(tiny_dataset), "--out", str(out)]) == 2
+        assert "is the --models folder" in capsys.readouterr().err
+    assert {p.name: p.read_bytes() for p in models.iterdir()} == before
+    assert Q.main(["--models", str(models), "--data", str(tiny_dataset), "--out", str(tmp_path / "q"),
+                   "--count", "0"]) == 2
+    assert "--count must be at least 1" in capsys.readouterr().err
+    assert Q.main(["--models", str(models), "--data", str(tmp_path / "none"), "--out", str(tmp_path / "q")]) == 2
+    assert capsys.readouterr().err.startswith("error: ")
+    assert not (tmp_path / "q").exists()

@@ -229,3 +229,13 @@ def test_real_photos_score_rendered_sets_with_the_classifier_alone(tmp_path, cap
     empty.mkdir()
     assert RM.main(["--real-photos", str(empty), "--rendered", str(rendered)]) == 2
     assert "no images" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("argv", [["--limit", "-1"], ["--limit", "0"], ["--folds", "1"], ["--folds", "0"],
+                                  ["--photo-crops", "0"], ["--limit", "x"]])
+def test_counts_below_their_minimum_are_usage_errors(tmp_path, argv, capsys):
+    """--limit -1 dropped the last image silently; --folds 0 divided by zero."""
+    with pytest.raises(SystemExit) as e:
+        RM.main(["--real-pairs", str(tmp_path), *argv])
+    assert e.value.code == 2
+    assert argv[0] in capsys.readouterr().err

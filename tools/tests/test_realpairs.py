@@ -123,6 +123,34 @@ def test_prepare_writes_a_data_set_training_can_read(tmp_path):
     assert RP.main(["prepare", str(folder), "--out", str(out)]) == 2
 
 
+def test_prepare_writes_all_or_nothing_and_never_over_files(tmp_path, capsys):
+    """A pair that failed after others left rainy/clean/mask images without a manifest, and a
+    user's file in --out was replaced; --out as a file was a traceback."""
+    import cv2
+
+    folder = write_pairs(tmp_path / "p", groups=3, per_group=1)
+    clean = sorted(folder.glob("*_clean.png"))[-1]
+    cv2.imwrite(str(clean), np.zeros((7, 9, 3), np.uint8))  # the last pair's sizes differ
+    out = tmp_path / "ds"
+    assert RP.main(["prepare", str(folder), "--out", str(out)]) == 2
+    assert "differ" in capsys.readouterr().err
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["p"], "nothing left behind"
+    clean.unlink()
+    (folder / clean.name.replace("_clean", "_rain")).unlink()
+    mine = out / "rainy" / "scene0_t0.png"
+    mine.parent.mkdir(parents=True)
+    mine.write_bytes(b"a user's file")
+    assert RP.main(["prepare", str(folder), "--out", str(out)]) == 2
+    assert "is not empty" in capsys.readouterr().err
+    assert mine.read_bytes() == b"a user's file"
+    (tmp_path / "afile").write_text("x")
+    assert RP.main(["prepare", str(folder), "--out", str(tmp_path / "afile")]) == 2
+    assert "is not a folder" in capsys.readouterr().err
+    (tmp_path / "empty").mkdir()
+    assert RP.main(["prepare", str(folder), "--out", str(tmp_path / "empty")]) == 0
+    assert len((tmp_path / "empty" / "manifest.jsonl").read_text().splitlines()) == 2
+
+
 def test_list_command(tmp_path, capsys):
     folder = write_pairs(tmp_path / "p", groups=2, per_group=1)
     assert RP.main(["list", str(folder), "--holdout", "scene0"]) == 0

@@ -1,0 +1,23 @@
+"""Argument types shared by the tools' command lines."""
+
+from __future__ import annotations
+
+import argparse
+
+
+def at_least(minimum: int):
+    """An argparse ``type``: an integer >= ``minimum``, else argparse's usage error (exit 2).
+    A negative ``--limit`` used to be taken as a slice end and dropped the last samples
+    silently; ``--folds 0`` divided by zero."""
+
+    def parse(text: str) -> int:
+        try:
+            value = int(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"{text!r} is not a whole number") from None
+        if value < minimum:
+            raise argparse.ArgumentTypeError(f"{value} is less than {minimum}")
+        return value
+
+    parse.__name__ = f"integer >= {minimum}"
+    return parse
