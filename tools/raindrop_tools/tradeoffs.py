@@ -143,8 +143,10 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--plot-only", action="store_true", help="redraw pareto.png from --out's tradeoffs.json")
     args = ap.parse_args(argv)
     out = Path(args.out)
-    out.mkdir(parents=True, exist_ok=True)
     if args.plot_only:
+        if not (out / "tradeoffs.json").is_file():
+            print(f"tradeoffs: error: no {out / 'tradeoffs.json'} to plot (run without --plot-only first)", file=sys.stderr)
+            return 2
         plot_pareto(json.loads((out / "tradeoffs.json").read_text()), out / "pareto.png")
         return 0
     rows = []
@@ -155,6 +157,12 @@ def main(argv: list[str] | None = None) -> int:
         print(f"tradeoffs: {v.label}", file=sys.stderr)
         t = bench_ms(args.bench, v, args.runs)
         rows.append({"variant": v.__dict__, **t, "accuracy": accuracy(Path(args.eval_root), v.models)})
+    # Nothing measured (e.g. run outside the repository, where the model folders are not):
+    # an error, not empty tables written over the last run's.
+    if not rows:
+        print("tradeoffs: error: none of the model folders exist here (run from the repository root)", file=sys.stderr)
+        return 2
+    out.mkdir(parents=True, exist_ok=True)
     (out / "tradeoffs.json").write_text(json.dumps(rows, indent=2) + "\n")
 
     lines = ["| variant | knob | size | ms (median) | PSNR Y dB | SSIM Y | PSNR RGB dB | SSIM RGB | AP |",

@@ -45,3 +45,20 @@ def test_labels_of_points_at_the_same_accuracy_are_stacked():
     from raindrop_tools.tradeoffs import label_offsets
 
     assert label_offsets([(80.0, 31.0), (100.0, 31.002), (500.0, 31.2)], dy=9.0) == [(5.0, 4.0), (5.0, 13.0), (5.0, 4.0)]
+
+
+def test_no_models_found_keeps_the_last_tables(tmp_path, monkeypatch, capsys):
+    """Run where no model folder exists (outside the repository), it wrote empty tables over
+    the last run's and exited 0; --plot-only without a table was a traceback."""
+    from raindrop_tools import tradeoffs as T
+
+    out = tmp_path / "tr"
+    out.mkdir()
+    (out / "tradeoffs.json").write_text("[1]\n")
+    (out / "tradeoffs.md").write_text("last run\n")
+    monkeypatch.chdir(tmp_path)
+    assert T.main(["--out", str(out)]) == 2
+    assert "none of the model folders exist here" in capsys.readouterr().err
+    assert (out / "tradeoffs.json").read_text() == "[1]\n" and (out / "tradeoffs.md").read_text() == "last run\n"
+    assert T.main(["--out", str(tmp_path / "none"), "--plot-only"]) == 2
+    assert not (tmp_path / "none").exists()
