@@ -12,8 +12,9 @@ This module does not import torch: the network *configuration* lives here, the n
 from __future__ import annotations
 
 import dataclasses
-import re
+import math
 import os
+import re
 import typing
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -309,10 +310,16 @@ def validate_config(cfg: RunConfig) -> None:
         problems.append("train.batch_size, stage1_steps and stage2_steps must be >= 1")
     if not 0.0 <= t.decay_start <= t.decay_end <= 1.0:
         problems.append("train: need 0 <= decay_start <= decay_end <= 1")
-    if t.lr <= 0 or t.lr_end <= 0:
-        problems.append("train.lr and train.lr_end must be > 0")
+    # Written so that NaN fails too (every comparison with it is false); Inf trained to NaN
+    # weights that were saved as the latest checkpoint.
+    if not (0 < t.lr < math.inf and 0 < t.lr_end < math.inf):
+        problems.append(f"train.lr and train.lr_end must be finite and > 0, got {t.lr} and {t.lr_end}")
     if len(t.betas) != 2:
         problems.append("train.betas must have two values")
+    elif not all(0.0 <= b < 1.0 for b in t.betas):
+        problems.append(f"train.betas must be in [0, 1), got {t.betas}")
+    if not 0 <= cfg.seed < 2**63:
+        problems.append(f"seed must be in [0, 2^63), got {cfg.seed}")
     if t.checkpoint_every < 1 or t.keep_checkpoints < 1 or t.log_every < 1:
         problems.append("train.checkpoint_every, keep_checkpoints and log_every must be >= 1")
     if not 0.0 <= cfg.loss.rfn_ssim_weight <= 1.0:

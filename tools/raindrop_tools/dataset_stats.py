@@ -80,7 +80,12 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("data", nargs="+", help="rendered data set folders")
     ap.add_argument("--json", action="store_true", help="print JSON instead of a markdown table")
     args = ap.parse_args(argv)
-    rows = [summarize(Path(d)) for d in args.data]
+    try:
+        rows = [summarize(Path(d)) for d in args.data]
+    except (ValueError, KeyError, OSError) as e:  # no or an unreadable manifest, records without a scene
+        what = f"a record has no {e}" if isinstance(e, KeyError) else str(e)
+        print(f"dataset_stats: error: {what} (rendered data sets only)", file=sys.stderr)
+        return 2
     print(json.dumps(rows, indent=2) if args.json else markdown(rows))
     return 0
 

@@ -406,6 +406,9 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--no-progress", action="store_true")
     RP.add_mask_arguments(ap)
     args = ap.parse_args(argv)
+    if Path(args.out).exists() and not Path(args.out).is_dir():  # found before the work, not after it
+        print(f"error: --out {args.out} is a file, not a folder", file=sys.stderr)
+        return 2
     if args.real_pairs:
         if args.split and len(args.split) > 1:
             ap.error("--real-pairs takes one --split (train, test or all)")
@@ -424,7 +427,7 @@ def main(argv: list[str] | None = None) -> int:
                 sheets=not args.no_sheets,
                 progress=not args.no_progress,
             )
-        except (RP.PairsError, ModelError, ImageError, ValueError) as e:
+        except (RP.PairsError, ModelError, ImageError, ValueError, OSError) as e:
             print(f"error: {e}", file=sys.stderr)
             return 2
         print(real_pairs_markdown(result).split("\n\n| pair |")[0])
@@ -441,7 +444,7 @@ def main(argv: list[str] | None = None) -> int:
             threads=args.threads,
             progress=not args.no_progress,
         )
-    except (DatasetError, ModelError, ImageError, ValueError) as e:
+    except (DatasetError, ModelError, ImageError, ValueError, OSError) as e:
         print(f"error: {e}", file=sys.stderr)
         return 2
     print(markdown_table(result))

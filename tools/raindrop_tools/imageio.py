@@ -74,20 +74,38 @@ def read_mask(path: str | os.PathLike) -> np.ndarray:
     return img
 
 
+def check_writable(path: str | os.PathLike) -> None:
+    """Raises ImageError if OpenCV has no writer for ``path``'s extension, or ``path`` is a
+    folder: for checking every destination before the work, so that a bad second one does not
+    leave the first written."""
+    if Path(path).is_dir():
+        raise ImageError(f"{path}: is a folder, not an image file")
+    if not cv2.haveImageWriter(str(path)):
+        raise ImageError(f"{path}: cannot write this format (no writer for '{Path(path).suffix}')")
+
+
+def _imwrite(path: str | os.PathLike, image: np.ndarray) -> None:
+    # OpenCV raises cv2.error for an extension it has no writer for, returns False otherwise.
+    try:
+        ok = cv2.imwrite(str(path), image)
+    except cv2.error as e:
+        raise ImageError(f"{path}: cannot write image ({str(e).strip().splitlines()[-1]})") from e
+    if not ok:
+        raise ImageError(f"{path}: cannot write image")
+
+
 def write_rgb(path: str | os.PathLike, rgb_u8: np.ndarray) -> None:
     if rgb_u8.dtype != np.uint8 or rgb_u8.ndim != 3 or rgb_u8.shape[2] != 3:
         raise ImageError(f"write_rgb: expected HxWx3 uint8, got {rgb_u8.dtype} {rgb_u8.shape}")
     Path(path).parent.mkdir(parents=True, exist_ok=True)
-    if not cv2.imwrite(str(path), cv2.cvtColor(rgb_u8, cv2.COLOR_RGB2BGR)):
-        raise ImageError(f"{path}: cannot write image")
+    _imwrite(path, cv2.cvtColor(rgb_u8, cv2.COLOR_RGB2BGR))
 
 
 def write_grey(path: str | os.PathLike, grey_u8: np.ndarray) -> None:
     if grey_u8.dtype != np.uint8 or grey_u8.ndim != 2:
         raise ImageError(f"write_grey: expected HxW uint8, got {grey_u8.dtype} {grey_u8.shape}")
     Path(path).parent.mkdir(parents=True, exist_ok=True)
-    if not cv2.imwrite(str(path), grey_u8):
-        raise ImageError(f"{path}: cannot write image")
+    _imwrite(path, grey_u8)
 
 
 def png_header(path: str | os.PathLike) -> tuple[int, int, int, int]:

@@ -39,7 +39,7 @@ import onnxruntime as ort
 
 from . import contract as C
 from .edge import edge_map_numpy
-from .imageio import ImageError, read_rgb, to_float, to_uint8, write_grey, write_rgb
+from .imageio import ImageError, check_writable, read_rgb, to_float, to_uint8, write_grey, write_rgb
 from .morphology import dilate_numpy
 
 
@@ -246,6 +246,8 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("-v", "--verbose", action="store_true", help="print timings and mask coverage")
     args = ap.parse_args(argv)
     try:
+        for dest in [args.output] + ([args.mask] if args.mask else []):
+            check_writable(dest)
         remover = RaindropRemover(args.models, threads=args.threads)
         img = read_rgb(args.input)
         res = remover.remove(img, args.threshold, args.dilation)

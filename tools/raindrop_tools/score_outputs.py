@@ -22,7 +22,7 @@ import numpy as np
 
 from . import metrics
 from .data import DatasetError, read_manifest
-from .imageio import read_rgb_strict
+from .imageio import ImageError, read_rgb_strict
 
 
 def split_names(data: Path, split: str) -> set[str]:
@@ -65,12 +65,20 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--label", default="", help="text that starts the printed line")
     ap.add_argument("--json", type=Path, help="also write every image's scores here")
     a = ap.parse_args(argv)
-    r = score(a.data, a.outputs, a.split)
+    try:
+        r = score(a.data, a.outputs, a.split)
+    except (ImageError, ValueError, OSError) as e:  # a damaged output, one of another size, an unreadable file
+        print(f"score_outputs: error: {e}", file=sys.stderr)
+        return 2
     m = r["mean"]
     print(f"{a.label or a.outputs}: {r['images']} images, PSNR-Y {m['input_psnr_y']:.2f} -> {m['output_psnr_y']:.2f} dB "
           f"(gain {m['gain_psnr_y']:+.2f}), SSIM-Y {m['input_ssim_y']:.4f} -> {m['output_ssim_y']:.4f}")
     if a.json:
-        a.json.write_text(json.dumps(r, indent=1))
+        try:
+            a.json.write_text(json.dumps(r, indent=1))
+        except OSError as e:
+            print(f"score_outputs: error: --json {a.json}: {e.strerror}", file=sys.stderr)
+            return 2
     return 0
 
 

@@ -102,8 +102,19 @@ def prepare_run_dir(run_dir: Path, cfg: RunConfig | None) -> RunConfig:
     so a ``cfg`` that differs from the one recorded there is refused."""
     run_dir = Path(run_dir)
     cfg_file = run_dir / CONFIG_FILE
+    if run_dir.exists() and not run_dir.is_dir():
+        raise TrainingError(f"--out {run_dir} is a file, not a run folder")
     if cfg_file.is_file():
-        recorded = config_from_dict(yaml.safe_load(cfg_file.read_text()))
+        try:
+            recorded = config_from_dict(yaml.safe_load(cfg_file.read_text()) or {})
+        except yaml.YAMLError as e:
+            raise TrainingError(f"{cfg_file}: not a readable configuration ({str(e).splitlines()[0]})") from e
+        # A run that never saved a checkpoint trained nothing with its configuration: a
+        # corrected command (a mistyped --data, a bad --set) may start it again.
+        if cfg is not None and to_dict(cfg) != to_dict(recorded) and ckpt.latest_checkpoint(run_dir) is None:
+            print(f"train: {cfg_file}: replacing the configuration of a run that saved no checkpoint", file=sys.stderr)
+            cfg_file.write_text(dump_config(cfg))
+            return cfg
         if cfg is not None and to_dict(cfg) != to_dict(recorded):
             a, b = to_dict(recorded), to_dict(cfg)
             diffs = _diff(a, b)
@@ -134,7 +145,14 @@ def _record_invocation(
     world: distributed.World | None = None,
 ) -> None:
     path = run_dir / RUN_FILE
-    info = json.loads(path.read_text()) if path.is_file() else {"config": cfg.name, "seed": cfg.seed, "invocations": []}
+    info = {"config": cfg.name, "seed": cfg.seed, "invocations": []}
+    if path.is_file():
+        try:
+            info = json.loads(path.read_text())
+            if not isinstance(info, dict) or not isinstance(info.get("invocations"), list):
+                raise ValueError("no list of invocations")
+        except ValueError as e:  # json.JSONDecodeError is one
+            raise TrainingError(f"{path}: not a run record ({e}); move it away to start the record again") from e
     info["invocations"].append(
         {
             "started": _dt.datetime.now(_dt.timezone.utc).isoformat(timespec="seconds"),

@@ -73,3 +73,15 @@ def test_lr_schedule():
     assert lr_at(99, **args) == pytest.approx(1e-4)
     values = [lr_at(s, **args) for s in range(100)]
     assert all(a >= b for a, b in zip(values, values[1:]))
+
+
+@pytest.mark.parametrize("override,match", [
+    ("train.betas=[2, 3]", "betas must be in"), ("train.betas=[0.9, .nan]", "betas must be in"),
+    ("train.lr=.nan", "finite and > 0"), ("train.lr=.inf", "finite and > 0"), ("train.lr_end=0", "finite and > 0"),
+    ("seed=-1", "seed must be in"), ("seed=9223372036854775808", "seed must be in"),
+])
+def test_optimizer_and_seed_values_are_range_checked(override, match):
+    """These reached Adam or numpy and ended in a traceback (or, lr=inf, in NaN weights saved
+    as the latest checkpoint)."""
+    with pytest.raises(ConfigError, match=match):
+        config_from_dict({}, parse_overrides([override]))

@@ -311,3 +311,24 @@ def test_init_from_an_exported_model_folder_fine_tunes_its_function(smoke_run, t
     assert train.main(_args(data, tmp_path / "ft5", "--init-from", str(models), *frozen,
                             "--set", "network.rrn.global_residual=true")) == 2
     assert "network.rrn.global_residual" in capsys.readouterr().err
+
+
+def test_a_run_that_saved_nothing_may_be_started_again_with_a_corrected_command(smoke_run, tmp_path, capsys):
+    """A mistyped --data wrote config.yaml and failed; the corrected command was then refused
+    as 'a different configuration'. A run with checkpoints still refuses one."""
+    out = tmp_path / "run"
+    typo = load_config(CONFIGS / "smoke.yaml", [("data.train", str(tmp_path / "nowhere"))])
+    train.prepare_run_dir(out, typo)
+    good = load_config(CONFIGS / "smoke.yaml", [("data.train", str(smoke_run["data"]))])
+    assert train.prepare_run_dir(out, good) == good
+    assert "replacing the configuration of a run that saved no checkpoint" in capsys.readouterr().err
+    (out / "checkpoints").mkdir()
+    shutil.copy(smoke_run["run"] / "checkpoints" / "stage1_step00000006.pt", out / "checkpoints")
+    with pytest.raises(train.TrainingError, match="records a different configuration"):
+        train.prepare_run_dir(out, typo)
+    (tmp_path / "afile").write_text("x")
+    with pytest.raises(train.TrainingError, match="is a file"):
+        train.prepare_run_dir(tmp_path / "afile", good)
+    (out / train.CONFIG_FILE).write_text("a: [unclosed\n")
+    with pytest.raises(train.TrainingError, match="not a readable configuration"):
+        train.prepare_run_dir(out, good)
