@@ -91,10 +91,14 @@ def default_run_dir(name: str) -> Path:
     return Path.cwd() / "runs" / name
 
 
-def _write_json_atomic(path: Path, obj) -> None:
+def _write_text_atomic(path: Path, text: str) -> None:
     tmp = path.with_name(path.name + ".tmp")
-    tmp.write_text(json.dumps(obj, indent=2) + "\n")
+    tmp.write_text(text)
     os.replace(tmp, path)
+
+
+def _write_json_atomic(path: Path, obj) -> None:
+    _write_text_atomic(path, json.dumps(obj, indent=2) + "\n")
 
 
 def prepare_run_dir(run_dir: Path, cfg: RunConfig | None) -> RunConfig:
@@ -106,14 +110,17 @@ def prepare_run_dir(run_dir: Path, cfg: RunConfig | None) -> RunConfig:
         raise TrainingError(f"--out {run_dir} is a file, not a run folder")
     if cfg_file.is_file():
         try:
-            recorded = config_from_dict(yaml.safe_load(cfg_file.read_text()) or {})
+            loaded = yaml.safe_load(cfg_file.read_text())
+            if not isinstance(loaded, dict):
+                raise yaml.YAMLError("empty, or not a mapping")
+            recorded = config_from_dict(loaded)
         except yaml.YAMLError as e:
             raise TrainingError(f"{cfg_file}: not a readable configuration ({str(e).splitlines()[0]})") from e
         # A run that never saved a checkpoint trained nothing with its configuration: a
         # corrected command (a mistyped --data, a bad --set) may start it again.
         if cfg is not None and to_dict(cfg) != to_dict(recorded) and ckpt.latest_checkpoint(run_dir) is None:
             print(f"train: {cfg_file}: replacing the configuration of a run that saved no checkpoint", file=sys.stderr)
-            cfg_file.write_text(dump_config(cfg))
+            _write_text_atomic(cfg_file, dump_config(cfg))
             return cfg
         if cfg is not None and to_dict(cfg) != to_dict(recorded):
             a, b = to_dict(recorded), to_dict(cfg)
@@ -126,7 +133,7 @@ def prepare_run_dir(run_dir: Path, cfg: RunConfig | None) -> RunConfig:
     if cfg is None:
         raise TrainingError(f"{run_dir}: no {CONFIG_FILE} there; give --config to start a run")
     run_dir.mkdir(parents=True, exist_ok=True)
-    cfg_file.write_text(dump_config(cfg))
+    _write_text_atomic(cfg_file, dump_config(cfg))
     return cfg
 
 
@@ -467,7 +474,31 @@ class Trainer:
             raise TrainingError(
                 f"{self.run_dir} already has {what} ({ref.path.name}); pass --resume to continue it, or use a new --out"
             )
-        return {"state": ckpt.load_checkpoint(ref.path, map_location), "models": None}
+        state = ckpt.load_checkpoint(ref.path, map_location)
+        self._trim_log(state["stage"], state["step"])
+        return {"state": state, "models": None}
+
+    def _trim_log(self, stage: int, step: int) -> None:
+        """Drops the log lines past the checkpoint a run resumes from: a run killed after its
+        last checkpoint logged steps that the resumed run trains and logs again."""
+        path = self.run_dir / LOG_FILE
+        if not self.writes or not path.is_file():
+            return
+        kept, dropped = [], 0
+        for line in path.read_text().splitlines(keepends=True):
+            try:
+                r = json.loads(line)
+                later = (r["stage"], r["step"]) > (stage, step)
+            except (ValueError, KeyError, TypeError):
+                later = False  # not a step record (or a torn last line): kept as it is
+            if later:
+                dropped += 1
+            else:
+                kept.append(line if line.endswith("\n") else line + "\n")
+        if dropped:
+            tmp = path.with_name(path.name + ".tmp")
+            tmp.write_text("".join(kept))
+            os.replace(tmp, path)
 
     def _shared_starting_point(self, stage: int, resume: bool) -> dict | None:
         """``_starting_point`` as rank 0 finds it, on every rank (on the CPU: each rank moves

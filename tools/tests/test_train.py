@@ -332,3 +332,21 @@ def test_a_run_that_saved_nothing_may_be_started_again_with_a_corrected_command(
     (out / train.CONFIG_FILE).write_text("a: [unclosed\n")
     with pytest.raises(train.TrainingError, match="not a readable configuration"):
         train.prepare_run_dir(out, good)
+
+
+def test_resume_drops_the_log_lines_past_its_checkpoint(smoke_run, tmp_path):
+    """A run killed after its last checkpoint had logged later steps; the resumed run trained
+    and logged them again, so log.jsonl held those steps twice."""
+    out = tmp_path / "run"
+    assert train.main(_args(smoke_run["data"], out, "--max-steps", "3")) == 0
+    log = out / train.LOG_FILE
+    # what a kill -9 after two more logged steps leaves: steps 4 and 5, and a torn last line
+    log.write_text(log.read_text() + '{"stage": 1, "step": 4}\n{"stage": 1, "step": 5}\n{"stage": 1, "st')
+    assert train.main(_args(smoke_run["data"], out, "--resume", "--max-steps", "2")) == 0
+    records = []
+    for line in log.read_text().splitlines():
+        try:
+            records.append(json.loads(line))
+        except ValueError:
+            pass  # the torn line, kept as it was on a line of its own
+    assert [(r["stage"], r["step"]) for r in records] == [(1, 1), (1, 2), (1, 3), (1, 4), (1, 5)]
