@@ -29,6 +29,7 @@ import sys
 import time
 from pathlib import Path
 
+import cv2
 import numpy as np
 from tqdm import tqdm
 
@@ -288,7 +289,7 @@ def evaluate_real_pairs(
     pr = MT.PRAccumulator()
     counts = MT.MaskCounts()
     per_image = []
-    out.mkdir(parents=True, exist_ok=True)
+    made_sheets = {}  # id -> PNG bytes, written once every pair has been scored
     for p in tqdm(pairs, desc="evaluate", disable=not progress, dynamic_ncols=True):
         rainy, clean, rough = RP.pair_mask(p, mask_params)
         gt = rough > 0
@@ -306,7 +307,8 @@ def evaluate_real_pairs(
         if sheets:
             title = (f"{p.id} ({p.split})  PSNR-Y {m_in['psnr_y']:.2f} -> {m_out['psnr_y']:.2f} dB, "
                      f"SSIM-Y {m_in['ssim_y']:.3f} -> {m_out['ssim_y']:.3f}")
-            write_rgb(out / "sheets" / f"{p.id}.png", contact_sheet(rainy, res.mask, gt, res.output, clean, title))
+            sheet = contact_sheet(rainy, res.mask, gt, res.output, clean, title)
+            made_sheets[p.id] = cv2.imencode(".png", cv2.cvtColor(sheet, cv2.COLOR_RGB2BGR))[1].tobytes()
     mean = {key: float(np.mean([r[key] for r in per_image])) for key in per_image[0] if key.startswith(
         ("input_", "output_", "gain_", "rough_", "detected_"))}
     result = {
@@ -327,6 +329,18 @@ def evaluate_real_pairs(
         "psnr_cap_db": MT.PSNR_CAP_DB,
         "per_image": per_image,
     }
+    # The folder then describes this run alone: a failed run wrote sheets without results, and a
+    # smaller rerun (--limit, --no-sheets) left the earlier run's sheets beside its results. Only
+    # the sheets an earlier run's results.json names are removed (they are this tool's).
+    out.mkdir(parents=True, exist_ok=True)
+    earlier = _earlier_sheet_ids(out)
+    for sid in earlier - set(made_sheets):
+        (out / "sheets" / f"{sid}.png").unlink(missing_ok=True)
+    if made_sheets:
+        (out / "sheets").mkdir(exist_ok=True)
+    for sid, png in made_sheets.items():
+        (out / "sheets" / f"{sid}.png").write_bytes(png)
+    result["sheets"] = sorted(made_sheets)
     (out / "results.json").write_text(json.dumps(result, indent=2, allow_nan=True) + "\n")
     (out / "results.md").write_text(real_pairs_markdown(result))
     with open(out / "per_image.csv", "w", newline="") as f:
@@ -334,6 +348,20 @@ def evaluate_real_pairs(
         wr.writeheader()
         wr.writerows(per_image)
     return result
+
+
+def _earlier_sheet_ids(out: Path) -> set[str]:
+    """The pair ids whose sheets an earlier real-pairs run recorded in ``out``'s results.json."""
+    try:
+        earlier = json.loads((out / "results.json").read_text())
+    except (OSError, ValueError):
+        return set()
+    if not isinstance(earlier, dict) or "real_pairs" not in earlier:
+        return set()
+    ids = earlier.get("sheets")
+    if ids is None:  # written before results.json listed its sheets: every pair had one
+        ids = [r.get("id") for r in earlier.get("per_image", []) if isinstance(r, dict)]
+    return {i for i in ids if isinstance(i, str) and "/" not in i and i not in ("", ".", "..")}
 
 
 def real_pairs_markdown(result: dict) -> str:

@@ -129,3 +129,32 @@ def test_real_pairs_evaluation(tmp_path):
     assert main([*args, "--split", "all", "--holdout", "scene0", "--no-sheets", "--out", str(tmp_path / "o2")]) == 0
     assert json.loads((tmp_path / "o2" / "results.json").read_text())["images"] == 8
     assert main([*args, "--split", "val", "--out", str(tmp_path / "o3")]) == 2
+
+
+def test_real_pairs_sheets_describe_the_last_run_only(tmp_path):
+    """A smaller rerun into the same folder left the earlier run's sheets beside its results,
+    and a run that failed on a later pair left sheets without results. Sheets are written once
+    every pair is scored, and those an earlier run recorded but this one did not make go."""
+    import cv2 as _cv2
+
+    from realpairs_helpers import write_pairs
+
+    pairs_dir = write_pairs(tmp_path / "pairs", groups=4, per_group=2, h=40, w=56)
+    out = tmp_path / "out"
+    args = ["--real-pairs", str(pairs_dir), "--models", str(FIXTURE_MODELS), "--out", str(out), "--threads", "1",
+            "--no-progress", "--split", "all"]
+    (out / "sheets").mkdir(parents=True)
+    (out / "sheets" / "mine.png").write_bytes(b"a user's file")
+    assert main(args) == 0
+    assert len(list((out / "sheets").iterdir())) == 9
+    assert main([*args, "--limit", "3"]) == 0
+    r = json.loads((out / "results.json").read_text())
+    assert sorted(p.name for p in (out / "sheets").iterdir()) == sorted([f"{i}.png" for i in r["sheets"]] + ["mine.png"])
+    assert len(r["sheets"]) == 3
+    assert main([*args, "--no-sheets"]) == 0
+    assert [p.name for p in (out / "sheets").iterdir()] == ["mine.png"]
+    # a pair whose images differ in size fails the run: no sheet of the pairs before it is written
+    bad = sorted(pairs_dir.glob("*_clean.png"))[-1]
+    _cv2.imwrite(str(bad), np.zeros((7, 9, 3), np.uint8))
+    assert main([*args, "--out", str(tmp_path / "o2")]) == 2
+    assert not (tmp_path / "o2").exists()
