@@ -71,8 +71,21 @@ def save_atomic(obj: dict, path: Path) -> None:
         os.close(fd)
 
 
+class CheckpointError(ValueError):
+    """A file that is not a readable checkpoint (cut short, another format), in one line."""
+
+
 def load_checkpoint(path: Path, map_location: str | torch.device = "cpu") -> dict:
-    return torch.load(path, map_location=map_location, weights_only=False)
+    try:
+        state = torch.load(path, map_location=map_location, weights_only=False)
+    except FileNotFoundError as e:
+        raise CheckpointError(f"{path}: no such checkpoint") from e
+    except Exception as e:  # torch raises whatever the bytes provoke: RuntimeError, UnpicklingError, EOFError...
+        first = (str(e).strip().splitlines() or [type(e).__name__])[0]
+        raise CheckpointError(f"{path}: not a readable checkpoint ({first})") from e
+    if not isinstance(state, dict) or "models" not in state:
+        raise CheckpointError(f"{path}: not a raindrop training checkpoint (no networks in it)")
+    return state
 
 
 def remove_stale_temporaries(run_dir: Path) -> None:

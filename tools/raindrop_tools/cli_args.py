@@ -21,3 +21,15 @@ def at_least(minimum: int):
 
     parse.__name__ = f"integer >= {minimum}"
     return parse
+
+
+def unit_interval(text: str) -> float:
+    """An argparse ``type``: a number in [0, 1]. NaN compares false with everything, so a
+    threshold of nan gave empty masks and a result without a word."""
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not a number") from None
+    if not 0.0 <= value <= 1.0:
+        raise argparse.ArgumentTypeError(f"{text} is not in [0, 1]")
+    return value

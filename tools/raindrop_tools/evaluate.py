@@ -35,7 +35,7 @@ from tqdm import tqdm
 
 from . import metrics as MT
 from . import realpairs as RP
-from .cli_args import at_least
+from .cli_args import at_least, unit_interval
 from .data import DatasetError, check_files, read_manifest
 from .imageio import ImageError, read_mask_strict, read_rgb_strict, to_uint8, write_rgb
 from .reference import ModelError, RaindropRemover
@@ -428,7 +428,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--holdout", help="--real-pairs: the test split's groups (realpairs --holdout; default 0.5)")
     ap.add_argument("--no-sheets", action="store_true", help="--real-pairs: no contact sheets")
     ap.add_argument("--limit", type=at_least(1), help="only the first N samples")
-    ap.add_argument("--threshold", type=float, help="mask threshold (default: the models')")
+    ap.add_argument("--threshold", type=unit_interval, help="mask threshold in [0, 1] (default: the models')")
     ap.add_argument("--dilation", type=int, help="dilation size k of the last row (default: the models')")
     ap.add_argument("--threads", type=int, help="ONNX Runtime intra-op threads")
     ap.add_argument("--no-progress", action="store_true")

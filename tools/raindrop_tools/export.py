@@ -181,11 +181,8 @@ def load_run(run_dir: Path, checkpoint: Path | None = None, allow_incomplete: bo
         checkpoint = ref.path
     try:
         state = ckpt.load_checkpoint(checkpoint)
-    except OSError:
-        raise
-    except Exception as e:  # torch's loader raises whatever the bytes provoke (RuntimeError, UnpicklingError, ...)
-        first = (str(e).splitlines() or [type(e).__name__])[0]
-        raise ExportError(f"{checkpoint}: not a readable checkpoint ({first})") from e
+    except ckpt.CheckpointError as e:
+        raise ExportError(str(e)) from e
     if not allow_incomplete and not (state["stage"] == 2 and state["complete"]):
         raise ExportError(
             f"{checkpoint}: stage {state['stage']} step {state['step']} of {state['total_steps']}: "

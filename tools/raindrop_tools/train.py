@@ -70,7 +70,7 @@ class NonFiniteLossError(TrainingError):
 
 
 # Errors reported as a one-line message (exit status 2); anything else is a bug.
-REPORTED = (ConfigError, DatasetError, TrainingError, distributed.WorldError)
+REPORTED = (ConfigError, DatasetError, TrainingError, distributed.WorldError, ckpt.CheckpointError)
 
 
 def choose_device(name: str = "auto") -> torch.device:

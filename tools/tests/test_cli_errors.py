@@ -50,3 +50,13 @@ def test_evaluate_out_that_is_a_file(tiny_dataset, tmp_path, capsys):
     assert evaluate.main(["--data", str(tiny_dataset), "--models", str(FIXTURE_MODELS), "--out",
                           str(tmp_path / "afile")]) == 2
     assert capsys.readouterr().err == f"error: --out {tmp_path / 'afile'} is a file, not a folder\n"
+
+
+@pytest.mark.parametrize("value", ["nan", "-0.1", "1.5", "x"])
+def test_evaluate_threshold_outside_the_unit_interval(tiny_dataset, tmp_path, value, capsys):
+    """--threshold nan gave empty masks and a result without a word."""
+    with pytest.raises(SystemExit) as e:
+        evaluate.main(["--data", str(tiny_dataset), "--models", str(FIXTURE_MODELS), "--out", str(tmp_path / "o"),
+                       "--threshold", value])
+    assert e.value.code == 2 and "--threshold" in capsys.readouterr().err
+    assert not (tmp_path / "o").exists()

@@ -350,3 +350,18 @@ def test_resume_drops_the_log_lines_past_its_checkpoint(smoke_run, tmp_path):
         except ValueError:
             pass  # the torn line, kept as it was on a line of its own
     assert [(r["stage"], r["step"]) for r in records] == [(1, 1), (1, 2), (1, 3), (1, 4), (1, 5)]
+
+
+def test_unreadable_checkpoints_are_one_line_errors(smoke_run, tmp_path, capsys):
+    """A checkpoint cut short (a full disk, a copy stopped half way) and a file that is not one
+    ended --resume and --init-from in torch's traceback."""
+    out = tmp_path / "run"
+    assert train.main(_args(smoke_run["data"], out, "--max-steps", "2")) == 0
+    latest = ckpt.latest_checkpoint(out).path
+    latest.write_bytes(latest.read_bytes()[:1000])
+    assert train.main(_args(smoke_run["data"], out, "--resume")) == 2
+    err = capsys.readouterr().err
+    assert "not a readable checkpoint" in err and "Traceback" not in err
+    (tmp_path / "text.pt").write_text("not a checkpoint\n")
+    assert train.main(_args(smoke_run["data"], tmp_path / "run2", "--init-from", str(tmp_path / "text.pt"))) == 2
+    assert "not a readable checkpoint" in capsys.readouterr().err
