@@ -25,7 +25,7 @@ import numpy as np
 
 from .edge import edge_map_window
 from .imageio import ImageError, png_header, read_mask_strict, read_rgb_strict, to_float
-from .manifest import MANIFEST, manifest_lines
+from .manifest import MANIFEST, ManifestError, manifest_lines
 
 # Keys the tools use; the contract lists more, and readers must ignore unknown keys.
 REQUIRED_KEYS: dict[str, type] = {
@@ -69,7 +69,10 @@ def read_manifest(root: str | os.PathLike, splits: list[str] | None = None) -> l
     duplicate ids."""
     root = Path(root)
     manifest = root / MANIFEST
-    lines = manifest_lines(root)
+    try:
+        lines = manifest_lines(root)
+    except ManifestError as e:  # training and evaluation report DatasetErrors in one line
+        raise DatasetError(str(e)) from None
     if not manifest.is_file() and not lines:
         raise DatasetError(f"{root}: not a rendered data set (no {MANIFEST})")
     problems: list[str] = []

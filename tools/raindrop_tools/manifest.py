@@ -19,6 +19,17 @@ MANIFEST = "manifest.jsonl"
 PART = re.compile(r"manifest\.part-(\d+)-of-(\d+)\.jsonl")
 
 
+class ManifestError(ValueError):
+    """A manifest file that cannot be read as text, named in one line."""
+
+
+def _read_text(f: Path) -> str:
+    try:
+        return f.read_text(encoding="utf-8")
+    except UnicodeDecodeError as e:
+        raise ManifestError(f"{f}: not UTF-8 text (byte {e.start}); is it a manifest?") from None
+
+
 def manifest_files(root: str | os.PathLike) -> list[Path]:
     """``manifest.jsonl`` (when present), then the shards' parts sorted by name."""
     root = Path(root)
@@ -37,7 +48,7 @@ def manifest_lines(root: str | os.PathLike) -> list[tuple[str, int, str]]:
     lines = [
         (f.name, n, text)
         for f in files
-        for n, text in enumerate(f.read_text(encoding="utf-8").split("\n"), start=1)
+        for n, text in enumerate(_read_text(f).split("\n"), start=1)
         if text.strip()
     ]
     if len(files) <= 1:

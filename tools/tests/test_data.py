@@ -248,3 +248,11 @@ def test_visible_levels_are_validated():
 
     with pytest.raises(ConfigError, match="visible_levels"):
         config_from_dict({"data": {"sources": [{"path": "x", "visible_levels": -1}]}})
+
+
+def test_a_manifest_that_is_not_text_is_named_in_one_error(tmp_path):
+    """A manifest.jsonl that is not UTF-8 (a binary file by that name) raised UnicodeDecodeError,
+    a traceback in train and an error without the file's name in evaluate."""
+    (tmp_path / "manifest.jsonl").write_bytes(b'{"id": "a"}\n\xff\xfe\x00binary\n')
+    with pytest.raises(DatasetError, match=r"manifest\.jsonl: not UTF-8 text \(byte 12\)"):
+        read_manifest(tmp_path)
