@@ -678,4 +678,14 @@ if want photos; then
     $py -m raindrop_tools.realism --real-photos "$shared/real-raindrop" --rendered "$pd/val-no-drops" "${sets[@]}" \
       --limit 100 --seed "$seed" --json "$pd/realism-photos-s$seed.json" | tee "$pd/realism-photos-s$seed.md"
   done
+  # The phone-aperture trial: windshield-day with f/4-11 and a 4-6 mm lens, beside windshield-day.
+  sed 's/"name": "windshield-day"/"name": "windshield-sharp"/; s/"f_number": \[1.8, 5.6\], "focal_length_mm": \[4, 8\]/"f_number": [4, 11], "focal_length_mm": [4, 6]/' \
+    scenes/windshield-day.json >"$pd/windshield-sharp.json"
+  grep -q '"f_number": \[4, 11\]' "$pd/windshield-sharp.json" || { echo "results.sh: the trial scene was not made" >&2; exit 1; }
+  rm -rf "$pd/val-windshield-sharp" && build/raindrop-render -i "$out/cv100" -o "$pd/val-windshield-sharp" \
+    --scene "$pd/windshield-sharp.json" --size 512x256 --seed 11 -q
+  for seed in 0 1 2; do
+    $py -m raindrop_tools.realism --real-photos "$shared/real-raindrop" --rendered "$pd/val-windshield-day" \
+      --rendered "$pd/val-windshield-sharp" --limit 100 --seed "$seed" | tee "$pd/realism-sharp-s$seed.md"
+  done
 fi

@@ -20,6 +20,7 @@
 #include "png_file.h"
 #include "raindrop/common/error.h"
 #include "raindrop/common/image_files.h"
+#include "raindrop/common/srgb_curve.h"
 
 namespace raindrop {
 namespace fs = std::filesystem;
@@ -176,7 +177,7 @@ cv::Mat read_rgb8(const fs::path& path, bool convert, int min_size) {
       auto* dst = raw.ptr<std::uint8_t>(y);
       for (int i = 0; i < w * nc; ++i) {
         float v = std::isfinite(src[i]) ? std::min(std::max(src[i], 0.0f), 1.0f) : 0.0f;
-        if (i % nc < colour) v = v <= 0.0031308f ? 12.92f * v : 1.055f * std::pow(v, 1.0f / 2.4f) - 0.055f;
+        if (i % nc < colour) v = static_cast<float>(linear_to_srgb(v));
         dst[i] = static_cast<std::uint8_t>(std::floor(v * 255.0f + 0.5f));
       }
     }

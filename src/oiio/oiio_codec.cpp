@@ -1,17 +1,16 @@
 // raindrop_oiio.so: image formats through OpenImageIO, for raindrop_common's image_io.cpp
 // (src/common/oiio_codec.h says why this is a plugin). The front end has already checked that
 // the file exists, is not empty and, for a PNG, is structurally sound.
-#include <cmath>
-#include <cstdint>
+#include <cstddef>
 #include <memory>
 #include <string>
-#include <vector>
 
 #include <OpenImageIO/imageio.h>
 
 #include "../common/format_loss.h"
 #include "../common/oiio_codec.h"
 #include "raindrop/common/error.h"
+#include "raindrop/common/srgb_curve.h"
 
 namespace raindrop::oiio {
 namespace fs = std::filesystem;
@@ -72,23 +71,16 @@ cv::Mat decode(const fs::path& path) {
   return image;
 }
 
-// The sRGB transfer curve, decoded: stored 8/16-bit values are sRGB-encoded (as the renderer
-// writes and as photographs are), float formats hold linear light.
-float srgb_to_linear(float v) { return v <= 0.04045f ? v / 12.92f : std::pow((v + 0.055f) / 1.055f, 2.4f); }
-
 // `data` (8/16-bit, sRGB-encoded colour, linear alpha) as linear-light floats, for a format
 // that stores only floats (OpenEXR, Radiance HDR): written as stored, its values would be
 // read back as linear light and show too bright and washed out.
-std::vector<float> to_linear_floats(const cv::Mat& data) {
+cv::Mat to_linear_floats(const cv::Mat& data) {
   const int nc = data.channels(), colour = nc == 2 || nc == 4 ? nc - 1 : nc;
-  const float scale = data.depth() == CV_8U ? 1.0f / 255.0f : 1.0f / 65535.0f;
-  std::vector<float> out(data.total() * nc);
-  std::size_t i = 0;
-  for (int y = 0; y < data.rows; ++y) {
-    for (int x = 0; x < data.cols * nc; ++x, ++i) {
-      const float v = (data.depth() == CV_8U ? data.ptr<std::uint8_t>(y)[x] : data.ptr<std::uint16_t>(y)[x]) * scale;
-      out[i] = x % nc < colour ? srgb_to_linear(v) : v;
-    }
+  cv::Mat out;  // continuous
+  data.convertTo(out, CV_32F, data.depth() == CV_8U ? 1.0 / 255.0 : 1.0 / 65535.0);
+  float* v = out.ptr<float>();
+  for (std::size_t i = 0; i < out.total() * nc; ++i) {
+    if (static_cast<int>(i % nc) < colour) v[i] = static_cast<float>(srgb_to_linear(v[i]));
   }
   return out;
 }
@@ -119,8 +111,7 @@ std::string encode(const cv::Mat& image, const fs::path& file, const fs::path& n
                         : "";
   if (palette) lost += (lost.empty() ? "gif holds 256 colours: " : ", ") + std::string("colours quantised to a palette");
   if (floats) {
-    const std::vector<float> linear = to_linear_floats(data);
-    ok = ok && out->write_image(OIIO::TypeDesc::FLOAT, linear.data());
+    ok = ok && out->write_image(OIIO::TypeDesc::FLOAT, to_linear_floats(data).data);
   } else {
     ok = ok && out->write_image(spec.format, data.data);
   }

@@ -129,8 +129,8 @@ class OutputLock {
 fs::path folder_lock_path(const fs::path& dir) { return dir / ".raindrop-render.lock"; }
 std::string folder_description(const fs::path& dir) { return "output folder '" + dir.string() + "'"; }
 
-// `only`: remove just the temporaries of these file names' stems (temporary_stem) (a shard's own: the other shards
-// may be writing theirs right now); nullptr: all.
+// `only`: remove just the temporaries of these files (a shard's own: the other shards may be
+// writing theirs right now), given as their temporary_stem (image_io.h); nullptr: all.
 void remove_stale_temporaries(const fs::path& dir, const std::set<std::string>* only = nullptr) {
   std::error_code ec;
   for (auto it = fs::directory_iterator(dir, ec); !ec && it != fs::directory_iterator(); it.increment(ec)) {

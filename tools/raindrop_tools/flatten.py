@@ -21,7 +21,7 @@ from pathlib import Path
 import numpy as np
 from PIL import Image, ImageFilter
 
-IMAGE_SUFFIXES = {".png", ".jpg", ".jpeg", ".bmp", ".tif", ".tiff", ".webp"}
+from .imageio import IMAGE_SUFFIXES
 
 
 def flatten(image: Image.Image, size: tuple[int, int] = (512, 256), median: int = 7, colours: int = 12) -> Image.Image:

@@ -22,6 +22,10 @@ class ImageError(ValueError):
     """An image that cannot be read or does not have the expected format."""
 
 
+# Extensions of the image files the tools take from a folder of photographs or frames.
+IMAGE_SUFFIXES = {".png", ".jpg", ".jpeg", ".bmp", ".tif", ".tiff", ".webp"}
+
+
 def to_float(img_u8: np.ndarray) -> np.ndarray:
     """uint8 -> float32 in [0, 1]: ``x / 255`` computed in float32 (correctly rounded)."""
     if img_u8.dtype != np.uint8:

@@ -80,7 +80,7 @@ import numpy as np
 from . import realpairs as RP
 from .cli_args import at_least
 from .data import DatasetError, read_manifest
-from .imageio import ImageError, read_mask_strict, read_rgb, read_rgb_strict
+from .imageio import IMAGE_SUFFIXES, ImageError, read_mask_strict, read_rgb, read_rgb_strict
 from .metrics import luma_float
 
 MIN_DROP_AREA = 5
@@ -90,7 +90,6 @@ EDGE_MIN_CONTRAST = 8.0
 MIN_OUTSIDE = 0.05
 CROP = 64
 CLIPPED = 250
-IMAGE_SUFFIXES = {".png", ".jpg", ".jpeg", ".bmp", ".tif", ".tiff", ".webp"}
 MIN_CLIPPED = 0.01
 # per-image statistics and the per-drop ones, in table order
 IMAGE_STATS = ("coverage", "drops", "brightness", "sharpness", "edge_width", "veil", "highlights")
@@ -473,19 +472,16 @@ def main(argv: list[str] | None = None) -> int:
     except (RP.PairsError, DatasetError, ImageError, ValueError) as e:
         print(f"error: {e}", file=sys.stderr)
         return 2
-    scores = []
     rendered_sets = sets[1:] if real else sets
-    for st in rendered_sets if real else []:
-        scores.append({
-            "name": st.name,
-            "distance": distances(real, st),
-            "classifier": classifier_accuracy(real.crops, st.crops, real.crop_groups, st.crop_groups,
-                                              args.folds, args.seed),
-        })
-    photo_scores = []
-    for st in rendered_sets if photos else []:
-        photo_scores.append({"name": st.name, "classifier": classifier_accuracy(
-            photos[0], st.crops, photos[1], st.crop_groups, args.folds, args.seed)})
+    scores = [{
+        "name": st.name,
+        "distance": distances(real, st),
+        "classifier": classifier_accuracy(real.crops, st.crops, real.crop_groups, st.crop_groups, args.folds, args.seed),
+    } for st in rendered_sets] if real else []
+    photo_scores = [{
+        "name": st.name,
+        "classifier": classifier_accuracy(photos[0], st.crops, photos[1], st.crop_groups, args.folds, args.seed),
+    } for st in rendered_sets] if photos else []
     text = "\n".join(stats_table(st) for st in sets)
     if photo_scores:
         text += (f"\n### Classifier against real photographs ({Path(args.real_photos).name}: {photos[2]} photographs, "

@@ -377,9 +377,7 @@ class Trainer:
         path = init_checkpoint(source)
         if path.is_dir():
             return self._init_from_model_folder(path)
-        state = ckpt.load_checkpoint(path, self.device)
-        if not isinstance(state, dict) or "models" not in state:
-            raise TrainingError(f"--init-from {path}: not a raindrop training checkpoint (no 'models')")
+        state = ckpt.load_checkpoint(path, self.device)  # refuses a file without networks
         missing = [k for k in self.nets if k not in state["models"]]
         if missing:
             raise TrainingError(f"--init-from {path}: checkpoint lacks network(s) {', '.join(missing)}")
@@ -496,9 +494,7 @@ class Trainer:
             else:
                 kept.append(line if line.endswith("\n") else line + "\n")
         if dropped:
-            tmp = path.with_name(path.name + ".tmp")
-            tmp.write_text("".join(kept))
-            os.replace(tmp, path)
+            _write_text_atomic(path, "".join(kept))
 
     def _shared_starting_point(self, stage: int, resume: bool) -> dict | None:
         """``_starting_point`` as rank 0 finds it, on every rank (on the CPU: each rank moves

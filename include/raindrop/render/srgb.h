@@ -8,16 +8,9 @@
 #include <cstdint>
 #include <cstring>
 
+#include "raindrop/common/srgb_curve.h"
+
 namespace raindrop {
-
-inline double srgb_to_linear(double v) {
-  return v <= 0.04045 ? v / 12.92 : std::pow((v + 0.055) / 1.055, 2.4);
-}
-
-inline double linear_to_srgb(double v) {
-  v = v < 0 ? 0 : (v > 1 ? 1 : v);
-  return v <= 0.0031308 ? 12.92 * v : 1.055 * std::pow(v, 1.0 / 2.4) - 0.055;
-}
 
 // Decoded value of each 8-bit code.
 inline const std::array<float, 256>& srgb8_to_linear_table() {
