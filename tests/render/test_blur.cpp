@@ -219,3 +219,54 @@ TEST(Blur, APointSpreadsToADiskOfTheGivenDiameter) {
     }
   }
 }
+
+// Every drop pixel is the kernel's weighted mean of the source (the traced colour inside
+// drops, the clean pixel outside), summed here directly in double from blur_kernel, with the
+// taps outside the frame dropped and the rest renormalised. Drops cover long runs of pixels
+// (the blur sums several neighbours at a time) of every length, and touch every border.
+TEST(Blur, EveryDropPixelIsTheKernelsMeanOfItsSource) {
+  const int w = 97, h = 61;
+  for (double d : {1.5, 4.0, 7.3, 12.0}) {
+    for (BlurMethod m : {BlurMethod::DiskAntialiased, BlurMethod::DiskSpan, BlurMethod::DiskDirect}) {
+      Fixture f = random_fixture(w, h, 17);
+      Rng rng(static_cast<std::uint64_t>(d * 10) + 5);
+      for (int y = 0; y < h; y += 3) {  // rows of drop pixels from 1 to w pixels long
+        const int len = 1 + (y * 7) % w, x0 = y % 2 ? 0 : w - len;
+        for (int x = x0; x < x0 + len; ++x) {
+          f.label.at<int>(y, x) = 9;
+          f.color.at<cv::Vec3f>(y, x) = cv::Vec3f(static_cast<float>(rng.uniform()), static_cast<float>(rng.uniform()),
+                                                  static_cast<float>(rng.uniform()));
+        }
+      }
+      cv::Mat source(h, w, CV_64FC3);
+      for (int y = 0; y < h; ++y)
+        for (int x = 0; x < w; ++x)
+          for (int c = 0; c < 3; ++c)
+            source.at<cv::Vec3d>(y, x)[c] = f.label.at<int>(y, x) >= 0 ? f.color.at<cv::Vec3f>(y, x)[c]
+                                                                        : f.clean.at<cv::Vec3b>(y, x)[c] / 255.0;
+      const cv::Mat k = blur_kernel(d, m);
+      const int R = k.rows / 2;
+      cv::Mat out = f.color.clone();
+      blur_drops(f.clean, f.label, out, d, m);
+      double worst = 0;
+      for (int y = 0; y < h; ++y) {
+        for (int x = 0; x < w; ++x) {
+          if (f.label.at<int>(y, x) < 0) continue;
+          cv::Vec3d sum(0, 0, 0);
+          double weight = 0;
+          for (int dy = -R; dy <= R; ++dy) {
+            for (int dx = -R; dx <= R; ++dx) {
+              const int yy = y + dy, xx = x + dx;
+              const double kw = k.at<double>(dy + R, dx + R);
+              if (yy < 0 || xx < 0 || yy >= h || xx >= w || kw == 0) continue;
+              sum += kw * source.at<cv::Vec3d>(yy, xx);
+              weight += kw;
+            }
+          }
+          for (int c = 0; c < 3; ++c) worst = std::max(worst, std::abs(out.at<cv::Vec3f>(y, x)[c] - sum[c] / weight));
+        }
+      }
+      EXPECT_LT(worst, 2e-5) << to_string(m) << " d " << d;
+    }
+  }
+}
