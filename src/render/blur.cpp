@@ -11,6 +11,7 @@
 #include <tbb/parallel_for.h>
 
 #include "raindrop/render/disk_kernel.h"
+#include "raindrop/render/scratch_pool.h"
 #include "raindrop/render/spans.h"
 
 namespace raindrop {
@@ -21,20 +22,21 @@ using Spans = std::vector<std::vector<std::pair<int, int>>>;
 // Four floats (RGB and a pad) as one SIMD register: GCC/Clang vector extension.
 typedef float f4 __attribute__((vector_size(16)));
 
-// A buffer of f4 left uninitialised: every element is written before it is read, and
-// zeroing tens of megabytes per frame would cost more than the blur of small drops.
+// A buffer of f4 left uninitialised (every element is written before it is read), from the
+// scratch pool: tens of megabytes per frame, whose fresh pages would cost more than the
+// blur of small drops.
 class F4Buffer {
  public:
   F4Buffer() = default;
-  explicit F4Buffer(size_t n) : data_(new f4[n]), size_(n) {}
-  f4* data() { return data_.get(); }
-  const f4* data() const { return data_.get(); }
+  explicit F4Buffer(size_t n) : bytes_(scratch_bytes(n * sizeof(f4))), size_(n) {}
+  f4* data() { return reinterpret_cast<f4*>(bytes_.get()); }
+  const f4* data() const { return reinterpret_cast<const f4*>(bytes_.get()); }
   bool empty() const { return size_ == 0; }
-  f4& operator[](size_t i) { return data_[i]; }
-  const f4& operator[](size_t i) const { return data_[i]; }
+  f4& operator[](size_t i) { return data()[i]; }
+  const f4& operator[](size_t i) const { return data()[i]; }
 
  private:
-  std::unique_ptr<f4[]> data_;
+  ScratchBytes bytes_;
   size_t size_ = 0;
 };
 

@@ -72,6 +72,68 @@ void exact_intersect(const RTCIntersectFunctionNArguments* args) {
   ctx->best = DropHit{hit->t, static_cast<int>(prim), hit->surface, hit->normal};
 }
 
+// Per drop, the `k` drops whose bounding boxes are nearest to its own, nearest first, and
+// the distance of the next one (infinite when there is none). Boxes sorted by their lower x:
+// once a box's x-gap alone exceeds the k-th best distance found so far, no box further in that
+// direction can enter the list, so typical scenes cost far less than all pairs.
+template <int k, class Neighbours>
+void nearest_boxes(const std::vector<glm::dvec3>& lo, const std::vector<glm::dvec3>& hi, std::vector<Neighbours>* out) {
+  const size_t n = lo.size();
+  std::vector<size_t> order(n);
+  for (size_t i = 0; i < n; ++i) order[i] = i;
+  std::sort(order.begin(), order.end(), [&](size_t a, size_t b) { return lo[a].x < lo[b].x; });
+  double widest = 0;
+  for (size_t i = 0; i < n; ++i) widest = std::max(widest, hi[i].x - lo[i].x);
+  auto distance = [&](size_t a, size_t b) {
+    return glm::length(glm::max(glm::dvec3(0.0), glm::max(lo[a] - hi[b], lo[b] - hi[a])));
+  };
+  out->assign(n, Neighbours{});
+  constexpr double kInf = std::numeric_limits<double>::infinity();
+  for (size_t s = 0; s < n; ++s) {
+    const size_t a = order[s];
+    // The k + 1 best so far, sorted: the list, then the first one left out.
+    int best_drop[k + 1];
+    double best[k + 1];
+    int count = 0;
+    auto bound = [&] { return count == k + 1 ? best[k] : kInf; };
+    auto offer = [&](size_t b) {
+      const double dist = distance(a, b);
+      if (dist >= bound()) return;
+      int i = count < k + 1 ? count++ : k;
+      for (; i > 0 && best[i - 1] > dist; --i) best[i] = best[i - 1], best_drop[i] = best_drop[i - 1];
+      best[i] = dist;
+      best_drop[i] = static_cast<int>(b);
+    };
+    // Boxes further right start at or after lo[b].x: their x-gap is at least lo[b].x - hi[a].x.
+    for (size_t m = s + 1; m < n && !(lo[order[m]].x - hi[a].x > bound()); ++m) offer(order[m]);
+    // Boxes further left end before lo[b].x + widest: their x-gap is at least lo[a].x - lo[b].x - widest.
+    for (size_t m = s; m-- > 0 && !(lo[a].x - lo[order[m]].x - widest > bound());) offer(order[m]);
+    Neighbours& nb = (*out)[a];
+    nb.count = std::min(count, k);
+    for (int i = 0; i < nb.count; ++i) nb.drop[i] = best_drop[i], nb.distance[i] = best[i];
+    nb.beyond = count == k + 1 ? best[k] : kInf;
+  }
+}
+
+// Whether origin + t * dir, t in [0, t_max], meets the box [lo, hi] (slab test in double).
+bool segment_meets_box(const glm::dvec3& origin, const glm::dvec3& dir, double t_max, const glm::dvec3& lo,
+                       const glm::dvec3& hi) {
+  double t0 = 0, t1 = t_max;
+  for (int c = 0; c < 3; ++c) {
+    if (dir[c] == 0.0) {
+      if (origin[c] < lo[c] || origin[c] > hi[c]) return false;
+      continue;
+    }
+    const double inv = 1.0 / dir[c];
+    double ta = (lo[c] - origin[c]) * inv, tb = (hi[c] - origin[c]) * inv;
+    if (ta > tb) std::swap(ta, tb);
+    t0 = std::max(t0, ta);
+    t1 = std::min(t1, tb);
+    if (!(t0 <= t1)) return false;
+  }
+  return true;
+}
+
 }  // namespace
 
 std::string GeometryOptions::describe() const {
@@ -110,6 +172,19 @@ struct DropAccel::Impl {
 DropAccel::DropAccel(const std::vector<Drop>& drops, const GeometryOptions& options)
     : drops_(drops), options_(options), impl_(std::make_unique<Impl>()) {
   for (const Drop& d : drops_) max_height_ = std::max(max_height_, d.shape().height());
+  if (options.kind == GeometryOptions::Kind::Exact) {
+    // Boxes padded far beyond the rounding of the slab test, so that a skipped query never
+    // had a hit to find.
+    box_lo_.resize(drops_.size());
+    box_hi_.resize(drops_.size());
+    for (size_t i = 0; i < drops_.size(); ++i) {
+      drops_[i].bounds(&box_lo_[i], &box_hi_[i]);
+      const glm::dvec3 pad = 1e-6 * (glm::abs(box_lo_[i]) + glm::abs(box_hi_[i])) + 1e-9;
+      box_lo_[i] -= pad;
+      box_hi_[i] += pad;
+    }
+    nearest_boxes<kExitNeighbours>(box_lo_, box_hi_, &exit_neighbours_);
+  }
   RTCDevice device = shared_device();
   impl_->scene = rtcNewScene(device);
   rtcSetSceneFlags(impl_->scene, RTC_SCENE_FLAG_ROBUST);
@@ -190,6 +265,20 @@ DropAccel::DropAccel(const std::vector<Drop>& drops, const GeometryOptions& opti
 }
 
 DropAccel::~DropAccel() = default;
+
+bool DropAccel::may_meet_after_exit(int drop, const glm::dvec3& origin, const glm::dvec3& dir, double t_max) const {
+  if (!exit_skip_ || exit_neighbours_.empty() || !drops_[drop].shape().outline.circular()) return true;
+  const ExitNeighbours& nb = exit_neighbours_[drop];
+  // Every point of the segment lies within its length of the origin, which is inside this
+  // drop's box: a box further than that from this drop's box is out of reach.
+  const double reach = t_max * glm::length(dir) * (1 + 1e-6);
+  if (!(reach < nb.beyond)) return true;
+  for (int i = 0; i < nb.count && nb.distance[i] <= reach; ++i) {
+    const int other = nb.drop[i];
+    if (segment_meets_box(origin, dir, t_max * (1 + 1e-6), box_lo_[other], box_hi_[other])) return true;
+  }
+  return false;
+}
 
 std::optional<DropHit> DropAccel::intersect_inside(const glm::dvec3& origin, const glm::dvec3& dir,
                                                    const DropHit& from, double t_max) const {

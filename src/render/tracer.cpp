@@ -15,6 +15,7 @@
 #include "raindrop/render/background.h"
 #include "raindrop/render/background_range.h"
 #include "raindrop/render/optics.h"
+#include "raindrop/render/scratch_pool.h"
 #include "raindrop/render/sky.h"
 #include "raindrop/render/spans.h"
 #include "raindrop/render/srgb.h"
@@ -55,6 +56,9 @@ DropPath trace_path(const glm::dvec3& origin, const glm::dvec3& dir0, double n_w
     } else if (h0 < -1e-9 || h0 > slab_top) {
       break;  // parallel to the glass and outside the slab: no drop can be met
     }
+    // Just out of a drop, with no other drop in reach: nothing more to meet, and no query to
+    // ask (DropAccel::may_meet_after_exit).
+    if (on_surface && !inside && !accel.may_meet_after_exit(current.drop, o, d, t_max)) break;
     const auto hit = inside ? accel.intersect_inside(o, d, current, t_max)
                             : accel.intersect(o, d, on_surface ? &current : nullptr, t_min, t_max);
     if (!hit) break;
@@ -340,8 +344,9 @@ TraceResult run(const cv::Mat& clean, const Camera& camera, const SceneConfig& c
                 const SceneSample& scene, const DropAccel& accel, const EffectPlan* plan) {
   const Kernel<kFresnel, kDispersion> kernel(clean, camera, config, scene, accel, plan);
   TraceResult out;
-  out.label = cv::Mat(camera.height, camera.width, CV_32S, cv::Scalar(-1));
-  out.color = cv::Mat(camera.height, camera.width, CV_32FC3);
+  out.label = scratch_mat(camera.height, camera.width, CV_32S);
+  out.label.setTo(cv::Scalar(-1));
+  out.color = scratch_mat(camera.height, camera.width, CV_32FC3);  // written at drop pixels only
   // Edge classes are only needed to find the pixels to supersample.
   const int k = static_cast<int>(std::lround(std::sqrt(config.samples_per_pixel)));
   const bool need_classes = k > 1 && config.supersample != Supersample::All;

@@ -68,6 +68,15 @@ class DropAccel {
                                           double t_max = std::numeric_limits<double>::infinity()) const;
   void set_disjoint(bool disjoint) { disjoint_ = disjoint; }
 
+  // Whether a ray that has just left drop `drop` at `origin`, going along `dir` for t in
+  // [0, t_max], can meet another drop. False only where that is sure, and then the tracer
+  // skips the query: the ray's segment misses the bounding boxes of the drop's nearest
+  // neighbours and is too short to reach the others. Only for exact caps of circular
+  // outline (convex: a ray that leaves one cannot meet it again); elsewhere always true.
+  bool may_meet_after_exit(int drop, const glm::dvec3& origin, const glm::dvec3& dir, double t_max) const;
+  // Off: every exit is queried (for tests that hold the skip to the full query).
+  void set_exit_skip(bool on) { exit_skip_ = on; }
+
   // Every drop lies between the glass plane and this height above it (cm).
   double max_height() const { return max_height_; }
 
@@ -79,6 +88,18 @@ class DropAccel {
   std::vector<Drop> drops_;
   GeometryOptions options_;
   double max_height_ = 0;
+  // Per drop: its nearest neighbours by bounding-box distance, and the distance beyond which
+  // others may lie (may_meet_after_exit).
+  static constexpr int kExitNeighbours = 8;
+  struct ExitNeighbours {
+    int count = 0;
+    int drop[kExitNeighbours];
+    double distance[kExitNeighbours];
+    double beyond = 0;  // no other drop's box is nearer than this, outside the list
+  };
+  std::vector<ExitNeighbours> exit_neighbours_;
+  std::vector<glm::dvec3> box_lo_, box_hi_;  // padded bounding boxes
+  bool exit_skip_ = true;
   bool disjoint_ = false;
   std::unique_ptr<Impl> impl_;
 };
