@@ -195,6 +195,31 @@ class Kernel {
     return s;
   }
 
+  // The green (or only) path of the camera ray through pixel (px, py), and the sample it
+  // gives: sample() in two steps, so that a row's background look-ups can be done together
+  // after its rays are traced (run(): they miss the cache, and independent look-ups overlap).
+  // Without dispersion only.
+  DropPath trace_camera(double px, double py) const {
+    return trace_path<kFresnel>(glm::dvec3(0.0), camera_.ray_direction(px, py), n_rgb_.y, tir_, accel_, glass_);
+  }
+  // The background point a path sees (NaN: none, for a dark path or one into the car).
+  glm::dvec2 seen_point(const DropPath& p) const {
+    if (p.dark || p.escaped_in) return {NAN, NAN};
+    return background_pixel(p, camera_, scene_.background_distance_cm);
+  }
+  void prefetch(const glm::dvec2& xy) const {
+    if (!std::isnan(xy.x)) bg_.prefetch(xy.x, xy.y);
+  }
+  Sample finish(const DropPath& p, const glm::dvec2& xy) const {
+    Sample s;
+    s.hit = p.hit;
+    if (!s.hit) return s;
+    s.drop = p.first_drop;
+    s.dark = p.dark;
+    s.rgb = shade_at(p, xy, &s.off_frame, &s.xy);
+    return s;
+  }
+
   glm::dvec3 clean_pixel(int x, int y) const { return bg_.pixel(x, y); }
   const BackgroundSampler& background() const { return bg_; }
 
@@ -202,12 +227,15 @@ class Kernel {
   // `seen_at`, if given, receives the background point seen (left alone for a dark ray or one
   // that reaches the car's interior).
   glm::dvec3 shade(const DropPath& p, bool* off_frame, glm::dvec2* seen_at = nullptr) const {
+    return shade_at(p, seen_point(p), off_frame, seen_at);
+  }
+  // The same with the background point seen already computed (seen_point).
+  glm::dvec3 shade_at(const DropPath& p, const glm::dvec2& xy, bool* off_frame, glm::dvec2* seen_at = nullptr) const {
     if (p.dark) return glm::dvec3(0.0);
     glm::dvec3 seen;
     if (p.escaped_in) {
       seen = interior_;
     } else {
-      const glm::dvec2 xy = background_pixel(p, camera_, scene_.background_distance_cm);
       *off_frame = !bg_.inside(xy.x, xy.y);
       seen = bg_.sample(xy.x, xy.y);
       if (seen_at) *seen_at = xy;
@@ -366,29 +394,57 @@ TraceResult run(const cv::Mat& clean, const Camera& camera, const SceneConfig& c
   // Pass 1: one ray through every candidate pixel's centre.
   tbb::parallel_for(tbb::blocked_range<int>(0, camera.height, 8), [&](const tbb::blocked_range<int>& r) {
     std::int64_t n_cand = 0, n_drop = 0, n_dark = 0, n_off = 0;
+    struct Pending {
+      int x;
+      DropPath path;
+      glm::dvec2 xy;
+    };
+    std::vector<Pending> pending;
     for (int y = r.begin(); y < r.end(); ++y) {
       auto* label = out.label.ptr<int>(y);
       int* cls = need_classes ? classes.ptr<int>(y) : nullptr;
       auto* rgb = out.color.ptr<cv::Vec3f>(y);
-      for (const auto& [x0, x1] : spans[y]) {
-        for (int x = x0; x <= x1; ++x) {
-          ++n_cand;
-          const Sample s = kernel.sample(x, y);
-          if (!s.hit) continue;
-          ++n_drop;
-          row_lo[y] = std::min(row_lo[y], x);
-          row_hi[y] = std::max(row_hi[y], x);
-          n_dark += s.dark;
-          n_off += s.off_frame;
-          label[x] = s.drop;
-          if (cls) cls[x] = edge_class(s.drop, s.dark);
-          if (automatic && !s.dark) {
-            // A ray that saw no street saw the car's interior: marked infinite.
-            seen_at.at<cv::Vec2f>(y, x) = std::isnan(s.xy.x) ? cv::Vec2f(INFINITY, INFINITY)
-                                                            : cv::Vec2f(static_cast<float>(s.xy.x), static_cast<float>(s.xy.y));
+      auto keep = [&](int x, const Sample& s) {
+        ++n_drop;
+        row_lo[y] = std::min(row_lo[y], x);
+        row_hi[y] = std::max(row_hi[y], x);
+        n_dark += s.dark;
+        n_off += s.off_frame;
+        label[x] = s.drop;
+        if (cls) cls[x] = edge_class(s.drop, s.dark);
+        if (automatic && !s.dark) {
+          // A ray that saw no street saw the car's interior: marked infinite.
+          seen_at.at<cv::Vec2f>(y, x) = std::isnan(s.xy.x) ? cv::Vec2f(INFINITY, INFINITY)
+                                                          : cv::Vec2f(static_cast<float>(s.xy.x), static_cast<float>(s.xy.y));
+        }
+        rgb[x] = cv::Vec3f(static_cast<float>(s.rgb.x), static_cast<float>(s.rgb.y), static_cast<float>(s.rgb.z));
+      };
+      if constexpr (kDispersion) {
+        for (const auto& [x0, x1] : spans[y]) {
+          for (int x = x0; x <= x1; ++x) {
+            ++n_cand;
+            const Sample s = kernel.sample(x, y);
+            if (s.hit) keep(x, s);
           }
-          rgb[x] = cv::Vec3f(static_cast<float>(s.rgb.x), static_cast<float>(s.rgb.y),
-                             static_cast<float>(s.rgb.z));
+        }
+      } else {
+        // The row's rays first, then their background look-ups, each started a few pixels
+        // ahead of its use: the look-ups land anywhere in the frame (a drop shows a minified
+        // view of it) and miss the cache, and the tracing between two of them is too long
+        // for the processor to overlap the misses by itself. Same arithmetic, same result.
+        pending.clear();
+        for (const auto& [x0, x1] : spans[y]) {
+          for (int x = x0; x <= x1; ++x) {
+            ++n_cand;
+            const DropPath p = kernel.trace_camera(x, y);
+            if (p.hit) pending.push_back({x, p, kernel.seen_point(p)});
+          }
+        }
+        constexpr size_t kAhead = 8;
+        for (size_t i = 0; i < std::min(kAhead, pending.size()); ++i) kernel.prefetch(pending[i].xy);
+        for (size_t i = 0; i < pending.size(); ++i) {
+          if (i + kAhead < pending.size()) kernel.prefetch(pending[i + kAhead].xy);
+          keep(pending[i].x, kernel.finish(pending[i].path, pending[i].xy));
         }
       }
     }

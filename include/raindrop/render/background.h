@@ -61,6 +61,17 @@ class BackgroundSampler {
     return std::min(std::max(u - 0.5, 0.0), n - 1.0);
   }
 
+  // Asks the processor to start loading the pixels sample(x, y) will read (the sky's blend
+  // reads nothing more); no effect on any result.
+  void prefetch(double x, double y) const {
+    x = fold(x, img_.cols);
+    y = fold(y, img_.rows);
+    const int x0 = clampi(static_cast<int>(std::floor(x)), img_.cols);
+    const int y0 = static_cast<int>(std::floor(y));
+    __builtin_prefetch(img_.ptr<std::uint8_t>(clampi(y0, img_.rows)) + 3 * x0);
+    __builtin_prefetch(img_.ptr<std::uint8_t>(clampi(y0 + 1, img_.rows)) + 3 * x0);
+  }
+
   glm::dvec3 pixel(int x, int y) const {
     const auto* p = img_.ptr<std::uint8_t>(y) + 3 * x;
     return glm::dvec3(p[0], p[1], p[2]) * (1.0 / 255.0);
