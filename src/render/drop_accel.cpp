@@ -24,15 +24,24 @@ RTCDevice shared_device() {
   return device;
 }
 
-// Intersect context extended with the double-precision ray (Embree's ray is float) and the
-// surface the ray starts on, as in Embree's tutorials on extended contexts.
+// Intersect context extended with the double-precision rays (Embree's are float) and the
+// surface a ray starts on, as in Embree's tutorials on extended contexts. A single-ray query
+// uses lane 0; a packet query (intersect8) one lane per ray, found by the ray's id.
+constexpr int kPacket = 8;
 struct ExactContext {
   RTCIntersectContext base;
   const std::vector<Drop>* drops;
-  glm::dvec3 origin, dir;
-  double t_min;  // the query's lower bound in double (Embree's is a float)
-  const DropHit* from;
-  DropHit best;  // the last accepted hit is the nearest
+  glm::dvec3 origin[kPacket], dir[kPacket];
+  double t_min[kPacket];  // the query's lower bound in double (Embree's is a float)
+  const DropHit* from;    // single-ray queries only
+  // Per lane, the nearest hit so far (t infinite: none). Kept in double: Embree's float tfar
+  // cannot tell apart two drops met within a float's rounding (merged drops, where caps
+  // cross), and the answer must not depend on the order Embree visits them in, which differs
+  // between single rays and packets.
+  DropHit best[kPacket];
+  void reset(int lanes) {
+    for (int i = 0; i < lanes; ++i) best[i].t = std::numeric_limits<double>::infinity();
+  }
 };
 
 void exact_bounds(const RTCBoundsFunctionArguments* args) {
@@ -52,24 +61,35 @@ void exact_bounds(const RTCBoundsFunctionArguments* args) {
 }
 
 void exact_intersect(const RTCIntersectFunctionNArguments* args) {
-  if (!args->valid[0]) return;
   auto* ctx = reinterpret_cast<ExactContext*>(args->context);
-  RTCRayHit* rayhit = reinterpret_cast<RTCRayHit*>(args->rayhit);  // N == 1: rtcIntersect1
+  RTCRayHitN* rayhit = args->rayhit;
+  RTCRayN* ray = RTCRayHitN_RayN(rayhit, args->N);
+  RTCHitN* hit_n = RTCRayHitN_HitN(rayhit, args->N);
   const unsigned prim = args->primID;
-  std::optional<DropSurface> start;
-  if (ctx->from && ctx->from->drop == static_cast<int>(prim)) start = ctx->from->surface;
-  const auto hit = (*ctx->drops)[prim].intersect(ctx->origin, ctx->dir, ctx->t_min,
-                                                 static_cast<double>(rayhit->ray.tfar), start);
-  if (!hit) return;
-  rayhit->ray.tfar = static_cast<float>(hit->t);
-  rayhit->hit.Ng_x = static_cast<float>(hit->normal.x);
-  rayhit->hit.Ng_y = static_cast<float>(hit->normal.y);
-  rayhit->hit.Ng_z = static_cast<float>(hit->normal.z);
-  rayhit->hit.u = rayhit->hit.v = 0.f;
-  rayhit->hit.primID = prim;
-  rayhit->hit.geomID = args->geomID;
-  rayhit->hit.instID[0] = RTC_INVALID_GEOMETRY_ID;
-  ctx->best = DropHit{hit->t, static_cast<int>(prim), hit->surface, hit->normal};
+  for (unsigned i = 0; i < args->N; ++i) {
+    if (!args->valid[i]) continue;
+    const unsigned lane = RTCRayN_id(ray, args->N, i);
+    std::optional<DropSurface> start;
+    if (ctx->from && ctx->from->drop == static_cast<int>(prim)) start = ctx->from->surface;
+    float& tfar = RTCRayN_tfar(ray, args->N, i);
+    DropHit& best = ctx->best[lane];
+    // Up to and including the best so far: an exact tie goes to the lower drop index.
+    const double t_max = std::min(static_cast<double>(tfar), std::nextafter(best.t, INFINITY));
+    const auto hit = (*ctx->drops)[prim].intersect(ctx->origin[lane], ctx->dir[lane], ctx->t_min[lane], t_max, start);
+    if (!hit || hit->t > best.t || (hit->t == best.t && static_cast<int>(prim) > best.drop)) continue;
+    // tfar rounded up, so that Embree never culls a box that may hold a nearer hit.
+    float t_float = static_cast<float>(hit->t);
+    if (static_cast<double>(t_float) < hit->t) t_float = std::nextafter(t_float, INFINITY);
+    tfar = t_float;
+    RTCHitN_Ng_x(hit_n, args->N, i) = static_cast<float>(hit->normal.x);
+    RTCHitN_Ng_y(hit_n, args->N, i) = static_cast<float>(hit->normal.y);
+    RTCHitN_Ng_z(hit_n, args->N, i) = static_cast<float>(hit->normal.z);
+    RTCHitN_u(hit_n, args->N, i) = RTCHitN_v(hit_n, args->N, i) = 0.f;
+    RTCHitN_primID(hit_n, args->N, i) = prim;
+    RTCHitN_geomID(hit_n, args->N, i) = args->geomID;
+    RTCHitN_instID(hit_n, args->N, i, 0) = RTC_INVALID_GEOMETRY_ID;
+    best = DropHit{hit->t, static_cast<int>(prim), hit->surface, hit->normal};
+  }
 }
 
 // Per drop, the `k` drops whose bounding boxes are nearest to its own, nearest first, and
@@ -133,6 +153,13 @@ bool segment_meets_box(const glm::dvec3& origin, const glm::dvec3& dir, double t
   }
   return true;
 }
+
+// Float bounds widened by a relative 1e-6 (about 8 float ulps) so the float traversal never
+// clips the double-precision query.
+float float_tfar(double t_max) {
+  return std::isfinite(t_max) ? static_cast<float>(t_max * (1 + 1e-6) + 1e-6) : std::numeric_limits<float>::infinity();
+}
+float float_tnear(double t_min) { return static_cast<float>(std::max(0.0, t_min * (1 - 1e-6) - 1e-6)); }
 
 }  // namespace
 
@@ -266,6 +293,50 @@ DropAccel::DropAccel(const std::vector<Drop>& drops, const GeometryOptions& opti
 
 DropAccel::~DropAccel() = default;
 
+void DropAccel::intersect_packet(const glm::dvec3& origin, const glm::dvec3* dirs, const double* t_min,
+                                 const double* t_max, int n, std::optional<DropHit>* hits) const {
+  if (options_.kind != GeometryOptions::Kind::Exact || n <= 1) {
+    for (int i = 0; i < n; ++i) hits[i] = intersect(origin, dirs[i], nullptr, t_min[i], t_max[i]);
+    return;
+  }
+  alignas(32) int valid[kPacket];
+  alignas(32) RTCRayHit8 rh;
+  ExactContext ctx;
+  rtcInitIntersectContext(&ctx.base);
+  ctx.drops = &drops_;
+  ctx.reset(kPacket);
+  ctx.from = nullptr;
+  for (int i = 0; i < kPacket; ++i) {
+    valid[i] = i < n ? -1 : 0;
+    const int k = std::min(i, n - 1);  // lanes past n repeat the last ray, masked out
+    ctx.origin[i] = origin;
+    ctx.dir[i] = dirs[k];
+    ctx.t_min[i] = t_min[k];
+    rh.ray.org_x[i] = static_cast<float>(origin.x);
+    rh.ray.org_y[i] = static_cast<float>(origin.y);
+    rh.ray.org_z[i] = static_cast<float>(origin.z);
+    rh.ray.dir_x[i] = static_cast<float>(dirs[k].x);
+    rh.ray.dir_y[i] = static_cast<float>(dirs[k].y);
+    rh.ray.dir_z[i] = static_cast<float>(dirs[k].z);
+    rh.ray.tnear[i] = std::max(float_tnear(t_min[k]), 0.f);
+    rh.ray.tfar[i] = float_tfar(t_max[k]);
+    rh.ray.time[i] = 0.f;
+    rh.ray.mask[i] = 0xFFFFFFFFu;
+    rh.ray.id[i] = static_cast<unsigned>(i);
+    rh.ray.flags[i] = 0;
+    rh.hit.geomID[i] = RTC_INVALID_GEOMETRY_ID;
+    rh.hit.instID[0][i] = RTC_INVALID_GEOMETRY_ID;
+  }
+  rtcIntersect8(valid, impl_->scene, &ctx.base, &rh);
+  for (int i = 0; i < n; ++i) {
+    if (rh.hit.geomID[i] == RTC_INVALID_GEOMETRY_ID) {
+      hits[i] = std::nullopt;
+    } else {
+      hits[i] = ctx.best[i];
+    }
+  }
+}
+
 bool DropAccel::may_meet_after_exit(int drop, const glm::dvec3& origin, const glm::dvec3& dir, double t_max) const {
   if (!exit_skip_ || exit_neighbours_.empty() || !drops_[drop].shape().outline.circular()) return true;
   const ExitNeighbours& nb = exit_neighbours_[drop];
@@ -298,11 +369,8 @@ std::optional<DropHit> DropAccel::intersect(const glm::dvec3& origin, const glm:
   rh.ray.dir_y = static_cast<float>(dir.y);
   rh.ray.dir_z = static_cast<float>(dir.z);
   rh.ray.time = 0.f;
-  // Float bounds widened by a relative 1e-6 (about 8 float ulps) so the float traversal never
-  // clips the double-precision query.
-  const float inf = std::numeric_limits<float>::infinity();
-  rh.ray.tfar = std::isfinite(t_max) ? static_cast<float>(t_max * (1 + 1e-6) + 1e-6) : inf;
-  const float tnear = static_cast<float>(std::max(0.0, t_min * (1 - 1e-6) - 1e-6));
+  rh.ray.tfar = float_tfar(t_max);
+  const float tnear = float_tnear(t_min);
   rh.ray.mask = 0xFFFFFFFFu;
   rh.ray.id = 0;
   rh.ray.flags = 0;
@@ -313,14 +381,15 @@ std::optional<DropHit> DropAccel::intersect(const glm::dvec3& origin, const glm:
     ExactContext ctx;
     rtcInitIntersectContext(&ctx.base);
     ctx.drops = &drops_;
-    ctx.origin = origin;
-    ctx.dir = dir;
+    ctx.reset(1);
+    ctx.origin[0] = origin;
+    ctx.dir[0] = dir;
     ctx.from = from;
-    ctx.t_min = t_min;
+    ctx.t_min[0] = t_min;
     rh.ray.tnear = std::max(tnear, 0.f);
     rtcIntersect1(impl_->scene, &ctx.base, &rh);
     if (rh.hit.geomID == RTC_INVALID_GEOMETRY_ID) return std::nullopt;
-    return ctx.best;
+    return ctx.best[0];
   }
 
   // Mesh: the starting triangle is avoided with a small offset along the ray, 1e-4 of the

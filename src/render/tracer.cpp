@@ -32,35 +32,46 @@ struct GlassFrame {
   explicit GlassFrame(const GlassPlane& g) : normal(g.normal()), point(g.origin()) {}
 };
 
+// All drops lie in the slab between the glass plane and the tallest cap: each query is
+// limited to the part of the ray inside that slab (padded), so Embree can prune early.
+double slab_top(const DropAccel& accel) { return accel.max_height() * (1 + 1e-9) + 1e-9; }
+
+// The part [t_min, t_max] of o + t d inside the slab; false when the ray cannot meet it.
+bool slab_range(const glm::dvec3& o, const glm::dvec3& d, const GlassFrame& glass, double top, double* t_min,
+                double* t_max) {
+  const double h0 = glm::dot(o - glass.point, glass.normal), dn = glm::dot(d, glass.normal);
+  *t_min = 0;
+  *t_max = std::numeric_limits<double>::infinity();
+  if (std::abs(dn) > 1e-12) {
+    const double t_bottom = -h0 / dn, t_top = (top - h0) / dn;
+    const double pad = 1e-6 * (std::abs(t_bottom) + std::abs(t_top)) + 1e-7;
+    *t_min = std::max(0.0, std::min(t_bottom, t_top) - pad);
+    *t_max = std::max(t_bottom, t_top) + pad;
+    return *t_max > *t_min;  // else the slab is behind the ray
+  }
+  return !(h0 < -1e-9 || h0 > top);  // parallel to the glass: inside the slab or never
+}
+
+// `first`, if given: the answer to the first query (DropAccel::intersect_packet asked it
+// for several rays at once).
 template <bool kFresnel>
 DropPath trace_path(const glm::dvec3& origin, const glm::dvec3& dir0, double n_water, TirMode tir,
-                    const DropAccel& accel, const GlassFrame& glass) {
+                    const DropAccel& accel, const GlassFrame& glass, const std::optional<DropHit>* first = nullptr) {
   DropPath path;
   glm::dvec3 o = origin, d = glm::normalize(dir0);
   DropHit current;
   bool on_surface = false, inside = false;
   const glm::dvec3& normal = glass.normal;
-  const glm::dvec3& plane_point = glass.point;
-  // All drops lie in the slab between the glass plane and the tallest cap: each query is
-  // limited to the part of the ray inside that slab (padded), so Embree can prune early.
-  const double slab_top = accel.max_height() * (1 + 1e-9) + 1e-9;
+  const double top = slab_top(accel);
   for (int event = 0; event < kMaxEvents; ++event) {
-    const double h0 = glm::dot(o - plane_point, normal), dn = glm::dot(d, normal);
-    double t_min = 0, t_max = std::numeric_limits<double>::infinity();
-    if (std::abs(dn) > 1e-12) {
-      const double t_bottom = -h0 / dn, t_top = (slab_top - h0) / dn;
-      const double pad = 1e-6 * (std::abs(t_bottom) + std::abs(t_top)) + 1e-7;
-      t_min = std::max(0.0, std::min(t_bottom, t_top) - pad);
-      t_max = std::max(t_bottom, t_top) + pad;
-      if (t_max <= t_min) break;  // the slab is behind the ray
-    } else if (h0 < -1e-9 || h0 > slab_top) {
-      break;  // parallel to the glass and outside the slab: no drop can be met
-    }
+    double t_min, t_max;
+    if (!slab_range(o, d, glass, top, &t_min, &t_max)) break;
     // Just out of a drop, with no other drop in reach: nothing more to meet, and no query to
     // ask (DropAccel::may_meet_after_exit).
     if (on_surface && !inside && !accel.may_meet_after_exit(current.drop, o, d, t_max)) break;
-    const auto hit = inside ? accel.intersect_inside(o, d, current, t_max)
-                            : accel.intersect(o, d, on_surface ? &current : nullptr, t_min, t_max);
+    const auto hit = event == 0 && first ? *first
+                     : inside           ? accel.intersect_inside(o, d, current, t_max)
+                                        : accel.intersect(o, d, on_surface ? &current : nullptr, t_min, t_max);
     if (!hit) break;
     ++path.events;
     if (!path.hit) {
@@ -201,6 +212,31 @@ class Kernel {
   // Without dispersion only.
   DropPath trace_camera(double px, double py) const {
     return trace_path<kFresnel>(glm::dvec3(0.0), camera_.ray_direction(px, py), n_rgb_.y, tir_, accel_, glass_);
+  }
+  // The same for up to 8 pixels of row py, their first queries asked as one packet.
+  void trace_camera_packet(const int* xs, int n, double py, DropPath* paths) const {
+    glm::dvec3 dirs[8];
+    double t_min[8], t_max[8];
+    int ask[8], asked = 0;  // the rays that meet the slab, whose first query is asked
+    const double top = slab_top(accel_);
+    for (int i = 0; i < n; ++i) {
+      dirs[i] = glm::normalize(camera_.ray_direction(xs[i], py));
+      if (slab_range(glm::dvec3(0.0), dirs[i], glass_, top, &t_min[i], &t_max[i])) ask[asked++] = i;
+    }
+    glm::dvec3 ask_dirs[8];
+    double ask_min[8], ask_max[8];
+    for (int k = 0; k < asked; ++k) {
+      ask_dirs[k] = dirs[ask[k]];
+      ask_min[k] = t_min[ask[k]];
+      ask_max[k] = t_max[ask[k]];
+    }
+    std::optional<DropHit> hits[8];
+    accel_.intersect_packet(glm::dvec3(0.0), ask_dirs, ask_min, ask_max, asked, hits);
+    std::optional<DropHit> first[8];
+    for (int k = 0; k < asked; ++k) first[ask[k]] = hits[k];
+    for (int i = 0; i < n; ++i)
+      paths[i] = trace_path<kFresnel>(glm::dvec3(0.0), camera_.ray_direction(xs[i], py), n_rgb_.y, tir_, accel_,
+                                      glass_, &first[i]);
   }
   // The background point a path sees (NaN: none, for a dark path or one into the car).
   glm::dvec2 seen_point(const DropPath& p) const {
@@ -433,13 +469,22 @@ TraceResult run(const cv::Mat& clean, const Camera& camera, const SceneConfig& c
         // view of it) and miss the cache, and the tracing between two of them is too long
         // for the processor to overlap the misses by itself. Same arithmetic, same result.
         pending.clear();
+        int xs[8], queued = 0;
+        DropPath paths[8];
+        auto flush = [&] {
+          kernel.trace_camera_packet(xs, queued, y, paths);
+          for (int i = 0; i < queued; ++i)
+            if (paths[i].hit) pending.push_back({xs[i], paths[i], kernel.seen_point(paths[i])});
+          queued = 0;
+        };
         for (const auto& [x0, x1] : spans[y]) {
           for (int x = x0; x <= x1; ++x) {
             ++n_cand;
-            const DropPath p = kernel.trace_camera(x, y);
-            if (p.hit) pending.push_back({x, p, kernel.seen_point(p)});
+            xs[queued++] = x;
+            if (queued == 8) flush();
           }
         }
+        if (queued > 0) flush();
         constexpr size_t kAhead = 8;
         for (size_t i = 0; i < std::min(kAhead, pending.size()); ++i) kernel.prefetch(pending[i].xy);
         for (size_t i = 0; i < pending.size(); ++i) {

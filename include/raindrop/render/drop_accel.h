@@ -60,6 +60,13 @@ class DropAccel {
                                    const DropHit* from = nullptr, double t_min = 0.0,
                                    double t_max = std::numeric_limits<double>::infinity()) const;
 
+  // intersect() with no starting surface for n rays from one origin (n <= 8: camera rays
+  // through neighbouring pixels), as one Embree packet query for exact caps: the rays take
+  // nearly the same path through the tree, walked once for all of them. hits[i] is what
+  // intersect(origin, dirs[i], nullptr, t_min[i], t_max[i]) gives.
+  void intersect_packet(const glm::dvec3& origin, const glm::dvec3* dirs, const double* t_min, const double* t_max,
+                        int n, std::optional<DropHit>* hits) const;
+
   // The first surface met by a ray that is inside the water of drop `from.drop`. When drops
   // are disjoint (`set_disjoint`; footprints apart, so caps apart) and caps are exact, the
   // ray can only leave through that drop's own surface: answered analytically, no Embree
