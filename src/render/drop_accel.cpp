@@ -7,6 +7,7 @@
 
 #include <embree3/rtcore.h>
 #include <glm/geometric.hpp>
+#include <glm/vector_relational.hpp>
 
 #include "raindrop/common/error.h"
 
@@ -135,6 +136,27 @@ void nearest_boxes(const std::vector<glm::dvec3>& lo, const std::vector<glm::dve
   }
 }
 
+// Per box, the other boxes it meets (sorted by lower x, each scan stops at the first box
+// that starts beyond its upper x).
+std::vector<std::vector<int>> overlapping_boxes(const std::vector<glm::dvec3>& lo, const std::vector<glm::dvec3>& hi) {
+  const size_t n = lo.size();
+  std::vector<size_t> order(n);
+  for (size_t i = 0; i < n; ++i) order[i] = i;
+  std::sort(order.begin(), order.end(), [&](size_t a, size_t b) { return lo[a].x < lo[b].x; });
+  std::vector<std::vector<int>> out(n);
+  for (size_t s = 0; s < n; ++s) {
+    const size_t a = order[s];
+    for (size_t m = s + 1; m < n && lo[order[m]].x <= hi[a].x; ++m) {
+      const size_t b = order[m];
+      if (glm::all(glm::lessThanEqual(lo[a], hi[b])) && glm::all(glm::lessThanEqual(lo[b], hi[a]))) {
+        out[a].push_back(static_cast<int>(b));
+        out[b].push_back(static_cast<int>(a));
+      }
+    }
+  }
+  return out;
+}
+
 // Whether origin + t * dir, t in [0, t_max], meets the box [lo, hi] (slab test in double).
 bool segment_meets_box(const glm::dvec3& origin, const glm::dvec3& dir, double t_max, const glm::dvec3& lo,
                        const glm::dvec3& hi) {
@@ -199,19 +221,18 @@ struct DropAccel::Impl {
 DropAccel::DropAccel(const std::vector<Drop>& drops, const GeometryOptions& options)
     : drops_(drops), options_(options), impl_(std::make_unique<Impl>()) {
   for (const Drop& d : drops_) max_height_ = std::max(max_height_, d.shape().height());
-  if (options.kind == GeometryOptions::Kind::Exact) {
-    // Boxes padded far beyond the rounding of the slab test, so that a skipped query never
-    // had a hit to find.
-    box_lo_.resize(drops_.size());
-    box_hi_.resize(drops_.size());
-    for (size_t i = 0; i < drops_.size(); ++i) {
-      drops_[i].bounds(&box_lo_[i], &box_hi_[i]);
-      const glm::dvec3 pad = 1e-6 * (glm::abs(box_lo_[i]) + glm::abs(box_hi_[i])) + 1e-9;
-      box_lo_[i] -= pad;
-      box_hi_[i] += pad;
-    }
-    nearest_boxes<kExitNeighbours>(box_lo_, box_hi_, &exit_neighbours_);
+  // Boxes padded far beyond the rounding of the slab test, so that a skipped query never
+  // had a hit to find.
+  box_lo_.resize(drops_.size());
+  box_hi_.resize(drops_.size());
+  for (size_t i = 0; i < drops_.size(); ++i) {
+    drops_[i].bounds(&box_lo_[i], &box_hi_[i]);
+    const glm::dvec3 pad = 1e-6 * (glm::abs(box_lo_[i]) + glm::abs(box_hi_[i])) + 1e-9;
+    box_lo_[i] -= pad;
+    box_hi_[i] += pad;
   }
+  if (options.kind == GeometryOptions::Kind::Exact) nearest_boxes<kExitNeighbours>(box_lo_, box_hi_, &exit_neighbours_);
+  box_overlaps_ = overlapping_boxes(box_lo_, box_hi_);
   RTCDevice device = shared_device();
   impl_->scene = rtcNewScene(device);
   rtcSetSceneFlags(impl_->scene, RTC_SCENE_FLAG_ROBUST);
@@ -335,6 +356,12 @@ void DropAccel::intersect_packet(const glm::dvec3& origin, const glm::dvec3* dir
       hits[i] = ctx.best[i];
     }
   }
+}
+
+bool DropAccel::in_other_water(const glm::dvec3& p, int drop) const {
+  for (int other : box_overlaps_[drop])
+    if (drops_[other].contains(p)) return true;
+  return false;
 }
 
 bool DropAccel::may_meet_after_exit(int drop, const glm::dvec3& origin, const glm::dvec3& dir, double t_max) const {

@@ -24,6 +24,10 @@ namespace raindrop {
 namespace {
 
 constexpr int kMaxEvents = 16;  // surface crossings/reflections followed before giving up
+// Overlapping drops: how far past a crossing (relative to the distance from the camera, cm)
+// the tracer looks to tell whether the ray is in water there. Far above double rounding at
+// these distances, far below any drop's size.
+constexpr double kHair = 1e-9;
 
 // The glass plane's normal and a point on it, computed once per frame (GlassPlane derives
 // them from the tilt with a sine and a cosine each time it is asked).
@@ -63,22 +67,50 @@ DropPath trace_path(const glm::dvec3& origin, const glm::dvec3& dir0, double n_w
   bool on_surface = false, inside = false;
   const glm::dvec3& normal = glass.normal;
   const double top = slab_top(accel);
-  for (int event = 0; event < kMaxEvents; ++event) {
+  // Overlapping drops (merged drops, a trail and its drop) are one body of water: a drop's
+  // surface inside another's water is no boundary, and a ray crosses it unbent. Those
+  // crossings are not events; they are bounded apart (each moves the ray on).
+  const bool merged = !accel.disjoint();
+  int crossings = 0;
+  for (int event = 0; event < kMaxEvents;) {
     double t_min, t_max;
     if (!slab_range(o, d, glass, top, &t_min, &t_max)) break;
     // Just out of a drop, with no other drop in reach: nothing more to meet, and no query to
     // ask (DropAccel::may_meet_after_exit).
     if (on_surface && !inside && !accel.may_meet_after_exit(current.drop, o, d, t_max)) break;
-    const auto hit = event == 0 && first ? *first
-                     : inside           ? accel.intersect_inside(o, d, current, t_max)
-                                        : accel.intersect(o, d, on_surface ? &current : nullptr, t_min, t_max);
+    std::optional<DropHit> hit;
+    if (event == 0 && first) {
+      hit = *first;
+    } else if (merged && on_surface) {
+      // A surface met within a hair of where the ray starts is one it crosses there, at the
+      // same point (the bases of overlapping drops all lie on the glass; the caps of a drop
+      // placed twice coincide): whether the ray is in water beyond it is settled below, by
+      // looking a hair further. Asking again would find those surfaces back and forth.
+      hit = accel.intersect(o, d, &current, std::max(t_min, kHair * (1.0 + glm::length(o))), t_max);
+    } else {
+      hit = inside ? accel.intersect_inside(o, d, current, t_max)
+                   : accel.intersect(o, d, on_surface ? &current : nullptr, t_min, t_max);
+    }
     if (!hit) break;
-    ++path.events;
     if (!path.hit) {
       path.hit = true;
       path.first_drop = hit->drop;
     }
     const bool entering = glm::dot(d, hit->normal) < 0;
+    if (merged) {
+      // In water after the crossing: in this drop's (entering it) or in another's.
+      const glm::dvec3 p = o + hit->t * d;
+      const bool water_after = entering || accel.in_other_water(p + kHair * (1.0 + glm::length(p)) * d, hit->drop);
+      if (water_after == inside) {
+        o = p;
+        current = *hit;
+        on_surface = true;
+        if (++crossings > 4 * kMaxEvents) break;
+        continue;
+      }
+    }
+    ++event;
+    ++path.events;
     const glm::dvec3 facing = entering ? hit->normal : -hit->normal;
     const double eta = entering ? 1.0 / n_water : n_water;
     const auto refracted = refract(d, facing, eta);

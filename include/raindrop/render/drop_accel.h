@@ -74,6 +74,12 @@ class DropAccel {
   std::optional<DropHit> intersect_inside(const glm::dvec3& origin, const glm::dvec3& dir, const DropHit& from,
                                           double t_max = std::numeric_limits<double>::infinity()) const;
   void set_disjoint(bool disjoint) { disjoint_ = disjoint; }
+  bool disjoint() const { return disjoint_; }
+
+  // Whether point p, near the surface of drop `drop`, lies in the water of another drop
+  // (one whose bounding box meets this drop's): overlapping drops are one body of water, and
+  // the tracer asks this to tell their inner surfaces from the water's boundary.
+  bool in_other_water(const glm::dvec3& p, int drop) const;
 
   // Whether a ray that has just left drop `drop` at `origin`, going along `dir` for t in
   // [0, t_max], can meet another drop. False only where that is sure, and then the tracer
@@ -106,6 +112,7 @@ class DropAccel {
   };
   std::vector<ExitNeighbours> exit_neighbours_;
   std::vector<glm::dvec3> box_lo_, box_hi_;  // padded bounding boxes
+  std::vector<std::vector<int>> box_overlaps_;  // per drop, the others whose boxes meet its box
   bool exit_skip_ = true;
   bool disjoint_ = false;
   std::unique_ptr<Impl> impl_;
