@@ -352,6 +352,18 @@ void ensure_writable_dir(const fs::path& dir) {
   fs::remove(probe, ec);
 }
 
+void copy_file_atomic(const fs::path& from, const fs::path& to) {
+  const fs::path dir = to.has_parent_path() ? to.parent_path() : fs::path(".");
+  const fs::path tmp = dir / temp_name_for(to);
+  std::error_code ec;
+  if (!fs::copy_file(from, tmp, fs::copy_options::overwrite_existing, ec)) {
+    std::error_code ignored;
+    fs::remove(tmp, ignored);
+    throw Error(quoted(to) + ": cannot copy " + quoted(from) + " there (" + ec.message() + ")");
+  }
+  move_into_place(tmp, to);
+}
+
 void write_text_atomic(const std::string& text, const fs::path& path) {
   const fs::path dir = path.has_parent_path() ? path.parent_path() : fs::path(".");
   const fs::path tmp = dir / temp_name_for(path);

@@ -452,6 +452,9 @@ RenderSummary render_dataset(const std::vector<InputImage>& inputs, const Render
             try {
               const cv::Mat rgb = read_rgb8(task.input->path, o.convert);
               const Frame frame = make_frame(rgb, task.input->calibration, o.size);
+              // Every variant of an input has the same clean image: encoded once, then copied
+              // (encoding is most of a frame's time; a copy of the bytes is a fraction of it).
+              std::optional<fs::path> clean_written;
               for (int v : task.variants) {
                 if (stop) return;
                 const std::string id = variant_id(task.input->id, v);
@@ -473,7 +476,13 @@ RenderSummary render_dataset(const std::vector<InputImage>& inputs, const Render
                 if (o.scene.lens.enabled)
                   write_image_atomic(alpha16(rendered), o.out_dir / "alpha" / (id + ".png"), o.png_level);
                 write_image_atomic(rainy, o.out_dir / "rainy" / (id + ".png"), o.png_level);
-                write_image_atomic(frame.clean, o.out_dir / "clean" / (id + ".png"), o.png_level);
+                const fs::path clean_path = o.out_dir / "clean" / (id + ".png");
+                if (clean_written) {
+                  copy_file_atomic(*clean_written, clean_path);
+                } else {
+                  write_image_atomic(frame.clean, clean_path, o.png_level);
+                }
+                clean_written = clean_path;
                 write_image_atomic(rendered.mask, o.out_dir / "mask" / (id + ".png"), o.png_level);
                 // A source path that is not UTF-8 (file names are bytes) cannot be JSON: such
                 // bytes are written as U+FFFD instead of stopping the run after the images.

@@ -236,5 +236,30 @@ TEST(RenderDataset, SeedChangesRainyButNotClean) {
   EXPECT_FALSE(read_file(tmp / "seed1/rainy/a_street_v00.png") == read_file(tmp / "seed1/rainy/a_street_v01.png"));
 }
 
+// The variants of one input share its clean image: written once, the other variants get a
+// copy of the same bytes, which decode to what a one-variant run writes.
+TEST(RenderDataset, VariantsOfAnInputShareTheCleanImagesBytes) {
+  TempDir tmp;
+  make_inputs(tmp.path());
+  auto r = run_render({"-i", "in", "--out", "three", "--variants", "3", "--size", "256x128", "-j", "2", "-q"}, tmp.path());
+  ASSERT_EQ(r.code, 0) << r.describe();
+  r = run_render({"-i", "in", "--out", "one", "--size", "256x128", "-j", "2", "-q"}, tmp.path());
+  ASSERT_EQ(r.code, 0) << r.describe();
+  for (const std::string& stem : kInputStems) {
+    SCOPED_TRACE(stem);
+    const std::string first = read_file(tmp / "three" / "clean" / (stem + "_v00.png"));
+    ASSERT_FALSE(first.empty());
+    for (const char* v : {"_v01.png", "_v02.png"}) EXPECT_EQ(read_file(tmp / "three" / "clean" / (stem + v)), first) << v;
+    std::string why;
+    const auto a = read_image(tmp / "three" / "clean" / (stem + "_v02.png"), &why);
+    const auto b = read_image(tmp / "one" / "clean" / (stem + "_v00.png"), &why);
+    ASSERT_TRUE(a && b) << why;
+    EXPECT_EQ(cv::norm(a->pixels, b->pixels, cv::NORM_INF), 0);
+  }
+  // No temporary left behind by the copies.
+  for (const auto& e : fs::directory_iterator(tmp / "three" / "clean"))
+    EXPECT_EQ(e.path().extension(), ".png") << e.path();
+}
+
 }  // namespace
 }  // namespace clitest

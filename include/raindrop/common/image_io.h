@@ -105,4 +105,8 @@ void ensure_writable_dir(const std::filesystem::path& dir);
 // Writes text atomically (temporary file + rename).
 void write_text_atomic(const std::string& text, const std::filesystem::path& path);
 
+// A copy of file `from` at `to`, written as write_text_atomic writes (a temporary, then a
+// rename): `to` is either the old file or the whole copy.
+void copy_file_atomic(const std::filesystem::path& from, const std::filesystem::path& to);
+
 }  // namespace raindrop
