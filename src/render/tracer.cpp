@@ -238,14 +238,11 @@ class Kernel {
     return s;
   }
 
-  // The green (or only) path of the camera ray through pixel (px, py), and the sample it
-  // gives: sample() in two steps, so that a row's background look-ups can be done together
-  // after its rays are traced (run(): they miss the cache, and independent look-ups overlap).
-  // Without dispersion only.
-  DropPath trace_camera(double px, double py) const {
-    return trace_path<kFresnel>(glm::dvec3(0.0), camera_.ray_direction(px, py), n_rgb_.y, tir_, accel_, glass_);
-  }
-  // The same for up to 8 pixels of row py, their first queries asked as one packet.
+  // sample() in steps, without dispersion: the green (or only) paths of the camera rays
+  // through up to 8 pixels xs of row py, their first queries asked as one Embree packet; then
+  // each path's background point (seen_point) and its sample (finish). run() traces a row's
+  // rays before any of their background look-ups, which miss the cache: independent
+  // look-ups overlap.
   void trace_camera_packet(const int* xs, int n, double py, DropPath* paths) const {
     glm::dvec3 dirs[8];
     double t_min[8], t_max[8];
