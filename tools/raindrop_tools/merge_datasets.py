@@ -21,11 +21,23 @@ from .manifest import manifest_lines
 IMAGE_KEYS = ("rainy", "clean", "mask", "alpha")
 
 
+def _record(folder: Path, name: str, number: int, line: str) -> dict:
+    """One manifest line as a sample record; a line that is not one is an error naming its
+    file and line."""
+    try:
+        r = json.loads(line)
+    except json.JSONDecodeError as e:
+        raise ValueError(f"{folder / name}:{number}: not JSON ({e.msg}): {line.strip()[:80]}") from None
+    if not isinstance(r, dict) or not isinstance(r.get("id"), str):
+        raise ValueError(f"{folder / name}:{number}: not a sample record (no id): {line.strip()[:80]}")
+    return r
+
+
 def _is_earlier_merge(out: Path) -> bool:
     """Whether ``out`` holds a manifest this tool wrote: every image of every record a link."""
-    for _, _, line in manifest_lines(out):
-        r = json.loads(line)
-        if not all((out / r[k]).is_symlink() for k in IMAGE_KEYS if k in r):
+    for name, number, line in manifest_lines(out):
+        r = _record(out, name, number, line)
+        if not all(isinstance(r[k], str) and (out / r[k]).is_symlink() for k in IMAGE_KEYS if k in r):
             return False
     return True
 
@@ -46,14 +58,14 @@ def merge(out: Path, sources: list[Path]) -> int:
         lines = manifest_lines(src)
         if not lines:
             raise ValueError(f"{src}: no manifest.jsonl (nor the parts of a sharded render)")
-        for _, _, line in lines:
-            r = json.loads(line)
-            if not isinstance(r, dict) or "id" not in r:
-                raise ValueError(f"{src}: a manifest line is not a sample record: {line.strip()[:80]}")
+        for name, number, line in lines:
+            r = _record(src, name, number, line)
             r["id"] = f"{tag}_{r['id']}"
             for key in IMAGE_KEYS:
                 if key not in r:
                     continue
+                if not isinstance(r[key], str):
+                    raise ValueError(f"{src / name}:{number}: '{key}' is not a path: {r[key]!r}")
                 dst = out / key / f"{r['id']}.png"
                 target = (src / r[key]).resolve()
                 if dst in links and links[dst] != target:
@@ -85,7 +97,7 @@ def main(argv: list[str] | None = None) -> int:
     a = ap.parse_args(argv)
     try:
         n = merge(a.out, a.sources)
-    except (OSError, ValueError, KeyError) as e:  # json.JSONDecodeError is a ValueError
+    except (OSError, ValueError) as e:  # ManifestError is a ValueError
         print(f"merge_datasets: error: {e}", file=sys.stderr)
         return 1
     print(f"merge_datasets: {n} samples in {a.out}")

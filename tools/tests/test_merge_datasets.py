@@ -67,3 +67,23 @@ def test_a_data_set_in_out_is_never_replaced(tmp_path, capsys):
     first = (tmp_path / "mix" / "manifest.jsonl").read_bytes()
     assert main(argv) == 0, "the same merge again, into its own output"
     assert (tmp_path / "mix" / "manifest.jsonl").read_bytes() == first
+
+
+@pytest.mark.parametrize("bad, says", [
+    ('{"id": "z", "rainy": "rainy/z.png"', "not JSON"),      # cut short
+    ('["not", "a", "record"]', "not a sample record"),
+    ('{"rainy": "rainy/z.png"}', "not a sample record"),       # no id
+    ('{"id": 7}', "not a sample record"),                      # id not text
+    ('{"id": "z", "rainy": 3}', "'rainy' is not a path"),
+])
+def test_a_bad_manifest_line_is_one_line_naming_its_file_and_line(tmp_path, capsys, bad, says):
+    for sub in ("rainy", "clean", "mask"):
+        (tmp_path / "train-a" / sub).mkdir(parents=True)
+    _set(tmp_path / "train-a", ["x", "y"], 10)
+    manifest = tmp_path / "train-a" / "manifest.jsonl"
+    manifest.write_text(manifest.read_text() + bad + "\n")
+    assert main(["--out", str(tmp_path / "mix"), str(tmp_path / "train-a")]) == 1
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and err.startswith("merge_datasets: error: ")
+    assert f"{manifest}:3: " in err and says in err
+    assert not (tmp_path / "mix").exists(), "nothing is linked before every line is read"
