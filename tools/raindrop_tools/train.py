@@ -66,7 +66,7 @@ class TrainingError(RuntimeError):
 
 
 class NonFiniteLossError(TrainingError):
-    """A loss or gradient became NaN or Inf."""
+    """A loss, gradient or weight became NaN or Inf."""
 
 
 # Errors reported as a one-line message (exit status 2); anything else is a bug.
@@ -334,6 +334,17 @@ class Trainer:
 
     def _save(self, stage: int, step: int, total: int, opts: dict, scheds: dict) -> Path:
         path = ckpt.checkpoint_path(self.run_dir, stage, step)
+        # Finite losses and gradients can still step a weight to Inf or NaN (a learning rate
+        # far too high); such a checkpoint would resume, export and ship a broken network.
+        # Every process holds the same weights, so all of them stop here together.
+        for name, net in self.nets.items():
+            for key, value in net.state_dict().items():
+                if value.is_floating_point() and not torch.isfinite(value).all():
+                    last = ckpt.latest_checkpoint(self.run_dir)
+                    raise NonFiniteLossError(
+                        f"{name} weight {key} is not finite at stage {stage} step {step} of {total}. "
+                        f"No checkpoint was written for this step (latest: {last.path.name if last else 'none'})."
+                    )
         if not self.writes:
             return path
         ckpt.save_atomic(

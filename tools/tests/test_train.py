@@ -365,3 +365,27 @@ def test_unreadable_checkpoints_are_one_line_errors(smoke_run, tmp_path, capsys)
     (tmp_path / "text.pt").write_text("not a checkpoint\n")
     assert train.main(_args(smoke_run["data"], tmp_path / "run2", "--init-from", str(tmp_path / "text.pt"))) == 2
     assert "not a readable checkpoint" in capsys.readouterr().err
+
+
+def test_a_non_finite_weight_is_never_saved(smoke_run, tmp_path, monkeypatch):
+    """Finite losses and gradients can still step a weight to NaN; the checkpoint of that step
+    is refused, the run stops with the network and weight named, the one before stays."""
+    out = tmp_path / "run"
+    cfg = load_config(CONFIGS / "smoke.yaml", [("data.train", str(smoke_run["data"]))])
+    train.prepare_run_dir(out, cfg)
+    original = train.Trainer._save
+
+    def poisoned(self, stage, step, total, opts, scheds):
+        if step == 4:
+            with torch.no_grad():
+                next(self.nets["rrn"].parameters()).view(-1)[0] = float("nan")
+        return original(self, stage, step, total, opts, scheds)
+
+    monkeypatch.setattr(train.Trainer, "_save", poisoned)
+    trainer = train.Trainer(cfg, out, torch.device("cpu"), progress=False)
+    with pytest.raises(train.NonFiniteLossError) as e:
+        trainer.run([1], resume=False)
+    assert "rrn weight " in str(e.value) and "stage 1 step 4 of 6" in str(e.value)
+    assert ckpt.checkpoint_path(out, 1, 2).is_file()
+    assert not ckpt.checkpoint_path(out, 1, 4).exists()
+    assert not list((out / "checkpoints").glob(".tmp-*"))
