@@ -93,6 +93,15 @@ void exact_intersect(const RTCIntersectFunctionNArguments* args) {
   }
 }
 
+// The boxes' indices sorted by their lower x: the sweeps below stop scanning where the x-gap
+// alone rules a box out.
+std::vector<size_t> by_lower_x(const std::vector<glm::dvec3>& lo) {
+  std::vector<size_t> order(lo.size());
+  for (size_t i = 0; i < order.size(); ++i) order[i] = i;
+  std::sort(order.begin(), order.end(), [&](size_t a, size_t b) { return lo[a].x < lo[b].x; });
+  return order;
+}
+
 // Per drop, the `k` drops whose bounding boxes are nearest to its own, nearest first, and
 // the distance of the next one (infinite when there is none). Boxes sorted by their lower x:
 // once a box's x-gap alone exceeds the k-th best distance found so far, no box further in that
@@ -100,9 +109,7 @@ void exact_intersect(const RTCIntersectFunctionNArguments* args) {
 template <int k, class Neighbours>
 void nearest_boxes(const std::vector<glm::dvec3>& lo, const std::vector<glm::dvec3>& hi, std::vector<Neighbours>* out) {
   const size_t n = lo.size();
-  std::vector<size_t> order(n);
-  for (size_t i = 0; i < n; ++i) order[i] = i;
-  std::sort(order.begin(), order.end(), [&](size_t a, size_t b) { return lo[a].x < lo[b].x; });
+  const std::vector<size_t> order = by_lower_x(lo);
   double widest = 0;
   for (size_t i = 0; i < n; ++i) widest = std::max(widest, hi[i].x - lo[i].x);
   auto distance = [&](size_t a, size_t b) {
@@ -140,9 +147,7 @@ void nearest_boxes(const std::vector<glm::dvec3>& lo, const std::vector<glm::dve
 // that starts beyond its upper x).
 std::vector<std::vector<int>> overlapping_boxes(const std::vector<glm::dvec3>& lo, const std::vector<glm::dvec3>& hi) {
   const size_t n = lo.size();
-  std::vector<size_t> order(n);
-  for (size_t i = 0; i < n; ++i) order[i] = i;
-  std::sort(order.begin(), order.end(), [&](size_t a, size_t b) { return lo[a].x < lo[b].x; });
+  const std::vector<size_t> order = by_lower_x(lo);
   std::vector<std::vector<int>> out(n);
   for (size_t s = 0; s < n; ++s) {
     const size_t a = order[s];
