@@ -123,6 +123,44 @@ PairedTimes paired_core_ms(const Frame& frame, const SceneConfig* configs[2], co
   return {{median(wall[0]), median(wall[1])}, {median(cpu[0]), median(cpu[1])}};
 }
 
+// The render core's stages on the paper preset at 2048x1024: each frame's minimum over the
+// repeats (the least disturbed run of that frame: on a shared machine the load changes
+// between runs by more than a change of the code does), then their mean over the frames.
+void core_table(const Input& input, int frames, int repeats) {
+  const cv::Size size(2048, 1024);
+  std::cout << "\n### Render core by stage (" << size.width << "x" << size.height << ", paper scene with 70 drops)\n\n"
+            << "Each frame rendered " << repeats << " times in turn with the others; per frame the fastest of its "
+            << repeats << " renders, then the mean over the " << frames << " frames.\n\n"
+            << "| threads | accel ms | trace ms | blur ms | compose ms | core ms |\n|---|---|---|---|---|---|\n";
+  const Frame frame = make_frame(read_rgb8(input.png, false), input.calibration, size);
+  const SceneConfig config = paper_with_70_drops();
+  const std::vector<SceneSample> scenes = scenes_for(config, frame.camera, frames);
+  for (int threads : {1, 2}) {
+    std::cerr << "bench render: core by stage, " << threads << " thread(s)\n";
+    std::vector<FrameTimings> best(scenes.size());
+    with_threads(threads, [&] {
+      render_frame(frame.clean, frame.camera, config, scenes[0]);  // warm-up
+      for (int r = 0; r < repeats; ++r) {
+        for (size_t i = 0; i < scenes.size(); ++i) {
+          const FrameTimings t = render_frame(frame.clean, frame.camera, config, scenes[i]).timings;
+          if (r == 0 || t.core_ms() < best[i].core_ms()) best[i] = t;
+        }
+      }
+    });
+    auto mean_of = [&](double FrameTimings::*stage) {
+      double sum = 0;
+      for (const FrameTimings& t : best) sum += t.*stage;
+      return sum / static_cast<double>(best.size());
+    };
+    double core = 0;
+    for (const FrameTimings& t : best) core += t.core_ms() / static_cast<double>(best.size());
+    std::cout << std::flush;
+    std::printf("| %d | %.1f | %.1f | %.1f | %.1f | %.1f |\n", threads, mean_of(&FrameTimings::accel_ms),
+                mean_of(&FrameTimings::trace_ms), mean_of(&FrameTimings::blur_ms), mean_of(&FrameTimings::compose_ms), core);
+    std::fflush(stdout);
+  }
+}
+
 void time_table(const Input& input, const std::vector<cv::Size>& sizes, int frames, int repeats, const fs::path& tmp) {
   std::cout << "\n### Time per frame (paper scene, 70 drops)\n\n"
             << "Decode = read + crop/resize; trace includes building the Embree scene; encode = three PNGs "
@@ -648,7 +686,7 @@ std::function<int()> add_render_bench(CLI::App& parent) {
   app->add_option("--shared-data", o->shared, "Where ../shared/data is")->capture_default_str();
   app->add_option("--frames", o->frames, "Frames (different drops) per measurement")->capture_default_str()->check(CLI::Range(1, 100));
   app->add_option("--repeats", o->repeats, "Repetitions; medians are reported")->capture_default_str()->check(CLI::Range(1, 100));
-  app->add_option("--sections", o->sections, "Comma-separated: time, effects, auto, accuracy, lens, png")->capture_default_str();
+  app->add_option("--sections", o->sections, "Comma-separated: time, effects, auto, accuracy, lens, png, core (not in the default: the core's stages, fastest of the repeats per frame)")->capture_default_str();
   app->add_flag("--quick", o->quick, "Small and fast (a smoke run): 512x256 time table only, 1 frame");
   app->add_option("--lens-size", o->lens_size, "WIDTHxHEIGHT of the lens section's frame (2048x1024: the 256-ray "
                                                "reference alone takes minutes)")
@@ -670,7 +708,7 @@ int run_render_bench(RenderBenchOptions o) {
   // Named sections, each checked: a misspelt one is an error, not a run that measures nothing.
   std::set<std::string> wanted;
   {
-    const std::set<std::string> known{"time", "effects", "auto", "accuracy", "lens", "png"};
+    const std::set<std::string> known{"time", "effects", "auto", "accuracy", "lens", "png", "core"};
     std::string names;
     for (const auto& k : known) names += (names.empty() ? "" : ", ") + k;
     std::stringstream list(quick ? std::string("time") : sections);
@@ -719,6 +757,7 @@ int run_render_bench(RenderBenchOptions o) {
             << "- scene: paper preset, 70 drops, exact caps, 1 spp, antialiased disk blur unless a row says otherwise\n"
             << "- " << frames << " frames per measurement, median of " << repeats << " repeats\n";
   if (wanted.count("time")) time_table(input, sizes, frames, repeats, tmp);
+  if (wanted.count("core")) core_table(input, frames, repeats);
   if (wanted.count("png")) png_table(input, std::max(repeats, 3), tmp);
   if (wanted.count("effects")) effects_table(input, frames, repeats);
   if (wanted.count("auto")) auto_table(input, frames, repeats);
