@@ -181,6 +181,9 @@ unpack_root() {
   root="$(mktemp -d "$cache/check.XXXXXX")"
   tar -C "$root" --numeric-owner -xpf "$bare"
   cp /etc/resolv.conf "$root/etc/resolv.conf"
+  # Every installed Debian machine has an /etc/hosts naming localhost (the installer writes it);
+  # debootstrap's root has none, and without it torchrun's two-process tests cannot rendezvous.
+  [[ -f "$root/etc/hosts" ]] || printf '127.0.0.1\tlocalhost\n::1\t\tlocalhost ip6-localhost ip6-loopback\n' > "$root/etc/hosts"
   # This machine's network set-up, which a fresh machine on the same network needs as well:
   # local certificate authorities (such as a TLS-inspecting proxy's; ca-certificates, when
   # setup.sh installs it, adds them to the system bundle) and pip's site configuration.
