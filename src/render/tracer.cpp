@@ -179,8 +179,10 @@ template <bool kFresnel, bool kDispersion>
 class Kernel {
  public:
   // `plan`: with dispersion auto, the drops whose colours are traced apart.
+  // `lockstep`: camera rays on the common path traced side by side (trace_through_one_drop;
+  // only where drops are disjoint).
   Kernel(const cv::Mat& clean, const Camera& camera, const SceneConfig& config,
-         const SceneSample& scene, const DropAccel& accel, const EffectPlan* plan)
+         const SceneSample& scene, const DropAccel& accel, const EffectPlan* plan, bool lockstep = false)
       : bg_(clean, config.border),
         camera_(camera),
         scene_(scene),
@@ -189,7 +191,8 @@ class Kernel {
         tir_(config.tir),
         interior_(config.fresnel.enabled ? config.fresnel.interior_rgb : glm::dvec3(0.0)),
         n_rgb_(config.channel_indices()),
-        disperse_(plan && plan->dispersion_auto ? &plan->drops : nullptr) {
+        disperse_(plan && plan->dispersion_auto ? &plan->drops : nullptr),
+        lockstep_(lockstep && accel.disjoint()) {
     if (config.sky.enabled) bg_.set_sky(estimate_sky_rgb(clean, config.sky.gain), config.sky.fade_rows * clean.rows);
   }
 
@@ -243,7 +246,8 @@ class Kernel {
   // each path's background point (seen_point) and its sample (finish). run() traces a row's
   // rays before any of their background look-ups, which miss the cache: independent
   // look-ups overlap.
-  void trace_camera_packet(const int* xs, int n, double py, DropPath* paths) const {
+  // Returns how many of the rays were traced side by side (trace_through_one_drop).
+  int trace_camera_packet(const int* xs, int n, double py, DropPath* paths) const {
     glm::dvec3 dirs[8];
     double t_min[8], t_max[8];
     int ask[8], asked = 0;  // the rays that meet the slab, whose first query is asked
@@ -263,9 +267,107 @@ class Kernel {
     accel_.intersect_packet(glm::dvec3(0.0), ask_dirs, ask_min, ask_max, asked, hits);
     std::optional<DropHit> first[8];
     for (int k = 0; k < asked; ++k) first[ask[k]] = hits[k];
-    for (int i = 0; i < n; ++i)
-      paths[i] = trace_path<kFresnel>(glm::dvec3(0.0), camera_.ray_direction(xs[i], py), n_rgb_.y, tir_, accel_,
-                                      glass_, &first[i]);
+    bool traced[8] = {};
+    if (lockstep_) trace_through_one_drop(dirs, first, n, paths, traced);
+    int side_by_side = 0;
+    for (int i = 0; i < n; ++i) {
+      if (traced[i]) {
+        ++side_by_side;
+      } else {
+        paths[i] = trace_path<kFresnel>(glm::dvec3(0.0), camera_.ray_direction(xs[i], py), n_rgb_.y, tir_, accel_,
+                                        glass_, &first[i]);
+      }
+    }
+    return side_by_side;
+  }
+
+  // The camera rays of a packet that take the common path, traced side by side: in through
+  // a drop's base, out through its cap, and on to the street with no other drop in reach
+  // (or black in the dark band). One ray's path is a chain of square roots and divisions,
+  // each waiting on the one before; a stage at a time over all the rays gives the processor
+  // independent work to overlap. Each step is trace_path's own arithmetic in the same order,
+  // so the result is the same to the bit (RenderFrame tests compare with the lock-step off).
+  // A ray that leaves the common path at any step (a first hit on a cap, total internal
+  // reflection traced on, another drop within reach) is marked untraced and traced again
+  // from the start by trace_path, which handles everything.
+  void trace_through_one_drop(const glm::dvec3* dirs, const std::optional<DropHit>* first, int n, DropPath* paths,
+                              bool* traced) const {
+    glm::dvec3 o[8], d[8];
+    DropHit current[8];
+    double t_range[8];
+    int lane[8], live = 0;
+    // Event 0: in through the base of the drop the first query found.
+    for (int i = 0; i < n; ++i) {
+      if (!first[i]) continue;
+      const DropHit& hit = *first[i];
+      d[i] = dirs[i];
+      if (!(glm::dot(d[i], hit.normal) < 0)) continue;  // met a cap from outside
+      const double eta = 1.0 / n_rgb_.y;
+      const auto refracted = refract(d[i], hit.normal, eta);
+      if (!refracted) continue;
+      DropPath& path = paths[i];
+      path = DropPath();
+      path.hit = true;
+      path.first_drop = hit.drop;
+      path.events = 1;
+      if constexpr (kFresnel) path.transmittance *= 1.0 - fresnel_reflectance(-glm::dot(d[i], hit.normal), eta);
+      o[i] = glm::dvec3(0.0) + hit.t * d[i];
+      current[i] = hit;
+      d[i] = *refracted;
+      lane[live++] = i;
+    }
+    // Event 1: out through the drop's cap (its only surface a ray inside can meet when
+    // drops are disjoint).
+    const double top = slab_top(accel_);
+    double t_lo;
+    std::optional<DropHit> exit_hit[8];
+    for (int k = 0; k < live; ++k) {
+      const int i = lane[k];
+      if (slab_range(o[i], d[i], glass_, top, &t_lo, &t_range[i])) {
+        exit_hit[i] = accel_.intersect_inside(o[i], d[i], current[i], t_range[i]);
+      } else {
+        exit_hit[i] = std::nullopt;
+      }
+    }
+    int still = 0;
+    for (int k = 0; k < live; ++k) {
+      const int i = lane[k];
+      DropPath& path = paths[i];
+      if (!exit_hit[i]) {  // no way out found: trapped, as trace_path ends it
+        path.dark = true;
+        traced[i] = true;
+        continue;
+      }
+      const DropHit& hit = *exit_hit[i];
+      if (glm::dot(d[i], hit.normal) < 0) continue;  // entering from inside: not the common path
+      const glm::dvec3 facing = -hit.normal;
+      const double eta = n_rgb_.y;
+      const auto refracted = refract(d[i], facing, eta);
+      if (!refracted && tir_ != TirMode::Black) continue;  // internal reflection traced on
+      ++path.events;
+      if constexpr (kFresnel) path.transmittance *= 1.0 - fresnel_reflectance(-glm::dot(d[i], facing), eta);
+      if (!refracted) {  // the dark band
+        path.dark = true;
+        traced[i] = true;
+        continue;
+      }
+      o[i] = o[i] + hit.t * d[i];
+      current[i] = hit;
+      d[i] = *refracted;
+      lane[still++] = i;
+    }
+    // Event 2: on to the street, unless another drop may be in reach.
+    for (int k = 0; k < still; ++k) {
+      const int i = lane[k];
+      if (slab_range(o[i], d[i], glass_, top, &t_lo, &t_range[i]) &&
+          accel_.may_meet_after_exit(current[i].drop, o[i], d[i], t_range[i]))
+        continue;
+      DropPath& path = paths[i];
+      path.escaped_in = glm::dot(d[i], glass_.normal) <= 0;
+      path.origin = o[i];
+      path.dir = d[i];
+      traced[i] = true;
+    }
   }
   // The background point a path sees (NaN: none, for a dark path or one into the car).
   glm::dvec2 seen_point(const DropPath& p) const {
@@ -321,6 +423,7 @@ class Kernel {
   glm::dvec3 interior_;
   glm::dvec3 n_rgb_;
   const std::vector<DropEffects>* disperse_;
+  bool lockstep_;
 };
 
 // Andrew's monotone chain, in double precision (counter-clockwise, no repeated point).
@@ -434,8 +537,8 @@ inline int edge_class(int label, bool dark) { return label < 0 ? -1 : 2 * label 
 
 template <bool kFresnel, bool kDispersion>
 TraceResult run(const cv::Mat& clean, const Camera& camera, const SceneConfig& config,
-                const SceneSample& scene, const DropAccel& accel, const EffectPlan* plan) {
-  const Kernel<kFresnel, kDispersion> kernel(clean, camera, config, scene, accel, plan);
+                const SceneSample& scene, const DropAccel& accel, const EffectPlan* plan, const TraceStrategy& strategy) {
+  const Kernel<kFresnel, kDispersion> kernel(clean, camera, config, scene, accel, plan, strategy.lockstep);
   TraceResult out;
   out.label = scratch_mat(camera.height, camera.width, CV_32S);
   out.label.setTo(cv::Scalar(-1));
@@ -453,12 +556,13 @@ TraceResult run(const cv::Mat& clean, const Camera& camera, const SceneConfig& c
   if (automatic) variation.emplace(clean, kernel.background());
   out.spans = candidate_spans(camera, accel);
   const auto& spans = out.spans;
-  std::atomic<std::int64_t> candidates{0}, drops{0}, dark{0}, off{0}, supersampled{0}, aliasing{0}, smooth{0};
+  std::atomic<std::int64_t> candidates{0}, drops{0}, dark{0}, off{0}, supersampled{0}, aliasing{0}, smooth{0},
+      lockstep{0};
   std::vector<int> row_lo(camera.height, camera.width), row_hi(camera.height, -1);
 
   // Pass 1: one ray through every candidate pixel's centre.
   tbb::parallel_for(tbb::blocked_range<int>(0, camera.height, 8), [&](const tbb::blocked_range<int>& r) {
-    std::int64_t n_cand = 0, n_drop = 0, n_dark = 0, n_off = 0;
+    std::int64_t n_cand = 0, n_drop = 0, n_dark = 0, n_off = 0, n_lock = 0;
     struct Pending {
       int x;
       DropPath path;
@@ -501,7 +605,7 @@ TraceResult run(const cv::Mat& clean, const Camera& camera, const SceneConfig& c
         int xs[8], queued = 0;
         DropPath paths[8];
         auto flush = [&] {
-          kernel.trace_camera_packet(xs, queued, y, paths);
+          n_lock += kernel.trace_camera_packet(xs, queued, y, paths);
           for (int i = 0; i < queued; ++i)
             if (paths[i].hit) pending.push_back({xs[i], paths[i], kernel.seen_point(paths[i])});
           queued = 0;
@@ -526,6 +630,7 @@ TraceResult run(const cv::Mat& clean, const Camera& camera, const SceneConfig& c
     drops += n_drop;
     dark += n_dark;
     off += n_off;
+    lockstep += n_lock;
   });
 
   int box_x0 = camera.width, box_x1 = -1, box_y0 = camera.height, box_y1 = -1;
@@ -630,6 +735,7 @@ TraceResult run(const cv::Mat& clean, const Camera& camera, const SceneConfig& c
   out.stats.supersampled_pixels = supersampled;
   out.stats.aliasing_pixels = aliasing;
   out.stats.smooth_pixels = smooth;
+  out.stats.lockstep_pixels = lockstep;
   return out;
 }
 
@@ -739,16 +845,17 @@ ApertureResult trace_aperture(const cv::Mat& clean, const Camera& camera, const 
 }
 
 TraceResult trace_drops(const cv::Mat& clean, const Camera& camera, const SceneConfig& config,
-                        const SceneSample& scene, const DropAccel& accel, const EffectPlan* plan) {
+                        const SceneSample& scene, const DropAccel& accel, const EffectPlan* plan,
+                        const TraceStrategy& strategy) {
   CV_Assert(clean.type() == CV_8UC3 && clean.cols == camera.width && clean.rows == camera.height);
   // Effects pick the kernel instantiation once per frame, not per pixel: a frame where auto
   // finds no drop that needs dispersion runs the kernel without it.
   const bool fresnel = config.fresnel.enabled;
   const bool dispersion = plan ? plan->dispersion_anywhere(config) : config.dispersion.enabled;
-  if (fresnel && dispersion) return run<true, true>(clean, camera, config, scene, accel, plan);
-  if (fresnel) return run<true, false>(clean, camera, config, scene, accel, plan);
-  if (dispersion) return run<false, true>(clean, camera, config, scene, accel, plan);
-  return run<false, false>(clean, camera, config, scene, accel, plan);
+  if (fresnel && dispersion) return run<true, true>(clean, camera, config, scene, accel, plan, strategy);
+  if (fresnel) return run<true, false>(clean, camera, config, scene, accel, plan, strategy);
+  if (dispersion) return run<false, true>(clean, camera, config, scene, accel, plan, strategy);
+  return run<false, false>(clean, camera, config, scene, accel, plan, strategy);
 }
 
 }  // namespace raindrop

@@ -1,15 +1,19 @@
 #pragma once
 // Small fixtures shared by the unit tests.
+#include <cstring>
 #include <string>
 #include <vector>
 
 #include <gtest/gtest.h>
+#include <opencv2/core.hpp>
 
+#include "raindrop/common/rng.h"
 #include "raindrop/render/camera.h"
 #include "raindrop/render/drop.h"
 #include "raindrop/render/drop_accel.h"
 #include "raindrop/common/error.h"
 #include "raindrop/render/glass.h"
+#include "raindrop/render/scene.h"
 #include "raindrop/render/scene_config.h"
 
 namespace raindrop::test {
@@ -57,6 +61,31 @@ inline std::string geometry_name(const ::testing::TestParamInfo<GeometryOptions>
   std::string name = info.param.describe();
   for (char& c : name) c = c == '-' ? '_' : c;
   return name;
+}
+
+inline std::vector<Drop> drops_of(const SceneSample& scene) {
+  std::vector<Drop> drops;
+  for (const DropShape& s : scene.drops) drops.emplace_back(s, scene.glass);
+  return drops;
+}
+
+// A crowded glass: drops of every size with small gaps, so that many leaving rays pass near
+// (and some meet) a neighbour.
+inline SceneSample crowded_scene(std::uint64_t seed, const Camera& cam) {
+  SceneConfig c = scene_preset("paper");
+  c.drop_count = {400, 400};
+  c.min_gap_cm = 0.0;
+  c.contact_angle_deg = {60, 90};
+  Rng rng(seed);
+  return sample_scene(c, cam, rng);
+}
+
+// Same size, type and bytes.
+inline bool equal_bits(const cv::Mat& a, const cv::Mat& b) {
+  if (a.size() != b.size() || a.type() != b.type()) return false;
+  for (int y = 0; y < a.rows; ++y)
+    if (std::memcmp(a.ptr(y), b.ptr(y), a.cols * a.elemSize()) != 0) return false;
+  return true;
 }
 
 }  // namespace raindrop::test

@@ -20,34 +20,6 @@
 using namespace raindrop;
 using namespace raindrop::test;
 
-namespace {
-
-std::vector<Drop> drops_of(const SceneSample& scene) {
-  std::vector<Drop> drops;
-  for (const DropShape& s : scene.drops) drops.emplace_back(s, scene.glass);
-  return drops;
-}
-
-// A crowded glass: drops of every size with small gaps, so that many leaving rays pass near
-// (and some meet) a neighbour.
-SceneSample crowded_scene(std::uint64_t seed, const Camera& cam) {
-  SceneConfig c = scene_preset("paper");
-  c.drop_count = {400, 400};
-  c.min_gap_cm = 0.0;
-  c.contact_angle_deg = {60, 90};
-  Rng rng(seed);
-  return sample_scene(c, cam, rng);
-}
-
-bool equal_bits(const cv::Mat& a, const cv::Mat& b) {
-  if (a.size() != b.size() || a.type() != b.type()) return false;
-  for (int y = 0; y < a.rows; ++y)
-    if (std::memcmp(a.ptr(y), b.ptr(y), a.cols * a.elemSize()) != 0) return false;
-  return true;
-}
-
-}  // namespace
-
 TEST(ExitSkip, SaysNothingMoreOnlyWhenNoOtherDropIsMet) {
   const Camera cam = camera(640, 320, 700);
   std::int64_t skipped = 0, met = 0, rays = 0;

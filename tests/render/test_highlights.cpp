@@ -62,12 +62,6 @@ TraceResult disc_trace(const Camera& cam, int radius, float seen) {
   return t;
 }
 
-std::vector<Drop> drops_of(const SceneSample& s) {
-  std::vector<Drop> d;
-  for (const DropShape& shape : s.drops) d.emplace_back(shape, s.glass);
-  return d;
-}
-
 }  // namespace
 
 TEST(Highlights, TheLiftIsOneBelowTheThresholdAndTheGainAtFullScale) {

@@ -337,3 +337,58 @@ TEST_P(LensTest, ARayThroughTwoMergedDropsBendsOnlyWhereItEntersAndLeavesTheWate
   EXPECT_LT(glm::length(p.dir - q.dir), tolerance);
   EXPECT_LT(glm::length(p.origin - q.origin), tolerance);
 }
+
+// Camera rays traced side by side (TraceStrategy::lockstep) give the images traced one ray at a
+// time, bit for bit, for every preset, crowded glass, traced internal reflection and Fresnel;
+// and the side-by-side path does take most rays where drops are disjoint (else this test
+// would hold nothing), and none where they overlap (one body of water: trace_path's own).
+TEST(Lockstep, TracesTheSameImagesAsOneRayAtATime) {
+  const Camera cam = camera(320, 160, 353);
+  cv::Mat clean(cam.height, cam.width, CV_8UC3);
+  cv::randu(clean, 0, 256);
+  struct Case {
+    std::string name;
+    SceneConfig config;
+    SceneSample scene;
+  };
+  std::vector<Case> cases;
+  for (const std::string& preset : scene_preset_names()) {
+    for (std::uint64_t seed : {1, 2}) {
+      Rng rng(seed);
+      const SceneConfig c = scene_preset(preset);
+      cases.push_back({preset + " seed " + std::to_string(seed), c, sample_scene(c, cam, rng)});
+    }
+  }
+  for (std::uint64_t seed : {1, 2}) {
+    SceneConfig c = scene_preset("paper");
+    cases.push_back({"crowded seed " + std::to_string(seed), c, crowded_scene(seed, cam)});
+    c.tir = TirMode::Trace;
+    cases.push_back({"crowded, internal reflection traced, seed " + std::to_string(seed), c, crowded_scene(seed, cam)});
+    c.fresnel.enabled = true;
+    cases.push_back({"crowded, traced, Fresnel, seed " + std::to_string(seed), c, crowded_scene(seed, cam)});
+  }
+  std::int64_t disjoint_drop_pixels = 0, side_by_side = 0;
+  for (const Case& k : cases) {
+    const std::vector<Drop> drops = drops_of(k.scene);
+    DropAccel accel(drops, k.config.geometry);
+    const bool disjoint = !k.config.allow_overlap && !k.config.trails.enabled;
+    accel.set_disjoint(disjoint);
+    const TraceResult a = trace_drops(clean, cam, k.config, k.scene, accel, nullptr, TraceStrategy{true});
+    const TraceResult b = trace_drops(clean, cam, k.config, k.scene, accel, nullptr, TraceStrategy{false});
+    ASSERT_GT(a.stats.drop_pixels, 0) << k.name;
+    EXPECT_EQ(b.stats.lockstep_pixels, 0) << k.name;
+    EXPECT_TRUE(equal_bits(a.label, b.label)) << k.name;
+    cv::Mat ca = a.color.clone(), cb = b.color.clone();
+    ca.setTo(cv::Scalar::all(0), a.label < 0);
+    cb.setTo(cv::Scalar::all(0), b.label < 0);
+    EXPECT_TRUE(equal_bits(ca, cb)) << k.name;
+    EXPECT_EQ(a.stats.dark_band_pixels, b.stats.dark_band_pixels) << k.name;
+    EXPECT_EQ(a.stats.off_frame_pixels, b.stats.off_frame_pixels) << k.name;
+    if (!disjoint) EXPECT_EQ(a.stats.lockstep_pixels, 0) << k.name;
+    if (disjoint && !k.config.dispersion.enabled) {
+      disjoint_drop_pixels += a.stats.drop_pixels;
+      side_by_side += a.stats.lockstep_pixels;
+    }
+  }
+  EXPECT_GT(side_by_side, disjoint_drop_pixels / 2);
+}

@@ -39,6 +39,7 @@ struct TraceStats {
   // those left at one sample (effect_policy.h).
   std::int64_t aliasing_pixels = 0;
   std::int64_t smooth_pixels = 0;
+  std::int64_t lockstep_pixels = 0;  // camera rays traced side by side (TraceStrategy::lockstep)
 };
 
 struct TraceResult {
@@ -73,8 +74,18 @@ glm::dvec2 background_pixel(const DropPath& path, const Camera& camera, double b
 // `clean` is the frame (CV_8UC3, RGB); `accel` holds the scene's drops. `plan`: the effects
 // chosen per drop where the scene says "auto" (effect_policy.h); without one, every effect
 // the scene names is simulated for every drop.
+// How trace_drops schedules its work; every choice gives the same result to the bit (tests
+// hold them to each other).
+struct TraceStrategy {
+  // Camera rays that go in through one drop's base and out through its cap traced 8 side by
+  // side, a step at a time (disjoint drops only): their chains of square roots and divisions
+  // overlap instead of waiting on each other.
+  bool lockstep = true;
+};
+
 TraceResult trace_drops(const cv::Mat& clean, const Camera& camera, const SceneConfig& config,
-                        const SceneSample& scene, const DropAccel& accel, const EffectPlan* plan = nullptr);
+                        const SceneSample& scene, const DropAccel& accel, const EffectPlan* plan = nullptr,
+                        const TraceStrategy& strategy = {});
 
 // The thin-lens reference (SceneConfig::lens, method Aperture): `samples` rays per pixel
 // from points spread over the aperture disk, focused on the background plane.
