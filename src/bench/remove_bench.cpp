@@ -30,7 +30,7 @@
 #include "raindrop/common/image_io.h"
 #include "raindrop/remove/model_paths.h"
 #include "raindrop/remove/remover.h"
-#include "raindrop/render/demo.h"
+#include "raindrop/common/demo.h"
 
 namespace raindrop {
 namespace fs = std::filesystem;

@@ -29,7 +29,7 @@
 #include "raindrop/common/error.h"
 #include "raindrop/common/image_io.h"
 #include "raindrop/common/rng.h"
-#include "raindrop/render/demo.h"
+#include "raindrop/common/demo.h"
 #include "raindrop/render/framing.h"
 #include "raindrop/render/inputs.h"
 #include "raindrop/render/renderer.h"

@@ -7,7 +7,9 @@
 
 #include <CLI/CLI.hpp>
 
+#ifdef RAINDROP_HAVE_RENDER_BENCH
 #include "../bench/render_bench.h"
+#endif
 #ifdef RAINDROP_HAVE_REMOVE_BENCH
 #include "../bench/remove_bench.h"
 #endif
@@ -19,7 +21,9 @@ int main(int argc, char** argv) {
                "never asserted in tests."};
   app.set_version_flag("--version", std::string("raindrop-bench ") + raindrop::kVersion);
   app.require_subcommand(1);
+#ifdef RAINDROP_HAVE_RENDER_BENCH
   const std::function<int()> render = raindrop::add_render_bench(app);
+#endif
 #ifdef RAINDROP_HAVE_REMOVE_BENCH
   const std::function<int()> remove = raindrop::add_remove_bench(app);
 #endif
@@ -29,7 +33,9 @@ int main(int argc, char** argv) {
     return app.exit(e) == 0 ? 0 : 2;
   }
   try {
+#ifdef RAINDROP_HAVE_RENDER_BENCH
     if (app.got_subcommand("render")) return render();
+#endif
 #ifdef RAINDROP_HAVE_REMOVE_BENCH
     if (app.got_subcommand("remove")) return remove();
 #endif

@@ -129,8 +129,10 @@ struct Settings {
   bool time = false;
 };
 
-// Removes the drops from one file; returns the panels for the contact sheet.
-std::vector<cv::Mat> process(Remover& remover, const Job& job, const Settings& s, bool want_panels) {
+// Removes the drops from one file, staging its output and mask in `files` (the caller commits
+// them); returns the panels for the contact sheet.
+std::vector<cv::Mat> process(Remover& remover, const Job& job, const Settings& s, bool want_panels,
+                             StagedImages* files) {
   const cv::Mat input = read_image_native(job.input);
   RemoveResult r = remover.run(input, s.options);
   if (job.make_dirs) {
@@ -140,8 +142,8 @@ std::vector<cv::Mat> process(Remover& remover, const Job& job, const Settings& s
         throw Error("cannot create the folder '" + p->parent_path().string() + "' (" + ec.message() + ")");
     }
   }
-  warn_format_loss(job.output, write_image_atomic(r.image, job.output));
-  if (job.mask) write_image_atomic(r.mask, *job.mask);
+  warn_format_loss(job.output, files->stage(r.image, job.output));
+  if (job.mask) files->stage(r.mask, *job.mask);
   if (s.time) {
     const double coverage = 100.0 * cv::countNonZero(r.mask) / static_cast<double>(r.mask.total());
     char coarse[96] = "";
@@ -398,10 +400,15 @@ int run(int argc, char** argv) {
   std::vector<std::string> captions;
   const std::size_t refused = errors.size();
   Progress progress(static_cast<std::int64_t>(jobs.size()), "remove", batch && !quiet);
+  // One image: its output, mask and contact sheet appear together or not at all (a sheet that
+  // fails to write leaves no output). Folder mode: each image's output and mask together.
+  StagedImages single;
   for (const auto& job : jobs) {
     const bool want_panels = !sheet.empty() && static_cast<int>(rows.size()) < kSheetRows;
     try {
-      auto panels = process(remover, job, s, want_panels);
+      StagedImages files;
+      auto panels = process(remover, job, s, want_panels, batch ? &files : &single);
+      files.commit();
       if (want_panels) {
         rows.push_back(std::move(panels));
         captions.push_back(job.caption);
@@ -414,8 +421,15 @@ int run(int argc, char** argv) {
     progress.advance();
   }
   progress.finish();
-  if (!sheet.empty() && !rows.empty())
-    write_image_atomic(make_contact_sheet(rows, {"input", "mask", "output"}, captions, kPanelWidth), sheet);
+  if (!sheet.empty() && !rows.empty()) {
+    const cv::Mat contact_sheet = make_contact_sheet(rows, {"input", "mask", "output"}, captions, kPanelWidth);
+    if (batch) {
+      write_image_atomic(contact_sheet, sheet);
+    } else {
+      single.stage(contact_sheet, sheet);
+    }
+  }
+  single.commit();
   for (const auto& e : errors) std::cerr << "raindrop-remove: failed: " << e << "\n";
   if (batch && (!quiet || !errors.empty()))
     std::fprintf(stderr, "raindrop-remove: %zu of %zu images done, %zu failed; output in %s\n",

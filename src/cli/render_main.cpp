@@ -18,7 +18,7 @@
 #include "raindrop/common/image_files.h"
 #include "raindrop/common/image_io.h"
 #include "raindrop/common/shard.h"
-#include "raindrop/render/demo.h"
+#include "raindrop/common/demo.h"
 #include "raindrop/render/inputs.h"
 #include "raindrop/render/render_job.h"
 #include "raindrop/render/scene_config.h"

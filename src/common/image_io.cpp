@@ -275,10 +275,12 @@ std::string write_native(const cv::Mat& image, const fs::path& tmp, const fs::pa
 
 }  // namespace
 
-std::string write_image_atomic(const cv::Mat& image, const fs::path& path, int png_level) {
+namespace {
+
+// Writes `image` for `path` (whose extension picks the format) into the file `tmp`; removes
+// `tmp` and throws on any failure. Returns what the format lost (write_image_atomic).
+std::string write_image_file(const cv::Mat& image, const fs::path& tmp, const fs::path& path, int png_level) {
   CV_Assert((image.depth() == CV_8U || image.depth() == CV_16U) && image.channels() >= 1 && image.channels() <= 4);
-  const fs::path dir = path.has_parent_path() ? path.parent_path() : fs::path(".");
-  const fs::path tmp = dir / temp_name_for(path);
   std::string lost;
   if (is_png_name(path) || is_jpeg_name(path)) {
     lost = write_native(image, tmp, path, png_level);
@@ -292,8 +294,41 @@ std::string write_image_atomic(const cv::Mat& image, const fs::path& path, int p
       throw;
     }
   }
+  return lost;
+}
+
+fs::path temporary_beside(const fs::path& path) {
+  const fs::path dir = path.has_parent_path() ? path.parent_path() : fs::path(".");
+  return dir / temp_name_for(path);
+}
+
+}  // namespace
+
+std::string write_image_atomic(const cv::Mat& image, const fs::path& path, int png_level) {
+  const fs::path tmp = temporary_beside(path);
+  const std::string lost = write_image_file(image, tmp, path, png_level);
   move_into_place(tmp, path);
   return lost;
+}
+
+StagedImages::~StagedImages() {
+  std::error_code ec;
+  for (const auto& [tmp, path] : pending_) fs::remove(tmp, ec);
+}
+
+std::string StagedImages::stage(const cv::Mat& image, const fs::path& path, int png_level) {
+  const fs::path tmp = temporary_beside(path);
+  const std::string lost = write_image_file(image, tmp, path, png_level);
+  pending_.emplace_back(tmp, path);
+  return lost;
+}
+
+void StagedImages::commit() {
+  while (!pending_.empty()) {
+    const auto [tmp, path] = pending_.front();
+    pending_.erase(pending_.begin());
+    move_into_place(tmp, path);  // removes tmp on failure; the destructor removes the rest
+  }
 }
 
 int parse_png_level(const std::string& text) {

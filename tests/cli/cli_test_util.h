@@ -23,7 +23,7 @@
 
 #include "../common/test_images.h"
 #include "../common/test_support.h"
-#include "raindrop/render/demo.h"
+#include "raindrop/common/demo.h"
 
 #ifndef RAINDROP_RENDER_BIN
 #error "RAINDROP_RENDER_BIN must name the raindrop-render binary"

@@ -3,6 +3,8 @@
 #include <cmath>
 #include <cstring>
 #include <filesystem>
+#include <random>
+#include <fstream>
 
 #include <OpenImageIO/imageio.h>
 #include <gtest/gtest.h>
@@ -10,8 +12,11 @@
 
 #include "raindrop/common/error.h"
 #include "raindrop/common/image_io.h"
+#include "test_images.h"
+#include "test_support.h"
 
 using namespace raindrop;
+using testsupport::street_like;
 
 TEST(ImageIo, FloatInputsAreSrgbEncodedWhenConverted) {
   const auto path = std::filesystem::temp_directory_path() / ("raindrop_linear_" + std::to_string(::getpid()) + ".exr");
@@ -120,4 +125,81 @@ TEST(ImageIo, FailedRenameReportsItsOwnError) {
   for (const auto& e : std::filesystem::directory_iterator(dir)) left += e.path().filename().string()[0] == '.';
   EXPECT_EQ(left, 0u) << "temporaries left behind";
   std::filesystem::remove_all(dir);
+}
+
+// Staged images appear together at commit, or not at all: nothing is at its name before the
+// commit, and a failed stage or no commit leaves no file and no temporary behind.
+TEST(StagedImages, AppearTogetherAtCommitOrNotAtAll) {
+  testsupport::TempDir tmp("raindrop_staged_");
+  const cv::Mat image(8, 12, CV_8UC3, cv::Scalar(10, 20, 30));
+  auto entries = [&] {
+    int n = 0;
+    for (const auto& e : std::filesystem::directory_iterator(tmp.path())) n += e.exists() ? 1 : 0;
+    return n;
+  };
+  {
+    StagedImages staged;
+    staged.stage(image, tmp / "a.png");
+    staged.stage(image, tmp / "b.jpg");
+    EXPECT_FALSE(std::filesystem::exists(tmp / "a.png"));
+    EXPECT_FALSE(std::filesystem::exists(tmp / "b.jpg"));
+    EXPECT_EQ(entries(), 2);  // the two temporaries
+  }
+  EXPECT_EQ(entries(), 0) << "an uncommitted stage leaves nothing";
+  {
+    StagedImages staged;
+    staged.stage(image, tmp / "a.png");
+    EXPECT_THROW(staged.stage(image, tmp / "missing-folder" / "b.png"), Error);
+  }
+  EXPECT_EQ(entries(), 0) << "a failed stage takes the others with it";
+  StagedImages staged;
+  staged.stage(image, tmp / "a.png");
+  staged.stage(image, tmp / "b.jpg");
+  staged.commit();
+  EXPECT_TRUE(std::filesystem::is_regular_file(tmp / "a.png"));
+  EXPECT_TRUE(std::filesystem::is_regular_file(tmp / "b.jpg"));
+  EXPECT_EQ(entries(), 2);
+}
+
+// Damaged files: cut at about 100 lengths, and 300 copies with one byte changed each:
+// each read either decodes the image whole or throws raindrop::Error with one line naming the
+// file; nothing else escapes, nothing crashes (run under the sanitizers: scripts/test-sanitizers.sh),
+// and libpng/libjpeg print nothing of their own.
+TEST(ImageIo, DamagedPngAndJpegFailInOneLine) {
+  testsupport::TempDir tmp("raindrop-damaged-");
+  const cv::Mat m = street_like(23, 31, 3);
+  for (const std::string name : {"a.png", "a.jpg"}) {
+    write_image_atomic(m, tmp / name);
+    const std::string bytes = testsupport::read_file(tmp / name);
+    std::mt19937 rng(11);
+    int refused = 0, decoded = 0;
+    auto attempt = [&](const std::string& damaged) {
+      std::ofstream(tmp / ("bad-" + name), std::ios::binary | std::ios::trunc) << damaged;
+      try {
+        const cv::Mat got = read_image_native(tmp / ("bad-" + name));
+        EXPECT_EQ(got.size(), m.size());
+        ++decoded;
+      } catch (const Error& e) {
+        const std::string what = e.what();
+        EXPECT_EQ(what.find('\n'), std::string::npos) << what;
+        EXPECT_NE(what.find("bad-" + name), std::string::npos) << what;
+        ++refused;
+      }
+    };
+    testing::internal::CaptureStderr();
+    for (size_t cut = 0; cut < bytes.size(); cut += std::max<size_t>(1, bytes.size() / 97)) attempt(bytes.substr(0, cut));
+    for (int i = 0; i < 300; ++i) {
+      std::string damaged = bytes;
+      damaged[rng() % damaged.size()] ^= static_cast<char>(1 + rng() % 255);  // never the same byte
+      attempt(damaged);
+    }
+    const std::string printed = testing::internal::GetCapturedStderr();
+    EXPECT_EQ(printed, "") << name << ": a library printed on its own";
+    EXPECT_GT(refused, 90) << name;  // every cut file at least
+    if (name == "a.png") {
+      EXPECT_EQ(decoded, 0) << "every changed byte of a PNG breaks a CRC";
+    } else {
+      EXPECT_GT(decoded, 0) << "a changed byte inside a JPEG's entropy-coded data still decodes";
+    }
+  }
 }

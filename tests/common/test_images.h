@@ -50,6 +50,16 @@ inline std::optional<Image> read_image(const std::filesystem::path& p, std::stri
 // Writes an 8-bit (CV_8U), 16-bit (CV_16U) or float (CV_32F) image with any channel count in
 // RGB(A) order (2 and 4 channels: the last is an unassociated alpha), as stored: for the
 // refusals too (float, five channels).
+// Colour gradients with edges: what a photograph's blocks look like to the codec.
+inline cv::Mat street_like(int rows, int cols, int channels) {
+  cv::Mat m(rows, cols, CV_8UC(channels));
+  for (int y = 0; y < rows; ++y)
+    for (int x = 0; x < cols; ++x)
+      for (int c = 0; c < channels; ++c)
+        m.ptr<uchar>(y)[x * channels + c] = static_cast<uchar>((x * (c + 1) + y * 3 + ((x / 8 + y / 8) % 2) * 60) & 255);
+  return m;
+}
+
 inline void write_image(const std::filesystem::path& p, const cv::Mat& m) {
   if (p.has_parent_path()) std::filesystem::create_directories(p.parent_path());
   auto out = OIIO::ImageOutput::create(p.string());

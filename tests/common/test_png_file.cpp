@@ -21,6 +21,7 @@
 #include "raindrop/common/image_io.h"
 #include "../../src/common/png_file.h"  // decode_image_data, our decoding path on its own
 #include "test_images.h"
+#include "png_bytes.h"
 #include "test_support.h"
 
 namespace fs = std::filesystem;
@@ -288,28 +289,15 @@ struct Chunk {
 
 std::vector<Chunk> chunks_of(const std::string& file) {
   std::vector<Chunk> chunks;
-  for (size_t at = 8; at + 12 <= file.size();) {
-    const auto* p = reinterpret_cast<const unsigned char*>(file.data() + at);
-    const std::uint32_t length = (std::uint32_t{p[0]} << 24) | (p[1] << 16) | (p[2] << 8) | p[3];
-    chunks.push_back({file.substr(at + 4, 4), file.substr(at + 8, length)});
-    at += 12 + length;
-  }
+  for (auto& [type, data] : testsupport::png_chunks(file)) chunks.push_back({type, data});
   return chunks;
 }
 
 // The file again, every CRC correct: only the structure is wrong.
 std::string file_of(const std::vector<Chunk>& chunks) {
-  std::string out = "\x89PNG\r\n\x1a\n";
-  auto be32 = [&out](std::uint32_t v) {
-    for (int s = 24; s >= 0; s -= 8) out += static_cast<char>((v >> s) & 0xFF);
-  };
-  for (const Chunk& c : chunks) {
-    be32(static_cast<std::uint32_t>(c.data.size()));
-    const std::string body = c.type + c.data;
-    out += body;
-    be32(static_cast<std::uint32_t>(::crc32(0L, reinterpret_cast<const Bytef*>(body.data()), static_cast<uInt>(body.size()))));
-  }
-  return out;
+  std::vector<std::pair<std::string, std::string>> pairs;
+  for (const Chunk& c : chunks) pairs.emplace_back(c.type, c.data);
+  return testsupport::png_from_chunks(pairs);
 }
 
 }  // namespace

@@ -16,6 +16,7 @@ void expect_limit_refusal(const RunResult& r) {
 
 // 16000 x 16000 (256 megapixels): rendering such a file took 3 GB.
 TEST(PixelLimit, RenderRefusesADeclared16000Square) {
+  REQUIRE_RENDER();
   TempDir tmp;
   write_file(tmp / "big.png", png_declaring(16000, 16000));
   const RunResult r = run_command(RAINDROP_RENDER_BIN, {"-i", "big.png", "--out", "out", "-j", "1"}, tmp.path());
@@ -34,6 +35,7 @@ TEST(PixelLimit, RemoveRefusesADeclared16000Square) {
 // One pixel past the limit is refused; the limit itself passes the size check (and then fails
 // for its missing pixel data, which these files do not have).
 TEST(PixelLimit, TheBoundary) {
+  REQUIRE_RENDER();
   TempDir tmp;
   write_file(tmp / "big.png", png_declaring(8192, 8193));
   expect_limit_refusal(run_command(RAINDROP_RENDER_BIN, {"-i", "big.png", "--out", "out", "-j", "1"}, tmp.path()));

@@ -608,8 +608,23 @@ TEST_F(RemoveCli, BadMaskOrSheetLeavesNoOutput) {
   EXPECT_FALSE(fs::exists(tmp / "results" / "a.png")) << "output written before the sheet was found unwritable";
 }
 
+// A folder that not even root may write into: /proc takes no new files. The destination checks
+// cannot see that (for root, access() says it is writable), so this holds the writing itself
+// to leave nothing behind: the output, mask and sheet appear together or not at all.
+TEST_F(RemoveCli, MaskOrSheetThatEvenRootCannotWriteLeavesNoOutput) {
+  if (!fs::is_directory("/proc/self")) GTEST_SKIP() << "no /proc here";
+  for (const std::vector<std::string>& args :
+       {std::vector<std::string>{"in.png", "out.png", "--mask", "/proc/raindrop-test-mask.png"},
+        {"in.png", "out.png", "--contact-sheet", "/proc/raindrop-test-sheet.png"},
+        {"in.png", "out.png", "--mask", "m.png", "--contact-sheet", "/proc/raindrop-test-sheet.png"}}) {
+    SCOPED_TRACE(args.back());
+    expect_clean_failure(remove(args), args.back());
+    EXPECT_FALSE(fs::exists(tmp / "m.png"));
+  }
+}
+
 TEST_F(RemoveCli, ReadOnlyMaskOrSheetLeavesNoOutput) {
-  if (::geteuid() == 0) GTEST_SKIP() << "running as root, who may write into read-only folders and files";
+  if (::geteuid() == 0) GTEST_SKIP() << "running as root, who may write into read-only folders and files (MaskOrSheetThatEvenRootCannotWriteLeavesNoOutput covers root)";
   fs::create_directories(tmp / "ro");
   fs::permissions(tmp / "ro", fs::perms::owner_read | fs::perms::owner_exec);
   write_file(tmp / "locked.png", "x");

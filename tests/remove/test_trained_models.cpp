@@ -48,6 +48,7 @@ constexpr double kMinGainDb = 2.0;
 constexpr double kMinMaskIoU = 0.6;
 
 TEST(TrainedModels, RemoveRenderedDrops) {
+  REQUIRE_RENDER();
   const auto dirs = trained_models();
   if (dirs.empty()) GTEST_SKIP() << "no trained models in " << (source_dir() / "models");
   TempDir tmp;
@@ -81,6 +82,7 @@ TEST(TrainedModels, RemoveRenderedDrops) {
 // within 1 dB of each other, where the full-size run without it lost most of its gain
 // (docs/RESULTS.md 3.4).
 TEST(TrainedModels, GainDoesNotDependOnTheImageSize) {
+  REQUIRE_RENDER();
   const auto dirs = trained_models();
   if (dirs.empty()) GTEST_SKIP() << "no trained models in " << (source_dir() / "models");
   TempDir tmp;
@@ -118,6 +120,7 @@ TEST(TrainedModels, GainDoesNotDependOnTheImageSize) {
 // rows 6.5 levels from the clean image at 511x255 against 4.9 at 512x256, single pixels off by
 // 180 levels).
 TEST(TrainedModels, OddSizesAreRestoredAsWellAtTheirBorders) {
+  REQUIRE_RENDER();
   const auto dirs = trained_models();
   if (dirs.empty()) GTEST_SKIP() << "no trained models in " << (source_dir() / "models");
   TempDir tmp;
@@ -254,6 +257,7 @@ TEST(TrainedModels, DefaultRemovesRealLensCoverDrops) {
 // alike does not pass. Needs the shared Cityscapes frames (the first two of the val split);
 // skips without them.
 TEST(TrainedModels, DefaultGainsAsMuchOnLargeStreetFrames) {
+  REQUIRE_RENDER();
   const fs::path cityscapes = fs::path(RAINDROP_SHARED_DATA) / "cityscapes-mini";
   std::error_code ec;
   if (std::string(RAINDROP_SHARED_DATA).empty() || !fs::is_directory(cityscapes / "leftImg8bit" / "val", ec))

@@ -9,7 +9,7 @@
 
 #include "raindrop/common/rng.h"
 #include "raindrop/render/defocus.h"
-#include "raindrop/render/demo.h"
+#include "raindrop/common/demo.h"
 #include "raindrop/render/renderer.h"
 #include "raindrop/render/scene.h"
 #include "raindrop/render/scene_config.h"

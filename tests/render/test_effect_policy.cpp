@@ -9,7 +9,7 @@
 #include <opencv2/imgproc.hpp>
 
 #include "raindrop/common/rng.h"
-#include "raindrop/render/demo.h"
+#include "raindrop/common/demo.h"
 #include "raindrop/render/effect_policy.h"
 #include "raindrop/render/optics.h"
 #include "raindrop/render/renderer.h"

@@ -12,7 +12,7 @@
 #include "raindrop/common/error.h"
 #include "raindrop/common/rng.h"
 #include "raindrop/render/defocus.h"
-#include "raindrop/render/demo.h"
+#include "raindrop/common/demo.h"
 #include "raindrop/render/highlights.h"
 #include "raindrop/render/renderer.h"
 #include "raindrop/render/scene.h"

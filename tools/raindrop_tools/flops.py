@@ -5,7 +5,11 @@ fraction of a percent of the work; batch norm (folded into the convolutions at i
 ReLU, the residual additions and the sigmoid are not counted. GFLOPs = 2 x GMACs (one
 multiply and one add per MAC), the convention most papers quote.
 
-    python -m raindrop_tools.flops --config tools/configs/compact.yaml --size 256x512
+    python -m raindrop_tools.flops --config tools/configs/compact.yaml --size 512x256
+
+--size is WIDTHxHEIGHT, as for the project's other programs (``raindrop-render --size``,
+``raindrop-bench remove --size``): the default 512x256 is the paper's training size, 512 wide
+and 256 high.
 """
 
 from __future__ import annotations
@@ -71,17 +75,32 @@ def parameter_count(model: nn.Module) -> int:
     return sum(p.numel() for p in model.parameters())
 
 
+def _width_x_height(text: str) -> tuple[int, int]:
+    """An argparse ``type``: ``WIDTHxHEIGHT`` (e.g. 512x256) as (width, height), both >= 1.
+    It used to be HxW, the other way round from every other program of the project."""
+    try:
+        w, h = (int(v) for v in text.lower().split("x"))
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected WIDTHxHEIGHT (e.g. 512x256), got {text!r}") from None
+    if w < 1 or h < 1:
+        raise argparse.ArgumentTypeError(f"width and height must be at least 1, got {text!r}")
+    return w, h
+
+
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(prog="python -m raindrop_tools.flops", description=__doc__.split("\n")[0])
     ap.add_argument("--config", required=True, action="append", help="run configuration(s) (YAML)")
-    ap.add_argument("--size", default="256x512", help="HxW (default 256x512)")
+    ap.add_argument(
+        "--size",
+        default="512x256",
+        type=_width_x_height,
+        metavar="WIDTHxHEIGHT",
+        help="WIDTHxHEIGHT, as for the project's other programs (default 512x256: 512 wide, 256 high)",
+    )
     ap.add_argument("--json", action="store_true", help="print JSON")
     args = ap.parse_args(argv)
     torch.set_num_threads(1)
-    try:
-        h, w = (int(v) for v in args.size.lower().split("x"))
-    except ValueError:
-        ap.error(f"--size: expected HxW, got {args.size!r}")
+    w, h = args.size
     rows = {}
     for path in args.config:
         try:
@@ -93,9 +112,9 @@ def main(argv: list[str] | None = None) -> int:
         params = {n: parameter_count(build_network(n, cfg.network)) for n in NETWORK_NAMES}
         rows[cfg.name] = {"gflops": g, "params": params}
     if args.json:
-        print(json.dumps({"size": [h, w], "configs": rows}, indent=2))
+        print(json.dumps({"width": w, "height": h, "configs": rows}, indent=2))
         return 0
-    print(f"GFLOPs (2 x MACs) at {h}x{w}:")
+    print(f"GFLOPs (2 x MACs) at {w}x{h} (width x height):")
     print(f"{'config':<12}{'rdn':>10}{'rrn':>10}{'rfn':>10}{'total':>10}   params rdn/rrn/rfn")
     for name, r in rows.items():
         g, p = r["gflops"], r["params"]

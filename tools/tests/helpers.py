@@ -6,6 +6,7 @@ No torch here (the no-torch tests use it too).
 from __future__ import annotations
 
 import json
+import os
 from pathlib import Path
 
 import cv2
@@ -15,8 +16,18 @@ TOOLS = Path(__file__).resolve().parents[1]
 REPO = TOOLS.parent
 CONFIGS = TOOLS / "configs"
 FIXTURE_MODELS = Path(__file__).resolve().parent / "fixtures" / "models-smoke"
-# Real images the project may read (never committed): ../shared/data relative to the repo.
-SHARED_DATA = REPO.parent / "shared" / "data"
+# Real images the project may read (never committed): the folder RAINDROP_SHARED_DATA names
+# (ctest passes it, tests/CMakeLists.txt), else ../shared/data relative to the repo.
+SHARED_DATA_ENV = "RAINDROP_SHARED_DATA"
+DEFAULT_SHARED_DATA = REPO.parent / "shared" / "data"
+
+
+def shared_data_dir() -> Path:
+    """The real-image folder: $RAINDROP_SHARED_DATA when set and not empty, else
+    ../shared/data beside the repository. Read on every call, so that it follows the
+    environment (and monkeypatch)."""
+    value = os.environ.get(SHARED_DATA_ENV, "").strip()
+    return Path(value).expanduser() if value else DEFAULT_SHARED_DATA
 
 
 def procedural_image(h: int, w: int, seed: int) -> np.ndarray:
@@ -124,16 +135,27 @@ def write_dataset(
 
 
 def real_frames(max_count: int = 2) -> list[Path]:
-    """A few real photographs from ../shared/data (empty when the folder is absent)."""
-    if not SHARED_DATA.is_dir():
+    """A few real photographs from shared_data_dir() (empty when the folder is absent or
+    has none): one each from cityscapes-mini/, real-raindrop/ and camvid/."""
+    root = shared_data_dir()
+    if not root.is_dir():
         return []
-    found = sorted((SHARED_DATA / "cityscapes-mini").rglob("*.png"))[:1]
-    found += sorted((SHARED_DATA / "real-raindrop").glob("*.png"))[:1]
-    found += sorted((SHARED_DATA / "camvid").rglob("*.png"))[:1]
+    found = sorted((root / "cityscapes-mini").rglob("*.png"))[:1]
+    found += sorted((root / "real-raindrop").glob("*.png"))[:1]
+    found += sorted((root / "camvid").rglob("*.png"))[:1]
     return found[:max_count] if max_count else found
 
 
-SHARED_DATA_MISSING = f"{SHARED_DATA} not found: real-image checks skipped (procedural images still tested)"
+def shared_data_missing() -> str:
+    """The skip message of a test that found no real frames: which folder was looked at,
+    why nothing was found, and how to name another one."""
+    root = shared_data_dir()
+    where = f"{SHARED_DATA_ENV}={root}" if os.environ.get(SHARED_DATA_ENV, "").strip() else f"{root} (default)"
+    why = "has no PNG in cityscapes-mini/, real-raindrop/ or camvid/" if root.is_dir() else "not found"
+    return (
+        f"real-image folder {where} {why}: real-image checks skipped (procedural images still tested;"
+        f" set {SHARED_DATA_ENV} to a folder of real photographs to run them)"
+    )
 
 
 def load_small_rgb(path: Path, max_side: int = 160) -> np.ndarray:

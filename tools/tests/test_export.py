@@ -11,7 +11,7 @@ torch = pytest.importorskip("torch")
 onnx = pytest.importorskip("onnx")
 import onnxruntime as ort  # noqa: E402
 
-from helpers import CONFIGS, SHARED_DATA_MISSING, load_small_rgb, procedural_image, real_frames  # noqa: E402
+from helpers import CONFIGS, load_small_rgb, procedural_image, real_frames, shared_data_missing  # noqa: E402
 from raindrop_tools import contract as C  # noqa: E402
 from raindrop_tools.config import load_config  # noqa: E402
 from raindrop_tools.edge import edge_map_numpy  # noqa: E402
@@ -105,7 +105,7 @@ def test_parity_procedural_images(exported, size, seed):
 def test_parity_real_images(exported):
     frames = real_frames(max_count=3)
     if not frames:
-        pytest.skip(SHARED_DATA_MISSING)
+        pytest.skip(shared_data_missing())
     for path in frames:
         img = load_small_rgb(path, max_side=160)
         img = img[: img.shape[0] - 1 + img.shape[0] % 2, : img.shape[1] - 1 + img.shape[1] % 2]  # odd sizes

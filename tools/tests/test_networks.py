@@ -1,3 +1,5 @@
+import json
+
 import pytest
 
 pytestmark = pytest.mark.torch
@@ -5,6 +7,7 @@ torch = pytest.importorskip("torch")
 import torch.nn as nn  # noqa: E402
 
 from helpers import CONFIGS  # noqa: E402
+from raindrop_tools import flops  # noqa: E402
 from raindrop_tools.config import HalfResConfig, NetworkConfig, RefineConfig, load_config  # noqa: E402
 from raindrop_tools.flops import count_macs, gflops  # noqa: E402
 from raindrop_tools.networks import RDN, RFN, RRN, build_networks, example_inputs  # noqa: E402
@@ -101,3 +104,33 @@ def test_paper_and_compact_flops():
     assert paper["total"] == pytest.approx(146.45, abs=0.01)
     ratio = paper["total"] / compact["total"]
     assert 8.0 <= ratio <= 12.0, ratio
+
+
+def test_flops_size_is_width_x_height(monkeypatch, capsys):
+    """--size is WIDTHxHEIGHT like every other program of the project (it was HxW):
+    512x256 is 512 wide and 256 high, also the default."""
+    seen = []
+
+    def fake_gflops(cfg, height, width):
+        seen.append((height, width))
+        return {"rdn": 1.0, "rrn": 2.0, "rfn": 3.0, "total": 6.0}
+
+    monkeypatch.setattr(flops, "gflops", fake_gflops)
+    smoke = str(CONFIGS / "smoke.yaml")
+    assert flops.main(["--config", smoke, "--size", "512x256", "--json"]) == 0
+    assert seen == [(256, 512)], "gflops(cfg, height, width) got the sides swapped"
+    out = json.loads(capsys.readouterr().out)
+    assert (out["width"], out["height"]) == (512, 256)
+    assert flops.main(["--config", smoke, "--size", "640x96"]) == 0
+    assert "at 640x96 (width x height)" in capsys.readouterr().out
+    assert flops.main(["--config", smoke]) == 0
+    assert seen == [(256, 512), (96, 640), (256, 512)]
+
+
+@pytest.mark.parametrize("size", ["512", "512x256x3", "0x256", "axb"])
+def test_flops_bad_size_is_a_usage_error(size, capsys):
+    with pytest.raises(SystemExit) as e:
+        flops.main(["--config", str(CONFIGS / "smoke.yaml"), "--size", size])
+    assert e.value.code == 2
+    err = capsys.readouterr().err
+    assert "--size" in err and ("WIDTHxHEIGHT" in err or "at least 1" in err), err

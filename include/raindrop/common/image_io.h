@@ -12,6 +12,8 @@
 #include <cstdint>
 #include <filesystem>
 #include <string>
+#include <utility>
+#include <vector>
 
 #include <opencv2/core.hpp>
 
@@ -75,6 +77,24 @@ std::string png_level_name(int png_level);
 // Returns what the format could not hold, in a few words (e.g. "jpeg cannot hold this 16-bit
 // RGBA image: rounded to 8 bits, alpha dropped"), or "" when the file keeps the image whole.
 std::string write_image_atomic(const cv::Mat& image, const std::filesystem::path& path, int png_level = kDefaultPngLevel);
+
+// Images that appear together or not at all (a program's output, mask and contact sheet): each
+// is written to a hidden temporary beside its name (stage, which returns what
+// write_image_atomic would), and all are moved into place by commit(). Until then the
+// destructor removes them, so a destination that fails, whatever the reason (a folder that
+// even root cannot write, such as /proc; a full disk), leaves none of the others behind.
+class StagedImages {
+ public:
+  StagedImages() = default;
+  StagedImages(const StagedImages&) = delete;
+  StagedImages& operator=(const StagedImages&) = delete;
+  ~StagedImages();
+  std::string stage(const cv::Mat& image, const std::filesystem::path& path, int png_level = kDefaultPngLevel);
+  void commit();
+
+ private:
+  std::vector<std::pair<std::filesystem::path, std::filesystem::path>> pending_;  // temporary, final name
+};
 
 // `rgb` (CV_8UC3) encoded as a baseline JPEG of `quality` (1-100, libjpeg's scale, 4:2:0
 // chroma) and decoded again, in memory: what a camera that saves JPEG makes of it. Throws raindrop::Error if the

@@ -1,4 +1,4 @@
-#include "raindrop/render/demo.h"
+#include "raindrop/common/demo.h"
 
 #include <cmath>
 
