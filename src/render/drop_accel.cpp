@@ -319,10 +319,10 @@ DropAccel::DropAccel(const std::vector<Drop>& drops, const GeometryOptions& opti
 
 DropAccel::~DropAccel() = default;
 
-void DropAccel::intersect_packet(const glm::dvec3& origin, const glm::dvec3* dirs, const double* t_min,
+void DropAccel::intersect_packet(const glm::dvec3* origins, const glm::dvec3* dirs, const double* t_min,
                                  const double* t_max, int n, std::optional<DropHit>* hits) const {
   if (options_.kind != GeometryOptions::Kind::Exact || n <= 1) {
-    for (int i = 0; i < n; ++i) hits[i] = intersect(origin, dirs[i], nullptr, t_min[i], t_max[i]);
+    for (int i = 0; i < n; ++i) hits[i] = intersect(origins[i], dirs[i], nullptr, t_min[i], t_max[i]);
     return;
   }
   alignas(32) int valid[kPacket];
@@ -335,12 +335,12 @@ void DropAccel::intersect_packet(const glm::dvec3& origin, const glm::dvec3* dir
   for (int i = 0; i < kPacket; ++i) {
     valid[i] = i < n ? -1 : 0;
     const int k = std::min(i, n - 1);  // lanes past n repeat the last ray, masked out
-    ctx.origin[i] = origin;
+    ctx.origin[i] = origins[k];
     ctx.dir[i] = dirs[k];
     ctx.t_min[i] = t_min[k];
-    rh.ray.org_x[i] = static_cast<float>(origin.x);
-    rh.ray.org_y[i] = static_cast<float>(origin.y);
-    rh.ray.org_z[i] = static_cast<float>(origin.z);
+    rh.ray.org_x[i] = static_cast<float>(origins[k].x);
+    rh.ray.org_y[i] = static_cast<float>(origins[k].y);
+    rh.ray.org_z[i] = static_cast<float>(origins[k].z);
     rh.ray.dir_x[i] = static_cast<float>(dirs[k].x);
     rh.ray.dir_y[i] = static_cast<float>(dirs[k].y);
     rh.ray.dir_z[i] = static_cast<float>(dirs[k].z);

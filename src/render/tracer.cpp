@@ -248,40 +248,54 @@ class Kernel {
   // look-ups overlap.
   // Returns how many of the rays were traced side by side (trace_through_one_drop).
   int trace_camera_packet(const int* xs, int n, double py, DropPath* paths) const {
+    glm::dvec3 origins[8], dirs[8];
+    for (int i = 0; i < n; ++i) {
+      origins[i] = glm::dvec3(0.0);
+      dirs[i] = camera_.ray_direction(xs[i], py);
+    }
+    return trace_packet(origins, dirs, n, paths);
+  }
+
+  // The green (or only) paths of n <= 8 rays origins[i] + t dirs[i] (any length), their first
+  // queries asked as one Embree packet, those on the common path traced side by side
+  // (trace_through_one_drop, with lockstep), the others one at a time: what trace_path gives
+  // each, to the bit. Returns how many were traced side by side.
+  int trace_packet(const glm::dvec3* origins, const glm::dvec3* raw_dirs, int n, DropPath* paths) const {
     glm::dvec3 dirs[8];
     double t_min[8], t_max[8];
     int ask[8], asked = 0;  // the rays that meet the slab, whose first query is asked
     const double top = slab_top(accel_);
     for (int i = 0; i < n; ++i) {
-      dirs[i] = glm::normalize(camera_.ray_direction(xs[i], py));
-      if (slab_range(glm::dvec3(0.0), dirs[i], glass_, top, &t_min[i], &t_max[i])) ask[asked++] = i;
+      dirs[i] = glm::normalize(raw_dirs[i]);
+      if (slab_range(origins[i], dirs[i], glass_, top, &t_min[i], &t_max[i])) ask[asked++] = i;
     }
-    glm::dvec3 ask_dirs[8];
+    glm::dvec3 ask_origins[8], ask_dirs[8];
     double ask_min[8], ask_max[8];
     for (int k = 0; k < asked; ++k) {
+      ask_origins[k] = origins[ask[k]];
       ask_dirs[k] = dirs[ask[k]];
       ask_min[k] = t_min[ask[k]];
       ask_max[k] = t_max[ask[k]];
     }
     std::optional<DropHit> hits[8];
-    accel_.intersect_packet(glm::dvec3(0.0), ask_dirs, ask_min, ask_max, asked, hits);
+    accel_.intersect_packet(ask_origins, ask_dirs, ask_min, ask_max, asked, hits);
     std::optional<DropHit> first[8];
     for (int k = 0; k < asked; ++k) first[ask[k]] = hits[k];
     bool traced[8] = {};
-    if (lockstep_) trace_through_one_drop(dirs, first, n, paths, traced);
+    if (lockstep_) trace_through_one_drop(origins, dirs, first, n, paths, traced);
     int side_by_side = 0;
     for (int i = 0; i < n; ++i) {
       if (traced[i]) {
         ++side_by_side;
       } else {
-        paths[i] = trace_path<kFresnel>(glm::dvec3(0.0), camera_.ray_direction(xs[i], py), n_rgb_.y, tir_, accel_,
-                                        glass_, &first[i]);
+        paths[i] = trace_path<kFresnel>(origins[i], raw_dirs[i], n_rgb_.y, tir_, accel_, glass_, &first[i]);
       }
     }
     return side_by_side;
   }
+  bool lockstep() const { return lockstep_; }
 
-  // The camera rays of a packet that take the common path, traced side by side: in through
+  // The rays of a packet that take the common path, traced side by side: in through
   // a drop's base, out through its cap, and on to the street with no other drop in reach
   // (or black in the dark band). One ray's path is a chain of square roots and divisions,
   // each waiting on the one before; a stage at a time over all the rays gives the processor
@@ -290,8 +304,8 @@ class Kernel {
   // A ray that leaves the common path at any step (a first hit on a cap, total internal
   // reflection traced on, another drop within reach) is marked untraced and traced again
   // from the start by trace_path, which handles everything.
-  void trace_through_one_drop(const glm::dvec3* dirs, const std::optional<DropHit>* first, int n, DropPath* paths,
-                              bool* traced) const {
+  void trace_through_one_drop(const glm::dvec3* origins, const glm::dvec3* dirs, const std::optional<DropHit>* first,
+                              int n, DropPath* paths, bool* traced) const {
     glm::dvec3 o[8], d[8];
     DropHit current[8];
     double t_range[8];
@@ -311,7 +325,7 @@ class Kernel {
       path.first_drop = hit.drop;
       path.events = 1;
       if constexpr (kFresnel) path.transmittance *= 1.0 - fresnel_reflectance(-glm::dot(d[i], hit.normal), eta);
-      o[i] = glm::dvec3(0.0) + hit.t * d[i];
+      o[i] = origins[i] + hit.t * d[i];
       current[i] = hit;
       d[i] = *refracted;
       lane[live++] = i;
@@ -745,8 +759,9 @@ TraceResult run(const cv::Mat& clean, const Camera& camera, const SceneConfig& c
 // that point, so it sees the pixel's own clean colour.
 template <bool kFresnel, bool kDispersion>
 ApertureResult run_aperture(const cv::Mat& clean, const Camera& camera, const SceneConfig& config,
-                            const SceneSample& scene, const DropAccel& accel, int samples, const EffectPlan* plan) {
-  const Kernel<kFresnel, kDispersion> kernel(clean, camera, config, scene, accel, plan);
+                            const SceneSample& scene, const DropAccel& accel, int samples, const EffectPlan* plan,
+                            const TraceStrategy& strategy) {
+  const Kernel<kFresnel, kDispersion> kernel(clean, camera, config, scene, accel, plan, strategy.lockstep);
   ApertureResult out;
   out.linear = cv::Mat(camera.height, camera.width, CV_32FC3, cv::Scalar::all(0));
   out.coverage = cv::Mat(camera.height, camera.width, CV_32F, cv::Scalar(0));
@@ -806,10 +821,30 @@ ApertureResult run_aperture(const cv::Mat& clean, const Camera& camera, const Sc
           const glm::dvec3 own(own_rgb[0], own_rgb[1], own_rgb[2]);
           glm::dvec3 sum(0.0);
           int hits = 0;
+          // With lockstep (no dispersion), the pixel's rays go 8 at a time through
+          // trace_packet, which gives each what sample_ray's trace gives it.
+          constexpr bool kPackets = !kDispersion;
+          glm::dvec3 origins[8], dirs[8];
+          DropPath paths[8];
           for (int sample = 0; sample < k * k; ++sample) {
-            const glm::dvec2 p = lens_point(x, y, sample % k, sample / k);
-            const glm::dvec3 origin(p.x, p.y, 0.0);
-            const Sample s = kernel.sample_ray(origin, focus - origin);
+            Sample s;
+            if (kPackets && kernel.lockstep()) {
+              const int lane = sample % 8;
+              if (lane == 0) {
+                const int n = std::min(8, k * k - sample);
+                for (int i = 0; i < n; ++i) {
+                  const glm::dvec2 p = lens_point(x, y, (sample + i) % k, (sample + i) / k);
+                  origins[i] = glm::dvec3(p.x, p.y, 0.0);
+                  dirs[i] = focus - origins[i];
+                }
+                kernel.trace_packet(origins, dirs, n, paths);
+              }
+              s = kernel.finish(paths[lane], kernel.seen_point(paths[lane]));
+            } else {
+              const glm::dvec2 p = lens_point(x, y, sample % k, sample / k);
+              const glm::dvec3 origin(p.x, p.y, 0.0);
+              s = kernel.sample_ray(origin, focus - origin);
+            }
             if (!s.hit) {
               sum += own;
               continue;
@@ -834,14 +869,15 @@ ApertureResult run_aperture(const cv::Mat& clean, const Camera& camera, const Sc
 }  // namespace
 
 ApertureResult trace_aperture(const cv::Mat& clean, const Camera& camera, const SceneConfig& config,
-                              const SceneSample& scene, const DropAccel& accel, int samples, const EffectPlan* plan) {
+                              const SceneSample& scene, const DropAccel& accel, int samples, const EffectPlan* plan,
+                              const TraceStrategy& strategy) {
   CV_Assert(clean.type() == CV_8UC3 && clean.cols == camera.width && clean.rows == camera.height);
   const bool fresnel = config.fresnel.enabled;
   const bool dispersion = plan ? plan->dispersion_anywhere(config) : config.dispersion.enabled;
-  if (fresnel && dispersion) return run_aperture<true, true>(clean, camera, config, scene, accel, samples, plan);
-  if (fresnel) return run_aperture<true, false>(clean, camera, config, scene, accel, samples, plan);
-  if (dispersion) return run_aperture<false, true>(clean, camera, config, scene, accel, samples, plan);
-  return run_aperture<false, false>(clean, camera, config, scene, accel, samples, plan);
+  if (fresnel && dispersion) return run_aperture<true, true>(clean, camera, config, scene, accel, samples, plan, strategy);
+  if (fresnel) return run_aperture<true, false>(clean, camera, config, scene, accel, samples, plan, strategy);
+  if (dispersion) return run_aperture<false, true>(clean, camera, config, scene, accel, samples, plan, strategy);
+  return run_aperture<false, false>(clean, camera, config, scene, accel, samples, plan, strategy);
 }
 
 TraceResult trace_drops(const cv::Mat& clean, const Camera& camera, const SceneConfig& config,

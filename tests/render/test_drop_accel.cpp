@@ -76,8 +76,7 @@ TEST(ExitSkip, OnlyForExactCapsOfCircularOutlineAndCanBeTurnedOff) {
 // for every ray that leaves a drop.
 TEST(ExitSkip, TracedImagesAreTheSameBitForBit) {
   const Camera cam = camera(320, 160, 353);
-  cv::Mat clean(cam.height, cam.width, CV_8UC3);
-  cv::randu(clean, 0, 256);
+  const cv::Mat clean = random_frame(cam);
   int scenes = 0;
   for (const char* preset : {"paper", "full-physics", "lens-cover", "lens-cover-merged", "windshield-day"}) {
     for (std::uint64_t seed : {1, 2, 3}) {

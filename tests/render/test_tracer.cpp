@@ -294,8 +294,7 @@ double max_colour_difference(const TraceResult& a, const TraceResult& b) {
 
 TEST_P(LensTest, ADropInsideAnotherDropsWaterIsInvisible) {
   const Camera cam = camera(160, 120, 300);
-  cv::Mat clean(cam.height, cam.width, CV_8UC3);
-  cv::randu(clean, 0, 256);
+  const cv::Mat clean = random_frame(cam);
   cv::GaussianBlur(clean, clean, cv::Size(0, 0), 2);  // something smooth to look at through it
   for (TirMode tir : {TirMode::Black, TirMode::Trace}) {
     const DropShape big = cap(0.1, -0.05, 1.0, 70);
@@ -344,8 +343,7 @@ TEST_P(LensTest, ARayThroughTwoMergedDropsBendsOnlyWhereItEntersAndLeavesTheWate
 // would hold nothing), and none where they overlap (one body of water: trace_path's own).
 TEST(Lockstep, TracesTheSameImagesAsOneRayAtATime) {
   const Camera cam = camera(320, 160, 353);
-  cv::Mat clean(cam.height, cam.width, CV_8UC3);
-  cv::randu(clean, 0, 256);
+  const cv::Mat clean = random_frame(cam);
   struct Case {
     std::string name;
     SceneConfig config;
@@ -391,4 +389,35 @@ TEST(Lockstep, TracesTheSameImagesAsOneRayAtATime) {
     }
   }
   EXPECT_GT(side_by_side, disjoint_drop_pixels / 2);
+}
+
+// The aperture reference's rays, a pixel's 8 at a time side by side, give what each ray traced
+// alone gives, bit for bit: thin-lens presets, 9 rays a pixel (a packet of 8 and one of 1) and
+// 16, with Fresnel and with internal reflection traced.
+TEST(Lockstep, ApertureRaysTraceTheSameAsOneAtATime) {
+  const Camera cam = camera(160, 80, 176);
+  const cv::Mat clean = random_frame(cam);
+  int compared = 0;
+  for (const char* preset : {"lens-cover", "lens-cover-heavy", "windshield-day", "windshield-night", "real-photo"}) {
+    for (int variant = 0; variant < 3; ++variant) {
+      SceneConfig c = scene_preset(preset);
+      if (variant == 1) c.fresnel.enabled = true;
+      if (variant == 2) c.tir = TirMode::Trace;
+      Rng rng(5 + variant);
+      const SceneSample scene = sample_scene(c, cam, rng);
+      if (!(scene.aperture_cm() > 0)) continue;
+      const std::vector<Drop> drops = drops_of(scene);
+      DropAccel accel(drops, c.geometry);
+      accel.set_disjoint(!c.allow_overlap && !c.trails.enabled);
+      for (int samples : {9, 16}) {
+        const ApertureResult a = trace_aperture(clean, cam, c, scene, accel, samples, nullptr, TraceStrategy{true});
+        const ApertureResult b = trace_aperture(clean, cam, c, scene, accel, samples, nullptr, TraceStrategy{false});
+        ASSERT_GT(cv::countNonZero(b.coverage), 0) << preset << " variant " << variant;
+        EXPECT_TRUE(equal_bits(a.coverage, b.coverage)) << preset << " variant " << variant << " samples " << samples;
+        EXPECT_TRUE(equal_bits(a.linear, b.linear)) << preset << " variant " << variant << " samples " << samples;
+        ++compared;
+      }
+    }
+  }
+  EXPECT_GE(compared, 20);
 }

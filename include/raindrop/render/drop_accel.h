@@ -60,12 +60,19 @@ class DropAccel {
                                    const DropHit* from = nullptr, double t_min = 0.0,
                                    double t_max = std::numeric_limits<double>::infinity()) const;
 
-  // intersect() with no starting surface for n rays from one origin (n <= 8: camera rays
-  // through neighbouring pixels), as one Embree packet query for exact caps: the rays take
-  // nearly the same path through the tree, walked once for all of them. hits[i] is what
-  // intersect(origin, dirs[i], nullptr, t_min[i], t_max[i]) gives.
-  void intersect_packet(const glm::dvec3& origin, const glm::dvec3* dirs, const double* t_min, const double* t_max,
+  // intersect() with no starting surface for n rays (n <= 8: camera rays through neighbouring
+  // pixels, or one pixel's rays from points of the aperture), as one Embree packet query for
+  // exact caps: the rays take nearly the same path through the tree, walked once for all of
+  // them. hits[i] is what intersect(origins[i], dirs[i], nullptr, t_min[i], t_max[i]) gives.
+  void intersect_packet(const glm::dvec3* origins, const glm::dvec3* dirs, const double* t_min, const double* t_max,
                         int n, std::optional<DropHit>* hits) const;
+  // The same for rays from one origin.
+  void intersect_packet(const glm::dvec3& origin, const glm::dvec3* dirs, const double* t_min, const double* t_max,
+                        int n, std::optional<DropHit>* hits) const {
+    glm::dvec3 origins[8];
+    for (int i = 0; i < n && i < 8; ++i) origins[i] = origin;
+    intersect_packet(origins, dirs, t_min, t_max, n, hits);
+  }
 
   // The first surface met by a ray that is inside the water of drop `from.drop`. When drops
   // are disjoint (`set_disjoint`; footprints apart, so caps apart) and caps are exact, the

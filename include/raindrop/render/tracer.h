@@ -77,9 +77,10 @@ glm::dvec2 background_pixel(const DropPath& path, const Camera& camera, double b
 // How trace_drops schedules its work; every choice gives the same result to the bit (tests
 // hold them to each other).
 struct TraceStrategy {
-  // Camera rays that go in through one drop's base and out through its cap traced 8 side by
-  // side, a step at a time (disjoint drops only): their chains of square roots and divisions
-  // overlap instead of waiting on each other.
+  // Camera rays (and a pixel's aperture rays, trace_aperture) that go in through one drop's
+  // base and out through its cap traced 8 side by side, a step at a time (disjoint drops
+  // only): their chains of square roots and divisions overlap instead of waiting on each
+  // other. Off: every ray alone (trace_aperture: one query per ray, no packets).
   bool lockstep = true;
 };
 
@@ -95,6 +96,6 @@ struct ApertureResult {
 };
 ApertureResult trace_aperture(const cv::Mat& clean, const Camera& camera, const SceneConfig& config,
                               const SceneSample& scene, const DropAccel& accel, int samples,
-                              const EffectPlan* plan = nullptr);
+                              const EffectPlan* plan = nullptr, const TraceStrategy& strategy = {});
 
 }  // namespace raindrop
