@@ -30,7 +30,7 @@
 #                            everything from the fresh root)
 #   RAINDROP_FRESH_KEEP=1    keep the check's root afterwards (path printed) to look inside
 #
-# Taken from this machine into the root: /etc/resolv.conf, the local certificate authorities
+# Taken from this machine into the root: /etc/resolv.conf, /etc/hosts, the local certificate authorities
 # (/usr/local/share/ca-certificates) and /etc/pip.conf, the network's set-up, not the project's.
 #
 # Every check starts from a pristine copy of the bare root (unpacked from the tarball), so
@@ -181,9 +181,16 @@ unpack_root() {
   root="$(mktemp -d "$cache/check.XXXXXX")"
   tar -C "$root" --numeric-owner -xpf "$bare"
   cp /etc/resolv.conf "$root/etc/resolv.conf"
-  # Every installed Debian machine has an /etc/hosts naming localhost (the installer writes it);
-  # debootstrap's root has none, and without it torchrun's two-process tests cannot rendezvous.
-  [[ -f "$root/etc/hosts" ]] || printf '127.0.0.1\tlocalhost\n::1\t\tlocalhost ip6-localhost ip6-loopback\n' > "$root/etc/hosts"
+  # Every installed machine's /etc/hosts names localhost and the machine itself (Debian's
+  # installer writes both); debootstrap's root has none. The chroot shares this machine's host
+  # name, so it takes this machine's file, as it takes resolv.conf: without the name, torchrun's
+  # workers cannot reach their rendezvous ("gai error -2" for the host name, the two-process
+  # tests time out).
+  if [[ -f /etc/hosts ]]; then
+    cp /etc/hosts "$root/etc/hosts"
+  else
+    printf '127.0.0.1\tlocalhost\n127.0.1.1\t%s\n' "$(hostname)" > "$root/etc/hosts"
+  fi
   # This machine's network set-up, which a fresh machine on the same network needs as well:
   # local certificate authorities (such as a TLS-inspecting proxy's; ca-certificates, when
   # setup.sh installs it, adds them to the system bundle) and pip's site configuration.
