@@ -130,9 +130,10 @@ struct Settings {
 };
 
 // Removes the drops from one file, staging its output and mask in `files` (the caller commits
-// them); returns the panels for the contact sheet.
+// them, then says what the output's format lost: `lost`); returns the panels for the contact
+// sheet.
 std::vector<cv::Mat> process(Remover& remover, const Job& job, const Settings& s, bool want_panels,
-                             StagedImages* files) {
+                             StagedImages* files, std::string* lost) {
   const cv::Mat input = read_image_native(job.input);
   RemoveResult r = remover.run(input, s.options);
   if (job.make_dirs) {
@@ -142,7 +143,7 @@ std::vector<cv::Mat> process(Remover& remover, const Job& job, const Settings& s
         throw Error("cannot create the folder '" + p->parent_path().string() + "' (" + ec.message() + ")");
     }
   }
-  warn_format_loss(job.output, files->stage(r.image, job.output));
+  *lost = files->stage(r.image, job.output);
   if (job.mask) files->stage(r.mask, *job.mask);
   if (s.time) {
     const double coverage = 100.0 * cv::countNonZero(r.mask) / static_cast<double>(r.mask.total());
@@ -403,12 +404,15 @@ int run(int argc, char** argv) {
   // One image: its output, mask and contact sheet appear together or not at all (a sheet that
   // fails to write leaves no output). Folder mode: each image's output and mask together.
   StagedImages single;
+  std::string single_lost;
   for (const auto& job : jobs) {
     const bool want_panels = !sheet.empty() && static_cast<int>(rows.size()) < kSheetRows;
     try {
       StagedImages files;
-      auto panels = process(remover, job, s, want_panels, batch ? &files : &single);
+      std::string lost;
+      auto panels = process(remover, job, s, want_panels, batch ? &files : &single, batch ? &lost : &single_lost);
       files.commit();
+      warn_format_loss(job.output, lost);
       if (want_panels) {
         rows.push_back(std::move(panels));
         captions.push_back(job.caption);
@@ -430,6 +434,7 @@ int run(int argc, char** argv) {
     }
   }
   single.commit();
+  if (!batch) warn_format_loss(jobs.front().output, single_lost);
   for (const auto& e : errors) std::cerr << "raindrop-remove: failed: " << e << "\n";
   if (batch && (!quiet || !errors.empty()))
     std::fprintf(stderr, "raindrop-remove: %zu of %zu images done, %zu failed; output in %s\n",

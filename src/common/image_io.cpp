@@ -324,9 +324,11 @@ std::string StagedImages::stage(const cv::Mat& image, const fs::path& path, int 
 }
 
 void StagedImages::commit() {
+  // Last staged first: the first (a program's main output) replaces its file only after the
+  // others are in place.
   while (!pending_.empty()) {
-    const auto [tmp, path] = pending_.front();
-    pending_.erase(pending_.begin());
+    const auto [tmp, path] = pending_.back();
+    pending_.pop_back();
     move_into_place(tmp, path);  // removes tmp on failure; the destructor removes the rest
   }
 }

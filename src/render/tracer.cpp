@@ -300,7 +300,8 @@ class Kernel {
   // (or black in the dark band). One ray's path is a chain of square roots and divisions,
   // each waiting on the one before; a stage at a time over all the rays gives the processor
   // independent work to overlap. Each step is trace_path's own arithmetic in the same order,
-  // so the result is the same to the bit (RenderFrame tests compare with the lock-step off).
+  // so the result is the same to the bit (tests/render/test_tracer.cpp, Lockstep.*, compare
+  // with the lock-step off).
   // A ray that leaves the common path at any step (a first hit on a cap, total internal
   // reflection traced on, another drop within reach) is marked untraced and traced again
   // from the start by trace_path, which handles everything.
@@ -808,7 +809,9 @@ ApertureResult run_aperture(const cv::Mat& clean, const Camera& camera, const Sc
   }
   for (auto& r : rows) merge_spans(r);
   const double T = scene.background_distance_cm;
+  std::atomic<std::int64_t> lockstep{0};
   tbb::parallel_for(tbb::blocked_range<int>(0, camera.height, 4), [&](const tbb::blocked_range<int>& r) {
+    std::int64_t n_lock = 0;
     for (int y = r.begin(); y < r.end(); ++y) {
       auto* out_rgb = out.linear.ptr<cv::Vec3f>(y);
       auto* out_cov = out.coverage.ptr<float>(y);
@@ -837,7 +840,7 @@ ApertureResult run_aperture(const cv::Mat& clean, const Camera& camera, const Sc
                   origins[i] = glm::dvec3(p.x, p.y, 0.0);
                   dirs[i] = focus - origins[i];
                 }
-                kernel.trace_packet(origins, dirs, n, paths);
+                n_lock += kernel.trace_packet(origins, dirs, n, paths);
               }
               s = kernel.finish(paths[lane], kernel.seen_point(paths[lane]));
             } else {
@@ -862,7 +865,9 @@ ApertureResult run_aperture(const cv::Mat& clean, const Camera& camera, const Sc
         }
       }
     }
+    lockstep += n_lock;
   });
+  out.lockstep_rays = lockstep;
   return out;
 }
 

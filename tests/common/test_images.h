@@ -47,9 +47,6 @@ inline std::optional<Image> read_image(const std::filesystem::path& p, std::stri
   return img;
 }
 
-// Writes an 8-bit (CV_8U), 16-bit (CV_16U) or float (CV_32F) image with any channel count in
-// RGB(A) order (2 and 4 channels: the last is an unassociated alpha), as stored: for the
-// refusals too (float, five channels).
 // Colour gradients with edges: what a photograph's blocks look like to the codec.
 inline cv::Mat street_like(int rows, int cols, int channels) {
   cv::Mat m(rows, cols, CV_8UC(channels));
@@ -60,6 +57,9 @@ inline cv::Mat street_like(int rows, int cols, int channels) {
   return m;
 }
 
+// Writes an 8-bit (CV_8U), 16-bit (CV_16U) or float (CV_32F) image with any channel count in
+// RGB(A) order (2 and 4 channels: the last is an unassociated alpha), as stored: for the
+// refusals too (float, five channels).
 inline void write_image(const std::filesystem::path& p, const cv::Mat& m) {
   if (p.has_parent_path()) std::filesystem::create_directories(p.parent_path());
   auto out = OIIO::ImageOutput::create(p.string());

@@ -608,9 +608,11 @@ TEST_F(RemoveCli, BadMaskOrSheetLeavesNoOutput) {
   EXPECT_FALSE(fs::exists(tmp / "results" / "a.png")) << "output written before the sheet was found unwritable";
 }
 
-// A folder that not even root may write into: /proc takes no new files. The destination checks
-// cannot see that (for root, access() says it is writable), so this holds the writing itself
-// to leave nothing behind: the output, mask and sheet appear together or not at all.
+// A folder that not even root may write into: /proc takes no new files. For root the
+// destination checks cannot see that (access() says it is writable), so this holds the writing
+// itself to leave nothing behind: the output, mask and sheet appear together or not at all.
+// (Run as another user, the checks refuse /proc first; the staging is then tested only as root,
+// which is how this project's machines and its fresh-machine check run.)
 TEST_F(RemoveCli, MaskOrSheetThatEvenRootCannotWriteLeavesNoOutput) {
   if (!fs::is_directory("/proc/self")) GTEST_SKIP() << "no /proc here";
   for (const std::vector<std::string>& args :

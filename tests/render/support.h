@@ -80,11 +80,11 @@ inline SceneSample crowded_scene(std::uint64_t seed, const Camera& cam) {
   return sample_scene(c, cam, rng);
 }
 
-// A frame of uniform random 8-bit RGB noise of the camera's size (fixed seed: OpenCV's default
-// random state): every pixel differs from its neighbours, so any change to a traced ray shows.
+// A frame of uniform random 8-bit RGB noise of the camera's size, the same for every call:
+// every pixel differs from its neighbours, so any change to a traced ray shows.
 inline cv::Mat random_frame(const Camera& cam) {
   cv::Mat clean(cam.height, cam.width, CV_8UC3);
-  cv::randu(clean, 0, 256);
+  cv::RNG(0x5eed).fill(clean, cv::RNG::UNIFORM, 0, 256);
   return clean;
 }
 

@@ -110,7 +110,7 @@ TEST(ExitSkip, TracedImagesAreTheSameBitForBit) {
 
 // A packet query answers each ray as a single-ray query does: same drop, surface, distance
 // and normal, bit for bit, for rays from the camera through every pixel of a frame (packets
-// of 1 to 8 rays), on scenes with overlapping, merged and irregular drops; and for exact caps
+// of 1 to 8 rays; on every other row each ray from its own point of the lens), on scenes with overlapping, merged and irregular drops; and for exact caps
 // that answer is the nearest of every drop's own (where merged caps cross, two drops are met
 // within a float's rounding, and the order Embree visits them in must not decide).
 TEST(PacketQuery, AnswersEachRayAsASingleQueryDoes) {
@@ -126,24 +126,31 @@ TEST(PacketQuery, AnswersEachRayAsASingleQueryDoes) {
       for (int y = 0; y < cam.height; ++y) {
         for (int x0 = 0; x0 < cam.width;) {
           const int n = std::min(1 + (x0 + y) % 8, cam.width - x0);
-          glm::dvec3 dirs[8];
+          glm::dvec3 origins[8], dirs[8];
           double t_min[8], t_max[8];
+          // Odd rows: every ray from its own point of a 1 cm aperture (trace_aperture's packets).
+          const bool own_origins = y % 2 == 1;
           for (int i = 0; i < n; ++i) {
+            origins[i] = own_origins ? glm::dvec3(0.4 * std::cos(2.1 * i), 0.4 * std::sin(2.1 * i), 0.0) : glm::dvec3(0.0);
             dirs[i] = glm::normalize(cam.ray_direction(x0 + i, y));
             t_min[i] = 0.5 * (i % 3);
             t_max[i] = i % 4 == 3 ? 1e3 : std::numeric_limits<double>::infinity();
           }
           std::optional<DropHit> packet[8];
-          accel.intersect_packet(glm::dvec3(0.0), dirs, t_min, t_max, n, packet);
+          if (own_origins) {
+            accel.intersect_packet(origins, dirs, t_min, t_max, n, packet);
+          } else {
+            accel.intersect_packet(glm::dvec3(0.0), dirs, t_min, t_max, n, packet);
+          }
           for (int i = 0; i < n; ++i) {
-            const auto one = accel.intersect(glm::dvec3(0.0), dirs[i], nullptr, t_min[i], t_max[i]);
+            const auto one = accel.intersect(origins[i], dirs[i], nullptr, t_min[i], t_max[i]);
             ASSERT_EQ(one.has_value(), packet[i].has_value()) << preset << " " << x0 + i << "," << y;
             if (c.geometry.kind == GeometryOptions::Kind::Exact) {
               // The nearest of every drop's own answer (a tie: the lower index).
               std::optional<SurfaceHit> nearest;
               int nearest_drop = -1;
               for (size_t j = 0; j < drops.size(); ++j) {
-                const auto h = drops[j].intersect(glm::dvec3(0.0), dirs[i], t_min[i], t_max[i]);
+                const auto h = drops[j].intersect(origins[i], dirs[i], t_min[i], t_max[i]);
                 if (h && (!nearest || h->t < nearest->t)) nearest = h, nearest_drop = static_cast<int>(j);
               }
               ASSERT_EQ(one.has_value(), nearest.has_value()) << preset << " " << x0 + i << "," << y;

@@ -392,8 +392,9 @@ TEST(Lockstep, TracesTheSameImagesAsOneRayAtATime) {
 }
 
 // The aperture reference's rays, a pixel's 8 at a time side by side, give what each ray traced
-// alone gives, bit for bit: thin-lens presets, 9 rays a pixel (a packet of 8 and one of 1) and
-// 16, with Fresnel and with internal reflection traced.
+// alone gives, bit for bit: thin-lens presets, 9 rays a pixel (a packet of 8 and one of 1), 16
+// and 25 (a last packet of 1; 36 below: of 4), without Fresnel, with it and with internal
+// reflection traced; and the side-by-side path is taken.
 TEST(Lockstep, ApertureRaysTraceTheSameAsOneAtATime) {
   const Camera cam = camera(160, 80, 176);
   const cv::Mat clean = random_frame(cam);
@@ -401,7 +402,7 @@ TEST(Lockstep, ApertureRaysTraceTheSameAsOneAtATime) {
   for (const char* preset : {"lens-cover", "lens-cover-heavy", "windshield-day", "windshield-night", "real-photo"}) {
     for (int variant = 0; variant < 3; ++variant) {
       SceneConfig c = scene_preset(preset);
-      if (variant == 1) c.fresnel.enabled = true;
+      c.fresnel.enabled = variant != 0;
       if (variant == 2) c.tir = TirMode::Trace;
       Rng rng(5 + variant);
       const SceneSample scene = sample_scene(c, cam, rng);
@@ -409,15 +410,17 @@ TEST(Lockstep, ApertureRaysTraceTheSameAsOneAtATime) {
       const std::vector<Drop> drops = drops_of(scene);
       DropAccel accel(drops, c.geometry);
       accel.set_disjoint(!c.allow_overlap && !c.trails.enabled);
-      for (int samples : {9, 16}) {
+      for (int samples : {9, 16, variant == 0 ? 36 : 25}) {
         const ApertureResult a = trace_aperture(clean, cam, c, scene, accel, samples, nullptr, TraceStrategy{true});
         const ApertureResult b = trace_aperture(clean, cam, c, scene, accel, samples, nullptr, TraceStrategy{false});
         ASSERT_GT(cv::countNonZero(b.coverage), 0) << preset << " variant " << variant;
+        EXPECT_GT(a.lockstep_rays, 0) << preset << " variant " << variant;
+        EXPECT_EQ(b.lockstep_rays, 0) << preset << " variant " << variant;
         EXPECT_TRUE(equal_bits(a.coverage, b.coverage)) << preset << " variant " << variant << " samples " << samples;
         EXPECT_TRUE(equal_bits(a.linear, b.linear)) << preset << " variant " << variant << " samples " << samples;
         ++compared;
       }
     }
   }
-  EXPECT_GE(compared, 20);
+  EXPECT_GE(compared, 30);
 }

@@ -81,8 +81,11 @@ std::string write_image_atomic(const cv::Mat& image, const std::filesystem::path
 // Images that appear together or not at all (a program's output, mask and contact sheet): each
 // is written to a hidden temporary beside its name (stage, which returns what
 // write_image_atomic would), and all are moved into place by commit(). Until then the
-// destructor removes them, so a destination that fails, whatever the reason (a folder that
-// even root cannot write, such as /proc; a full disk), leaves none of the others behind.
+// destructor removes them, so a destination that fails to write, whatever the reason (a folder
+// that even root cannot write, such as /proc; a full disk), leaves none of the others behind.
+// commit() renames the last staged first, so the first staged (the main output) replaces its
+// file last; a rename that fails there (rare: the file was written beside it) still leaves
+// the ones before it in place.
 class StagedImages {
  public:
   StagedImages() = default;

@@ -71,19 +71,20 @@ DropPath trace_through_drops(const glm::dvec3& origin, const glm::dvec3& dir, do
 // background plane is z = background_z); rays that never reach it are followed to infinity.
 glm::dvec2 background_pixel(const DropPath& path, const Camera& camera, double background_z);
 
-// `clean` is the frame (CV_8UC3, RGB); `accel` holds the scene's drops. `plan`: the effects
-// chosen per drop where the scene says "auto" (effect_policy.h); without one, every effect
-// the scene names is simulated for every drop.
-// How trace_drops schedules its work; every choice gives the same result to the bit (tests
-// hold them to each other).
+// How trace_drops and trace_aperture schedule their work; every choice gives the same result
+// to the bit (tests hold them to each other).
 struct TraceStrategy {
   // Camera rays (and a pixel's aperture rays, trace_aperture) that go in through one drop's
   // base and out through its cap traced 8 side by side, a step at a time (disjoint drops
   // only): their chains of square roots and divisions overlap instead of waiting on each
-  // other. Off: every ray alone (trace_aperture: one query per ray, no packets).
+  // other. Off: every ray is traced alone after its first query (trace_drops still asks the
+  // camera rays' first queries as Embree packets; trace_aperture asks one query per ray).
   bool lockstep = true;
 };
 
+// `clean` is the frame (CV_8UC3, RGB); `accel` holds the scene's drops. `plan`: the effects
+// chosen per drop where the scene says "auto" (effect_policy.h); without one, every effect
+// the scene names is simulated for every drop.
 TraceResult trace_drops(const cv::Mat& clean, const Camera& camera, const SceneConfig& config,
                         const SceneSample& scene, const DropAccel& accel, const EffectPlan* plan = nullptr,
                         const TraceStrategy& strategy = {});
@@ -93,6 +94,7 @@ TraceResult trace_drops(const cv::Mat& clean, const Camera& camera, const SceneC
 struct ApertureResult {
   cv::Mat linear;    // CV_32FC3 linear RGB, where coverage > 0 (zero elsewhere)
   cv::Mat coverage;  // CV_32F: the fraction of the aperture's rays that met a drop
+  std::int64_t lockstep_rays = 0;  // rays traced side by side (TraceStrategy::lockstep)
 };
 ApertureResult trace_aperture(const cv::Mat& clean, const Camera& camera, const SceneConfig& config,
                               const SceneSample& scene, const DropAccel& accel, int samples,
