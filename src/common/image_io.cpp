@@ -128,6 +128,13 @@ std::string temp_name_for(const fs::path& path) {
          std::to_string(counter++);
 }
 
+// The hidden temporary a file is written to beside its final name, in the same folder (so that
+// the rename into place never crosses file systems).
+fs::path temporary_beside(const fs::path& path) {
+  const fs::path dir = path.has_parent_path() ? path.parent_path() : fs::path(".");
+  return dir / temp_name_for(path);
+}
+
 // Renames the finished temporary over `path`; on failure removes it and reports the
 // rename's own error (a clean-up sharing its error_code reported "Success").
 void move_into_place(const fs::path& tmp, const fs::path& path) {
@@ -297,11 +304,6 @@ std::string write_image_file(const cv::Mat& image, const fs::path& tmp, const fs
   return lost;
 }
 
-fs::path temporary_beside(const fs::path& path) {
-  const fs::path dir = path.has_parent_path() ? path.parent_path() : fs::path(".");
-  return dir / temp_name_for(path);
-}
-
 }  // namespace
 
 std::string write_image_atomic(const cv::Mat& image, const fs::path& path, int png_level) {
@@ -377,7 +379,7 @@ void ensure_writable_dir(const fs::path& dir) {
   std::error_code ec;
   fs::create_directories(dir, ec);
   if (ec || !fs::is_directory(dir)) throw Error("output folder " + quoted(dir) + " cannot be created (" + (ec ? ec.message() : "not a folder") + ")");
-  const fs::path probe = dir / temp_name_for(dir / "probe");
+  const fs::path probe = temporary_beside(dir / "probe");
   {
     std::ofstream f(probe);
     if (!f || !(f << "ok") || !f.flush()) {
@@ -390,8 +392,7 @@ void ensure_writable_dir(const fs::path& dir) {
 }
 
 void copy_file_atomic(const fs::path& from, const fs::path& to) {
-  const fs::path dir = to.has_parent_path() ? to.parent_path() : fs::path(".");
-  const fs::path tmp = dir / temp_name_for(to);
+  const fs::path tmp = temporary_beside(to);
   std::error_code ec;
   if (!fs::copy_file(from, tmp, fs::copy_options::overwrite_existing, ec)) {
     std::error_code ignored;
@@ -402,8 +403,7 @@ void copy_file_atomic(const fs::path& from, const fs::path& to) {
 }
 
 void write_text_atomic(const std::string& text, const fs::path& path) {
-  const fs::path dir = path.has_parent_path() ? path.parent_path() : fs::path(".");
-  const fs::path tmp = dir / temp_name_for(path);
+  const fs::path tmp = temporary_beside(path);
   std::error_code ec;
   {
     std::ofstream f(tmp, std::ios::binary);

@@ -182,7 +182,7 @@ class Kernel {
   // `lockstep`: camera rays on the common path traced side by side (trace_through_one_drop;
   // only where drops are disjoint).
   Kernel(const cv::Mat& clean, const Camera& camera, const SceneConfig& config,
-         const SceneSample& scene, const DropAccel& accel, const EffectPlan* plan, bool lockstep = false)
+         const SceneSample& scene, const DropAccel& accel, const EffectPlan* plan, bool lockstep)
       : bg_(clean, config.border),
         camera_(camera),
         scene_(scene),

@@ -137,11 +137,7 @@ TEST(PacketQuery, AnswersEachRayAsASingleQueryDoes) {
             t_max[i] = i % 4 == 3 ? 1e3 : std::numeric_limits<double>::infinity();
           }
           std::optional<DropHit> packet[8];
-          if (own_origins) {
-            accel.intersect_packet(origins, dirs, t_min, t_max, n, packet);
-          } else {
-            accel.intersect_packet(glm::dvec3(0.0), dirs, t_min, t_max, n, packet);
-          }
+          accel.intersect_packet(origins, dirs, t_min, t_max, n, packet);
           for (int i = 0; i < n; ++i) {
             const auto one = accel.intersect(origins[i], dirs[i], nullptr, t_min[i], t_max[i]);
             ASSERT_EQ(one.has_value(), packet[i].has_value()) << preset << " " << x0 + i << "," << y;

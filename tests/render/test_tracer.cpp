@@ -382,7 +382,9 @@ TEST(Lockstep, TracesTheSameImagesAsOneRayAtATime) {
     EXPECT_TRUE(equal_bits(ca, cb)) << k.name;
     EXPECT_EQ(a.stats.dark_band_pixels, b.stats.dark_band_pixels) << k.name;
     EXPECT_EQ(a.stats.off_frame_pixels, b.stats.off_frame_pixels) << k.name;
-    if (!disjoint) EXPECT_EQ(a.stats.lockstep_pixels, 0) << k.name;
+    if (!disjoint) {
+      EXPECT_EQ(a.stats.lockstep_pixels, 0) << k.name;
+    }
     if (disjoint && !k.config.dispersion.enabled) {
       disjoint_drop_pixels += a.stats.drop_pixels;
       side_by_side += a.stats.lockstep_pixels;

@@ -33,3 +33,15 @@ def unit_interval(text: str) -> float:
     if not 0.0 <= value <= 1.0:
         raise argparse.ArgumentTypeError(f"{text} is not in [0, 1]")
     return value
+
+
+def width_x_height(text: str) -> tuple[int, int]:
+    """An argparse ``type``: ``WIDTHxHEIGHT`` (e.g. 512x256), as every program of the project
+    takes sizes, returned as (width, height), both >= 1."""
+    try:
+        w, h = (int(v) for v in text.lower().split("x"))
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected WIDTHxHEIGHT (e.g. 512x256), got {text!r}") from None
+    if w < 1 or h < 1:
+        raise argparse.ArgumentTypeError(f"width and height must be at least 1, got {text!r}")
+    return w, h

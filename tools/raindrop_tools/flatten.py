@@ -21,6 +21,7 @@ from pathlib import Path
 import numpy as np
 from PIL import Image, ImageFilter
 
+from .cli_args import width_x_height
 from .imageio import IMAGE_SUFFIXES
 
 
@@ -58,8 +59,8 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--colours", type=int, default=12, help="colours per frame")
     args = ap.parse_args(argv)
     try:
-        w, h = (int(v) for v in args.size.lower().split("x"))
-    except ValueError:
+        w, h = width_x_height(args.size)
+    except argparse.ArgumentTypeError:
         print(f"flatten: error: --size {args.size!r} must be WIDTHxHEIGHT", file=sys.stderr)
         return 2
     frames = sorted(p for p in args.input.iterdir() if p.suffix.lower() in IMAGE_SUFFIXES) if args.input.is_dir() else []

@@ -21,6 +21,7 @@ import sys
 import torch
 import torch.nn as nn
 
+from .cli_args import width_x_height
 from .config import ConfigError, NetworkConfig, load_config
 from .networks import NETWORK_NAMES, build_network, example_inputs
 
@@ -75,25 +76,13 @@ def parameter_count(model: nn.Module) -> int:
     return sum(p.numel() for p in model.parameters())
 
 
-def _width_x_height(text: str) -> tuple[int, int]:
-    """An argparse ``type``: ``WIDTHxHEIGHT`` (e.g. 512x256) as (width, height), both >= 1.
-    It used to be HxW, the other way round from every other program of the project."""
-    try:
-        w, h = (int(v) for v in text.lower().split("x"))
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected WIDTHxHEIGHT (e.g. 512x256), got {text!r}") from None
-    if w < 1 or h < 1:
-        raise argparse.ArgumentTypeError(f"width and height must be at least 1, got {text!r}")
-    return w, h
-
-
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(prog="python -m raindrop_tools.flops", description=__doc__.split("\n")[0])
     ap.add_argument("--config", required=True, action="append", help="run configuration(s) (YAML)")
     ap.add_argument(
         "--size",
         default="512x256",
-        type=_width_x_height,
+        type=width_x_height,  # it used to be HxW, the other way round from every other program
         metavar="WIDTHxHEIGHT",
         help="WIDTHxHEIGHT, as for the project's other programs (default 512x256: 512 wide, 256 high)",
     )

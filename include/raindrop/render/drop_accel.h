@@ -66,13 +66,6 @@ class DropAccel {
   // them. hits[i] is what intersect(origins[i], dirs[i], nullptr, t_min[i], t_max[i]) gives.
   void intersect_packet(const glm::dvec3* origins, const glm::dvec3* dirs, const double* t_min, const double* t_max,
                         int n, std::optional<DropHit>* hits) const;
-  // The same for rays from one origin.
-  void intersect_packet(const glm::dvec3& origin, const glm::dvec3* dirs, const double* t_min, const double* t_max,
-                        int n, std::optional<DropHit>* hits) const {
-    glm::dvec3 origins[8];
-    for (int i = 0; i < n && i < 8; ++i) origins[i] = origin;
-    intersect_packet(origins, dirs, t_min, t_max, n, hits);
-  }
 
   // The first surface met by a ray that is inside the water of drop `from.drop`. When drops
   // are disjoint (`set_disjoint`; footprints apart, so caps apart) and caps are exact, the
