@@ -32,6 +32,7 @@ import torch.nn as nn
 
 from . import checkpoint as ckpt
 from . import contract as C
+from . import onnx_weights
 from .config import RunConfig, config_from_dict, is_safe_name, to_dict
 from .flops import gflops, parameter_count
 from .networks import build_networks
@@ -171,8 +172,11 @@ def parity(name: str, net: nn.Module, path: Path, inputs: tuple[torch.Tensor, ..
     return float(np.abs(got - want).max())
 
 
-def load_run(run_dir: Path, checkpoint: Path | None = None, allow_incomplete: bool = False):
-    """(config, networks in eval mode, checkpoint info) of a run's latest checkpoint."""
+def load_run(run_dir: Path, checkpoint: Path | None = None, allow_incomplete: bool = False,
+             detector_only: bool = False):
+    """(config, networks in eval mode, checkpoint info) of a run's latest checkpoint.
+    ``detector_only``: only the detector will be taken from it, so a complete stage 1 is
+    finished training."""
     run_dir = Path(run_dir)
     if checkpoint is None:
         ref = ckpt.latest_checkpoint(run_dir)
@@ -183,7 +187,10 @@ def load_run(run_dir: Path, checkpoint: Path | None = None, allow_incomplete: bo
         state = ckpt.load_checkpoint(checkpoint)
     except ckpt.CheckpointError as e:
         raise ExportError(str(e)) from e
-    if not allow_incomplete and not (state["stage"] == 2 and state["complete"]):
+    # A stage-2 checkpoint follows a complete stage 1, so its detector is final.
+    finished = state["stage"] == 2 if detector_only else False
+    finished = finished or (state["complete"] and (state["stage"] == 2 or detector_only))
+    if not allow_incomplete and not finished:
         raise ExportError(
             f"{checkpoint}: stage {state['stage']} step {state['step']} of {state['total_steps']}: "
             "training is not finished (stage 2 complete); pass --allow-incomplete to export anyway"
@@ -195,6 +202,24 @@ def load_run(run_dir: Path, checkpoint: Path | None = None, allow_incomplete: bo
         net.eval()
     info = {"path": str(checkpoint), "stage": state["stage"], "step": state["step"], "complete": state["complete"]}
     return cfg, nets, info
+
+
+def take_reconstruction(nets: dict[str, nn.Module], folder: Path, source: dict | None) -> dict:
+    """Replaces 3RN and RFN in ``nets`` by those of the exported model folder ``folder``
+    (weights read back from its graphs, checked against ONNX Runtime: onnx_weights.py). A
+    detector fine-tuned alone is shipped with the reconstruction it was tuned beside, not with
+    the copies its run trained on the way. Returns ``source`` with the folder recorded."""
+    try:
+        for name in ("rrn", "rfn"):
+            path = folder / C.FILES[name]
+            if not path.is_file():
+                raise ExportError(f"--reconstruction-from {folder}: no {C.FILES[name]} there")
+            onnx_weights.load_network(nets[name], name, path)
+            onnx_weights.check_against_onnxruntime(nets[name], name, path)
+            nets[name].eval()
+    except onnx_weights.OnnxWeightsError as e:
+        raise ExportError(f"--reconstruction-from {folder}: {e}") from e
+    return {**(source or {}), "reconstruction_from": str(folder)}
 
 
 def export_networks(cfg: RunConfig, nets: dict[str, nn.Module], out_dir: Path, source: dict | None = None) -> dict:
@@ -254,18 +279,32 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--threads", type=int, help="torch CPU threads (default: torch's choice)")
     ap.add_argument("--name", help="configuration name recorded in the graphs and the default folder (default: the "
                                    "run's; e.g. a fine-tuned model shipped beside the one it started from)")
+    ap.add_argument("--reconstruction-from", metavar="DIR",
+                    help="take 3RN and RFN from this exported model folder instead of the run, and the run's "
+                         "detector alone (a run that fine-tuned the detector: its stage 1 suffices)")
+    ap.add_argument("--threshold", type=float, metavar="T",
+                    help="detection threshold recorded in the graphs (default: the run's pipeline.threshold); a "
+                         "deployment choice made on validation sets after training, which it does not change")
     args = ap.parse_args(argv)
+    if args.threshold is not None and not 0.0 < args.threshold < 1.0:
+        print(f"error: --threshold {args.threshold} must be between 0 and 1", file=sys.stderr)
+        return 2
     if args.threads:
         torch.set_num_threads(args.threads)
     try:
         cfg, nets, source = load_run(
-            Path(args.run), Path(args.checkpoint) if args.checkpoint else None, args.allow_incomplete
+            Path(args.run), Path(args.checkpoint) if args.checkpoint else None,
+            args.allow_incomplete, detector_only=bool(args.reconstruction_from),
         )
+        if args.reconstruction_from:
+            source = take_reconstruction(nets, Path(args.reconstruction_from), source)
         if args.name:
             if not is_safe_name(args.name):
                 raise ExportError(f"--name {args.name!r} is not a file-name-safe word (letters, digits, '.', '_', '-'; "
                                   "not starting with '.' or '-')")
             cfg = dataclasses.replace(cfg, name=args.name)
+        if args.threshold is not None:
+            cfg = dataclasses.replace(cfg, pipeline=dataclasses.replace(cfg.pipeline, threshold=args.threshold))
         out = Path(args.out) if args.out else Path("models") / cfg.name
         info = export_networks(cfg, nets, out, source)
     except (ExportError, OSError) as e:

@@ -195,3 +195,56 @@ def test_export_cli_refuses_unsafe_names_and_unreadable_checkpoints(tmp_path, ca
         assert E.main(["--run", str(tmp_path), f"--name={name}"]) == 2, name
         assert "not a file-name-safe word" in capsys.readouterr().err
     assert sorted(p.name for p in tmp_path.iterdir()) == ["bad.pt"]
+
+
+def _ort(path, *inputs):
+    sess = ort.InferenceSession(str(path), providers=["CPUExecutionProvider"])
+    return sess.run(None, {k: v for k, v in zip(C.INPUTS[path.stem], inputs)})[0]
+
+
+def test_reconstruction_from_ships_the_runs_detector_with_another_folders_3rn_and_rfn(tmp_path, capsys):
+    """A run that fine-tuned only the detector (stage 1, which trains a 3RN copy on the way) is
+    shipped with the 3RN and RFN of the folder it started from: --reconstruction-from. Its
+    stage 1 is then finished training; without the flag such a checkpoint is refused."""
+    from raindrop_tools import checkpoint as ckpt
+    from raindrop_tools import export as E
+    from raindrop_tools.config import to_dict
+
+    cfg, base = _smoke_nets()
+    export_networks(cfg, base, tmp_path / "base")
+    torch.manual_seed(1)
+    tuned = build_networks(cfg.network)  # other weights in all three networks
+    run = tmp_path / "run"
+    ckpt.save_atomic({"format": 1, "stage": 1, "step": 5, "total_steps": 5, "complete": True,
+                      "config": to_dict(cfg), "models": {k: v.state_dict() for k, v in tuned.items()}},
+                     ckpt.checkpoint_path(run, 1, 5))
+    assert E.main(["--run", str(run), "--out", str(tmp_path / "refused")]) == 2
+    assert "training is not finished" in capsys.readouterr().err
+    assert E.main(["--run", str(run), "--out", str(tmp_path / "m"), "--name", "tuned", "--threshold", "0.75",
+                   "--reconstruction-from", str(tmp_path / "base")]) == 0
+    out = tmp_path / "m"
+    rng = np.random.default_rng(0)
+    x = rng.random((1, 3, 24, 40), dtype=np.float32)
+    e = rng.random((1, 1, 24, 40), dtype=np.float32)
+    with torch.no_grad():
+        want_rdn = tuned["rdn"].eval().probability(torch.from_numpy(x)).numpy()
+    got_rdn = _ort(out / "rdn.onnx", x)
+    assert np.abs(got_rdn - want_rdn).max() < 1e-4, "the detector is the run's"
+    for name, inputs in (("rrn", (x, e)), ("rfn", (x,))):
+        got, base_out = _ort(out / f"{name}.onnx", *inputs), _ort(tmp_path / "base" / f"{name}.onnx", *inputs)
+        assert np.abs(got - base_out).max() < 1e-4, f"{name} is the base folder's"
+        with torch.no_grad():
+            run_out = tuned[name].eval()(*map(torch.from_numpy, inputs)).numpy()
+        assert np.abs(got - run_out).max() > 1e-3, f"{name} is not the run's"
+    info = json.loads((out / C.EXPORT_INFO).read_text())
+    assert info["checkpoint"]["reconstruction_from"] == str(tmp_path / "base") and info["config"] == "tuned"
+    assert info["pipeline"]["threshold"] == 0.75 != cfg.pipeline.threshold
+    for f in C.FILES.values():
+        meta = {p.key: p.value for p in onnx.load(out / f).metadata_props}
+        assert float(meta[C.META_THRESHOLD]) == 0.75 and meta[C.META_CONFIG] == "tuned", f
+    assert E.main(["--run", str(run), "--out", str(tmp_path / "t"), "--threshold", "1.5",
+                   "--reconstruction-from", str(tmp_path / "base")]) == 2
+    assert "must be between 0 and 1" in capsys.readouterr().err and not (tmp_path / "t").exists()
+    # a folder without the graphs is a one-line error, and writes nothing
+    assert E.main(["--run", str(run), "--out", str(tmp_path / "n"), "--reconstruction-from", str(tmp_path)]) == 2
+    assert "no rrn.onnx there" in capsys.readouterr().err and not (tmp_path / "n").exists()
