@@ -187,13 +187,15 @@ def load_run(run_dir: Path, checkpoint: Path | None = None, allow_incomplete: bo
         state = ckpt.load_checkpoint(checkpoint)
     except ckpt.CheckpointError as e:
         raise ExportError(str(e)) from e
-    # A stage-2 checkpoint follows a complete stage 1, so its detector is final.
-    finished = state["stage"] == 2 if detector_only else False
-    finished = finished or (state["complete"] and (state["stage"] == 2 or detector_only))
+    # Only the detector taken: any stage-2 checkpoint follows a complete stage 1, whose detector is final.
+    finished = (state["stage"] == 2 and state["complete"]) or (
+        detector_only and (state["stage"] == 2 or state["complete"])
+    )
     if not allow_incomplete and not finished:
+        needed = "stage 1 complete" if detector_only else "stage 2 complete"
         raise ExportError(
             f"{checkpoint}: stage {state['stage']} step {state['step']} of {state['total_steps']}: "
-            "training is not finished (stage 2 complete); pass --allow-incomplete to export anyway"
+            f"training is not finished ({needed}); pass --allow-incomplete to export anyway"
         )
     cfg = config_from_dict(state["config"])
     nets = build_networks(cfg.network)

@@ -245,6 +245,13 @@ def test_reconstruction_from_ships_the_runs_detector_with_another_folders_3rn_an
     assert E.main(["--run", str(run), "--out", str(tmp_path / "t"), "--threshold", "1.5",
                    "--reconstruction-from", str(tmp_path / "base")]) == 2
     assert "must be between 0 and 1" in capsys.readouterr().err and not (tmp_path / "t").exists()
+    # an unfinished stage 1 is refused with the flag too
+    early = tmp_path / "early"
+    ckpt.save_atomic({"format": 1, "stage": 1, "step": 3, "total_steps": 5, "complete": False,
+                      "config": to_dict(cfg), "models": {k: v.state_dict() for k, v in tuned.items()}},
+                     ckpt.checkpoint_path(early, 1, 3))
+    assert E.main(["--run", str(early), "--out", str(tmp_path / "e"), "--reconstruction-from", str(tmp_path / "base")]) == 2
+    assert "not finished (stage 1 complete)" in capsys.readouterr().err and not (tmp_path / "e").exists()
     # a folder without the graphs is a one-line error, and writes nothing
     assert E.main(["--run", str(run), "--out", str(tmp_path / "n"), "--reconstruction-from", str(tmp_path)]) == 2
     assert "no rrn.onnx there" in capsys.readouterr().err and not (tmp_path / "n").exists()
