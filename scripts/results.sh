@@ -59,6 +59,18 @@ link_cv100() {
   mkdir -p "$out/cv100"
   ls "$shared/camvid/val" | head -100 | while read -r f; do ln -sf "$(realpath "$shared/camvid/val/$f")" "$out/cv100/$f"; done
 }
+# The paper preset with the drop density of the authors' released renderer (5-7 drops, about 1%
+# of the frame; docs/DESIGN.md section 1.1), everything else as it is: $out/paper-sparse.json.
+paper_sparse_scene() {
+  sed 's/"name": "paper"/"name": "paper-sparse"/; s/"drop_count": \[50, 70\]/"drop_count": [5, 7]/' scenes/paper.json \
+    > "$out/paper-sparse.json"
+}
+# data/train-hi: the paper preset over the training frames rendered at 1280x640, which
+# compact-multiscale and compact-windshield average down to 512x256 on loading.
+render_train_hi() {
+  build/raindrop-render --input "$shared/camvid/train" --input "$shared/camvid/val" \
+    --cityscapes "$shared/cityscapes-mini" --split train --size 1280x640 --variants 3 --seed 3 --out data/train-hi -q
+}
 
 # merged_training_set SUFFIX SCENE: the training set of 4.10's renders-only recipe with its lens-cover
 # renders made by SCENE: CamVid train (4 variants, seed 7) and Cityscapes-mini train (20 variants,
@@ -140,8 +152,7 @@ if want eval; then
     | tee "$out/error_split_compact.json"
   # The same test frames with the drop density of the authors' released renderer (5-7 drops,
   # about 1% of the frame; docs/DESIGN.md section 1.1), everything else the paper preset.
-  sed 's/"name": "paper"/"name": "paper-sparse"/; s/"drop_count": \[50, 70\]/"drop_count": [5, 7]/' scenes/paper.json \
-    > "$out/paper-sparse.json"
+  paper_sparse_scene
   build/raindrop-render --input "$shared/camvid/test" --cityscapes "$shared/cityscapes-mini" --split val \
     --size 512x256 --variants 2 --seed 2 --scene "$out/paper-sparse.json" --out data/test-sparse -q
   for m in compact paper; do
@@ -479,8 +490,7 @@ if want multiscale; then
   # was fine-tuned on (besides data/train) is data/train-hi below; the model itself:
   #   train --config tools/configs/compact-multiscale.yaml --out tools/runs/compact-multiscale --init-from models/compact
   # and its int8 copy: quantize --models models/compact-multiscale --data data/train --out models/compact-multiscale-int8
-  build/raindrop-render --input "$shared/camvid/train" --input "$shared/camvid/val" \
-    --cityscapes "$shared/cityscapes-mini" --split train --size 1280x640 --variants 3 --seed 3 --out data/train-hi -q
+  render_train_hi
   ms="$out/multiscale"
   mkdir -p "$ms"
   for set in "cs 1280x720" "cs 512x288" "cv 960x720" "cv 512x384"; do
@@ -694,8 +704,7 @@ if want windshield; then
   # data/test-sparse from the eval section). Training set, run and model folder:
   build/raindrop-render -i "$shared/camvid/train" -o data/train-windshield-sharp --scene windshield-sharp \
     --size 512x256 --variants 4 --seed 7 -q
-  build/raindrop-render --input "$shared/camvid/train" --input "$shared/camvid/val" \
-    --cityscapes "$shared/cityscapes-mini" --split train --size 1280x640 --variants 3 --seed 3 --out data/train-hi -q
+  render_train_hi
   if [[ ! -f models/compact-windshield/rdn.onnx ]]; then
     $py -m raindrop_tools.train --config tools/configs/compact-windshield.yaml --out tools/runs/compact-windshield \
       --init-from models/compact-multiscale --stage 1
@@ -715,8 +724,7 @@ if want windshield; then
   # Validation sets (the threshold was chosen on these): sparse paper drops over 100 CamVid val
   # frames, and the real pairs' train split; then windshield-sharp drops over the same frames.
   link_cv100
-  sed 's/"name": "paper"/"name": "paper-sparse"/; s/"drop_count": \[50, 70\]/"drop_count": [5, 7]/' scenes/paper.json \
-    > "$out/paper-sparse.json"
+  paper_sparse_scene
   build/raindrop-render -i "$out/cv100" -o data/val-sparse --scene "$out/paper-sparse.json" --size 512x256 \
     --seed 11 --variants 2 -q
   build/raindrop-render -i "$out/cv100" -o data/val-windshield-sharp --scene windshield-sharp --size 512x256 --seed 11 -q

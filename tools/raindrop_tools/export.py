@@ -212,15 +212,9 @@ def take_reconstruction(nets: dict[str, nn.Module], folder: Path, source: dict |
     detector fine-tuned alone is shipped with the reconstruction it was tuned beside, not with
     the copies its run trained on the way. Returns ``source`` with the folder recorded."""
     try:
-        for name in ("rrn", "rfn"):
-            path = folder / C.FILES[name]
-            if not path.is_file():
-                raise ExportError(f"--reconstruction-from {folder}: no {C.FILES[name]} there")
-            onnx_weights.load_network(nets[name], name, path)
-            onnx_weights.check_against_onnxruntime(nets[name], name, path)
-            nets[name].eval()
+        onnx_weights.load_model_folder({n: nets[n] for n in ("rrn", "rfn")}, folder)
     except onnx_weights.OnnxWeightsError as e:
-        raise ExportError(f"--reconstruction-from {folder}: {e}") from e
+        raise ExportError(f"--reconstruction-from {e}") from e
     return {**(source or {}), "reconstruction_from": str(folder)}
 
 

@@ -214,10 +214,14 @@ def test_reconstruction_from_ships_the_runs_detector_with_another_folders_3rn_an
     export_networks(cfg, base, tmp_path / "base")
     torch.manual_seed(1)
     tuned = build_networks(cfg.network)  # other weights in all three networks
-    run = tmp_path / "run"
-    ckpt.save_atomic({"format": 1, "stage": 1, "step": 5, "total_steps": 5, "complete": True,
-                      "config": to_dict(cfg), "models": {k: v.state_dict() for k, v in tuned.items()}},
-                     ckpt.checkpoint_path(run, 1, 5))
+
+    def stage1_checkpoint(run, step):  # of 5 steps
+        ckpt.save_atomic({"format": 1, "stage": 1, "step": step, "total_steps": 5, "complete": step == 5,
+                          "config": to_dict(cfg), "models": {k: v.state_dict() for k, v in tuned.items()}},
+                         ckpt.checkpoint_path(run, 1, step))
+        return run
+
+    run = stage1_checkpoint(tmp_path / "run", 5)
     assert E.main(["--run", str(run), "--out", str(tmp_path / "refused")]) == 2
     assert "training is not finished" in capsys.readouterr().err
     assert E.main(["--run", str(run), "--out", str(tmp_path / "m"), "--name", "tuned", "--threshold", "0.75",
@@ -246,12 +250,9 @@ def test_reconstruction_from_ships_the_runs_detector_with_another_folders_3rn_an
                    "--reconstruction-from", str(tmp_path / "base")]) == 2
     assert "must be between 0 and 1" in capsys.readouterr().err and not (tmp_path / "t").exists()
     # an unfinished stage 1 is refused with the flag too
-    early = tmp_path / "early"
-    ckpt.save_atomic({"format": 1, "stage": 1, "step": 3, "total_steps": 5, "complete": False,
-                      "config": to_dict(cfg), "models": {k: v.state_dict() for k, v in tuned.items()}},
-                     ckpt.checkpoint_path(early, 1, 3))
+    early = stage1_checkpoint(tmp_path / "early", 3)
     assert E.main(["--run", str(early), "--out", str(tmp_path / "e"), "--reconstruction-from", str(tmp_path / "base")]) == 2
     assert "not finished (stage 1 complete)" in capsys.readouterr().err and not (tmp_path / "e").exists()
     # a folder without the graphs is a one-line error, and writes nothing
     assert E.main(["--run", str(run), "--out", str(tmp_path / "n"), "--reconstruction-from", str(tmp_path)]) == 2
-    assert "no rrn.onnx there" in capsys.readouterr().err and not (tmp_path / "n").exists()
+    assert f"--reconstruction-from {tmp_path}: no rrn.onnx" in capsys.readouterr().err and not (tmp_path / "n").exists()
