@@ -744,6 +744,12 @@ if want windshield; then
   for m in models/compact-multiscale out/models/compact-windshield-first models/compact-windshield; do
     score_sets "$wd" "$(basename "$m")" "--models $m" real-pairs:test:0 test-sparse:-:0 val-windshield-sharp:-:100 test:-:100
   done | tee "$wd/scores.txt"
+  # The test-set rows at other thresholds: the committed run at the first run's 0.45, the first
+  # run at its config's original 0.3 (real pairs and sparse only).
+  score_sets "$wd" "compact-windshield-t0.45" "--models models/compact-windshield --threshold 0.45" \
+    real-pairs:test:0 test-sparse:-:0 val-windshield-sharp:-:100 test:-:100 | tee -a "$wd/scores.txt"
+  score_sets "$wd" "compact-windshield-first-t0.3" "--models out/models/compact-windshield-first --threshold 0.3" \
+    real-pairs:test:0 test-sparse:-:0 | tee -a "$wd/scores.txt"
   # (the size target: build/raindrop_remove_tests --gtest_filter='*DefaultGainsAsMuchOnLargeStreetFrames'
   # with models/DEFAULT naming the model; the demo street's mask IoU: the flatroad section)
   # The 44 real photographs, both models (not committed: licences).
