@@ -72,6 +72,22 @@ render_train_hi() {
   build/raindrop-render --input "$shared/camvid/train" --input "$shared/camvid/val" \
     --cityscapes "$shared/cityscapes-mini" --split train --size 1280x640 --variants 3 --seed 3 --out data/train-hi -q
 }
+# detector_run NAME: tools/runs/NAME, the detector fine-tune of compact-multiscale that
+# tools/configs/NAME.yaml describes (stage 1), trained unless its last checkpoint is there (the
+# windshield configs' 800 steps; a run.json alone may be an interrupted run).
+detector_run() {
+  [[ -f "tools/runs/$1/checkpoints/stage1_step00000800.pt" ]] ||
+    $py -m raindrop_tools.train --config "tools/configs/$1.yaml" --out "tools/runs/$1" \
+      --init-from models/compact-multiscale --stage 1
+}
+# with_large_drops DIR: the model folder DIR (outside models/) reconstructs large drops as the
+# default does: the default's LARGE_DROPS, and the folder it names linked in beside DIR.
+with_large_drops() {
+  cp models/compact-multiscale/LARGE_DROPS "$1/"
+  local sibling
+  sibling="$(dirname "$1")/compact-real-coarse-long"
+  [[ -e $sibling ]] || ln -s "$PWD/models/compact-real-coarse-long" "$sibling"
+}
 
 # merged_training_set SUFFIX SCENE: the training set of 4.10's renders-only recipe with its lens-cover
 # renders made by SCENE: CamVid train (4 variants, seed 7) and Cityscapes-mini train (20 variants,
@@ -707,20 +723,17 @@ if want windshield; then
     --size 512x256 --variants 4 --seed 7 -q
   render_train_hi
   if [[ ! -f models/compact-windshield/rdn.onnx ]]; then
-    $py -m raindrop_tools.train --config tools/configs/compact-windshield.yaml --out tools/runs/compact-windshield \
-      --init-from models/compact-multiscale --stage 1
+    detector_run compact-windshield
     $py -m raindrop_tools.export --run tools/runs/compact-windshield --reconstruction-from models/compact-multiscale \
       --out models/compact-windshield
     cp models/compact-multiscale/LARGE_DROPS models/compact-windshield/
   fi
   # The first run (no larger frames; not committed), whose threshold sweep chose 0.45:
   if [[ ! -d out/models/compact-windshield-first ]]; then
-    $py -m raindrop_tools.train --config tools/configs/compact-windshield-first.yaml \
-      --out tools/runs/compact-windshield-first --init-from models/compact-multiscale --stage 1
+    detector_run compact-windshield-first
     $py -m raindrop_tools.export --run tools/runs/compact-windshield-first \
       --reconstruction-from models/compact-multiscale --out out/models/compact-windshield-first
-    ln -sfn ../../models/compact-real-coarse-long out/models/compact-real-coarse-long
-    cp models/compact-multiscale/LARGE_DROPS out/models/compact-windshield-first/
+    with_large_drops out/models/compact-windshield-first
   fi
   # Validation sets (the threshold was chosen on these): sparse paper drops over 100 CamVid val
   # frames, and the real pairs' train split; then windshield-sharp drops over the same frames.
@@ -764,7 +777,8 @@ if want windshield-followup; then
   # docs/RESULTS.md 4.19: why compact-windshield stays an option (after the windshield section:
   # needs its data, out/models, models/compact-windshield and its run folder).
   # Validation size gap: the 6 Cityscapes *train* frames (the size test uses the 2 val frames),
-  # paper drops, at 512x288 and 1280x720.
+  # paper drops, at 512x288 and 1280x720; windshield-sharp drops over 100 CamVid val frames too.
+  link_cv100
   for s in 512x288 1280x720; do
     build/raindrop-render --cityscapes "$shared/cityscapes-mini" --split train --variants 16 --seed 9 --size "$s" \
       --out "data/val-size-$s" -q
@@ -778,23 +792,21 @@ if want windshield-followup; then
       val-ws-1280x720:-:0
   done | tee "$fw/sizes.txt"
   # A second run with more averaged-down renders, exported at three thresholds.
-  [[ -f tools/runs/compact-windshield-hi/run.json ]] ||
-    $py -m raindrop_tools.train --config tools/configs/compact-windshield-hi.yaml \
-      --out tools/runs/compact-windshield-hi --init-from models/compact-multiscale --stage 1
+  detector_run compact-windshield-hi
   for t in 0.45 0.6 0.75; do
     $py -m raindrop_tools.export --run tools/runs/compact-windshield-hi --reconstruction-from models/compact-multiscale \
       --threshold "$t" --out "out/models/hi-$t/compact-windshield"
-    cp models/compact-windshield/LARGE_DROPS "out/models/hi-$t/compact-windshield/"
-    ln -sfn "$PWD/models/compact-real-coarse-long" "out/models/hi-$t/compact-real-coarse-long"
+    with_large_drops "out/models/hi-$t/compact-windshield"
     score_sets "$fw" "hi-$t" "--models out/models/hi-$t/compact-windshield" real-pairs:train:0 val-sparse:-:0 \
       val-size-512x288:-:0 val-size-1280x720:-:0
   done | tee "$fw/hi.txt"
   # The committed run's own 3RN (stage 1 trains one) with the shipped detector; its RFN is
-  # compact-multiscale's (the run started from those graphs, and stage 1 does not train it).
+  # compact-multiscale's (the run started from those graphs, and stage 1 does not train it). The
+  # windshield section trains that run only where the model folder is missing: here it is needed.
+  detector_run compact-windshield
   $py -m raindrop_tools.export --run tools/runs/compact-windshield --allow-incomplete --threshold 0.75 \
     --name compact-windshield --out out/models/own-3rn/compact-windshield
-  cp models/compact-windshield/LARGE_DROPS out/models/own-3rn/compact-windshield/
-  ln -sfn "$PWD/models/compact-real-coarse-long" out/models/own-3rn/compact-real-coarse-long
+  with_large_drops out/models/own-3rn/compact-windshield
   score_sets "$fw" own-3rn "--models out/models/own-3rn/compact-windshield" real-pairs:train:0 val-sparse:-:0 \
     val-ws-512x288:-:0 | tee "$fw/own-3rn.txt"
   # A wider dilation (5 instead of the models' 3), both models, on the validation sets; then the
