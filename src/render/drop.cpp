@@ -52,6 +52,14 @@ std::optional<SurfaceHit> Drop::intersect(const glm::dvec3& origin, const glm::d
     const double t = -o.z / d.z;
     const double x = o.x + t * d.x, y = o.y + t * d.y;
     if (x * x + y * y <= rim_radius2_) consider(t, DropSurface::Base);
+    // A ray heading out of the glass (d.z > 0) through the base is below the plane before it
+    // and the cap lies above it: the base is its nearest hit, and the sphere's roots (a square
+    // root and two divisions, for most camera rays) need not be asked. Every camera ray that
+    // meets a drop first meets it here.
+    if (best && d.z > 0.0) {
+      best->normal = base_normal();
+      return best;
+    }
   }
 
   // Curved surface: sphere of radius R centred at (0, 0, centre_height), part with z >= 0.

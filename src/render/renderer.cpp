@@ -1,8 +1,11 @@
 #include "raindrop/render/renderer.h"
 
 #include <cmath>
+#include <cstring>
 
 #include <opencv2/core.hpp>
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
 
 #include "raindrop/common/stopwatch.h"
 #include "raindrop/render/blur.h"
@@ -136,23 +139,29 @@ RenderedFrame render_frame(const cv::Mat& clean, const Camera& camera, const Sce
   frame.timings.blur_ms = ms_since(t0);
 
   // Only drop pixels are written: everywhere else the rainy image is the clean bytes.
+  // Rows in parallel, the copy of the clean bytes included: one thread copying 6 MB and
+  // zeroing 2 MB was a twelfth of a 2048x1024 frame's core on two threads.
   t0 = Clock::now();
-  frame.rainy = clean.clone();
-  frame.mask = cv::Mat(clean.size(), CV_8UC1, cv::Scalar(0));
-  for (int y = 0; y < clean.rows; ++y) {
-    const int* label = traced.label.ptr<int>(y);
-    const auto* rgb = traced.color.ptr<cv::Vec3f>(y);
-    auto* out = frame.rainy.ptr<cv::Vec3b>(y);
-    auto* m = frame.mask.ptr<std::uint8_t>(y);
-    for (const auto& [x0, x1] : traced.spans[y]) for (int x = x0; x <= x1; ++x) {
-      if (label[x] < 0) continue;
-      m[x] = 255;
-      for (int c = 0; c < 3; ++c) {
-        const float v = std::isfinite(rgb[x][c]) ? rgb[x][c] : 0.0f;
-        out[x][c] = static_cast<std::uint8_t>(std::floor(std::min(std::max(v, 0.0f), 1.0f) * 255.0f + 0.5f));
+  frame.rainy.create(clean.size(), clean.type());
+  frame.mask.create(clean.size(), CV_8UC1);
+  tbb::parallel_for(tbb::blocked_range<int>(0, clean.rows, 16), [&](const tbb::blocked_range<int>& rows) {
+    for (int y = rows.begin(); y < rows.end(); ++y) {
+      const int* label = traced.label.ptr<int>(y);
+      const auto* rgb = traced.color.ptr<cv::Vec3f>(y);
+      auto* out = frame.rainy.ptr<cv::Vec3b>(y);
+      auto* m = frame.mask.ptr<std::uint8_t>(y);
+      std::memcpy(static_cast<void*>(out), clean.ptr<std::uint8_t>(y), 3 * static_cast<size_t>(clean.cols));
+      std::memset(m, 0, clean.cols);
+      for (const auto& [x0, x1] : traced.spans[y]) for (int x = x0; x <= x1; ++x) {
+        if (label[x] < 0) continue;
+        m[x] = 255;
+        for (int c = 0; c < 3; ++c) {
+          const float v = std::isfinite(rgb[x][c]) ? rgb[x][c] : 0.0f;
+          out[x][c] = static_cast<std::uint8_t>(std::floor(std::min(std::max(v, 0.0f), 1.0f) * 255.0f + 0.5f));
+        }
       }
     }
-  }
+  });
   frame.timings.compose_ms = ms_since(t0);
   return frame;
 }

@@ -14,6 +14,7 @@
 #include "raindrop/common/rng.h"
 #include "raindrop/render/background.h"
 #include "raindrop/render/background_range.h"
+#include "raindrop/render/cap_exit.h"
 #include "raindrop/render/optics.h"
 #include "raindrop/render/scratch_pool.h"
 #include "raindrop/render/sky.h"
@@ -192,7 +193,8 @@ class Kernel {
         interior_(config.fresnel.enabled ? config.fresnel.interior_rgb : glm::dvec3(0.0)),
         n_rgb_(config.channel_indices()),
         disperse_(plan && plan->dispersion_auto ? &plan->drops : nullptr),
-        lockstep_(lockstep && accel.disjoint()) {
+        lockstep_(lockstep && accel.disjoint()),
+        exact_caps_(accel.options().kind == GeometryOptions::Kind::Exact) {
     if (config.sky.enabled) bg_.set_sky(estimate_sky_rgb(clean, config.sky.gain), config.sky.fade_rows * clean.rows);
   }
 
@@ -336,12 +338,33 @@ class Kernel {
     const double top = slab_top(accel_);
     double t_lo;
     std::optional<DropHit> exit_hit[8];
+    // Rays in through the base of an exact cap of circular outline leave through that cap: the
+    // closed form, two rays at a time (exit_through_caps, Drop::intersect's answer to the bit).
+    // Others ask the accelerator one at a time.
+    const Drop* cap_drops[8];
+    glm::dvec3 cap_o[8], cap_d[8];
+    double cap_t[8];
+    int cap_lane[8], caps = 0;
     for (int k = 0; k < live; ++k) {
       const int i = lane[k];
-      if (slab_range(o[i], d[i], glass_, top, &t_lo, &t_range[i])) {
-        exit_hit[i] = accel_.intersect_inside(o[i], d[i], current[i], t_range[i]);
+      exit_hit[i] = std::nullopt;
+      if (!slab_range(o[i], d[i], glass_, top, &t_lo, &t_range[i])) continue;
+      const Drop& drop = accel_.drops()[current[i].drop];
+      if (exact_caps_ && current[i].surface == DropSurface::Base && drop.shape().outline.circular()) {
+        cap_drops[caps] = &drop;
+        cap_o[caps] = o[i];
+        cap_d[caps] = d[i];
+        cap_t[caps] = t_range[i];
+        cap_lane[caps++] = i;
       } else {
-        exit_hit[i] = std::nullopt;
+        exit_hit[i] = accel_.intersect_inside(o[i], d[i], current[i], t_range[i]);
+      }
+    }
+    if (caps > 0) {
+      CapExit exits[8];
+      exit_through_caps(cap_drops, cap_o, cap_d, cap_t, caps, exits);
+      for (int k = 0; k < caps; ++k) {
+        if (exits[k].hit) exit_hit[cap_lane[k]] = DropHit{exits[k].t, current[cap_lane[k]].drop, DropSurface::Cap, exits[k].normal};
       }
     }
     int still = 0;
@@ -439,6 +462,7 @@ class Kernel {
   glm::dvec3 n_rgb_;
   const std::vector<DropEffects>* disperse_;
   bool lockstep_;
+  bool exact_caps_;  // intersect_inside answers from the drop's closed form (not a mesh)
 };
 
 // Andrew's monotone chain, in double precision (counter-clockwise, no repeated point).
@@ -555,8 +579,7 @@ TraceResult run(const cv::Mat& clean, const Camera& camera, const SceneConfig& c
                 const SceneSample& scene, const DropAccel& accel, const EffectPlan* plan, const TraceStrategy& strategy) {
   const Kernel<kFresnel, kDispersion> kernel(clean, camera, config, scene, accel, plan, strategy.lockstep);
   TraceResult out;
-  out.label = scratch_mat(camera.height, camera.width, CV_32S);
-  out.label.setTo(cv::Scalar(-1));
+  out.label = scratch_mat(camera.height, camera.width, CV_32S);  // -1 (no drop) row by row in pass 1
   out.color = scratch_mat(camera.height, camera.width, CV_32FC3);  // written at drop pixels only
   // Edge classes are only needed to find the pixels to supersample.
   const int k = static_cast<int>(std::lround(std::sqrt(config.samples_per_pixel)));
@@ -586,6 +609,7 @@ TraceResult run(const cv::Mat& clean, const Camera& camera, const SceneConfig& c
     std::vector<Pending> pending;
     for (int y = r.begin(); y < r.end(); ++y) {
       auto* label = out.label.ptr<int>(y);
+      std::fill(label, label + camera.width, -1);
       int* cls = need_classes ? classes.ptr<int>(y) : nullptr;
       auto* rgb = out.color.ptr<cv::Vec3f>(y);
       auto keep = [&](int x, const Sample& s) {

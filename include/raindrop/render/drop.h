@@ -80,6 +80,14 @@ class Drop {
   // the image of a dense sample of these points bounds the drop's image.
   glm::dvec3 envelope_point(double theta, double phi) const;
 
+  // The constants of the closed-form intersection, for tracing several rays side by side
+  // with Drop::intersect's own arithmetic (cap_exit.h).
+  struct Frame {
+    glm::dvec3 c, u, v, n;  // footprint centre and glass frame (camera space)
+    double radius, centre_height, inv_elongation, inv_flattening;
+  };
+  Frame frame() const { return {c_, u_, v_, n_, radius_, centre_height_, inv_elongation_, inv_flattening_}; }
+
   // Whether camera-space point p lies in the water (on or under the cap, on or above the glass).
   bool contains(const glm::dvec3& p) const;
 
