@@ -21,7 +21,7 @@ struct CapExit {
   glm::dvec3 normal{0, 0, 0};   // the cap's unit normal there, pointing out of the water
 };
 
-// For i < n <= 8: what drops[i]->intersect(origins[i], dirs[i], 0.0, t_max[i],
+// For i < n (1 <= n <= 8): what drops[i]->intersect(origins[i], dirs[i], 0.0, t_max[i],
 // DropSurface::Base) gives (a ray starting on the drop's base, inside its water), for drops of
 // circular outline. The hit is always on the cap.
 void exit_through_caps(const Drop* const* drops, const glm::dvec3* origins, const glm::dvec3* dirs,
