@@ -17,7 +17,7 @@ mkdir -p "$out"
 sections=("$@")
 ((${#sections[@]})) || sections=(data render stats eval remove tradeoffs sheets photoreal scale flatroad largedrops coarsetrain
                                   largedropmodels sensor mirroraverage highlights multiscale veil papermodels outline trails
-                                  photos windshield windshield-followup longer)
+                                  photos windshield windshield-followup longer growth)
 want() { [[ " ${sections[*]} " == *" $1 "* ]]; }
 # link_set SRC DST SPLIT [LIMIT]: the first LIMIT (default 100; 0: all) samples of data set SRC
 # (of manifest split SPLIT; "-" = all) linked into DST/rainy and DST/clean under plainly named
@@ -850,4 +850,31 @@ if want longer; then
       $py -m raindrop_tools.score_outputs --data "$out/multiscale/$set" --outputs "$lg/$set-${m%%:*}" --label "${m%%:*} $set"
     done
   done | tee "$lg/test.txt"
+fi
+
+if want growth; then
+  # The coarse pass's large-drop growth (docs/RESULTS.md 4.21): needs data/real-pairs, data/val-sparse,
+  # data/val-windshield-sharp (windshield section) and data/test-sparse (eval section).
+  # Validation size sets as windshield-followup renders them: the 6 Cityscapes *train* frames.
+  gr="$out/growth"
+  mkdir -p "$gr"
+  for s in 512x288 1280x720; do
+    [[ -f "data/val-size-$s/manifest.jsonl" ]] ||
+      build/raindrop-render --cityscapes "$shared/cityscapes-mini" --split train --variants 16 --seed 9 --size "$s" \
+        --out "data/val-size-$s" -q
+  done
+  # The choice, on validation sets only (growth 0 is the default before it).
+  for g in 0 0.25 0.35 0.5; do
+    score_sets "$gr" "g$g" "--large-drop-growth $g -j 2" real-pairs:train:0 val-sparse:-:0 val-windshield-sharp:-:0 \
+      val-size-512x288:-:0 val-size-1280x720:-:0
+  done | tee "$gr/validation.txt"
+  # The models' own growth (0.35) against none, on the test sets.
+  for g in 0 0.35; do
+    score_sets "$gr" "test-g$g" "--large-drop-growth $g -j 2" real-pairs:test:0 test-sparse:-:0
+  done | tee "$gr/test.txt"
+  # The 44 real photographs with and without it (masks too), to look at; not scored.
+  for g in 0 0.35; do
+    rm -rf "$gr/photos-g$g" && build/raindrop-remove "$shared/real-raindrop" "$gr/photos-g$g/removed" \
+      --mask-dir "$gr/photos-g$g/masks" --large-drop-growth "$g" -q -j 2
+  done
 fi

@@ -177,6 +177,7 @@ int run(int argc, char** argv) {
   GraphOpt graph_opt = GraphOpt::all;
   std::optional<double> threshold, scale;
   std::optional<int> dilation;
+  std::optional<double> large_drop_growth;
   int threads = 0, tile = kDefaultTile, overlap = kDefaultOverlap;
   bool time = false, quiet = false, keep_going = false, no_large_drops = false, mirror_average = false;
   Shard shard;
@@ -200,11 +201,18 @@ int run(int argc, char** argv) {
                  "Model folder (rrn.onnx and rfn.onnx) whose 3RN and RFN reconstruct the drops the coarse pass finds "
                  "large (default: the configuration the models' LARGE_DROPS file names, else the models themselves; "
                  "give the models' own folder to use them throughout)");
+  auto* growth_opt =
+      app.add_option("--large-drop-growth", large_drop_growth,
+                     "In the coarse pass, dilate each drop's mask by the odd size nearest this fraction of its diameter "
+                     "(the disk of its area), at least the models' k: large drops' defocused edges spread past what the "
+                     "detector finds; 0: k for every drop (default: the models', 0.35 for the default)")
+          ->check(CLI::Range(0.0, kMaxLargeDropGrowth));
   app.add_flag("--no-large-drops", no_large_drops,
                "Skip the coarse pass at a third of that scale that takes over drops too large for the networks there "
                "(mask regions with the area of a disk 60 px across at the working scale, clusters included, e.g. on a "
                "lens cover)")
-      ->excludes(large_opt);
+      ->excludes(large_opt)
+      ->excludes(growth_opt);
   app.add_flag("--mirror-average", mirror_average,
                "Also at the working scale, run the 3RN and RFN on the image and on its mirror image and average the two "
                "(the coarse pass for large drops always does): about twice the time of the networks' pass, for "
@@ -378,6 +386,7 @@ int run(int argc, char** argv) {
   Settings s;
   s.options.threshold = threshold;
   s.options.dilation = dilation;
+  s.options.large_drop_growth = large_drop_growth;
   s.options.tile = tile;
   s.options.overlap = overlap;
   s.options.scale = scale;
@@ -391,7 +400,8 @@ int run(int argc, char** argv) {
     const std::string large = no_large_drops                           ? "no coarse pass"
                               : remover.large_drop_model_dir().empty() ? "large drops by the same models"
                                                                        : "large drops by '" + remover.large_drop_model_dir().string() + "'";
-    std::fprintf(stderr, "raindrop-remove: models '%s' (config %s, threshold %g, dilation %d; %s), %s, %s, %s\n",
+    std::fprintf(stderr,
+                 "raindrop-remove: models '%s' (config %s, threshold %g, dilation %d; %s), %s, %s, %s\n",
                  remover.model_dir().string().c_str(), mi.config.c_str(), threshold.value_or(mi.threshold),
                  dilation.value_or(mi.dilation), large.c_str(), ort_description().c_str(), to_string(device),
                  thread_text.c_str());

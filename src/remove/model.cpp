@@ -224,6 +224,12 @@ Models::Models(const fs::path& dir, const SessionConfig& config, Graphs graphs) 
   if (info_.dilation < 1 || info_.dilation > kMaxDilation)
     throw Error(quoted(rdn_->file()) + ": metadata raindrop.dilation = " + dilation + " must be between 1 and " +
                 std::to_string(kMaxDilation));
+  if (const auto it = rdn_->metadata().find("raindrop.large_drop_growth"); it != rdn_->metadata().end()) {
+    info_.large_drop_growth = parse_double(rdn_->file(), "raindrop.large_drop_growth", it->second);
+    if (!(info_.large_drop_growth >= 0 && info_.large_drop_growth <= kMaxLargeDropGrowth))
+      throw Error(quoted(rdn_->file()) + ": metadata raindrop.large_drop_growth = " + it->second +
+                  " must be between 0 and " + std::to_string(static_cast<int>(kMaxLargeDropGrowth)));
+  }
   if (const auto it = rdn_->metadata().find("raindrop.working_size"); it != rdn_->metadata().end()) {
     info_.working_size = parse_int(rdn_->file(), "raindrop.working_size", it->second);
     if (info_.working_size < 16 || info_.working_size > 65536)

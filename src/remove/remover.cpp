@@ -169,6 +169,8 @@ RemoveResult Remover::run(const cv::Mat& image, const RemoveOptions& opt) {
   check_tile_options(opt.tile, opt.overlap);
   if (opt.scale && !(*opt.scale > 0.0 && *opt.scale <= 1.0))
     throw Error("--scale must be a number in (0, 1], got " + std::to_string(*opt.scale));
+  if (opt.large_drop_growth && !(*opt.large_drop_growth >= 0 && *opt.large_drop_growth <= kMaxLargeDropGrowth))
+    throw Error("--large-drop-growth must be between 0 and " + std::to_string(static_cast<int>(kMaxLargeDropGrowth)));
   const double scale = opt.scale.value_or(auto_working_scale(image.size(), info().working_size));
   const cv::Size small = scaled_size(image.size(), scale);
   RemoveResult res = small == image.size() ? run_native(image, opt) : run_scaled(image, opt, small, scale);
@@ -276,6 +278,7 @@ void Remover::add_large_drops(const cv::Mat& image, const RemoveOptions& opt, do
   sub.keep_float = true;
   sub.large_drops = false;
   sub.mirror_average = opt.mirror_average || kLargeDropMirrorAverage;
+  const double growth = opt.large_drop_growth.value_or(info().large_drop_growth);  // checked by run()
   // Most photographs have no large drop: the coarse copy's detector decides before its 3RN and
   // RFN run, which are about two thirds of its cost.
   cv::Mat large;
@@ -290,7 +293,7 @@ void Remover::add_large_drops(const cv::Mat& image, const RemoveOptions& opt, do
   // the train split), with one detector session instead of two; other fine-tuned detectors
   // took flat road for large drops.
   const RemoveResult c =
-      run_native(coarse_native, sub, only_with_large_drops, [this]() -> Models& { return large_drop_models(); });
+      run_native(coarse_native, sub, only_with_large_drops, [this]() -> Models& { return large_drop_models(); }, growth);
   t += c.times;
   res.network_pixels += c.network_pixels;
   res.reconstructed_pixels += c.reconstructed_pixels;
@@ -311,7 +314,7 @@ void Remover::add_large_drops(const cv::Mat& image, const RemoveOptions& opt, do
 }
 
 RemoveResult Remover::run_native(const cv::Mat& image, const RemoveOptions& opt, const MaskGate& gate,
-                                 const std::function<Models&()>& reconstruction) {
+                                 const std::function<Models&()>& reconstruction, double growth) {
   const double threshold = opt.threshold.value_or(info().threshold);
   if (!std::isfinite(threshold)) throw Error("--threshold must be a finite number");
   const int k = opt.dilation.value_or(info().dilation);
@@ -366,7 +369,7 @@ RemoveResult Remover::run_native(const cv::Mat& image, const RemoveOptions& opt,
     for (int ix = 0; ix < lx.count(); ++ix)
       res.network_pixels += static_cast<double>(ly.end[iy] - ly.begin[iy]) * (lx.end[ix] - lx.begin[ix]);
   auto clock = Clock::now();
-  const cv::Mat mask = dilate_mask(mask0, k);
+  const cv::Mat mask = dilate_mask_by_size(mask0, k, growth);
   mask0.release();
   const bool reconstruct_now = !gate || gate(mask(cv::Rect(0, 0, W, H)));
   t.mask += lap_ms(clock);

@@ -166,6 +166,40 @@ TEST(LargeDrops, PixelsAwayFromLargeDropsAreTheWorkingScalePasss) {
   ASSERT_TRUE(found) << "no threshold made part of the image a large drop";
 }
 
+// The large-drop growth (RemoveOptions::large_drop_growth) dilates each drop of the coarse pass's
+// mask by its own size: the written mask holds the one without it and reaches further, while the
+// working-scale pass (no coarse pass) is the same with any growth. The two flat halves of the test
+// above, at the first threshold that makes one half a large drop.
+TEST(LargeDrops, TheirMasksGrowWithThem) {
+  cv::Mat img(300, 600, CV_8UC3, cv::Scalar(40, 60, 50));
+  img(cv::Rect(300, 0, 300, 300)).setTo(cv::Scalar(210, 200, 190));
+  for (int i = 1; i < 100; ++i) {
+    RemoveOptions without;
+    without.threshold = i / 100.0;
+    without.large_drop_growth = 0.0;
+    const RemoveResult a = smoke().run(img, without);
+    const double covered = cv::countNonZero(a.mask) / static_cast<double>(a.mask.total());
+    if (a.large_drops == 0 || covered < 0.2 || covered > 0.8) continue;
+    RemoveOptions with = without;
+    with.large_drop_growth = 0.5;
+    const RemoveResult b = smoke().run(img, with);
+    EXPECT_EQ(b.large_drops, a.large_drops);
+    EXPECT_EQ(cv::countNonZero(a.mask > b.mask), 0) << "the growth took mask pixels away";
+    EXPECT_GT(cv::countNonZero(b.mask > a.mask), 1000) << "a half-image drop's mask did not grow";
+    RemoveOptions fine = with;
+    fine.large_drops = false;
+    RemoveOptions fine0 = without;
+    fine0.large_drops = false;
+    EXPECT_EQ(max_abs_diff(smoke().run(img, fine).image, smoke().run(img, fine0).image), 0)
+        << "the growth reached the working-scale pass";
+    with.large_drop_growth = 11.0;
+    EXPECT_THROW(smoke().run(img, with), raindrop::Error);
+    EXPECT_THROW(smoke().run(make_image(40, 30, 1), with), raindrop::Error) << "checked before the coarse pass is ruled out";
+    return;
+  }
+  FAIL() << "no threshold made part of the image a large drop";
+}
+
 // Mirror averaging (the coarse pass's, and --mirror-average's): the mean of the network's output
 // and of its output on the mirror image mirrored back, for every input and channel count; so
 // exactly mirror-equivariant, which the network alone is not.

@@ -1,5 +1,6 @@
-// Model metadata out of range (rdn.onnx's raindrop.threshold and raindrop.dilation): refused
-// when the models load, with one line that blames the model file's metadata, not an option.
+// Model metadata out of range (rdn.onnx's raindrop.threshold, raindrop.dilation and optional
+// raindrop.large_drop_growth): refused when the models load, with one line that blames the model
+// file's metadata, not an option.
 #include "raindrop/common/error.h"
 #include "raindrop/remove/model.h"
 #include "remove_test_util.h"
@@ -26,6 +27,14 @@ std::string with_metadata(const std::string& model, const std::string& key, cons
   return model.substr(0, entry) + '\x72' + static_cast<char>(body.size()) + body + model.substr(entry + 2 + old_len);
 }
 
+// `model` with one more metadata entry (appended: protobuf reads fields in any order).
+std::string with_added_metadata(const std::string& model, const std::string& key, const std::string& value) {
+  const std::string body = std::string{'\x0a', static_cast<char>(key.size())} + key +
+                           std::string{'\x12', static_cast<char>(value.size())} + value;
+  EXPECT_LT(body.size(), 128u);
+  return model + '\x72' + static_cast<char>(body.size()) + body;
+}
+
 class ModelMetadata : public ::testing::Test {
  protected:
   void SetUp() override {
@@ -34,6 +43,9 @@ class ModelMetadata : public ::testing::Test {
   }
   void set(const std::string& key, const std::string& value) {
     write_file(tmp / "models" / "rdn.onnx", with_metadata(read_file(smoke_models() / "rdn.onnx"), key, value));
+  }
+  void add(const std::string& key, const std::string& value) {
+    write_file(tmp / "models" / "rdn.onnx", with_added_metadata(read_file(smoke_models() / "rdn.onnx"), key, value));
   }
   std::string load_error() {
     try {
@@ -44,6 +56,13 @@ class ModelMetadata : public ::testing::Test {
       return e.what();
     }
     return "";
+  }
+  // Loading fails with one message that names rdn.onnx and `key`; returns it.
+  std::string expect_load_blames(const std::string& key) {
+    const std::string e = load_error();
+    EXPECT_NE(e.find("rdn.onnx"), std::string::npos) << e;
+    EXPECT_NE(e.find(key), std::string::npos) << e;
+    return e;
   }
   TempDir tmp;
 };
@@ -59,10 +78,24 @@ TEST_F(ModelMetadata, DilationOutOfRangeBlamesTheModel) {
   for (const std::string v : {"99999", "1024", "0"}) {
     SCOPED_TRACE(v);
     set("raindrop.dilation", v);
-    const std::string e = load_error();
-    EXPECT_NE(e.find("rdn.onnx"), std::string::npos) << e;
-    EXPECT_NE(e.find("raindrop.dilation"), std::string::npos) << e;
+    const std::string e = expect_load_blames("raindrop.dilation");
     EXPECT_EQ(e.find("--dilation"), std::string::npos) << "the option was not given: " << e;
+  }
+}
+
+TEST_F(ModelMetadata, LargeDropGrowthIsReadAndZeroWhenAbsent) {
+  SessionConfig config;
+  config.threads = 1;
+  EXPECT_EQ(Models(tmp / "models", config).info().large_drop_growth, 0.0);
+  add("raindrop.large_drop_growth", "0.35");
+  EXPECT_EQ(Models(tmp / "models", config).info().large_drop_growth, 0.35) << "the added entry did not take";
+}
+
+TEST_F(ModelMetadata, LargeDropGrowthOutOfRangeBlamesTheModel) {
+  for (const std::string v : {"-0.1", "10.5", "nan", "x"}) {
+    SCOPED_TRACE(v);
+    add("raindrop.large_drop_growth", v);
+    expect_load_blames("raindrop.large_drop_growth");
   }
 }
 
@@ -70,9 +103,7 @@ TEST_F(ModelMetadata, ThresholdOutsideZeroOneIsRefused) {
   for (const std::string v : {"2", "1", "0", "-0.5"}) {
     SCOPED_TRACE(v);
     set("raindrop.threshold", v);
-    const std::string e = load_error();
-    EXPECT_NE(e.find("rdn.onnx"), std::string::npos) << e;
-    EXPECT_NE(e.find("raindrop.threshold"), std::string::npos) << e;
+    expect_load_blames("raindrop.threshold");
   }
 }
 

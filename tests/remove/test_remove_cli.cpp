@@ -92,7 +92,9 @@ TEST_F(RemoveCli, HelpVersionAndUsageErrors) {
        {std::vector<std::string>{}, {"in.png"}, {"in.png", "out.png", "--device", "tpu"},
         {"in.png", "out.png", "--graph-opt", "max"}, {"in.png", "out.png", "--tile", "10"},
         {"in.png", "out.png", "--tile", "256", "--tile-overlap", "200"}, {"in.png", "out.png", "--threshold", "2"},
-        {"in.png", "out.png", "--dilation", "0"}, {"in.png", "out.png", "--no-such-option"},
+        {"in.png", "out.png", "--dilation", "0"}, {"in.png", "out.png", "--large-drop-growth", "-0.5"},
+        {"in.png", "out.png", "--large-drop-growth", "11"}, {"in.png", "out.png", "--no-such-option"},
+        {"in.png", "out.png", "--no-large-drops", "--large-drop-growth", "0.3"},
         {"in.png", "out.png", "--no-large-drops", "--large-drop-models", "."}}) {
     r = remove(bad);
     EXPECT_EQ(r.code, 2) << r.describe();

@@ -191,8 +191,9 @@ fs::path default_models() {
 
 // The shipped default on real photographs: the held-out half of the real lens-cover pairs (the
 // 5 scene groups of the group-wise split that no committed model trained on; tools/raindrop_tools/
-// realpairs.py), as a user runs it. docs/RESULTS.md 3.4 measures +3.00 dB there for the default, of
-// which the large-drop models (its LARGE_DROPS) give about 1.4 dB (+1.63 without them): a loose floor on both, so
+// realpairs.py), as a user runs it. docs/RESULTS.md 3.4 measured +3.00 dB there for the default, 4.21
+// +3.43 with its large-drop growth (the floor is issue 10's target, +3 dB, which the growth crosses), of
+// which the large-drop models (its LARGE_DROPS) give about 1.7 dB (+1.71 without them): floors on both, so
 // that losing the large-drop models or the coarse pass fails here. Needs the real pairs of the
 // shared data folder; skips without them.
 TEST(TrainedModels, DefaultRemovesRealLensCoverDrops) {
@@ -242,7 +243,8 @@ TEST(TrainedModels, DefaultRemovesRealLensCoverDrops) {
   }
   std::printf("real lens-cover test split: default +%.2f dB, its own networks for large drops +%.2f dB\n", gain[0],
               gain[1]);
-  EXPECT_GE(gain[0], 2.5) << "the default's gain on held-out real pairs (docs/RESULTS.md 3.4: +3.00)";
+  // Issue 10's target, +3 dB; the large-drop growth (4.21) took the default from +3.00 to +3.43.
+  EXPECT_GE(gain[0], 3.0) << "the default's gain on held-out real pairs (docs/RESULTS.md 4.21: +3.43)";
   EXPECT_GE(gain[0] - gain[1], 0.8) << "what the large-drop models add (docs/RESULTS.md 3.4: +3.00 against +1.63 for the default; 4.11: compact +1.48)";
 }
 
@@ -252,7 +254,7 @@ TEST(TrainedModels, DefaultRemovesRealLensCoverDrops) {
 // brings 1280x720 to. Their PSNR-Y gains stay within 1 dB (the issue's target). `compact` alone
 // gained about 2 dB less at 1280x720: it had learnt drops rendered at 512 px, not drops
 // area-averaged down from a larger frame (8.59 against 6.51 dB; docs/RESULTS.md 3.4). The default
-// measured 8.30 and 7.45: the 1 dB is the target itself, not a margin around today's model. Both
+// measured 8.30 and 7.45, 8.26 and 7.48 with its large-drop growth (4.21): the 1 dB is the target itself, not a margin around today's model. Both
 // gains must also stay near what they are, so that a model that loses its effect at both sizes
 // alike does not pass. Needs the shared Cityscapes frames (the first two of the val split);
 // skips without them.
@@ -291,9 +293,40 @@ TEST(TrainedModels, DefaultGainsAsMuchOnLargeStreetFrames) {
   }
   std::printf("%s on held-out Cityscapes frames: gain %.2f dB at 512x288, %.2f dB at 1280x720\n",
               models.filename().string().c_str(), gain[0], gain[1]);
-  EXPECT_GE(gain[0], 7.5) << "at 512x288 (measured 8.30)";
-  EXPECT_GE(gain[1], 6.5) << "at 1280x720 (measured 7.45)";
+  EXPECT_GE(gain[0], 7.5) << "at 512x288 (measured 8.26)";
+  EXPECT_GE(gain[1], 6.5) << "at 1280x720 (measured 7.48)";
   EXPECT_LE(std::abs(gain[0] - gain[1]), 1.0) << gain[0] << " dB at 512x288, " << gain[1] << " dB at 1280x720";
+}
+
+// The default's large drops get masks that grow with them (its raindrop.large_drop_growth;
+// docs/RESULTS.md 4.21): on the demo checkerboard under lens-cover-merged drops, where the coarse
+// pass finds large drops, the written mask holds the one without the growth and more.
+TEST(TrainedModels, TheDefaultsLargeDropMasksGrowWithThem) {
+  REQUIRE_RENDER();
+  const fs::path models = default_models();
+  if (!fs::is_regular_file(models / "rdn.onnx")) GTEST_SKIP() << "no trained models in " << models;
+  TempDir tmp;
+  const RunResult rr = run_command(RAINDROP_RENDER_BIN, {"--demo", "--scene", "lens-cover-merged", "--size", "512x256", "--seed",
+                                                         "7", "--out", "set", "-q", "-j", "1"},
+                                   tmp.path());
+  ASSERT_EQ(rr.code, 0) << rr.describe();
+  cv::Mat masks[2];
+  int k = 0;
+  for (const std::string growth : {"", "0"}) {
+    std::vector<std::string> args{"set/rainy/checkerboard_v00.png", "out.png", "--models", models.string(), "--mask",
+                                  "m" + std::to_string(k) + ".png", "-q", "-j", "1"};
+    if (!growth.empty()) args.insert(args.end(), {"--large-drop-growth", growth});
+    const RunResult r = run_remove(args, tmp.path());
+    ASSERT_EQ(r.code, 0) << r.describe();
+    masks[k] = read_or_fail(tmp / ("m" + std::to_string(k) + ".png"));
+    ASSERT_FALSE(masks[k].empty());
+    ++k;
+  }
+  EXPECT_EQ(cv::countNonZero(masks[1] > masks[0]), 0) << "the growth took mask pixels away";
+  const int more = cv::countNonZero(masks[0] > masks[1]);
+  std::printf("%s on lens-cover-merged drops: %d mask pixels without the growth, %d more with it\n",
+              models.filename().string().c_str(), cv::countNonZero(masks[1]), more);
+  EXPECT_GT(more, 0) << models << " gives large drops no growth (raindrop.large_drop_growth), or found none";
 }
 
 }  // namespace

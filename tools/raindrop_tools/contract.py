@@ -19,6 +19,11 @@ META_NETWORK = "raindrop.network"
 META_THRESHOLD = "raindrop.threshold"
 META_DILATION = "raindrop.dilation"
 META_KEYS = (META_PAD_MULTIPLE, META_CONFIG, META_NETWORK, META_THRESHOLD, META_DILATION)
+# Optional on rdn.onnx: in raindrop-remove's coarse pass for large drops, each drop's mask
+# dilation grows with its size (include/raindrop/remove/large_drops.h); absent means 0, the
+# fixed k there too. The reference pipeline has no coarse pass and does not read it.
+META_LARGE_DROP_GROWTH = "raindrop.large_drop_growth"
+MAX_LARGE_DROP_GROWTH = 10.0
 
 # The small JSON the exporter writes next to the graphs (not part of the contract).
 EXPORT_INFO = "export.json"

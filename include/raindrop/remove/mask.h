@@ -14,4 +14,14 @@ void threshold_mask(const cv::Mat& prob, double threshold, cv::Mat dst);
 // OpenCV's default anchor and border (pixels outside the image never count). k = 1: copy.
 cv::Mat dilate_mask(const cv::Mat& mask, int k);
 
+// The dilation size a drop of `area` mask pixels gets when the dilation grows with the drop:
+// the odd size nearest growth x its equivalent diameter 2 sqrt(area / pi), never below k nor
+// above kMaxDilation. growth 0: k.
+int dilation_for_area(double area, int k, double growth);
+
+// dilate_mask with a size per drop: each 8-connected component of `mask` is dilated by
+// dilation_for_area(its area, k, growth), and the results are joined. Every component that
+// gets k gives exactly dilate_mask(mask, k)'s pixels, so growth 0 is dilate_mask.
+cv::Mat dilate_mask_by_size(const cv::Mat& mask, int k, double growth);
+
 }  // namespace raindrop::removal

@@ -26,12 +26,20 @@ namespace raindrop::removal {
 // this is already a mistake, and a k of 99999 would dilate for minutes.
 inline constexpr int kMaxDilation = 1023;
 
+// The largest large-drop growth (large_drops.h), for --large-drop-growth and the models'
+// raindrop.large_drop_growth alike: at 10 a drop's mask grows by five diameters all round.
+inline constexpr double kMaxLargeDropGrowth = 10.0;
+
 // The raindrop.* metadata the three graphs agree on.
 struct ModelInfo {
   std::string config;     // raindrop.config, e.g. "compact"
   int pad_multiple = 2;   // lcm of 2 and the graphs' raindrop.pad_multiple (model.cpp says why 2)
   double threshold = 0.5; // raindrop.threshold of rdn.onnx (the training default), in (0, 1)
   int dilation = 1;       // raindrop.dilation of rdn.onnx, 1..kMaxDilation
+  // Optional raindrop.large_drop_growth of rdn.onnx, 0..kMaxLargeDropGrowth: in the coarse pass
+  // for large drops, each drop's mask dilation grows with its size (large_drops.h); 0 (absent):
+  // k for every drop there too.
+  double large_drop_growth = 0;
   // Optional raindrop.working_size of rdn.onnx: the long side, in pixels, of the frames the
   // networks were trained on (working_scale.h); 512 when absent (the committed models).
   int working_size = 512;

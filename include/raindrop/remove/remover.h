@@ -50,6 +50,9 @@ struct RemoveOptions {
   // After the pass at that scale, a coarse pass at a third of it for drops too large for the
   // networks there (large_drops.h). Off: the working-scale pass alone.
   bool large_drops = true;
+  // In that coarse pass, each drop's mask dilation grows with the drop (large_drops.h); 0: the
+  // models' k for every drop.
+  std::optional<double> large_drop_growth;  // default: the models' raindrop.large_drop_growth
   // Runs the 3RN and RFN on the image and on its mirror image and averages the two
   // (large_drops.h: run_mirror_averaged): twice their time for a better guess at what drops
   // hide. The coarse pass always does (kLargeDropMirrorAverage); this turns it on for the
@@ -103,9 +106,10 @@ class Remover {
   // only (image empty), and the 3RN does not run beside the RDN (it might be wasted): a single
   // tile then runs both, one after the other, on the half-thread sessions.
   // `reconstruction` names the models whose 3RN and RFN run after the detector (default: the
-  // main ones); the detector is always the main models'.
+  // main ones); the detector is always the main models'. `growth`: the mask's dilation grows
+  // with each drop (mask.h: dilate_mask_by_size), the coarse pass's only.
   RemoveResult run_native(const cv::Mat& image, const RemoveOptions& options, const MaskGate& gate = {},
-                          const std::function<Models&()>& reconstruction = {});
+                          const std::function<Models&()>& reconstruction = {}, double growth = 0);
   // The models for the coarse pass's large drops (made on first use), or models_.
   Models& large_drop_models();
   // The pipeline on a copy at `small`, brought back to the image's size.
