@@ -4,7 +4,7 @@
 # (default ../shared/data), for the real frames). Sections can be chosen:
 # scripts/results.sh data render stats eval remove tradeoffs sheets photoreal scale flatroad largedrops coarsetrain
 # largedropmodels sensor mirroraverage highlights multiscale veil papermodels outline trails photos windshield
-# windshield-followup longer
+# windshield-followup longer growth
 #
 # Nothing here is committed automatically: images derived from Cityscapes, CamVid or the
 # real raindrop photographs stay under out/ (their licences forbid redistribution).
@@ -858,6 +858,7 @@ if want growth; then
   # Validation size sets as windshield-followup renders them: the 6 Cityscapes *train* frames.
   gr="$out/growth"
   mkdir -p "$gr"
+  [[ -f data/real-pairs/manifest.jsonl ]] || $py -m raindrop_tools.realpairs prepare "$shared/real-pairs" --out data/real-pairs
   for s in 512x288 1280x720; do
     [[ -f "data/val-size-$s/manifest.jsonl" ]] ||
       build/raindrop-render --cityscapes "$shared/cityscapes-mini" --split train --variants 16 --seed 9 --size "$s" \

@@ -240,6 +240,9 @@ int run(int argc, char** argv) {
     app.parse(argc, argv);
     // NaN passes CLI::Range (every comparison with it is false).
     if (threshold && std::isnan(*threshold)) throw Error("--threshold: nan is not a number between 0 and 1");
+    if (large_drop_growth && std::isnan(*large_drop_growth))
+      throw Error("--large-drop-growth: nan is not a number between 0 and " +
+                  std::to_string(static_cast<int>(kMaxLargeDropGrowth)));
     if (scale && !(*scale > 0.0)) throw Error("--scale must be a number in (0, 1]");
     check_tile_options(tile, overlap);
     if (!shard_text.empty()) shard = parse_shard(shard_text);
@@ -401,9 +404,11 @@ int run(int argc, char** argv) {
                               : remover.large_drop_model_dir().empty() ? "large drops by the same models"
                                                                        : "large drops by '" + remover.large_drop_model_dir().string() + "'";
     std::fprintf(stderr,
-                 "raindrop-remove: models '%s' (config %s, threshold %g, dilation %d; %s), %s, %s, %s\n",
+                 "raindrop-remove: models '%s' (config %s, threshold %g, dilation %d, large-drop growth %g; %s), %s, %s, "
+                 "%s\n",
                  remover.model_dir().string().c_str(), mi.config.c_str(), threshold.value_or(mi.threshold),
-                 dilation.value_or(mi.dilation), large.c_str(), ort_description().c_str(), to_string(device),
+                 dilation.value_or(mi.dilation), no_large_drops ? 0.0 : large_drop_growth.value_or(mi.large_drop_growth),
+                 large.c_str(), ort_description().c_str(), to_string(device),
                  thread_text.c_str());
   }
 

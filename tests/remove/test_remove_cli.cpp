@@ -748,12 +748,14 @@ TEST_F(RemoveCli, ThreadsAreCappedAtTheCores) {
 // NaN passes CLI11's range check (every comparison with it is false); it is a bad command
 // line like any other out-of-range threshold, found before the models are loaded.
 TEST_F(RemoveCli, NanThresholdIsAUsageError) {
-  for (const char* value : {"nan", "NaN", "-nan"}) {
-    const RunResult r = remove({"in.png", "out.png", "--threshold", value, "--models", "no-such-models"});
-    EXPECT_EQ(r.code, 2) << r.describe();
-    EXPECT_NE(r.err.find("--threshold"), std::string::npos) << r.describe();
-    EXPECT_EQ(r.err.find("no-such-models"), std::string::npos) << "checked before loading models\n" << r.describe();
-    EXPECT_FALSE(fs::exists(tmp / "out.png"));
+  for (const char* option : {"--threshold", "--large-drop-growth"}) {
+    for (const char* value : {"nan", "NaN", "-nan"}) {
+      const RunResult r = remove({"in.png", "out.png", option, value, "--models", "no-such-models"});
+      EXPECT_EQ(r.code, 2) << r.describe();
+      EXPECT_NE(r.err.find(option), std::string::npos) << r.describe();
+      EXPECT_EQ(r.err.find("no-such-models"), std::string::npos) << "checked before loading models\n" << r.describe();
+      EXPECT_FALSE(fs::exists(tmp / "out.png"));
+    }
   }
 }
 

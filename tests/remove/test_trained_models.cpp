@@ -193,7 +193,8 @@ fs::path default_models() {
 // 5 scene groups of the group-wise split that no committed model trained on; tools/raindrop_tools/
 // realpairs.py), as a user runs it. docs/RESULTS.md 3.4 measured +3.00 dB there for the default, 4.21
 // +3.43 with its large-drop growth (the floor is issue 10's target, +3 dB, which the growth crosses), of
-// which the large-drop models (its LARGE_DROPS) give about 1.7 dB (+1.71 without them): floors on both, so
+// which the large-drop models (its LARGE_DROPS) give about 1.7 dB (this test printed +1.71 without them on
+// 2026-12-04): floors on both, so
 // that losing the large-drop models or the coarse pass fails here. Needs the real pairs of the
 // shared data folder; skips without them.
 TEST(TrainedModels, DefaultRemovesRealLensCoverDrops) {

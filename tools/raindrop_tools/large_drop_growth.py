@@ -12,8 +12,10 @@ scale, keep k. docs/RESULTS.md 4.21 measured it.
 It is recorded in rdn.onnx's optional metadata ``raindrop.large_drop_growth``, and nothing else
 in the graph changes. The file is rewritten from its own parsed bytes, which ONNX serialises
 back byte for byte. Growth 0 removes the entry and gives back the file as it was. Where the
-folder has an export.json, it gets the new digests and ``pipeline.large_drop_growth``. Each
-file is written beside itself and renamed over it, so an interrupted run leaves the old files.
+folder has an export.json, it gets the new digests and ``pipeline.large_drop_growth``. Every
+input is read and checked before the first file is replaced, and each file is written beside
+itself and renamed over it: a refused run changes nothing, and an interrupted one leaves each
+file whole.
 """
 
 from __future__ import annotations
@@ -57,11 +59,24 @@ def set_large_drop_growth(folder: Path, growth: float) -> dict:
         model.metadata_props.add(key=key, value=value)
     if growth > 0:
         model.metadata_props.add(key=C.META_LARGE_DROP_GROWTH, value=repr(float(growth)))
-    _replace(rdn, model.SerializeToString())
+    data = model.SerializeToString()
+    # Everything is read and checked before the first file is replaced: a bad export.json or a
+    # missing graph leaves the folder as it was.
     info_path = folder / C.EXPORT_INFO
+    info: dict = {}
+    if info_path.is_file():
+        try:
+            info = json.loads(info_path.read_text())
+        except ValueError as e:
+            raise GrowthError(f"{info_path}: not JSON ({e})") from None
+        if not isinstance(info, dict):
+            raise GrowthError(f"{info_path}: not a JSON object")
+        for name in ("rrn", "rfn"):
+            if not (folder / C.FILES[name]).is_file():
+                raise GrowthError(f"{folder / C.FILES[name]}: no such file (export.json lists every graph)")
+    _replace(rdn, data)
     if not info_path.is_file():
         return {}
-    info = json.loads(info_path.read_text())
     pipeline = info.setdefault("pipeline", {})
     if growth > 0:
         pipeline["large_drop_growth"] = float(growth)

@@ -80,3 +80,17 @@ def test_refusals(folder, tmp_path, capsys):
     assert (tmp_path / "junk" / "rdn.onnx").read_bytes() == b"not onnx"
     assert main([str(folder), "0.35"]) == 0
     assert _meta(folder / "rdn.onnx")[C.META_LARGE_DROP_GROWTH] == "0.35"
+
+
+def test_a_bad_export_json_or_a_missing_graph_changes_nothing(folder):
+    before = (folder / "rdn.onnx").read_bytes()
+    (folder / C.EXPORT_INFO).write_text("{not json")
+    with pytest.raises(GrowthError, match="export.json: not JSON"):
+        set_large_drop_growth(folder, 0.35)
+    assert (folder / "rdn.onnx").read_bytes() == before
+    (folder / C.EXPORT_INFO).write_text("{}")
+    (folder / "rfn.onnx").unlink()
+    with pytest.raises(GrowthError, match="rfn.onnx: no such file"):
+        set_large_drop_growth(folder, 0.35)
+    assert (folder / "rdn.onnx").read_bytes() == before
+    assert not list(folder.glob(".*.tmp"))

@@ -19,7 +19,9 @@
 // large_drop_growth, default the models' raindrop.large_drop_growth: mask.h's dilate_mask_by_size).
 // A drop on a lens cover a few centimetres from the lens is defocused: its light spreads past the
 // outline the detector finds by a margin that grows with it, and a fixed k = 3 leaves that margin
-// in place. Measured (docs/RESULTS.md 4.21): growth 0.35 takes the default from +3.00 to +3.43 dB
+// in place. Which parts count as large is decided on the grown mask, so the growth also lets
+// slightly smaller parts, and neighbours it joins, count as large (at 0.35: from about 18 to 16
+// coarse px across). Measured (docs/RESULTS.md 4.21): growth 0.35 takes the default from +3.00 to +3.43 dB
 // on held-out real lens-cover pairs; the same growth at the working scale added nothing there and
 // cost sparse drops 0.07 dB, so that pass keeps k.
 //
