@@ -89,5 +89,16 @@ TEST(Mask, DilationBySizeDilatesEachDropByItsOwnSize) {
   EXPECT_EQ(hi, 1.0) << "0/1, as dilate_mask";
 }
 
+// A grown drop cut by the bottom-right corner: its box, grown by the kernel's reach, is clipped on
+// that side, and the result is still the whole-image dilation.
+TEST(Mask, DilationBySizeAtTheFarCorner) {
+  cv::Mat m0(40, 50, CV_8U, cv::Scalar(0));
+  cv::circle(m0, {47, 37}, 12, cv::Scalar(1), cv::FILLED);
+  const int area = cv::countNonZero(m0);
+  const int k = dilation_for_area(area, 3, 0.5);
+  ASSERT_GT(k, 3) << area << " px";
+  EXPECT_EQ(cv::countNonZero(dilate_mask_by_size(m0, 3, 0.5) != dilate_mask(m0, k)), 0) << "k " << k;
+}
+
 }  // namespace
 }  // namespace removetest
