@@ -878,9 +878,43 @@ if want growth; then
   for g in 0 0.35; do
     score_sets "$gr" "test-g$g" "--large-drop-growth $g -j 2" real-pairs:test:0 test-sparse:-:0
   done | tee "$gr/test.txt"
-  # The 44 real photographs with and without it (masks too), to look at; not scored.
+  # Per photograph of the real test split, and the mask step's time from the --time lines.
+  for g in 0 0.35; do
+    $py -m raindrop_tools.score_outputs --data "$gr/test-g$g-real-pairs-test/set" \
+      --outputs "$gr/test-g$g-real-pairs-test/out" --json "$gr/test-g$g-per-image.json" >/dev/null
+    build/raindrop-remove "$gr/test-g$g-real-pairs-test/set/rainy" "$gr/timed-g$g" -j 2 --time --large-drop-growth "$g" 2>&1 |
+      grep -o "threshold+dilation [0-9.]*" | awk -v g="$g" '{s += $2; n++} END {printf "G %s: mask step %.2f ms mean of %d\n", g, s / n, n}'
+  done | tee "$gr/mask-step.txt"
+  $py - "$gr/test-g0-per-image.json" "$gr/test-g0.35-per-image.json" <<'PY' | tee "$gr/per-image.txt"
+import json, sys
+a, b = ({r["name"]: r["output_psnr_y"] for r in json.load(open(f))["per_image"]} for f in sys.argv[1:])
+d = sorted(b[n] - a[n] for n in a)
+changed = [x for x in d if x != 0]
+print(f"{len(changed)} of {len(d)} change: {sum(x > 0 for x in d)} gain (up to {d[-1]:+.2f} dB), "
+      f"{sum(x < 0 for x in d)} lose (down to {d[0]:+.2f} dB)")
+PY
+  # Folder runs of the split, alternated three times (wall seconds).
+  for r in 1 2 3; do
+    for g in 0 0.35; do
+      s0=$(date +%s.%N)
+      build/raindrop-remove "$gr/test-g$g-real-pairs-test/set/rainy" "$gr/timed-g$g" -q -j 2 --large-drop-growth "$g"
+      echo "G $g run $r: $(echo "$(date +%s.%N) - $s0" | bc) s"
+    done
+  done | tee "$gr/folder-times.txt"
+  # The 44 real photographs with and without it (masks too), to look at, and how many change.
   for g in 0 0.35; do
     rm -rf "$gr/photos-g$g" && build/raindrop-remove "$shared/real-raindrop" "$gr/photos-g$g/removed" \
       --mask-dir "$gr/photos-g$g/masks" --large-drop-growth "$g" -q -j 2
   done
+  $py - "$gr/photos-g0/removed" "$gr/photos-g0.35/removed" <<'PY' | tee "$gr/photos-changed.txt"
+import os, sys
+import cv2
+import numpy as np
+a, b = sys.argv[1:]
+names = sorted(os.listdir(a))
+mean = {n: float(np.abs(cv2.imread(os.path.join(a, n)).astype(int) - cv2.imread(os.path.join(b, n))).mean()) for n in names}
+changed = {n: m for n, m in mean.items() if m > 0}
+print(f"{len(changed)} of {len(names)} change, by {min(changed.values()):.2f}-{max(changed.values()):.2f} levels on average:",
+      " ".join(sorted(changed)))
+PY
 fi

@@ -34,10 +34,11 @@ cv::Mat read_or_fail(const fs::path& p) {
 }
 
 // raindrop-render's demo set (a checkerboard and a street, one variant each, seed 7) at `size`
-// (WIDTHxHEIGHT) into tmp/out.
-void render_demo(const TempDir& tmp, const std::string& size, const std::string& out) {
-  const RunResult r = run_command(RAINDROP_RENDER_BIN, {"--demo", "--size", size, "--seed", "7", "--out", out, "-q", "-j", "1"},
-                                  tmp.path());
+// (WIDTHxHEIGHT) into tmp/out, with the renderer's default scene or the preset `scene`.
+void render_demo(const TempDir& tmp, const std::string& size, const std::string& out, const std::string& scene = "") {
+  std::vector<std::string> args{"--demo", "--size", size, "--seed", "7", "--out", out, "-q", "-j", "1"};
+  if (!scene.empty()) args.insert(args.end(), {"--scene", scene});
+  const RunResult r = run_command(RAINDROP_RENDER_BIN, args, tmp.path());
   ASSERT_EQ(r.code, 0) << r.describe();
 }
 
@@ -307,10 +308,7 @@ TEST(TrainedModels, TheDefaultsLargeDropMasksGrowWithThem) {
   const fs::path models = default_models();
   if (!fs::is_regular_file(models / "rdn.onnx")) GTEST_SKIP() << "no trained models in " << models;
   TempDir tmp;
-  const RunResult rr = run_command(RAINDROP_RENDER_BIN, {"--demo", "--scene", "lens-cover-merged", "--size", "512x256", "--seed",
-                                                         "7", "--out", "set", "-q", "-j", "1"},
-                                   tmp.path());
-  ASSERT_EQ(rr.code, 0) << rr.describe();
+  ASSERT_NO_FATAL_FAILURE(render_demo(tmp, "512x256", "set", "lens-cover-merged"));
   cv::Mat masks[2];
   int k = 0;
   for (const std::string growth : {"", "0"}) {

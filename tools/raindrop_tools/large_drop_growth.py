@@ -53,12 +53,11 @@ def set_large_drop_growth(folder: Path, growth: float) -> dict:
     model = onnx.load_from_string(rdn.read_bytes())
     if C.META_NETWORK not in [p.key for p in model.metadata_props]:
         raise GrowthError(f"{rdn}: not a raindrop graph (no {C.META_NETWORK} metadata)")
-    kept = [(p.key, p.value) for p in model.metadata_props if p.key != C.META_LARGE_DROP_GROWTH]
-    del model.metadata_props[:]
-    for key, value in kept:
-        model.metadata_props.add(key=key, value=value)
+    props = {p.key: p.value for p in model.metadata_props if p.key != C.META_LARGE_DROP_GROWTH}
     if growth > 0:
-        model.metadata_props.add(key=C.META_LARGE_DROP_GROWTH, value=repr(float(growth)))
+        props[C.META_LARGE_DROP_GROWTH] = repr(float(growth))
+    del model.metadata_props[:]
+    onnx.helper.set_model_props(model, props)  # in order, as export writes them
     data = model.SerializeToString()
     # Everything is read and checked before the first file is replaced: a bad export.json or a
     # missing graph leaves the folder as it was.
