@@ -4,7 +4,7 @@
 # (default ../shared/data), for the real frames). Sections can be chosen:
 # scripts/results.sh data render stats eval remove tradeoffs sheets photoreal scale flatroad largedrops coarsetrain
 # largedropmodels sensor mirroraverage highlights multiscale veil papermodels outline trails photos windshield
-# windshield-followup longer growth
+# windshield-followup longer growth sharpness
 #
 # Nothing here is committed automatically: images derived from Cityscapes, CamVid or the
 # real raindrop photographs stay under out/ (their licences forbid redistribution).
@@ -17,7 +17,7 @@ mkdir -p "$out"
 sections=("$@")
 ((${#sections[@]})) || sections=(data render stats eval remove tradeoffs sheets photoreal scale flatroad largedrops coarsetrain
                                   largedropmodels sensor mirroraverage highlights multiscale veil papermodels outline trails
-                                  photos windshield windshield-followup longer growth)
+                                  photos windshield windshield-followup longer growth sharpness)
 want() { [[ " ${sections[*]} " == *" $1 "* ]]; }
 # link_set SRC DST SPLIT [LIMIT]: the first LIMIT (default 100; 0: all) samples of data set SRC
 # (of manifest split SPLIT; "-" = all) linked into DST/rainy and DST/clean under plainly named
@@ -130,6 +130,22 @@ score_sets() {
     build/raindrop-remove "$d/set/rainy" "$d/out" -q $flags
     $py -m raindrop_tools.score_outputs --data "$d/set" --outputs "$d/out" --label "$label $name $split"
   done
+}
+
+# photos_changed A B: how many of the outputs in folder A differ from those of the same name in
+# B, by how much (mean absolute difference in levels), and which.
+photos_changed() {
+  $py - "$1" "$2" <<'PY'
+import os, sys
+import cv2
+import numpy as np
+a, b = sys.argv[1:]
+names = sorted(os.listdir(a))
+mean = {n: float(np.abs(cv2.imread(os.path.join(a, n)).astype(int) - cv2.imread(os.path.join(b, n))).mean()) for n in names}
+changed = {n: m for n, m in mean.items() if m > 0}
+print(f"{len(changed)} of {len(names)} change, by {min(changed.values()):.2f}-{max(changed.values()):.2f} levels on average:",
+      " ".join(sorted(changed)))
+PY
 }
 
 if want data; then
@@ -866,23 +882,24 @@ if want growth; then
   done
   # The choice, on validation sets only (growth 0 is the default before it).
   for g in 0 0.25 0.35 0.5; do
-    score_sets "$gr" "g$g" "--large-drop-growth $g -j 2" real-pairs:train:0 val-sparse:-:0 val-windshield-sharp:-:0 \
+    score_sets "$gr" "g$g" "--large-drop-growth $g --large-drop-sharpness inf -j 2" real-pairs:train:0 val-sparse:-:0 val-windshield-sharp:-:0 \
       val-size-512x288:-:0 val-size-1280x720:-:0
   done | tee "$gr/validation.txt"
   # compact-windshield with the same growth (not given it: val-sparse falls 0.37 dB).
   for g in 0 0.35; do
-    score_sets "$gr" "cw-g$g" "--models models/compact-windshield --large-drop-growth $g -j 2" real-pairs:train:0 \
+    score_sets "$gr" "cw-g$g" "--models models/compact-windshield --large-drop-growth $g --large-drop-sharpness inf -j 2" real-pairs:train:0 \
       val-sparse:-:0 val-windshield-sharp:-:0
   done | tee "$gr/compact-windshield.txt"
   # The models' own growth (0.35) against none, on the test sets.
   for g in 0 0.35; do
-    score_sets "$gr" "test-g$g" "--large-drop-growth $g -j 2" real-pairs:test:0 test-sparse:-:0
+    score_sets "$gr" "test-g$g" "--large-drop-growth $g --large-drop-sharpness inf -j 2" real-pairs:test:0 test-sparse:-:0
   done | tee "$gr/test.txt"
   # Per photograph of the real test split, and the mask step's time from the --time lines.
   for g in 0 0.35; do
     $py -m raindrop_tools.score_outputs --data "$gr/test-g$g-real-pairs-test/set" \
       --outputs "$gr/test-g$g-real-pairs-test/out" --json "$gr/test-g$g-per-image.json" >/dev/null
-    build/raindrop-remove "$gr/test-g$g-real-pairs-test/set/rainy" "$gr/timed-g$g" -j 2 --time --large-drop-growth "$g" 2>&1 |
+    build/raindrop-remove "$gr/test-g$g-real-pairs-test/set/rainy" "$gr/timed-g$g" -j 2 --time --large-drop-growth "$g" \
+      --large-drop-sharpness inf 2>&1 |
       grep -o "threshold+dilation [0-9.]*" | awk -v g="$g" '{s += $2; n++} END {printf "G %s: mask step %.2f ms mean of %d\n", g, s / n, n}'
   done | tee "$gr/mask-step.txt"
   $py - "$gr/test-g0-per-image.json" "$gr/test-g0.35-per-image.json" <<'PY' | tee "$gr/per-image.txt"
@@ -897,24 +914,54 @@ PY
   for r in 1 2 3; do
     for g in 0 0.35; do
       s0=$(date +%s.%N)
-      build/raindrop-remove "$gr/test-g$g-real-pairs-test/set/rainy" "$gr/timed-g$g" -q -j 2 --large-drop-growth "$g"
+      build/raindrop-remove "$gr/test-g$g-real-pairs-test/set/rainy" "$gr/timed-g$g" -q -j 2 --large-drop-growth "$g" \
+        --large-drop-sharpness inf
       echo "G $g run $r: $(echo "$(date +%s.%N) - $s0" | bc) s"
     done
   done | tee "$gr/folder-times.txt"
   # The 44 real photographs with and without it (masks too), to look at, and how many change.
   for g in 0 0.35; do
     rm -rf "$gr/photos-g$g" && build/raindrop-remove "$shared/real-raindrop" "$gr/photos-g$g/removed" \
-      --mask-dir "$gr/photos-g$g/masks" --large-drop-growth "$g" -q -j 2
+      --mask-dir "$gr/photos-g$g/masks" --large-drop-growth "$g" --large-drop-sharpness inf -q -j 2
   done
-  $py - "$gr/photos-g0/removed" "$gr/photos-g0.35/removed" <<'PY' | tee "$gr/photos-changed.txt"
-import os, sys
-import cv2
-import numpy as np
-a, b = sys.argv[1:]
-names = sorted(os.listdir(a))
-mean = {n: float(np.abs(cv2.imread(os.path.join(a, n)).astype(int) - cv2.imread(os.path.join(b, n))).mean()) for n in names}
-changed = {n: m for n, m in mean.items() if m > 0}
-print(f"{len(changed)} of {len(names)} change, by {min(changed.values()):.2f}-{max(changed.values()):.2f} levels on average:",
-      " ".join(sorted(changed)))
-PY
+  photos_changed "$gr/photos-g0/removed" "$gr/photos-g0.35/removed" | tee "$gr/photos-changed.txt"
+fi
+
+if want sharpness; then
+  # The coarse pass replaces only smooth large regions (docs/RESULTS.md 4.22): needs the same
+  # data sets as the growth section. "inf" is the coarse pass before the rule.
+  sh="$out/sharpness"
+  mkdir -p "$sh"
+  [[ -f data/real-pairs/manifest.jsonl ]] || $py -m raindrop_tools.realpairs prepare "$shared/real-pairs" --out data/real-pairs
+  # The choice, on validation sets only; the coarse pass off for comparison.
+  for t in inf 7 8 10 12; do
+    score_sets "$sh" "t$t" "--large-drop-sharpness $t -j 2" real-pairs:train:0 val-windshield-sharp:-:0 \
+      val-size-512x288:-:0 val-size-1280x720:-:0
+  done | tee "$sh/validation.txt"
+  score_sets "$sh" "off" "--no-large-drops -j 2" real-pairs:train:0 val-windshield-sharp:-:0 val-size-512x288:-:0 \
+    val-size-1280x720:-:0 | tee "$sh/validation-off.txt"
+  score_sets "$sh" "t8" "-j 2" val-sparse:-:0 | tee "$sh/validation-sparse.txt"
+  # The test sets, once, before and after.
+  for t in inf 8; do
+    score_sets "$sh" "test-t$t" "--large-drop-sharpness $t -j 2" real-pairs:test:0 test-sparse:-:0
+  done | tee "$sh/test.txt"
+  # The mask step (where the sharpness is measured) from the --time lines of the real test split.
+  for t in inf 8; do
+    build/raindrop-remove "$sh/test-t$t-real-pairs-test/set/rainy" "$sh/timed-t$t" -j 2 --time --large-drop-sharpness "$t" 2>&1 |
+      grep -o "threshold+dilation [0-9.]*" | awk -v t="$t" '{s += $2; n++} END {printf "limit %s: mask step %.2f ms mean of %d\n", t, s / n, n}'
+  done | tee "$sh/mask-step.txt"
+  # The 44 real photographs before and after (outputs and masks, to look at), how many change,
+  # and a folder run of them alternated three times (wall seconds).
+  for t in inf 8; do
+    rm -rf "$sh/photos-t$t" && build/raindrop-remove "$shared/real-raindrop" "$sh/photos-t$t/removed" \
+      --mask-dir "$sh/photos-t$t/masks" --large-drop-sharpness "$t" -q -j 2
+  done
+  photos_changed "$sh/photos-tinf/removed" "$sh/photos-t8/removed" | tee "$sh/photos-changed.txt"
+  for r in 1 2 3; do
+    for t in inf 8; do
+      s0=$(date +%s.%N)
+      build/raindrop-remove "$shared/real-raindrop" "$sh/timed-photos-t$t" -q -j 2 --large-drop-sharpness "$t"
+      echo "limit $t run $r: $(echo "$(date +%s.%N) - $s0" | bc) s"
+    done
+  done | tee "$sh/photo-times.txt"
 fi

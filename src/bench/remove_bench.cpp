@@ -9,6 +9,7 @@
 #include <algorithm>
 #include <cstdio>
 #include <functional>
+#include <limits>
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
@@ -145,7 +146,11 @@ void print_option_cost(const std::vector<std::string>& model_dirs, cv::Size size
     Remover remover(dir, session);
     for (const bool all_one_drop : {false, true}) {
       RemoveOptions on, off;
-      if (all_one_drop) on.threshold = off.threshold = -1.0;
+      if (all_one_drop) {
+        on.threshold = off.threshold = -1.0;
+        // Every network of both passes: no region is too sharp for the coarse pass (large_drops.h).
+        on.large_drop_max_sharpness = off.large_drop_max_sharpness = std::numeric_limits<double>::infinity();
+      }
       set(on, true);
       set(off, false);
       std::vector<double> t_on, t_off;

@@ -21,6 +21,7 @@
 #include <filesystem>
 #include <iostream>
 #include <map>
+#include <limits>
 #include <optional>
 #include <set>
 #include <string>
@@ -178,6 +179,7 @@ int run(int argc, char** argv) {
   std::optional<double> threshold, scale;
   std::optional<int> dilation;
   std::optional<double> large_drop_growth;
+  double large_drop_sharpness = kLargeDropMaxSharpness;
   int threads = 0, tile = kDefaultTile, overlap = kDefaultOverlap;
   bool time = false, quiet = false, keep_going = false, no_large_drops = false, mirror_average = false;
   Shard shard;
@@ -207,12 +209,21 @@ int run(int argc, char** argv) {
                      "(the disk of its area), at least the models' k: large drops' defocused edges spread past what the "
                      "detector finds; 0: k for every drop (default: the models', 0.35 for the default)")
           ->check(CLI::Range(0.0, kMaxLargeDropGrowth));
+  auto* sharpness_opt =
+      app.add_option("--large-drop-sharpness", large_drop_sharpness,
+                     "In the coarse pass, replace a large region only where the image there is this smooth or smoother: "
+                     "the mean absolute Laplacian of its luma at the working scale, in 8-bit levels (defocused drops are "
+                     "smooth; clusters of sharp windshield drops and sharp scenery are not, and the coarse fill would blur "
+                     "them); inf: every large region")
+          ->capture_default_str()
+          ->check(CLI::Range(0.0, std::numeric_limits<double>::infinity()));
   app.add_flag("--no-large-drops", no_large_drops,
                "Skip the coarse pass at a third of that scale that takes over drops too large for the networks there "
                "(mask regions with the area of a disk 60 px across at the working scale, clusters included, e.g. on a "
                "lens cover)")
       ->excludes(large_opt)
-      ->excludes(growth_opt);
+      ->excludes(growth_opt)
+      ->excludes(sharpness_opt);
   app.add_flag("--mirror-average", mirror_average,
                "Also at the working scale, run the 3RN and RFN on the image and on its mirror image and average the two "
                "(the coarse pass for large drops always does): about twice the time of the networks' pass, for "
@@ -243,6 +254,7 @@ int run(int argc, char** argv) {
     if (large_drop_growth && std::isnan(*large_drop_growth))
       throw Error("--large-drop-growth: nan is not a number between 0 and " +
                   std::to_string(static_cast<int>(kMaxLargeDropGrowth)));
+    if (std::isnan(large_drop_sharpness)) throw Error("--large-drop-sharpness: nan is not a number >= 0");
     if (scale && !(*scale > 0.0)) throw Error("--scale must be a number in (0, 1]");
     check_tile_options(tile, overlap);
     if (!shard_text.empty()) shard = parse_shard(shard_text);
@@ -390,6 +402,7 @@ int run(int argc, char** argv) {
   s.options.threshold = threshold;
   s.options.dilation = dilation;
   s.options.large_drop_growth = large_drop_growth;
+  s.options.large_drop_max_sharpness = large_drop_sharpness;
   s.options.tile = tile;
   s.options.overlap = overlap;
   s.options.scale = scale;
@@ -404,11 +417,11 @@ int run(int argc, char** argv) {
                               : remover.large_drop_model_dir().empty() ? "large drops by the same models"
                                                                        : "large drops by '" + remover.large_drop_model_dir().string() + "'";
     std::fprintf(stderr,
-                 "raindrop-remove: models '%s' (config %s, threshold %g, dilation %d, large-drop growth %g; %s), %s, %s, "
-                 "%s\n",
+                 "raindrop-remove: models '%s' (config %s, threshold %g, dilation %d, large-drop growth %g, "
+                 "large-drop sharpness %g; %s), %s, %s, %s\n",
                  remover.model_dir().string().c_str(), mi.config.c_str(), threshold.value_or(mi.threshold),
                  dilation.value_or(mi.dilation), no_large_drops ? 0.0 : large_drop_growth.value_or(mi.large_drop_growth),
-                 large.c_str(), ort_description().c_str(), to_string(device),
+                 large_drop_sharpness, large.c_str(), ort_description().c_str(), to_string(device),
                  thread_text.c_str());
   }
 

@@ -5,7 +5,24 @@
 
 #include <opencv2/imgproc.hpp>
 
+#include "raindrop/remove/pixels.h"
+
 namespace raindrop::removal {
+
+namespace {
+
+// keep[label] for every pixel of a label image (CV_32S) made by connectedComponents.
+cv::Mat kept_labels(const cv::Mat& labels, const std::vector<unsigned char>& keep) {
+  cv::Mat out(labels.size(), CV_8U);
+  for (int y = 0; y < labels.rows; ++y) {
+    const int* l = labels.ptr<int>(y);
+    unsigned char* o = out.ptr<unsigned char>(y);
+    for (int x = 0; x < labels.cols; ++x) o[x] = keep[l[x]];
+  }
+  return out;
+}
+
+}  // namespace
 
 bool coarse_pass_fits(cv::Size coarse) {
   return coarse.width >= 2 * kLargeDropDiameter && coarse.height >= 2 * kLargeDropDiameter;
@@ -24,14 +41,49 @@ cv::Mat large_drop_mask(const cv::Mat& mask, int* count) {
       ++kept;
     }
   }
-  cv::Mat out(mask.size(), CV_8U);
-  for (int y = 0; y < mask.rows; ++y) {
+  if (count) *count = kept;
+  return kept_labels(labels, keep);
+}
+
+cv::Mat sharpness_map(const cv::Mat& image) {
+  const cv::Mat rgb = to_rgb_float(image, cv::Rect(0, 0, image.cols, image.rows));
+  cv::Mat luma(rgb.size(), CV_32F);
+  for (int y = 0; y < rgb.rows; ++y) {
+    const auto* p = rgb.ptr<cv::Vec3f>(y);
+    float* l = luma.ptr<float>(y);
+    for (int x = 0; x < rgb.cols; ++x) l[x] = 255.0f * (0.299f * p[x][0] + 0.587f * p[x][1] + 0.114f * p[x][2]);
+  }
+  cv::Mat lap;
+  cv::Laplacian(luma, lap, CV_32F, 1, 1.0, 0.0, cv::BORDER_REPLICATE);
+  return cv::abs(lap);
+}
+
+cv::Mat smooth_large_drops(const cv::Mat& large, const cv::Mat& sharpness, double max_sharpness, int* count) {
+  CV_Assert(large.type() == CV_8UC1 && sharpness.type() == CV_32FC1);
+  cv::Mat local;
+  if (sharpness.size() == large.size())
+    local = sharpness;
+  else
+    cv::resize(sharpness, local, large.size(), 0, 0, cv::INTER_AREA);
+  cv::Mat labels;
+  const int n = cv::connectedComponents(large != 0, labels, 8, CV_32S);
+  std::vector<double> sum(n, 0.0);
+  std::vector<int> area(n, 0);
+  for (int y = 0; y < large.rows; ++y) {
     const int* l = labels.ptr<int>(y);
-    unsigned char* o = out.ptr<unsigned char>(y);
-    for (int x = 0; x < mask.cols; ++x) o[x] = keep[l[x]];
+    const float* s = local.ptr<float>(y);
+    for (int x = 0; x < large.cols; ++x) sum[l[x]] += s[x], ++area[l[x]];
+  }
+  std::vector<unsigned char> keep(n, 0);
+  int kept = 0;
+  for (int i = 1; i < n; ++i) {
+    if (sum[i] <= max_sharpness * area[i]) {
+      keep[i] = 255;
+      ++kept;
+    }
   }
   if (count) *count = kept;
-  return out;
+  return kept_labels(labels, keep);
 }
 
 namespace {

@@ -171,10 +171,23 @@ RemoveResult Remover::run(const cv::Mat& image, const RemoveOptions& opt) {
     throw Error("--scale must be a number in (0, 1], got " + std::to_string(*opt.scale));
   if (opt.large_drop_growth && !(*opt.large_drop_growth >= 0 && *opt.large_drop_growth <= kMaxLargeDropGrowth))
     throw Error("--large-drop-growth must be between 0 and " + std::to_string(static_cast<int>(kMaxLargeDropGrowth)));
+  if (std::isnan(opt.large_drop_max_sharpness) || opt.large_drop_max_sharpness < 0)
+    throw Error("--large-drop-sharpness must be a number >= 0 (inf: no limit)");
   const double scale = opt.scale.value_or(auto_working_scale(image.size(), info().working_size));
   const cv::Size small = scaled_size(image.size(), scale);
-  RemoveResult res = small == image.size() ? run_native(image, opt) : run_scaled(image, opt, small, scale);
-  if (opt.large_drops) add_large_drops(image, opt, scale, res);
+  if (small == image.size()) {
+    RemoveResult res = run_native(image, opt);
+    if (opt.large_drops) add_large_drops(image, image, opt, scale, res);
+    return res;
+  }
+  auto clock = Clock::now();
+  // Area averaging: every input pixel counts once (no aliasing of fine texture).
+  cv::Mat working;
+  cv::resize(image, working, small, 0, 0, cv::INTER_AREA);
+  const double t_down = lap_ms(clock);
+  RemoveResult res = run_scaled(image, working, opt, scale);
+  res.times.convert += t_down;
+  if (opt.large_drops) add_large_drops(image, working, opt, scale, res);
   return res;
 }
 
@@ -239,21 +252,15 @@ Upsampled composite_upsampled(const cv::Mat& base, const cv::Mat& base_rgb, cons
 
 }  // namespace
 
-RemoveResult Remover::run_scaled(const cv::Mat& image, const RemoveOptions& opt, cv::Size small, double scale) {
-  auto clock = Clock::now();
-  // Area averaging: every input pixel counts once (no aliasing of fine texture).
-  cv::Mat small_native;
-  cv::resize(image, small_native, small, 0, 0, cv::INTER_AREA);
-  const double t_down = lap_ms(clock);
+RemoveResult Remover::run_scaled(const cv::Mat& image, const cv::Mat& small, const RemoveOptions& opt, double scale) {
   RemoveOptions sub = opt;
   sub.scale = 1.0;
   sub.keep_float = true;
-  RemoveResult res = run_native(small_native, sub);
+  RemoveResult res = run_native(small, sub);
   res.scale = scale;
   StageTimes& t = res.times;
-  t.convert += t_down;
 
-  clock = Clock::now();
+  auto clock = Clock::now();
   cv::Mat mask_small;
   res.mask.convertTo(mask_small, CV_32F, 1.0 / 255.0);
   Upsampled up = composite_upsampled(image, cv::Mat(), res.rgb, mask_small, opt.keep_float);
@@ -264,7 +271,8 @@ RemoveResult Remover::run_scaled(const cv::Mat& image, const RemoveOptions& opt,
   return res;
 }
 
-void Remover::add_large_drops(const cv::Mat& image, const RemoveOptions& opt, double scale, RemoveResult& res) {
+void Remover::add_large_drops(const cv::Mat& image, const cv::Mat& working, const RemoveOptions& opt, double scale,
+                              RemoveResult& res) {
   const double coarse_scale = scale / kLargeDropScaleDivisor;
   const cv::Size coarse = scaled_size(image.size(), coarse_scale);
   if (!coarse_pass_fits(coarse)) return;
@@ -284,6 +292,9 @@ void Remover::add_large_drops(const cv::Mat& image, const RemoveOptions& opt, do
   cv::Mat large;
   const MaskGate only_with_large_drops = [&](const cv::Mat& mask) {
     large = large_drop_mask(mask, &res.large_drops);
+    // Only smooth regions: a sharp one is no defocused drop, and the coarse fill would blur it.
+    if (res.large_drops > 0 && std::isfinite(opt.large_drop_max_sharpness))
+      large = smooth_large_drops(large, sharpness_map(working), opt.large_drop_max_sharpness, &res.large_drops);
     return res.large_drops > 0;
   };
   // The coarse copy's detector is the main models' (it decides what is large, as it decides

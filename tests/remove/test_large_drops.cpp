@@ -2,6 +2,7 @@
 // as large, when the pass runs, and that it replaces exactly those parts with the coarse copy's
 // result, upsampled, leaving everything else as the working-scale pass made it.
 #include <cmath>
+#include <limits>
 
 #include <opencv2/imgproc.hpp>
 
@@ -17,6 +18,10 @@ namespace {
 using namespace raindrop::removal;
 
 Remover& smoke() { return smoke_remover(); }
+
+// The tests of the coarse pass's mechanics use textured street images, which the sharpness rule
+// (large_drops.h) would keep from the pass: they lift it. The rule has its own tests below.
+constexpr double kNoLimit = std::numeric_limits<double>::infinity();
 
 // What `remover` makes of `img` at `coarse_scale` with every pixel a drop, brought back to
 // full size as the coarse pass does (its 3RN and RFN averaged with the mirror image's, the
@@ -89,6 +94,7 @@ TEST(LargeDrops, AFullMaskIsTheCoarseCopysResultUpsampled) {
   const cv::Mat img = make_image(600, 300, 7);
   RemoveOptions all;
   all.threshold = -1.0;  // P > -1 always
+  all.large_drop_max_sharpness = kNoLimit;
   const RemoveResult r = smoke().run(img, all);
   ASSERT_EQ(r.large_drops, 1);
   // Both passes ran whole, the coarse one's 3RN and RFN twice (mirror averaging).
@@ -113,6 +119,7 @@ TEST(LargeDrops, FormatsAreKept) {
   rgba.convertTo(rgba16, CV_16U, 257.0);
   RemoveOptions all;
   all.threshold = -1.0;  // one mask over everything: the coarse pass takes it all
+  all.large_drop_max_sharpness = kNoLimit;
   for (const cv::Mat& img : {grey, rgba16}) {
     const RemoveResult r = smoke().run(img, all);
     ASSERT_EQ(r.large_drops, 1);
@@ -231,6 +238,100 @@ TEST(LargeDrops, MirrorAveragingIsTheMeanOfBothViews) {
   EXPECT_GT(cv::norm(direct, other, cv::NORM_INF), 1e-3) << "the network is mirror-equivariant: the test cannot fail";
 }
 
+// sharpness_map (large_drops.h) against closed forms: nothing on a flat image, 2a on a luma
+// a x^2 (the discrete Laplacian of a quadratic is exact), 4 x 255 inside a black and white
+// checkerboard; the luma weights sum to one, so a grey image, its RGB copy and its 16-bit and
+// float copies agree.
+TEST(LargeDrops, SharpnessIsTheLaplacianOfTheLuma) {
+  const cv::Mat flat(40, 60, CV_8UC3, cv::Scalar(90, 140, 30));
+  EXPECT_EQ(cv::norm(sharpness_map(flat), cv::NORM_INF), 0.0);
+
+  const double a = 0.01;
+  cv::Mat quadratic(30, 100, CV_32FC3);
+  for (int y = 0; y < quadratic.rows; ++y)
+    for (int x = 0; x < quadratic.cols; ++x) quadratic.at<cv::Vec3f>(y, x) = cv::Vec3f::all(float(a * x * x / 255.0));
+  const cv::Mat q = sharpness_map(quadratic);
+  ASSERT_EQ(q.size(), quadratic.size());
+  ASSERT_EQ(q.type(), CV_32FC1);
+  for (int x = 1; x < quadratic.cols - 1; ++x) EXPECT_NEAR(q.at<float>(15, x), 2 * a, 1e-3) << "x " << x;
+
+  cv::Mat board(20, 20, CV_8UC1);
+  for (int y = 0; y < board.rows; ++y)
+    for (int x = 0; x < board.cols; ++x) board.at<unsigned char>(y, x) = (x + y) % 2 ? 255 : 0;
+  const cv::Mat b = sharpness_map(board);
+  for (int y = 1; y < board.rows - 1; ++y)
+    for (int x = 1; x < board.cols - 1; ++x) EXPECT_FLOAT_EQ(b.at<float>(y, x), 4 * 255.0f);
+
+  const cv::Mat grey = make_image(64, 48, 12);
+  cv::Mat grey8, rgb8, rgb16, rgbf;
+  cv::cvtColor(grey, grey8, cv::COLOR_RGB2GRAY);
+  cv::cvtColor(grey8, rgb8, cv::COLOR_GRAY2RGB);
+  rgb8.convertTo(rgb16, CV_16U, 257.0);
+  rgb8.convertTo(rgbf, CV_32F, 1.0 / 255.0);
+  const cv::Mat s = sharpness_map(grey8);
+  EXPECT_GT(cv::mean(s)[0], 1.0) << "a textured image: the comparisons below cannot fail otherwise";
+  for (const cv::Mat& other : {rgb8, rgb16, rgbf}) EXPECT_LT(cv::norm(sharpness_map(other), s, cv::NORM_INF), 1e-2);
+}
+
+// smooth_large_drops keeps the parts whose mean sharpness, over the finer pixels under them, is
+// at most the limit (a part exactly at it stays), and says how many.
+TEST(LargeDrops, OnlySmoothPartsStay) {
+  cv::Mat large(60, 90, CV_8U, cv::Scalar(0));
+  cv::circle(large, {20, 30}, 12, cv::Scalar(255), cv::FILLED);
+  cv::circle(large, {65, 30}, 12, cv::Scalar(255), cv::FILLED);
+  // The sharpness on a grid three times finer: 10 levels under the left part, and under the
+  // right one 12 on every other column and 0 between (a mean of 6, a maximum of 12).
+  cv::Mat sharp(180, 270, CV_32F, cv::Scalar(0));
+  sharp(cv::Rect(0, 0, 126, 180)).setTo(10.0f);
+  for (int x = 136; x < 270; x += 2) sharp.col(x).setTo(12.0f);
+  int count = -1;
+  cv::Mat kept = smooth_large_drops(large, sharp, 7.0, &count);
+  EXPECT_EQ(count, 1);
+  EXPECT_EQ(cv::countNonZero(kept(cv::Rect(0, 0, 45, 60))), 0) << "the left part is sharp";
+  EXPECT_EQ(cv::countNonZero(kept(cv::Rect(45, 0, 45, 60))), cv::countNonZero(large(cv::Rect(45, 0, 45, 60))))
+      << "the right part is smooth on average";
+  kept = smooth_large_drops(large, sharp, 10.0, &count);
+  EXPECT_EQ(count, 2) << "a part exactly at the limit stays";
+  EXPECT_EQ(cv::countNonZero(kept != large), 0);
+  kept = smooth_large_drops(large, sharp, 5.9, &count);
+  EXPECT_EQ(count, 0);
+  EXPECT_EQ(cv::countNonZero(kept), 0);
+}
+
+// In the pipeline: a sharp image under a mask over everything is no large drop (the
+// working-scale pass's result, bit for bit); the same image blurred is one. The limit is
+// compared with the working-scale image's own sharpness, on either side of it.
+TEST(LargeDrops, SharpRegionsAreLeftToTheWorkingScalePass) {
+  cv::Mat sharp = make_image(600, 300, 13);
+  cv::Mat grain(sharp.size(), CV_8UC3);
+  cv::randu(grain, 0, 48);  // fine texture everywhere: sharp at any scale
+  sharp += grain;
+  cv::Mat smooth;
+  cv::GaussianBlur(sharp, smooth, cv::Size(0, 0), 6.0);
+  RemoveOptions all;
+  all.threshold = -1.0;  // one mask over everything
+  RemoveOptions fine_only = all;
+  fine_only.large_drops = false;
+  const RemoveResult r = smoke().run(sharp, all);
+  cv::Mat working;
+  cv::resize(sharp, working, scaled_size(sharp.size(), r.scale), 0, 0, cv::INTER_AREA);
+  const double mean_sharpness = cv::mean(sharpness_map(working))[0];
+  ASSERT_GT(mean_sharpness, kLargeDropMaxSharpness) << "the test image is not sharp enough to test the rule";
+  EXPECT_EQ(r.large_drops, 0);
+  EXPECT_EQ(max_abs_diff(r.image, smoke().run(sharp, fine_only).image), 0);
+  EXPECT_EQ(smoke().run(smooth, all).large_drops, 1);
+  RemoveOptions limit = all;
+  limit.large_drop_max_sharpness = 1.05 * mean_sharpness;
+  EXPECT_EQ(smoke().run(sharp, limit).large_drops, 1);
+  limit.large_drop_max_sharpness = 0.95 * mean_sharpness;
+  EXPECT_EQ(smoke().run(sharp, limit).large_drops, 0);
+  RemoveOptions bad = all;
+  for (double v : {-1.0, std::nan("")}) {
+    bad.large_drop_max_sharpness = v;
+    EXPECT_THROW(smoke().run(sharp, bad), raindrop::Error) << v;
+  }
+}
+
 // Large drops can go to other models than the working-scale pass's (Remover's large_drop_dir,
 // models/<config>/LARGE_DROPS): with a mask over everything, the output is those models' result
 // on the coarse copy, upsampled, and not the main models'.
@@ -241,6 +342,7 @@ TEST(LargeDropModels, ReconstructTheLargeDrops) {
   const cv::Mat img = make_image(600, 300, 9);
   RemoveOptions all;
   all.threshold = -1.0;  // every detector's mask covers everything: one large drop
+  all.large_drop_max_sharpness = kNoLimit;
   const RemoveResult r = with_other.run(img, all);
   ASSERT_EQ(r.large_drops, 1);
   const double coarse_scale = r.scale / kLargeDropScaleDivisor;
@@ -263,6 +365,7 @@ TEST(LargeDropModels, LoadOnlyForALargeDrop) {
   EXPECT_EQ(max_abs_diff(r.run(img, none).image, smoke().run(img, none).image), 0);
   RemoveOptions all;
   all.threshold = -1.0;
+  all.large_drop_max_sharpness = kNoLimit;
   for (int attempt = 0; attempt < 2; ++attempt) {  // the failure is kept: the same error again
     try {
       r.run(img, all);
@@ -284,6 +387,7 @@ TEST(LargeDropModels, AFolderWithoutTheGraphsIsRefusedAtOnce) {
   Remover two(smoke_models(), {}, tmp / "two");
   RemoveOptions all;
   all.threshold = -1.0;
+  all.large_drop_max_sharpness = kNoLimit;
   EXPECT_EQ(two.run(make_image(600, 300, 11), all).large_drops, 1);
   Remover same(smoke_models(), {}, smoke_models() / "");
   EXPECT_TRUE(same.large_drop_model_dir().empty()) << "the models' own folder: one set of models";

@@ -95,6 +95,8 @@ TEST_F(RemoveCli, HelpVersionAndUsageErrors) {
         {"in.png", "out.png", "--dilation", "0"}, {"in.png", "out.png", "--large-drop-growth", "-0.5"},
         {"in.png", "out.png", "--large-drop-growth", "11"}, {"in.png", "out.png", "--no-such-option"},
         {"in.png", "out.png", "--no-large-drops", "--large-drop-growth", "0.3"},
+        {"in.png", "out.png", "--large-drop-sharpness", "-1"},
+        {"in.png", "out.png", "--no-large-drops", "--large-drop-sharpness", "5"},
         {"in.png", "out.png", "--no-large-drops", "--large-drop-models", "."}}) {
     r = remove(bad);
     EXPECT_EQ(r.code, 2) << r.describe();
@@ -748,7 +750,7 @@ TEST_F(RemoveCli, ThreadsAreCappedAtTheCores) {
 // NaN passes CLI11's range check (every comparison with it is false); it is a bad command
 // line like any other out-of-range threshold, found before the models are loaded.
 TEST_F(RemoveCli, NanThresholdIsAUsageError) {
-  for (const char* option : {"--threshold", "--large-drop-growth"}) {
+  for (const char* option : {"--threshold", "--large-drop-growth", "--large-drop-sharpness"}) {
     for (const char* value : {"nan", "NaN", "-nan"}) {
       const RunResult r = remove({"in.png", "out.png", option, value, "--models", "no-such-models"});
       EXPECT_EQ(r.code, 2) << r.describe();

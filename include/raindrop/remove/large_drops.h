@@ -25,6 +25,18 @@
 // on held-out real lens-cover pairs; the same growth at the working scale added nothing there and
 // cost sparse drops 0.07 dB, so that pass keeps k.
 //
+// A large region is replaced only where the image there is smooth: the mean absolute
+// Laplacian of its luma at the working scale (8-bit levels, sharpness_map) at most
+// RemoveOptions::large_drop_max_sharpness (default kLargeDropMaxSharpness). The coarse pass is
+// for defocused drops, which blur what is behind them; its fill is itself blurred (3x upsampled,
+// kLargeDropSmoothing). A cluster of small sharp drops on a windshield, or a false detection
+// over foliage or a facade, is a sharp region: replacing it with that fill smears the scene, and
+// the working-scale pass already handles the small drops there. Chosen on validation sets
+// (docs/RESULTS.md 4.22): at 8 levels the real lens-cover pairs keep every large region (their
+// score is unchanged; at 7 one goes and they lose 0.05 dB), while the paper preset's clusters of
+// sharp drops on street frames, where the coarse pass cost 0.1-0.2 dB, are left to the
+// working-scale pass.
+//
 // The coarse copy's detector is the main models'; its 3RN and RFN can be another model's, one
 // trained for drops at that scale: the folder named by the main models' LARGE_DROPS file
 // (model_paths.h; models/compact and models/compact-multiscale name compact-real-coarse-long) or Remover's large_drop_dir.
@@ -45,6 +57,10 @@
 #include "raindrop/remove/model.h"
 
 namespace raindrop::removal {
+
+// The largest sharpness (mean |Laplacian| of the working-scale luma inside a region, 8-bit
+// levels) at which a large region is still replaced by the coarse pass (above).
+inline constexpr double kLargeDropMaxSharpness = 8.0;
 
 // The coarse pass runs at the working scale divided by this.
 inline constexpr double kLargeDropScaleDivisor = 3.0;
@@ -82,5 +98,15 @@ bool coarse_pass_fits(cv::Size coarse);
 // The large drops of a coarse pass's mask (CV_8U, non-zero = drop): the 8-connected parts with
 // area >= pi (kLargeDropDiameter / 2)^2, as CV_8U 0/255. `count` (optional): how many.
 cv::Mat large_drop_mask(const cv::Mat& mask, int* count = nullptr);
+
+// |Laplacian| (3x3: the four neighbours minus four times the centre) of the luma of `image`
+// (any input raindrop-remove accepts: 1-4 channels, 8-bit, 16-bit or float), in 8-bit levels,
+// CV_32F, the image's size; the border replicated.
+cv::Mat sharpness_map(const cv::Mat& image);
+
+// The parts of `large` (CV_8U 0/255, as large_drop_mask returns) whose mean sharpness is at most
+// `max_sharpness`. `sharpness` (CV_32F) is area-averaged onto large's grid first, so each part's
+// mean is that of the finer image's pixels under it. `count` (optional): how many parts stay.
+cv::Mat smooth_large_drops(const cv::Mat& large, const cv::Mat& sharpness, double max_sharpness, int* count = nullptr);
 
 }  // namespace raindrop::removal

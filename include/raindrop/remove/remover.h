@@ -53,6 +53,9 @@ struct RemoveOptions {
   // In that coarse pass, each drop's mask dilation grows with the drop (large_drops.h); 0: the
   // models' k for every drop.
   std::optional<double> large_drop_growth;  // default: the models' raindrop.large_drop_growth
+  // The coarse pass replaces a large region only where the working-scale image is at most this
+  // sharp (large_drops.h); infinity: every large region, as before the rule.
+  double large_drop_max_sharpness = kLargeDropMaxSharpness;
   // Runs the 3RN and RFN on the image and on its mirror image and averages the two
   // (large_drops.h: run_mirror_averaged): twice their time for a better guess at what drops
   // hide. The coarse pass always does (kLargeDropMirrorAverage); this turns it on for the
@@ -112,10 +115,13 @@ class Remover {
                           const std::function<Models&()>& reconstruction = {}, double growth = 0);
   // The models for the coarse pass's large drops (made on first use), or models_.
   Models& large_drop_models();
-  // The pipeline on a copy at `small`, brought back to the image's size.
-  RemoveResult run_scaled(const cv::Mat& image, const RemoveOptions& options, cv::Size small, double scale);
-  // The coarse pass for large drops over `res`, the result at `scale` (large_drops.h).
-  void add_large_drops(const cv::Mat& image, const RemoveOptions& options, double scale, RemoveResult& res);
+  // The pipeline on `small` (the image area-averaged down to the working scale), brought back
+  // to the image's size.
+  RemoveResult run_scaled(const cv::Mat& image, const cv::Mat& small, const RemoveOptions& options, double scale);
+  // The coarse pass for large drops over `res`, the result at `scale` (large_drops.h);
+  // `working`: the image as the working-scale pass saw it.
+  void add_large_drops(const cv::Mat& image, const cv::Mat& working, const RemoveOptions& options, double scale,
+                       RemoveResult& res);
 
   Models models_;
   SessionConfig config_;
