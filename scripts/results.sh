@@ -143,8 +143,8 @@ a, b = sys.argv[1:]
 names = sorted(os.listdir(a))
 mean = {n: float(np.abs(cv2.imread(os.path.join(a, n)).astype(int) - cv2.imread(os.path.join(b, n))).mean()) for n in names}
 changed = {n: m for n, m in mean.items() if m > 0}
-print(f"{len(changed)} of {len(names)} change, by {min(changed.values()):.2f}-{max(changed.values()):.2f} levels on average:",
-      " ".join(sorted(changed)))
+spread = f", by {min(changed.values()):.2f}-{max(changed.values()):.2f} levels on average" if changed else ""
+print(f"{len(changed)} of {len(names)} change{spread}:", " ".join(sorted(changed)))
 PY
 }
 
@@ -940,7 +940,9 @@ if want sharpness; then
   done | tee "$sh/validation.txt"
   score_sets "$sh" "off" "--no-large-drops -j 2" real-pairs:train:0 val-windshield-sharp:-:0 val-size-512x288:-:0 \
     val-size-1280x720:-:0 | tee "$sh/validation-off.txt"
-  score_sets "$sh" "t8" "-j 2" val-sparse:-:0 | tee "$sh/validation-sparse.txt"
+  for t in inf 8; do
+    score_sets "$sh" "sparse-t$t" "--large-drop-sharpness $t -j 2" val-sparse:-:0
+  done | tee "$sh/validation-sparse.txt"
   # The test sets, once, before and after.
   for t in inf 8; do
     score_sets "$sh" "test-t$t" "--large-drop-sharpness $t -j 2" real-pairs:test:0 test-sparse:-:0

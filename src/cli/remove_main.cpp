@@ -413,15 +413,17 @@ int run(int argc, char** argv) {
     const ModelInfo& mi = remover.info();
     const std::string thread_text = threads == 0 ? std::string("threads: one per core")
                                                   : std::to_string(threads) + (threads == 1 ? " thread" : " threads");
+    char sharpness_text[64] = "";  // the limit only matters when the coarse pass runs
+    if (!no_large_drops) std::snprintf(sharpness_text, sizeof sharpness_text, ", large-drop sharpness %g", large_drop_sharpness);
     const std::string large = no_large_drops                           ? "no coarse pass"
                               : remover.large_drop_model_dir().empty() ? "large drops by the same models"
                                                                        : "large drops by '" + remover.large_drop_model_dir().string() + "'";
     std::fprintf(stderr,
-                 "raindrop-remove: models '%s' (config %s, threshold %g, dilation %d, large-drop growth %g, "
-                 "large-drop sharpness %g; %s), %s, %s, %s\n",
+                 "raindrop-remove: models '%s' (config %s, threshold %g, dilation %d, large-drop growth %g%s; %s), %s, "
+                 "%s, %s\n",
                  remover.model_dir().string().c_str(), mi.config.c_str(), threshold.value_or(mi.threshold),
                  dilation.value_or(mi.dilation), no_large_drops ? 0.0 : large_drop_growth.value_or(mi.large_drop_growth),
-                 large_drop_sharpness, large.c_str(), ort_description().c_str(), to_string(device),
+                 sharpness_text, large.c_str(), ort_description().c_str(), to_string(device),
                  thread_text.c_str());
   }
 

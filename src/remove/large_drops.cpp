@@ -46,16 +46,31 @@ cv::Mat large_drop_mask(const cv::Mat& mask, int* count) {
 }
 
 cv::Mat sharpness_map(const cv::Mat& image) {
-  const cv::Mat rgb = to_rgb_float(image, cv::Rect(0, 0, image.cols, image.rows));
-  cv::Mat luma(rgb.size(), CV_32F);
-  for (int y = 0; y < rgb.rows; ++y) {
-    const auto* p = rgb.ptr<cv::Vec3f>(y);
-    float* l = luma.ptr<float>(y);
-    for (int x = 0; x < rgb.cols; ++x) l[x] = 255.0f * (0.299f * p[x][0] + 0.587f * p[x][1] + 0.114f * p[x][2]);
+  // In bands of rows, each read with one row of margin on either side, so that the memory beyond
+  // the map stays a band's (at --scale 1 the working-scale image can be a whole photograph).
+  constexpr int kBand = 64;
+  cv::Mat out(image.size(), CV_32F);
+  for (int y0 = 0; y0 < image.rows; y0 += kBand) {
+    const int y1 = std::min(image.rows, y0 + kBand);
+    const int top = std::max(0, y0 - 1), bottom = std::min(image.rows, y1 + 1);
+    const cv::Mat rgb = to_rgb_float(image, cv::Rect(0, top, image.cols, bottom - top));
+    cv::Mat luma(rgb.size(), CV_32F);
+    for (int y = 0; y < rgb.rows; ++y) {
+      const auto* p = rgb.ptr<cv::Vec3f>(y);
+      float* l = luma.ptr<float>(y);
+      for (int x = 0; x < rgb.cols; ++x) l[x] = 255.0f * (0.299f * p[x][0] + 0.587f * p[x][1] + 0.114f * p[x][2]);
+    }
+    // The margin rows are the true neighbours; at the image's own top and bottom the replicated
+    // border is the rule.
+    cv::Mat lap;
+    cv::Laplacian(luma, lap, CV_32F, 1, 1.0, 0.0, cv::BORDER_REPLICATE);
+    for (int y = y0; y < y1; ++y) {
+      const float* src = lap.ptr<float>(y - top);
+      float* dst = out.ptr<float>(y);
+      for (int x = 0; x < image.cols; ++x) dst[x] = std::abs(src[x]);
+    }
   }
-  cv::Mat lap;
-  cv::Laplacian(luma, lap, CV_32F, 1, 1.0, 0.0, cv::BORDER_REPLICATE);
-  return cv::abs(lap);
+  return out;
 }
 
 cv::Mat smooth_large_drops(const cv::Mat& large, const cv::Mat& sharpness, double max_sharpness, int* count) {

@@ -262,6 +262,34 @@ TEST(LargeDrops, SharpnessIsTheLaplacianOfTheLuma) {
   for (int y = 1; y < board.rows - 1; ++y)
     for (int x = 1; x < board.cols - 1; ++x) EXPECT_FLOAT_EQ(b.at<float>(y, x), 4 * 255.0f);
 
+  // One channel at a time (R, G, B in that order): the Laplacian of that channel's weight times
+  // its quadratic. An RGBA copy with random alpha gives the same map: alpha is not luma.
+  const double weights[3] = {0.299, 0.587, 0.114};
+  for (int c = 0; c < 3; ++c) {
+    cv::Mat one(30, 100, CV_32FC3, cv::Scalar(0, 0, 0));
+    for (int y = 0; y < one.rows; ++y)
+      for (int x = 0; x < one.cols; ++x) one.at<cv::Vec3f>(y, x)[c] = float(a * x * x / 255.0);
+    const cv::Mat m = sharpness_map(one);
+    for (int x = 1; x < one.cols - 1; ++x) EXPECT_NEAR(m.at<float>(15, x), 2 * a * weights[c], 1e-3) << "channel " << c;
+    cv::Mat alpha(one.size(), CV_32F), rgba;
+    cv::randu(alpha, 0.0f, 1.0f);
+    cv::merge(std::vector<cv::Mat>{one, alpha}, rgba);
+    EXPECT_EQ(cv::norm(sharpness_map(rgba), m, cv::NORM_INF), 0.0) << "channel " << c;
+  }
+
+  // Rows are done in bands; across their edges (an image 200 rows tall) the map is the one
+  // computed on the whole image at once.
+  const cv::Mat tall = make_image(90, 200, 15);
+  cv::Mat tall_f, luma(tall.size(), CV_32F), whole;
+  tall.convertTo(tall_f, CV_32F, 1.0 / 255.0);
+  for (int y = 0; y < tall.rows; ++y)
+    for (int x = 0; x < tall.cols; ++x) {
+      const cv::Vec3f p = tall_f.at<cv::Vec3f>(y, x);
+      luma.at<float>(y, x) = 255.0f * (0.299f * p[0] + 0.587f * p[1] + 0.114f * p[2]);
+    }
+  cv::Laplacian(luma, whole, CV_32F, 1, 1.0, 0.0, cv::BORDER_REPLICATE);
+  EXPECT_LT(cv::norm(sharpness_map(tall), cv::abs(whole), cv::NORM_INF), 1e-3);
+
   const cv::Mat grey = make_image(64, 48, 12);
   cv::Mat grey8, rgb8, rgb16, rgbf;
   cv::cvtColor(grey, grey8, cv::COLOR_RGB2GRAY);
@@ -318,13 +346,33 @@ TEST(LargeDrops, SharpRegionsAreLeftToTheWorkingScalePass) {
   const double mean_sharpness = cv::mean(sharpness_map(working))[0];
   ASSERT_GT(mean_sharpness, kLargeDropMaxSharpness) << "the test image is not sharp enough to test the rule";
   EXPECT_EQ(r.large_drops, 0);
-  EXPECT_EQ(max_abs_diff(r.image, smoke().run(sharp, fine_only).image), 0);
+  const RemoveResult fine = smoke().run(sharp, fine_only);
+  EXPECT_EQ(max_abs_diff(r.image, fine.image), 0);
+  EXPECT_EQ(r.reconstructed_pixels, fine.reconstructed_pixels) << "the coarse pass's 3RN and RFN ran for nothing";
   EXPECT_EQ(smoke().run(smooth, all).large_drops, 1);
   RemoveOptions limit = all;
   limit.large_drop_max_sharpness = 1.05 * mean_sharpness;
   EXPECT_EQ(smoke().run(sharp, limit).large_drops, 1);
   limit.large_drop_max_sharpness = 0.95 * mean_sharpness;
   EXPECT_EQ(smoke().run(sharp, limit).large_drops, 0);
+  // An image at the working size or smaller runs natively (the image itself is the working-scale
+  // image): the same rule, in each input format.
+  cv::Mat small_sharp, small_smooth;
+  cv::resize(sharp, small_sharp, {300, 150}, 0, 0, cv::INTER_NEAREST);
+  cv::resize(smooth, small_smooth, {300, 150}, 0, 0, cv::INTER_AREA);
+  ASSERT_GT(cv::mean(sharpness_map(small_sharp))[0], kLargeDropMaxSharpness);
+  for (const auto& [img, expected] : {std::pair{small_sharp, 0}, std::pair{small_smooth, 1}}) {
+    cv::Mat grey, rgba16, rgbf;
+    cv::cvtColor(img, grey, cv::COLOR_RGB2GRAY);
+    cv::cvtColor(img, rgba16, cv::COLOR_RGB2RGBA);
+    rgba16.convertTo(rgba16, CV_16U, 257.0);
+    img.convertTo(rgbf, CV_32F, 1.0 / 255.0);
+    for (const cv::Mat& m : {img, grey, rgba16, rgbf}) {
+      const RemoveResult n = smoke().run(m, all);
+      EXPECT_EQ(n.scale, 1.0);
+      EXPECT_EQ(n.large_drops, expected) << "channels " << m.channels() << ", depth " << m.depth();
+    }
+  }
   RemoveOptions bad = all;
   for (double v : {-1.0, std::nan("")}) {
     bad.large_drop_max_sharpness = v;

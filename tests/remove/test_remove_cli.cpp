@@ -307,6 +307,30 @@ TEST_F(RemoveCli, InstalledProgramReadsAndWritesOtherFormats) {
   EXPECT_EQ(out->pixels.size(), cv::Size(61, 43));
 }
 
+// --large-drop-sharpness reaches the coarse pass: on a finely textured (sharp) image that is one
+// drop all over, the default limit leaves the coarse pass nothing to replace, and `inf` lets it
+// take the whole image; --time says so, and names the limit in effect.
+TEST_F(RemoveCli, LargeDropSharpnessReachesTheCoarsePass) {
+  cv::Mat sharp = make_image(600, 300, 14), grain(sharp.size(), CV_8UC3);
+  cv::randu(grain, 0, 48);
+  sharp += grain;
+  write_image(tmp / "sharp.png", sharp);
+  RunResult r = remove({"sharp.png", "a.png", "--threshold", "0", "--time"});
+  ASSERT_EQ(r.code, 0) << r.describe();
+  EXPECT_NE(r.err.find("large-drop sharpness 8;"), std::string::npos) << r.describe();
+  EXPECT_NE(r.err.find(", 0 large drops at scale"), std::string::npos) << r.describe();
+  r = remove({"sharp.png", "b.png", "--threshold", "0", "--time", "--large-drop-sharpness", "inf"});
+  ASSERT_EQ(r.code, 0) << r.describe();
+  EXPECT_NE(r.err.find("large-drop sharpness inf;"), std::string::npos) << r.describe();
+  EXPECT_NE(r.err.find(", 1 large drop at scale"), std::string::npos) << r.describe();
+  const auto a = read_image(tmp / "a.png"), b = read_image(tmp / "b.png");
+  ASSERT_TRUE(a && b);
+  EXPECT_GT(max_abs_diff(a->pixels, b->pixels), 0);
+  r = remove({"sharp.png", "c.png", "--threshold", "0", "--time", "--no-large-drops"});
+  ASSERT_EQ(r.code, 0) << r.describe();
+  EXPECT_EQ(r.err.find("large-drop sharpness"), std::string::npos) << "no coarse pass, no limit to name\n" << r.describe();
+}
+
 // --mirror-average changes the fills (the 3RN and RFN also run on the mirror image), not the mask.
 // (Without the coarse pass, which would take the whole image over as one large drop: it mirrors
 // either way.)
