@@ -148,10 +148,14 @@ std::vector<cv::Mat> process(Remover& remover, const Job& job, const Settings& s
   if (job.mask) files->stage(r.mask, *job.mask);
   if (s.time) {
     const double coverage = 100.0 * cv::countNonZero(r.mask) / static_cast<double>(r.mask.total());
-    char coarse[96] = "";
+    char coarse[160] = "", sharp[64] = "";
+    // Regions left to the working-scale pass because they were too sharp (--large-drop-sharpness):
+    // named, so that a user can tell why a large drop was not replaced.
+    if (r.sharp_large_drops > 0)
+      std::snprintf(sharp, sizeof sharp, " (%d more left alone: too sharp)", r.sharp_large_drops);
     if (r.coarse_scale > 0)
-      std::snprintf(coarse, sizeof coarse, ", %d large drop%s at scale %.3g", r.large_drops, r.large_drops == 1 ? "" : "s",
-                    r.coarse_scale);
+      std::snprintf(coarse, sizeof coarse, ", %d large drop%s%s at scale %.3g", r.large_drops, r.large_drops == 1 ? "" : "s",
+                    sharp, r.coarse_scale);
     std::fprintf(stderr, "raindrop-remove: %s: %dx%d at scale %.3g%s, %d tile%s, mask %.2f%%: %s\n",
                  job.input.string().c_str(), input.cols, input.rows, r.scale, coarse, r.tiles_x * r.tiles_y,
                  r.tiles_x * r.tiles_y == 1 ? "" : "s", coverage, r.times.describe().c_str());

@@ -293,8 +293,11 @@ void Remover::add_large_drops(const cv::Mat& image, const cv::Mat& working, cons
   const MaskGate only_with_large_drops = [&](const cv::Mat& mask) {
     large = large_drop_mask(mask, &res.large_drops);
     // Only smooth regions: a sharp one is no defocused drop, and the coarse fill would blur it.
-    if (res.large_drops > 0 && std::isfinite(opt.large_drop_max_sharpness))
+    if (res.large_drops > 0 && std::isfinite(opt.large_drop_max_sharpness)) {
+      const int found = res.large_drops;
       large = smooth_large_drops(large, sharpness_map(working), opt.large_drop_max_sharpness, &res.large_drops);
+      res.sharp_large_drops = found - res.large_drops;
+    }
     return res.large_drops > 0;
   };
   // The coarse copy's detector is the main models' (it decides what is large, as it decides

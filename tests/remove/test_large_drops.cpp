@@ -346,10 +346,13 @@ TEST(LargeDrops, SharpRegionsAreLeftToTheWorkingScalePass) {
   const double mean_sharpness = cv::mean(sharpness_map(working))[0];
   ASSERT_GT(mean_sharpness, kLargeDropMaxSharpness) << "the test image is not sharp enough to test the rule";
   EXPECT_EQ(r.large_drops, 0);
+  EXPECT_EQ(r.sharp_large_drops, 1);
   const RemoveResult fine = smoke().run(sharp, fine_only);
   EXPECT_EQ(max_abs_diff(r.image, fine.image), 0);
   EXPECT_EQ(r.reconstructed_pixels, fine.reconstructed_pixels) << "the coarse pass's 3RN and RFN ran for nothing";
-  EXPECT_EQ(smoke().run(smooth, all).large_drops, 1);
+  const RemoveResult s = smoke().run(smooth, all);
+  EXPECT_EQ(s.large_drops, 1);
+  EXPECT_EQ(s.sharp_large_drops, 0);
   RemoveOptions limit = all;
   limit.large_drop_max_sharpness = 1.05 * mean_sharpness;
   EXPECT_EQ(smoke().run(sharp, limit).large_drops, 1);

@@ -76,6 +76,7 @@ struct RemoveResult {
   double scale = 1.0;         // the scale the networks saw the image at
   double coarse_scale = 0;    // the coarse pass's scale (large_drops.h); 0 when it did not run
   int large_drops = 0;        // drops the coarse pass found large and replaced
+  int sharp_large_drops = 0;  // regions it found large but left alone: too sharp (large_drops.h)
 };
 
 class Remover {
