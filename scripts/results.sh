@@ -4,7 +4,7 @@
 # (default ../shared/data), for the real frames). Sections can be chosen:
 # scripts/results.sh data render stats eval remove tradeoffs sheets photoreal scale flatroad largedrops coarsetrain
 # largedropmodels sensor mirroraverage highlights multiscale veil papermodels outline trails photos windshield
-# windshield-followup longer growth sharpness
+# windshield-followup longer growth sharpness coalesce
 #
 # Nothing here is committed automatically: images derived from Cityscapes, CamVid or the
 # real raindrop photographs stay under out/ (their licences forbid redistribution).
@@ -17,7 +17,7 @@ mkdir -p "$out"
 sections=("$@")
 ((${#sections[@]})) || sections=(data render stats eval remove tradeoffs sheets photoreal scale flatroad largedrops coarsetrain
                                   largedropmodels sensor mirroraverage highlights multiscale veil papermodels outline trails
-                                  photos windshield windshield-followup longer growth sharpness)
+                                  photos windshield windshield-followup longer growth sharpness coalesce)
 want() { [[ " ${sections[*]} " == *" $1 "* ]]; }
 # link_set SRC DST SPLIT [LIMIT]: the first LIMIT (default 100; 0: all) samples of data set SRC
 # (of manifest split SPLIT; "-" = all) linked into DST/rainy and DST/clean under plainly named
@@ -966,4 +966,31 @@ if want sharpness; then
       echo "limit $t run $r: $(echo "$(date +%s.%N) - $s0" | bc) s"
     done
   done | tee "$sh/photo-times.txt"
+fi
+
+if want coalesce; then
+  # Drops that touch merge into one (docs/RESULTS.md 4.23): lens-cover-merged as it is (pinned
+  # contact lines: the union of the caps) and with "coalesce" (one relaxed cap), the same 100
+  # CamVid frames and seed; render times alternated three times; the realism score of both.
+  co="$out/coalesce"
+  mkdir -p "$co" "$out/cv100"
+  link_cv100
+  $py - scenes/lens-cover-merged.json "$co/lens-cover-coalesced.json" <<'PY'
+import sys
+text = open(sys.argv[1]).read()
+brace = text.index("{")
+open(sys.argv[2], "w").write(text[:brace + 1] + '\n  "coalesce": true,' + text[brace + 1:])
+PY
+  for r in 1 2 3; do
+    for v in pinned coalesced; do
+      scene=lens-cover-merged
+      [[ $v == coalesced ]] && scene="$co/lens-cover-coalesced.json"
+      rm -rf "${co:?}/$v"
+      s0=$(date +%s.%N)
+      build/raindrop-render -i "$out/cv100" -o "$co/$v" --scene "$scene" --size 512x256 --seed 11 -q -j 2
+      echo "$v run $r: $(echo "$(date +%s.%N) - $s0" | bc) s for 100 frames"
+    done
+  done | tee "$co/render-times.txt"
+  $py -m raindrop_tools.realism --real-pairs "$shared/real-pairs" --rendered "$co/pinned" --rendered "$co/coalesced" \
+    --limit 100 | tee "$co/realism.md"
 fi

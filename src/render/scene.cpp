@@ -7,6 +7,7 @@
 
 #include "raindrop/common/error.h"
 #include "raindrop/render/srgb.h"
+#include "raindrop/render/coalesce.h"
 #include "raindrop/render/trails.h"
 
 namespace raindrop {
@@ -124,6 +125,9 @@ SceneSample sample_scene(const SceneConfig& config, const Camera& camera, Rng& r
       break;
     }
   }
+  // Touching drops merge (coalesce.h): before the outlines, which are drawn per drop, so the
+  // merged drops are round and later draws do not depend on the drops' positions.
+  if (config.coalesce) coalesce_drops(&s.drops);
   if (config.highlights.enabled) {
     s.highlights.threshold = static_cast<float>(srgb_to_linear(config.highlights.threshold));
     s.highlights.gain = static_cast<float>(draw(config.highlights.gain, rng));

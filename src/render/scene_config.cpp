@@ -235,6 +235,9 @@ SceneConfig parse_scene_json(const std::string& text, const std::string& origin)
   r.number("refractive_index", &c.refractive_index, 1.0, 3.0);
   r.boolean("allow_overlap", &c.allow_overlap);
   r.number("min_gap_cm", &c.min_gap_cm, 0, 10);
+  r.boolean("coalesce", &c.coalesce);
+  if (c.coalesce && !c.allow_overlap)
+    r.fail("'coalesce' merges drops whose footprints overlap: it needs \"allow_overlap\": true");
   c.tir = parse_enum<TirMode>(r, "dark_band", c.tir, {{"black", TirMode::Black}, {"trace", TirMode::Trace}});
   if (r.has("drops")) {
     for (Reader d : r.elements("drops")) {
@@ -440,6 +443,7 @@ std::string scene_to_json(const SceneConfig& c) {
   j["refractive_index"] = c.refractive_index;
   j["allow_overlap"] = c.allow_overlap;
   j["min_gap_cm"] = c.min_gap_cm;
+  j["coalesce"] = c.coalesce;
   j["dark_band"] = to_string(c.tir);
   if (!c.drops.empty()) {
     json drops = json::array();

@@ -74,6 +74,7 @@ TEST(SceneFile, MistakesAreReportedWithTheKey) {
       {R"({"effects": {"fresnel": "auto"}})", "'fresnel' has no \"auto\""},
       {R"({"effects": {"blur": {"auto": true}}})", "unknown key 'auto'"},
       {R"({"quality": {"supersample": "some"}})", "'supersample'"},
+      {R"({"coalesce": true})", "needs \"allow_overlap\": true"},
   };
   for (const auto& [text, needle] : cases) expect_scene_refused(text, needle);
   EXPECT_THROW(load_scene("no-such-preset-or-file"), Error);

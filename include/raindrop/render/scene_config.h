@@ -74,6 +74,7 @@ struct SceneConfig {
   double refractive_index = 1.333;
   bool allow_overlap = false;             // false: footprints never overlap (real drops merge)
   double min_gap_cm = 0.05;               // gap kept between footprints when !allow_overlap
+  bool coalesce = false;                  // with allow_overlap: overlapping drops merge into one (coalesce.h)
   // Placed first, exactly as given (they may touch each other); the drop_count random drops
   // then keep clear of them as of each other.
   std::vector<PlacedDrop> drops;
