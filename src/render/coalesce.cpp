@@ -1,5 +1,6 @@
 #include "raindrop/render/coalesce.h"
 
+#include <algorithm>
 #include <cmath>
 
 #include "raindrop/render/trails.h"
@@ -39,22 +40,29 @@ DropShape merge_drops(const DropShape& a, const DropShape& b) {
 int coalesce_drops(std::vector<DropShape>* drops) {
   std::vector<DropShape>& d = *drops;
   int merges = 0;
-  // The first overlapping pair in order, merged into its first drop, until none is left: simple
-  // rather than fast (a few hundred drops at most: under n^3 / 2 tests of two circles).
-  for (;;) {
-    bool merged = false;
-    for (size_t i = 0; i < d.size() && !merged; ++i) {
-      for (size_t j = i + 1; j < d.size(); ++j) {
-        if (!overlap(d[i], d[j])) continue;
-        d[i] = merge_drops(d[i], d[j]);
-        d.erase(d.begin() + static_cast<std::ptrdiff_t>(j));
-        ++merges;
-        merged = true;
+  // Invariant: no two of the drops before i overlap. Drop i takes in every drop after it that it
+  // touches, growing as it goes; if it touches one before it, that one takes it in instead and
+  // the scan goes on from there (the drops in between are checked again as they come). Each
+  // check of a drop is one pass over the others: O(n^2 + merges n) tests of two circles.
+  for (size_t i = 0; i < d.size();) {
+    size_t touched = d.size();
+    for (size_t j = 0; j < d.size(); ++j) {
+      if (j != i && overlap(d[i], d[j])) {
+        touched = j;
         break;
       }
     }
-    if (!merged) return merges;
+    if (touched == d.size()) {
+      ++i;
+      continue;
+    }
+    const size_t keep = std::min(i, touched), gone = std::max(i, touched);
+    d[keep] = merge_drops(d[keep], d[gone]);
+    d.erase(d.begin() + static_cast<std::ptrdiff_t>(gone));
+    ++merges;
+    i = keep;
   }
+  return merges;
 }
 
 }  // namespace raindrop

@@ -109,6 +109,15 @@ TEST(Coalesce, NoOverlapIsLeftAndNoWaterIsLost) {
       EXPECT_LE(d.contact_angle, M_PI / 2);
     }
   }
+  // As many drops as a scene may ask for, piled on a small patch of glass: they end as a few
+  // (the merge loop ends, and fast: each check of a drop is one pass over the others).
+  std::vector<DropShape> pile;
+  for (int i = 0; i < kMaxDropCount; ++i) pile.push_back(drop(rng.uniform(0, 3), rng.uniform(0, 3), 0.1));
+  const double water = total_volume(pile);
+  coalesce_drops(&pile);
+  EXPECT_LT(pile.size(), 100u) << "1000 drops piled up should end as a few";
+  EXPECT_FALSE(any_overlap(pile));
+  EXPECT_NEAR(total_volume(pile), water, 1e-12 * water);
   std::vector<DropShape> apart = {drop(0, 0, 0.1), drop(1, 0, 0.1)};
   EXPECT_EQ(coalesce_drops(&apart), 0);
   EXPECT_EQ(apart[1].center, glm::dvec2(1, 0));
