@@ -54,16 +54,16 @@ cv::Mat sharpness_map(const cv::Mat& image) {
     const int y1 = std::min(image.rows, y0 + kBand);
     const int top = std::max(0, y0 - 1), bottom = std::min(image.rows, y1 + 1);
     const cv::Mat rgb = to_rgb_float(image, cv::Rect(0, top, image.cols, bottom - top));
-    cv::Mat luma(rgb.size(), CV_32F);
+    cv::Mat levels(rgb.size(), CV_32F);  // luma in 8-bit levels
     for (int y = 0; y < rgb.rows; ++y) {
       const auto* p = rgb.ptr<cv::Vec3f>(y);
-      float* l = luma.ptr<float>(y);
-      for (int x = 0; x < rgb.cols; ++x) l[x] = 255.0f * (0.299f * p[x][0] + 0.587f * p[x][1] + 0.114f * p[x][2]);
+      float* l = levels.ptr<float>(y);
+      for (int x = 0; x < rgb.cols; ++x) l[x] = 255.0f * luma(p[x][0], p[x][1], p[x][2]);
     }
     // The margin rows are the true neighbours; at the image's own top and bottom the replicated
     // border is the rule.
     cv::Mat lap;
-    cv::Laplacian(luma, lap, CV_32F, 1, 1.0, 0.0, cv::BORDER_REPLICATE);
+    cv::Laplacian(levels, lap, CV_32F, 1, 1.0, 0.0, cv::BORDER_REPLICATE);
     for (int y = y0; y < y1; ++y) {
       const float* src = lap.ptr<float>(y - top);
       float* dst = out.ptr<float>(y);

@@ -94,7 +94,7 @@ void store_rgb_float(const cv::Mat& rgb, cv::Mat& output, cv::Point corner) {
     for (int x = corner.x; x < corner.x + rgb.cols; ++x, src += 3) {
       float v[3];
       if (nc <= 2) {
-        v[0] = (0.299f * clamp01(src[0]) + 0.587f * clamp01(src[1])) + 0.114f * clamp01(src[2]);
+        v[0] = luma(clamp01(src[0]), clamp01(src[1]), clamp01(src[2]));
       } else {
         v[0] = src[0], v[1] = src[1], v[2] = src[2];
       }

@@ -175,18 +175,20 @@ RemoveResult Remover::run(const cv::Mat& image, const RemoveOptions& opt) {
     throw Error("--large-drop-sharpness must be a number >= 0 (inf: no limit)");
   const double scale = opt.scale.value_or(auto_working_scale(image.size(), info().working_size));
   const cv::Size small = scaled_size(image.size(), scale);
-  if (small == image.size()) {
-    RemoveResult res = run_native(image, opt);
-    if (opt.large_drops) add_large_drops(image, image, opt, scale, res);
-    return res;
-  }
-  auto clock = Clock::now();
-  // Area averaging: every input pixel counts once (no aliasing of fine texture).
+  // The image as the working-scale pass sees it; the coarse pass measures its sharpness there.
   cv::Mat working;
-  cv::resize(image, working, small, 0, 0, cv::INTER_AREA);
-  const double t_down = lap_ms(clock);
-  RemoveResult res = run_scaled(image, working, opt, scale);
-  res.times.convert += t_down;
+  RemoveResult res;
+  if (small == image.size()) {
+    working = image;
+    res = run_native(image, opt);
+  } else {
+    auto clock = Clock::now();
+    // Area averaging: every input pixel counts once (no aliasing of fine texture).
+    cv::resize(image, working, small, 0, 0, cv::INTER_AREA);
+    const double t_down = lap_ms(clock);
+    res = run_scaled(image, working, opt, scale);
+    res.times.convert += t_down;
+  }
   if (opt.large_drops) add_large_drops(image, working, opt, scale, res);
   return res;
 }

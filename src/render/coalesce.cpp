@@ -8,12 +8,6 @@
 namespace raindrop {
 namespace {
 
-// Volume of a round spherical cap with footprint radius 1 and contact angle `tau`, cm^3 per cm^3.
-double unit_cap_volume(double tau) {
-  const double R = 1.0 / std::sin(tau), h = R * (1.0 - std::cos(tau));
-  return M_PI * h * h * (3.0 * R - h) / 3.0;
-}
-
 double enclosing_radius(const DropShape& d) { return d.footprint_radius * d.elongation; }
 
 bool overlap(const DropShape& a, const DropShape& b) {
@@ -32,8 +26,10 @@ DropShape merge_drops(const DropShape& a, const DropShape& b) {
   m.contact_angle = wa * a.contact_angle + wb * b.contact_angle;
   m.elongation = wa * a.elongation + wb * b.elongation;
   m.flattening = wa * a.flattening + wb * b.flattening;
-  // drop_volume = a^3 unit_cap_volume(tau) elongation flattening (a round outline: <s^2> = 1).
-  m.footprint_radius = std::cbrt(v / (unit_cap_volume(m.contact_angle) * m.elongation * m.flattening));
+  // drop_volume goes with a^3 at a fixed angle, stretch and flattening (a round outline): the
+  // water of the same drop with a footprint radius of 1 sets a.
+  m.footprint_radius = 1.0;
+  m.footprint_radius = std::cbrt(v / drop_volume(m));
   return m;
 }
 

@@ -19,6 +19,9 @@
 
 namespace raindrop::removal {
 
+// The luma Y = 0.299 R + 0.587 G + 0.114 B of RGB in [0, 1], summed in that order.
+inline float luma(float r, float g, float b) { return (0.299f * r + 0.587f * g) + 0.114f * b; }
+
 // Throws raindrop::Error unless the image is CV_8U/CV_16U/CV_32F with 1-4 channels.
 void check_input_format(const cv::Mat& image);
 
