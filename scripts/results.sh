@@ -4,7 +4,7 @@
 # (default ../shared/data), for the real frames). Sections can be chosen:
 # scripts/results.sh data render stats eval remove tradeoffs sheets photoreal scale flatroad largedrops coarsetrain
 # largedropmodels sensor mirroraverage highlights multiscale veil papermodels outline trails photos windshield
-# windshield-followup longer growth sharpness coalesce
+# windshield-followup longer growth sharpness coalesce surround
 #
 # Nothing here is committed automatically: images derived from Cityscapes, CamVid or the
 # real raindrop photographs stay under out/ (their licences forbid redistribution).
@@ -17,7 +17,8 @@ mkdir -p "$out"
 sections=("$@")
 ((${#sections[@]})) || sections=(data render stats eval remove tradeoffs sheets photoreal scale flatroad largedrops coarsetrain
                                   largedropmodels sensor mirroraverage highlights multiscale veil papermodels outline trails
-                                  photos windshield windshield-followup longer growth sharpness coalesce)
+                                  photos windshield windshield-followup longer growth sharpness coalesce
+                                  surround)
 want() { [[ " ${sections[*]} " == *" $1 "* ]]; }
 # link_set SRC DST SPLIT [LIMIT]: the first LIMIT (default 100; 0: all) samples of data set SRC
 # (of manifest split SPLIT; "-" = all) linked into DST/rainy and DST/clean under plainly named
@@ -993,4 +994,50 @@ PY
   done | tee "$co/render-times.txt"
   $py -m raindrop_tools.realism --real-pairs "$shared/real-pairs" --rendered "$co/pinned" --rendered "$co/coalesced" \
     --limit 100 | tee "$co/realism.md"
+fi
+
+if want surround; then
+  # Small drops over smooth surroundings filled from them instead of by the 3RN (docs/RESULTS.md
+  # 4.24): needs the data sets of the growth and windshield sections, data/test-sparse (eval
+  # section) and the size gap's held-out renders (made here, as the test
+  # TrainedModels.DefaultGainsAsMuchOnLargeStreetFrames makes them).
+  su="$out/surround"
+  mkdir -p "$su"
+  [[ -f data/real-pairs/manifest.jsonl ]] || $py -m raindrop_tools.realpairs prepare "$shared/real-pairs" --out data/real-pairs
+  for s in 512x288 1280x720; do
+    [[ -f "data/test-size-$s/manifest.jsonl" ]] ||
+      build/raindrop-render --cityscapes "$shared/cityscapes-mini" --split val --limit 2 --variants 16 --seed 9 --size "$s" \
+        --out "data/test-size-$s" -q -j 1
+  done
+  # The choice, on validation sets only: the largest part filled (0: off), both detectors.
+  for a in 0 150 250 400; do
+    score_sets "$su" "a$a" "--surround-fill-area $a -j 2" real-pairs:train:0 val-sparse:-:0 val-windshield-sharp:-:0 \
+      val-size-512x288:-:0 val-size-1280x720:-:0
+    score_sets "$su" "windshield-a$a" "--model-config compact-windshield --surround-fill-area $a -j 2" real-pairs:train:0 \
+      val-sparse:-:0 val-windshield-sharp:-:0
+  done | tee "$su/validation.txt"
+  # The test sets, once, off and at the default.
+  for a in 0 150; do
+    score_sets "$su" "test-a$a" "--surround-fill-area $a -j 2" real-pairs:test:0 test-sparse:-:0 test-size-512x288:-:0 \
+      test-size-1280x720:-:0
+  done | tee "$su/test.txt"
+  # The 44 real photographs, both detectors, off and on (outputs and masks, to look at; how many
+  # change), the parts filled per photograph (--time), and folder runs alternated three times.
+  for m in compact-multiscale compact-windshield; do
+    for a in 0 150; do
+      rm -rf "$su/photos-$m-a$a" && mkdir -p "$su/photos-$m-a$a" && build/raindrop-remove "$shared/real-raindrop" "$su/photos-$m-a$a/removed" \
+        --mask-dir "$su/photos-$m-a$a/masks" --model-config "$m" --surround-fill-area "$a" -q -j 2 --time \
+        2>"$su/photos-$m-a$a/time.txt"
+    done
+    photos_changed "$su/photos-$m-a0/removed" "$su/photos-$m-a150/removed"
+    grep -o "[0-9]* small drops\? filled" "$su/photos-$m-a150/time.txt" | awk -v m="$m" '{s += $1; n++}
+      END {printf "%s: %d parts filled in %d photographs\n", m, s, n}'
+  done | tee "$su/photos.txt"
+  for r in 1 2 3; do
+    for a in 0 150; do
+      s0=$(date +%s.%N)
+      build/raindrop-remove "$shared/real-raindrop" "$su/timed-photos-a$a" -q -j 2 --surround-fill-area "$a"
+      echo "area $a run $r: $(echo "$(date +%s.%N) - $s0" | bc) s"
+    done
+  done | tee "$su/photo-times.txt"
 fi

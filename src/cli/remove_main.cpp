@@ -148,7 +148,7 @@ std::vector<cv::Mat> process(Remover& remover, const Job& job, const Settings& s
   if (job.mask) files->stage(r.mask, *job.mask);
   if (s.time) {
     const double coverage = 100.0 * cv::countNonZero(r.mask) / static_cast<double>(r.mask.total());
-    char coarse[160] = "", sharp[64] = "";
+    char coarse[160] = "", sharp[64] = "", filled[64] = "";
     // Regions left to the working-scale pass because they were too sharp (--large-drop-sharpness):
     // named, so that a user can tell why a large drop was not replaced.
     if (r.sharp_large_drops > 0)
@@ -156,8 +156,12 @@ std::vector<cv::Mat> process(Remover& remover, const Job& job, const Settings& s
     if (r.coarse_scale > 0)
       std::snprintf(coarse, sizeof coarse, ", %d large drop%s%s at scale %.3g", r.large_drops, r.large_drops == 1 ? "" : "s",
                     sharp, r.coarse_scale);
-    std::fprintf(stderr, "raindrop-remove: %s: %dx%d at scale %.3g%s, %d tile%s, mask %.2f%%: %s\n",
-                 job.input.string().c_str(), input.cols, input.rows, r.scale, coarse, r.tiles_x * r.tiles_y,
+    // Parts of the mask filled from their surroundings instead of by the 3RN (--surround-fill-area).
+    if (s.options.surround_fill_area > 0)
+      std::snprintf(filled, sizeof filled, ", %d small drop%s filled from the surround", r.surround_filled,
+                    r.surround_filled == 1 ? "" : "s");
+    std::fprintf(stderr, "raindrop-remove: %s: %dx%d at scale %.3g%s%s, %d tile%s, mask %.2f%%: %s\n",
+                 job.input.string().c_str(), input.cols, input.rows, r.scale, filled, coarse, r.tiles_x * r.tiles_y,
                  r.tiles_x * r.tiles_y == 1 ? "" : "s", coverage, r.times.describe().c_str());
   }
   if (!want_panels) return {};
@@ -184,6 +188,8 @@ int run(int argc, char** argv) {
   std::optional<int> dilation;
   std::optional<double> large_drop_growth;
   double large_drop_sharpness = kLargeDropMaxSharpness;
+  int surround_fill_area = kSurroundFillArea;
+  double surround_fill_mad = kSurroundFillMad;
   int threads = 0, tile = kDefaultTile, overlap = kDefaultOverlap;
   bool time = false, quiet = false, keep_going = false, no_large_drops = false, mirror_average = false;
   Shard shard;
@@ -228,6 +234,19 @@ int run(int argc, char** argv) {
       ->excludes(large_opt)
       ->excludes(growth_opt)
       ->excludes(sharpness_opt);
+  app.add_option("--surround-fill-area", surround_fill_area,
+                 "Fill parts of the mask of at most this many pixels at the working scale from their surroundings "
+                 "(push-pull interpolation) instead of by the 3RN, where those surroundings are smooth "
+                 "(--surround-fill-mad): the 3RN leaves faint rims of small sharp drops on sky, walls and roads; "
+                 "0: the 3RN everywhere")
+      ->capture_default_str()
+      ->check(CLI::Range(0, std::numeric_limits<int>::max()));
+  app.add_option("--surround-fill-mad", surround_fill_mad,
+                 "How smooth a part's surroundings must be for --surround-fill-area: the median absolute deviation of "
+                 "their luma from its median, in 8-bit levels (the pixels outside the mask within 4 px of the part's "
+                 "bounding box)")
+      ->capture_default_str()
+      ->check(CLI::Range(0.0, std::numeric_limits<double>::infinity()));
   app.add_flag("--mirror-average", mirror_average,
                "Also at the working scale, run the 3RN and RFN on the image and on its mirror image and average the two "
                "(the coarse pass for large drops always does): about twice the time of the networks' pass, for "
@@ -259,6 +278,7 @@ int run(int argc, char** argv) {
       throw Error("--large-drop-growth: nan is not a number between 0 and " +
                   std::to_string(static_cast<int>(kMaxLargeDropGrowth)));
     if (std::isnan(large_drop_sharpness)) throw Error("--large-drop-sharpness: nan is not a number >= 0");
+    if (std::isnan(surround_fill_mad)) throw Error("--surround-fill-mad: nan is not a number >= 0");
     if (scale && !(*scale > 0.0)) throw Error("--scale must be a number in (0, 1]");
     check_tile_options(tile, overlap);
     if (!shard_text.empty()) shard = parse_shard(shard_text);
@@ -412,6 +432,8 @@ int run(int argc, char** argv) {
   s.options.scale = scale;
   s.options.large_drops = !no_large_drops;
   s.options.mirror_average = mirror_average;
+  s.options.surround_fill_area = surround_fill_area;
+  s.options.surround_fill_mad = surround_fill_mad;
   s.time = time;
   if (time) {
     const ModelInfo& mi = remover.info();

@@ -16,6 +16,7 @@
 #include "raindrop/remove/mask.h"
 #include "raindrop/remove/model_paths.h"
 #include "raindrop/remove/pixels.h"
+#include "raindrop/remove/surround_fill.h"
 
 #include <opencv2/imgproc.hpp>
 
@@ -173,6 +174,8 @@ RemoveResult Remover::run(const cv::Mat& image, const RemoveOptions& opt) {
     throw Error("--large-drop-growth must be between 0 and " + std::to_string(static_cast<int>(kMaxLargeDropGrowth)));
   if (std::isnan(opt.large_drop_max_sharpness) || opt.large_drop_max_sharpness < 0)
     throw Error("--large-drop-sharpness must be a number >= 0 (inf: no limit)");
+  if (opt.surround_fill_area < 0) throw Error("--surround-fill-area must be a whole number >= 0 (0: off)");
+  if (!(opt.surround_fill_mad >= 0)) throw Error("--surround-fill-mad must be a number >= 0");
   const double scale = opt.scale.value_or(auto_working_scale(image.size(), info().working_size));
   const cv::Size small = scaled_size(image.size(), scale);
   // The image as the working-scale pass sees it; the coarse pass measures its sharpness there.
@@ -287,6 +290,7 @@ void Remover::add_large_drops(const cv::Mat& image, const cv::Mat& working, cons
   sub.scale = 1.0;
   sub.keep_float = true;
   sub.large_drops = false;
+  sub.surround_fill_area = 0;  // the coarse pass's parts are large (surround_fill.h)
   sub.mirror_average = opt.mirror_average || kLargeDropMirrorAverage;
   const double growth = opt.large_drop_growth.value_or(info().large_drop_growth);  // checked by run()
   // Most photographs have no large drop: the coarse copy's detector decides before its 3RN and
@@ -432,6 +436,10 @@ RemoveResult Remover::run_native(const cv::Mat& image, const RemoveOptions& opt,
       // B = M * Ihat + (1 - M) * R with M in {0, 1} is exactly a choice between the two
       // (as in numpy: 1 * a + 0 * b == a for finite values).
       std::vector<float>& blend = ihat;
+      if (opt.surround_fill_area > 0) {
+        res.surround_filled += fill_small_drops_from_surround(in.r.data(), mask(cv::Rect(x0, y0, in.w, in.h)),
+                                                              opt.surround_fill_area, opt.surround_fill_mad, ihat);
+      }
       for (int y = 0; y < in.h; ++y) {
         const unsigned char* mrow = mask.ptr<unsigned char>(y0 + y) + x0;
         for (int c = 0; c < 3; ++c) {

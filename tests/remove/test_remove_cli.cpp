@@ -97,6 +97,8 @@ TEST_F(RemoveCli, HelpVersionAndUsageErrors) {
         {"in.png", "out.png", "--no-large-drops", "--large-drop-growth", "0.3"},
         {"in.png", "out.png", "--large-drop-sharpness", "-1"},
         {"in.png", "out.png", "--no-large-drops", "--large-drop-sharpness", "5"},
+        {"in.png", "out.png", "--surround-fill-area", "-1"}, {"in.png", "out.png", "--surround-fill-area", "1.5"},
+        {"in.png", "out.png", "--surround-fill-mad", "-2"},
         {"in.png", "out.png", "--no-large-drops", "--large-drop-models", "."}}) {
     r = remove(bad);
     EXPECT_EQ(r.code, 2) << r.describe();
@@ -329,6 +331,35 @@ TEST_F(RemoveCli, LargeDropSharpnessReachesTheCoarsePass) {
   r = remove({"sharp.png", "c.png", "--threshold", "0", "--time", "--no-large-drops"});
   ASSERT_EQ(r.code, 0) << r.describe();
   EXPECT_EQ(r.err.find("large-drop sharpness"), std::string::npos) << "no coarse pass, no limit to name\n" << r.describe();
+}
+
+// --surround-fill-area reaches the pipeline and --time counts the parts filled: small dark dots
+// on a smooth gradient, found by a threshold of 0.25 on the fixture models' detector (0.7% of the image), are filled
+// by default (a count above zero) and not with 0, and the two outputs differ.
+TEST_F(RemoveCli, SurroundFillIsCountedAndCanBeTurnedOff) {
+  cv::Mat img(96, 128, CV_8UC3);
+  for (int y = 0; y < img.rows; ++y)
+    for (int x = 0; x < img.cols; ++x)
+      img.at<cv::Vec3b>(y, x) = cv::Vec3b(static_cast<unsigned char>(100 + x / 2), static_cast<unsigned char>(140 + y / 4), 170);
+  for (int k = 0; k < 6; ++k) cv::circle(img, {15 + 20 * k, 20 + 10 * k}, 2, cv::Scalar(20, 20, 20), cv::FILLED);
+  write_image(tmp / "dots.png", img);
+  RunResult r = remove({"dots.png", "a.png", "--time", "--surround-fill-mad", "255", "--no-large-drops", "--threshold",
+                        "0.25", "--mask", "m.png"});
+  ASSERT_EQ(r.code, 0) << r.describe();
+  const auto m = read_image(tmp / "m.png");
+  ASSERT_TRUE(m);
+  const int masked = cv::countNonZero(m->pixels);
+  ASSERT_GT(masked, 0) << "the detector must find something here for the test to mean anything";
+  ASSERT_LT(masked, img.rows * img.cols / 4);
+  EXPECT_EQ(r.err.find(" 0 small drops filled"), std::string::npos) << r.describe();
+  EXPECT_NE(r.err.find("filled from the surround"), std::string::npos) << r.describe();
+  r = remove({"dots.png", "b.png", "--time", "--surround-fill-mad", "255", "--no-large-drops", "--threshold", "0.25",
+              "--surround-fill-area", "0"});
+  ASSERT_EQ(r.code, 0) << r.describe();
+  EXPECT_EQ(r.err.find("filled from the surround"), std::string::npos) << "off: nothing to count\n" << r.describe();
+  const auto a = read_image(tmp / "a.png"), b = read_image(tmp / "b.png");
+  ASSERT_TRUE(a && b);
+  EXPECT_GT(max_abs_diff(a->pixels, b->pixels), 0);
 }
 
 // --mirror-average changes the fills (the 3RN and RFN also run on the mirror image), not the mask.
@@ -774,7 +805,7 @@ TEST_F(RemoveCli, ThreadsAreCappedAtTheCores) {
 // NaN passes CLI11's range check (every comparison with it is false); it is a bad command
 // line like any other out-of-range threshold, found before the models are loaded.
 TEST_F(RemoveCli, NanThresholdIsAUsageError) {
-  for (const char* option : {"--threshold", "--large-drop-growth", "--large-drop-sharpness"}) {
+  for (const char* option : {"--threshold", "--large-drop-growth", "--large-drop-sharpness", "--surround-fill-mad"}) {
     for (const char* value : {"nan", "NaN", "-nan"}) {
       const RunResult r = remove({"in.png", "out.png", option, value, "--models", "no-such-models"});
       EXPECT_EQ(r.code, 2) << r.describe();

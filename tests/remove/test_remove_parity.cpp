@@ -91,10 +91,12 @@ void check_parity(const TempDir& tmp, const fs::path& models, const std::vector<
                                    {"OMP_NUM_THREADS=1"});
   ASSERT_EQ(pr.code, 0) << pr.describe();
 
-  // The reference is the contract's single pass; the coarse pass for large drops is ours
-  // alone (large_drops.h) and is tested on its own (test_large_drops.cpp).
-  std::vector<std::string> args = {in.string(), cpp.string(), "--models", models.string(), "--mask",
-                                   cpp_mask.string(), "-q", "--threads", "2", "--no-large-drops"};
+  // The reference is the contract's single pass; the coarse pass for large drops and the fill of
+  // small drops from their surround are ours alone (large_drops.h, surround_fill.h) and are
+  // tested on their own (test_large_drops.cpp, test_surround_fill.cpp).
+  std::vector<std::string> args = {in.string(),  cpp.string(), "--models", models.string(), "--mask",
+                                   cpp_mask.string(), "-q", "--threads", "2", "--no-large-drops",
+                                   "--surround-fill-area", "0"};
   args.insert(args.end(), extra.begin(), extra.end());
   args.insert(args.end(), cpp_extra.begin(), cpp_extra.end());
   const RunResult cr = run_remove(args, tmp.path());

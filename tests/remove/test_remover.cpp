@@ -1,6 +1,8 @@
 // The removal library (raindrop::removal::Remover) on the fixture models: wiring of the
 // stages, stability on extreme inputs, odd sizes, tiling, formats, model checks.
+#include <algorithm>
 #include <cmath>
+#include <cstring>
 #include <limits>
 #include <memory>
 
@@ -36,9 +38,12 @@ RemoveOptions with_float() {
   return o;
 }
 
-// with_float() in tiles of at most `tile` pixels (0: the whole image at once).
+// with_float() in tiles of at most `tile` pixels (0: the whole image at once). The tiling tests
+// compare tiles with the whole image, so they leave out the fill from the surround: it is
+// decided per tile (surround_fill.h), and a part that a tile's edge cuts is judged by its piece.
 RemoveOptions with_float(int tile, int overlap) {
   RemoveOptions o = with_float();
+  o.surround_fill_area = 0;
   o.tile = tile;
   o.overlap = overlap;
   return o;
@@ -127,6 +132,54 @@ TEST(Remover, EmptyAndFullMasksWireTheStagesAsTheContractSays) {
   EXPECT_GT(max_float_diff(a.rgb, b.rgb), 1e-3f) << "the mask must make a difference";
 }
 
+// Small parts of the mask over a smooth image are filled from their surround
+// (surround_fill.h): the output is clamp(RFN(B)) with B built from the 3RN's output with those
+// parts replaced by the push-pull fill, checked against the graphs and the fill run directly.
+TEST(Remover, SmallPartsOverSmoothSurroundingsAreFilledBeforeTheRfn) {
+  const int h = 48, w = 64;
+  cv::Mat img(h, w, CV_8UC3);
+  for (int y = 0; y < h; ++y)
+    for (int x = 0; x < w; ++x)
+      img.at<cv::Vec3b>(y, x) = cv::Vec3b(static_cast<unsigned char>(90 + x), static_cast<unsigned char>(120 + y / 2),
+                                          static_cast<unsigned char>(160 - x / 2));
+  cv::circle(img, {20, 16}, 3, cv::Scalar(30, 30, 30), cv::FILLED);  // two dark dots for the detector
+  cv::circle(img, {45, 32}, 3, cv::Scalar(30, 30, 30), cv::FILLED);
+  Models models(smoke_models(), two_threads());
+  const std::vector<float> r = planes(img);
+  std::vector<float> e(static_cast<size_t>(h) * w), p(static_cast<size_t>(h) * w);
+  const cv::Mat edge = edge_map(to_rgb_float(img, cv::Rect(0, 0, w, h)));
+  std::memcpy(e.data(), edge.ptr<float>(), e.size() * sizeof(float));
+  models.rdn().run({r.data()}, h, w, p.data());
+  // A threshold that keeps the 2% most probable pixels: small parts of the mask.
+  std::vector<float> sorted = p;
+  std::nth_element(sorted.begin(), sorted.begin() + sorted.size() * 98 / 100, sorted.end());
+  RemoveOptions o = with_float();
+  o.threshold = sorted[sorted.size() * 98 / 100];
+  o.surround_fill_mad = 255.0;  // the dots may sit in any part's surround: the wiring is what is checked
+  const RemoveResult on = smoke().run(img, o);
+  ASSERT_GT(on.surround_filled, 0) << "mask " << cv::countNonZero(on.mask) << " px";
+  ASSERT_LT(cv::countNonZero(on.mask), h * w / 4);
+
+  std::vector<float> ihat(r.size()), out(r.size());
+  models.rrn().run({r.data(), e.data()}, h, w, ihat.data());
+  for (float& v : ihat) v = clamp01(v);
+  EXPECT_EQ(fill_small_drops_from_surround(r.data(), on.mask, o.surround_fill_area, o.surround_fill_mad, ihat),
+            on.surround_filled);
+  const size_t plane = static_cast<size_t>(h) * w;
+  for (int c = 0; c < 3; ++c)
+    for (size_t i = 0; i < plane; ++i)
+      if (!on.mask.at<unsigned char>(static_cast<int>(i / w), static_cast<int>(i % w))) ihat[c * plane + i] = r[c * plane + i];
+  models.rfn().run({ihat.data()}, h, w, out.data());
+  EXPECT_LE(max_float_diff(on.rgb, from_planes(out, h, w)), 1e-6f);
+
+  RemoveOptions off = o;
+  off.surround_fill_area = 0;
+  const RemoveResult without = smoke().run(img, off);
+  EXPECT_EQ(without.surround_filled, 0);
+  EXPECT_EQ(cv::countNonZero(without.mask != on.mask), 0);
+  EXPECT_GT(max_float_diff(on.rgb, without.rgb), 1e-4f) << "the fill must make a difference";
+}
+
 TEST(Remover, DilationGrowsTheMask) {
   const cv::Mat img = make_image(80, 60, 2);
   RemoveOptions o;
@@ -194,14 +247,12 @@ TEST(Remover, AnySizeWorks) {
 TEST(Remover, LargeNonMultipleSizeIsTiledAndMatchesTheWholeImage) {
   // 1031 x 517 with the default 1024 tile: two windows across.
   const cv::Mat img = make_image(1031, 517, 9);
-  const RemoveResult tiled = smoke().run(img, with_float());
+  const RemoveResult tiled = smoke().run(img, with_float(kDefaultTile, kDefaultOverlap));
   EXPECT_EQ(tiled.tiles_x, 2);
   EXPECT_EQ(tiled.tiles_y, 1);
   EXPECT_EQ(tiled.image.size(), img.size());
   EXPECT_TRUE(all_in_unit_range(tiled.rgb));
-  RemoveOptions whole = with_float();
-  whole.tile = 0;
-  const RemoveResult ref = smoke().run(img, whole);
+  const RemoveResult ref = smoke().run(img, with_float(0, kDefaultOverlap));
   EXPECT_EQ(cv::countNonZero(tiled.mask != ref.mask), 0);
   EXPECT_LE(max_float_diff(tiled.rgb, ref.rgb), 1e-4f);
   EXPECT_LE(max_abs_diff(tiled.image, ref.image), 1);
@@ -326,6 +377,12 @@ TEST(Remover, RejectsBadOptions) {
   EXPECT_THROW(smoke().run(img, o), raindrop::Error);
   o = {};
   o.tile = 10;
+  EXPECT_THROW(smoke().run(img, o), raindrop::Error);
+  o = {};
+  o.surround_fill_area = -1;
+  EXPECT_THROW(smoke().run(img, o), raindrop::Error);
+  o = {};
+  o.surround_fill_mad = std::numeric_limits<double>::quiet_NaN();
   EXPECT_THROW(smoke().run(img, o), raindrop::Error);
   EXPECT_THROW(smoke().run(cv::Mat()), raindrop::Error);
   EXPECT_THROW(smoke().run(cv::Mat(4, 4, CV_64FC3, cv::Scalar::all(0))), raindrop::Error);

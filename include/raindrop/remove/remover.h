@@ -33,6 +33,7 @@
 #include "raindrop/remove/model.h"
 #include "raindrop/remove/session.h"
 #include "raindrop/remove/stage_times.h"
+#include "raindrop/remove/surround_fill.h"
 #include "raindrop/remove/tiling.h"
 #include "raindrop/remove/working_scale.h"
 
@@ -61,6 +62,11 @@ struct RemoveOptions {
   // hide. The coarse pass always does (kLargeDropMirrorAverage); this turns it on for the
   // working-scale pass too (raindrop-remove --mirror-average).
   bool mirror_average = false;
+  // In the working-scale pass, parts of the mask at most this many pixels whose surround is at
+  // most surround_fill_mad levels rough (median absolute deviation of its luma) are filled from
+  // that surround instead of by the 3RN (surround_fill.h); 0: the 3RN everywhere.
+  int surround_fill_area = kSurroundFillArea;
+  double surround_fill_mad = kSurroundFillMad;
 };
 
 struct RemoveResult {
@@ -76,6 +82,7 @@ struct RemoveResult {
   double scale = 1.0;         // the scale the networks saw the image at
   double coarse_scale = 0;    // the coarse pass's scale (large_drops.h); 0 when it did not run
   int large_drops = 0;        // drops the coarse pass found large and replaced
+  int surround_filled = 0;    // parts of the mask filled from their surround (surround_fill.h)
   int sharp_large_drops = 0;  // regions it found large but left alone: too sharp (large_drops.h)
 };
 

@@ -1,0 +1,215 @@
+// Small drops filled from their surroundings (raindrop/remove/surround_fill.h): the push-pull
+// interpolation in closed form and in its bounds, which parts of a mask it is given, and that
+// the 3RN's output is kept bit for bit everywhere else.
+#include <algorithm>
+#include <cmath>
+#include <random>
+#include <vector>
+
+#include <opencv2/imgproc.hpp>
+
+#include <gtest/gtest.h>
+
+#include "raindrop/remove/surround_fill.h"
+
+namespace removetest {
+namespace {
+
+using namespace raindrop::removal;
+
+// 3 planes of h x w, every pixel (r, g, b).
+std::vector<float> flat_planes(int h, int w, float r, float g, float b) {
+  const size_t plane = static_cast<size_t>(h) * w;
+  std::vector<float> v(3 * plane);
+  std::fill(v.begin(), v.begin() + plane, r);
+  std::fill(v.begin() + plane, v.begin() + 2 * plane, g);
+  std::fill(v.begin() + 2 * plane, v.end(), b);
+  return v;
+}
+
+float at(const std::vector<float>& v, int h, int w, int c, int y, int x) {
+  return v[c * static_cast<size_t>(h) * w + static_cast<size_t>(y) * w + x];
+}
+
+TEST(PushPullFill, AFlatColourFillsAnyHoleWithItself) {
+  for (const cv::Size size : {cv::Size(64, 48), cv::Size(37, 23), cv::Size(1, 9)}) {
+    const int h = size.height, w = size.width;
+    const std::vector<float> rgb = flat_planes(h, w, 0.2f, 0.55f, 0.9f);
+    cv::Mat hole(h, w, CV_8U, cv::Scalar(0));
+    cv::circle(hole, {w / 2, h / 2}, std::max(1, std::min(w, h) / 3), cv::Scalar(255), cv::FILLED);
+    hole.at<unsigned char>(0, 0) = 255;  // a hole at the corner too
+    ASSERT_GT(cv::countNonZero(hole), 0);
+    ASSERT_LT(cv::countNonZero(hole), h * w);
+    std::vector<float> out(rgb.size(), -1.0f);
+    ASSERT_TRUE(push_pull_fill(rgb.data(), h, w, hole, out.data()));
+    for (size_t i = 0; i < out.size(); ++i) ASSERT_NEAR(out[i], rgb[i], 1e-5f) << "size " << size << ", index " << i;
+  }
+}
+
+// Every filled value is a convex combination of the known pixels: within their range, per
+// channel, for random images and holes of every size (odd sizes exercise the 1- and 2-pixel
+// blocks at the edges). Known pixels are the input exactly.
+TEST(PushPullFill, FilledValuesLieWithinTheKnownPixelsRange) {
+  std::mt19937 rng(5);
+  for (int trial = 0; trial < 40; ++trial) {
+    const int h = 1 + static_cast<int>(rng() % 70), w = 1 + static_cast<int>(rng() % 90);
+    const size_t plane = static_cast<size_t>(h) * w;
+    std::vector<float> rgb(3 * plane);
+    std::uniform_real_distribution<float> u(0.0f, 1.0f);
+    for (float& v : rgb) v = u(rng);
+    cv::Mat hole(h, w, CV_8U, cv::Scalar(0));
+    const int holes = 1 + static_cast<int>(rng() % 6);
+    for (int k = 0; k < holes; ++k)
+      cv::circle(hole, {static_cast<int>(rng() % w), static_cast<int>(rng() % h)}, static_cast<int>(rng() % 20),
+                 cv::Scalar(255), cv::FILLED);
+    std::vector<float> out(rgb.size());
+    const bool all_hole = cv::countNonZero(hole) == h * w;
+    ASSERT_EQ(push_pull_fill(rgb.data(), h, w, hole, out.data()), !all_hole);
+    if (all_hole) continue;
+    for (int c = 0; c < 3; ++c) {
+      float lo = 1e9f, hi = -1e9f;
+      for (int y = 0; y < h; ++y)
+        for (int x = 0; x < w; ++x)
+          if (!hole.at<unsigned char>(y, x)) {
+            lo = std::min(lo, at(rgb, h, w, c, y, x));
+            hi = std::max(hi, at(rgb, h, w, c, y, x));
+          }
+      for (int y = 0; y < h; ++y)
+        for (int x = 0; x < w; ++x) {
+          const float v = at(out, h, w, c, y, x);
+          if (hole.at<unsigned char>(y, x)) {
+            ASSERT_TRUE(std::isfinite(v));
+            ASSERT_GE(v, lo - 1e-5f) << "trial " << trial;
+            ASSERT_LE(v, hi + 1e-5f) << "trial " << trial;
+          } else {
+            ASSERT_EQ(v, at(rgb, h, w, c, y, x)) << "a known pixel is the input's";
+          }
+        }
+    }
+  }
+}
+
+// Left half one colour, right half another, a hole across the middle: the fill takes each
+// side's colour near that side and passes between them, monotonically along each row.
+TEST(PushPullFill, AHoleBetweenTwoColoursIsFilledFromTheNearerSide) {
+  const int h = 40, w = 80;
+  std::vector<float> rgb = flat_planes(h, w, 0.0f, 0.0f, 0.0f);
+  for (int y = 0; y < h; ++y)
+    for (int x = w / 2; x < w; ++x) rgb[static_cast<size_t>(y) * w + x] = 1.0f;  // red channel: 0 | 1
+  cv::Mat hole(h, w, CV_8U, cv::Scalar(0));
+  hole(cv::Rect(24, 8, 32, 24)).setTo(255);
+  std::vector<float> out(rgb.size());
+  ASSERT_TRUE(push_pull_fill(rgb.data(), h, w, hole, out.data()));
+  for (int y = 8; y < 32; ++y) {
+    EXPECT_LT(at(out, h, w, 0, y, 25), 0.3f) << "row " << y << ": next to the left side";
+    EXPECT_GT(at(out, h, w, 0, y, 54), 0.7f) << "row " << y << ": next to the right side";
+    for (int x = 25; x < 56; ++x) ASSERT_LE(at(out, h, w, 0, y, x - 1), at(out, h, w, 0, y, x) + 1e-6f);
+  }
+}
+
+TEST(PushPullFill, ANothingButHoleImageIsRefused) {
+  const std::vector<float> rgb = flat_planes(8, 8, 0.5f, 0.5f, 0.5f);
+  std::vector<float> out(rgb.size(), -1.0f);
+  EXPECT_FALSE(push_pull_fill(rgb.data(), 8, 8, cv::Mat(8, 8, CV_8U, cv::Scalar(255)), out.data()));
+  EXPECT_EQ(out[0], -1.0f) << "nothing written";
+}
+
+// A scene for the rule: a flat grey left half and a textured right half (random levels, far
+// above the limit), with three parts in the mask: a small disk on the flat half, a small disk on
+// the textured half, and a large disk on the flat half.
+struct RuleScene {
+  int h = 120, w = 240;
+  std::vector<float> rgb;
+  cv::Mat mask;
+  RuleScene() {
+    rgb = flat_planes(h, w, 0.6f, 0.6f, 0.6f);
+    std::mt19937 rng(3);
+    std::uniform_real_distribution<float> u(0.0f, 1.0f);
+    const size_t plane = static_cast<size_t>(h) * w;
+    for (int y = 0; y < h; ++y)
+      for (int x = w / 2; x < w; ++x) {
+        const float v = u(rng);
+        for (int c = 0; c < 3; ++c) rgb[c * plane + static_cast<size_t>(y) * w + x] = v;
+      }
+    mask = cv::Mat(h, w, CV_8U, cv::Scalar(0));
+    cv::circle(mask, {30, 30}, 6, cv::Scalar(255), cv::FILLED);   // small, flat surround
+    cv::circle(mask, {180, 30}, 6, cv::Scalar(255), cv::FILLED);  // small, textured surround
+    cv::circle(mask, {50, 85}, 20, cv::Scalar(255), cv::FILLED);  // large (about 1260 px), flat
+  }
+};
+
+TEST(SurroundFill, OnlySmallPartsOverSmoothSurroundingsAreChosen) {
+  RuleScene s;
+  int parts = -1;
+  const cv::Mat chosen = surround_fill_mask(s.mask, s.rgb.data(), kSurroundFillArea, kSurroundFillMad, &parts);
+  EXPECT_EQ(parts, 1);
+  cv::Mat expected(s.mask.size(), CV_8U, cv::Scalar(0));
+  cv::circle(expected, {30, 30}, 6, cv::Scalar(255), cv::FILLED);
+  EXPECT_EQ(cv::countNonZero(chosen != expected), 0) << "exactly the small disk on the flat half";
+  // A larger area admits the large disk; a looser limit the textured one; 0 turns the fill off.
+  surround_fill_mask(s.mask, s.rgb.data(), 2000, kSurroundFillMad, &parts);
+  EXPECT_EQ(parts, 2);
+  surround_fill_mask(s.mask, s.rgb.data(), kSurroundFillArea, 255.0, &parts);
+  EXPECT_EQ(parts, 2);
+  EXPECT_EQ(cv::countNonZero(surround_fill_mask(s.mask, s.rgb.data(), 0, 255.0, &parts)), 0);
+  EXPECT_EQ(parts, 0);
+}
+
+// A dense windshield puts other drops, missed by the detector, into most surrounds. The median
+// absolute deviation ignores them while they are fewer than half of the surround pixels (a
+// textured surround, where most pixels differ, is RuleScene's).
+TEST(SurroundFill, NeighbouringDropsDoNotMakeASurroundRough) {
+  const int h = 60, w = 60;
+  std::vector<float> rgb = flat_planes(h, w, 0.8f, 0.8f, 0.8f);
+  cv::Mat dark(h, w, CV_8U, cv::Scalar(0));
+  for (int x = 20; x < 40; x += 3) dark.col(x).setTo(255);  // dark streaks: about a third of the surround
+  const size_t plane = static_cast<size_t>(h) * w;
+  for (int y = 0; y < h; ++y)
+    for (int x = 0; x < w; ++x)
+      if (dark.at<unsigned char>(y, x))
+        for (int c = 0; c < 3; ++c) rgb[c * plane + static_cast<size_t>(y) * w + x] = 0.1f;
+  cv::Mat mask(h, w, CV_8U, cv::Scalar(0));
+  cv::circle(mask, {30, 30}, 5, cv::Scalar(255), cv::FILLED);
+  int parts = -1;
+  surround_fill_mask(mask, rgb.data(), kSurroundFillArea, kSurroundFillMad, &parts);
+  EXPECT_EQ(parts, 1);
+  // The standard deviation of that surround is about 0.47 x 0.7 x 255 = 84 levels.
+}
+
+TEST(SurroundFill, APartWithoutASurroundIsNotFilled) {
+  const std::vector<float> rgb = flat_planes(10, 10, 0.5f, 0.5f, 0.5f);
+  int parts = -1;
+  surround_fill_mask(cv::Mat(10, 10, CV_8U, cv::Scalar(255)), rgb.data(), kSurroundFillArea, 255.0, &parts);
+  EXPECT_EQ(parts, 0) << "a mask over the whole window has no pixel outside it";
+}
+
+// The 3RN's output is replaced in the chosen parts by the fill and kept bit for bit elsewhere,
+// including in the parts not chosen.
+TEST(SurroundFill, OnlyTheChosenPartsOfTheReconstructionChange) {
+  RuleScene s;
+  const size_t plane = static_cast<size_t>(s.h) * s.w;
+  std::vector<float> ihat(3 * plane);
+  std::mt19937 rng(9);
+  std::uniform_real_distribution<float> u(0.0f, 1.0f);
+  for (float& v : ihat) v = u(rng);
+  const std::vector<float> before = ihat;
+  EXPECT_EQ(fill_small_drops_from_surround(s.rgb.data(), s.mask, kSurroundFillArea, kSurroundFillMad, ihat), 1);
+  cv::Mat chosen(s.h, s.w, CV_8U, cv::Scalar(0));
+  cv::circle(chosen, {30, 30}, 6, cv::Scalar(255), cv::FILLED);
+  for (int c = 0; c < 3; ++c)
+    for (int y = 0; y < s.h; ++y)
+      for (int x = 0; x < s.w; ++x) {
+        const size_t i = c * plane + static_cast<size_t>(y) * s.w + x;
+        if (chosen.at<unsigned char>(y, x))
+          ASSERT_NEAR(ihat[i], 0.6f, 1e-5f) << "the flat grey around the part";
+        else
+          ASSERT_EQ(ihat[i], before[i]);
+      }
+  // Off: nothing changes.
+  ihat = before;
+  EXPECT_EQ(fill_small_drops_from_surround(s.rgb.data(), s.mask, 0, kSurroundFillMad, ihat), 0);
+  EXPECT_EQ(ihat, before);
+}
+
+}  // namespace
+}  // namespace removetest
