@@ -1021,6 +1021,13 @@ if want surround; then
     score_sets "$su" "test-a$a" "--surround-fill-area $a -j 2" real-pairs:test:0 test-sparse:-:0 test-size-512x288:-:0 \
       test-size-1280x720:-:0
   done | tee "$su/test.txt"
+  # compact-windshield with the default's large-drop growth (now in its rdn.onnx) and without.
+  for g in 0 0.35; do
+    score_sets "$su" "windshield-g$g" "--model-config compact-windshield --large-drop-growth $g -j 2" real-pairs:train:0 \
+      val-sparse:-:0 val-windshield-sharp:-:0
+    score_sets "$su" "windshield-test-g$g" "--model-config compact-windshield --large-drop-growth $g -j 2" \
+      real-pairs:test:0 test-sparse:-:0 test-size-512x288:-:0 test-size-1280x720:-:0
+  done | tee "$su/windshield-growth.txt"
   # The 44 real photographs, both detectors, off and on (outputs and masks, to look at; how many
   # change), the parts filled per photograph (--time), and folder runs alternated three times.
   for m in compact-multiscale compact-windshield; do
