@@ -194,24 +194,39 @@ int fill_small_drops_from_surround(const float* rgb, const cv::Mat& mask, int ma
   const size_t plane = static_cast<size_t>(h) * w;
   CV_Assert(ihat.size() == 3 * plane);
   const ChosenParts chosen = choose_parts(mask, rgb, max_area, max_mad);
-  std::vector<float> window_rgb, window_fill;
-  for (size_t i = 0; i < chosen.ids.size(); ++i) {
-    // Each part is filled from a window around it (its box grown by kSurroundWindow times its
-    // larger side, at least 2 kSurroundRing): a drop is predicted by its neighbourhood, and the
-    // cost follows the parts' size, not the image's. Every part of the mask is a hole there: the
-    // other drops are no better a guess than the 3RN's.
-    const cv::Rect& box = chosen.boxes[i];
+  if (chosen.ids.empty()) return 0;
+  // Each part is filled from a window around it (its box grown by kSurroundWindow times its
+  // larger side, at least 2 kSurroundRing): a drop is predicted by its neighbourhood, and the
+  // cost follows the parts' size, not the image's. Every part of the mask is a hole there: the
+  // other drops are no better a guess than the 3RN's.
+  std::vector<cv::Rect> windows;
+  double window_pixels = 0;
+  for (const cv::Rect& box : chosen.boxes) {
     const int grow = std::max(2 * kSurroundRing, kSurroundWindow * std::max(box.width, box.height));
-    const cv::Rect win = cv::Rect(box.x - grow, box.y - grow, box.width + 2 * grow, box.height + 2 * grow) &
-                         cv::Rect(0, 0, w, h);
-    const size_t wp = static_cast<size_t>(win.area());
-    window_rgb.resize(3 * wp);
-    window_fill.resize(3 * wp);
-    for (int ch = 0; ch < 3; ++ch)
-      for (int y = 0; y < win.height; ++y)
-        std::copy_n(rgb + ch * plane + static_cast<size_t>(win.y + y) * w + win.x, win.width,
-                    window_rgb.data() + ch * wp + static_cast<size_t>(y) * win.width);
-    if (!push_pull_fill(window_rgb.data(), win.height, win.width, mask(win), window_fill.data())) continue;
+    windows.push_back(cv::Rect(box.x - grow, box.y - grow, box.width + 2 * grow, box.height + 2 * grow) &
+                      cv::Rect(0, 0, w, h));
+    window_pixels += static_cast<double>(windows.back().width) * windows.back().height;
+  }
+  // Thin or diagonal parts have large windows for their area; past kSurroundWindowBudget times
+  // the image, one fill of the whole image is cheaper than theirs and bounds the cost.
+  if (window_pixels > kSurroundWindowBudget * static_cast<double>(plane)) windows.assign(chosen.ids.size(), cv::Rect(0, 0, w, h));
+  std::vector<float> window_rgb, window_fill;
+  cv::Rect filled;  // the window window_fill holds (several parts share the whole image's)
+  for (size_t i = 0; i < chosen.ids.size(); ++i) {
+    const cv::Rect& box = chosen.boxes[i];
+    const cv::Rect& win = windows[i];
+    const size_t wp = static_cast<size_t>(win.width) * static_cast<size_t>(win.height);
+    if (win != filled) {
+      window_rgb.resize(3 * wp);
+      window_fill.resize(3 * wp);
+      for (int ch = 0; ch < 3; ++ch)
+        for (int y = 0; y < win.height; ++y)
+          std::copy_n(rgb + ch * plane + static_cast<size_t>(win.y + y) * w + win.x, win.width,
+                      window_rgb.data() + ch * wp + static_cast<size_t>(y) * win.width);
+      // A chosen part has known pixels within its window (its surround), so this never refuses.
+      push_pull_fill(window_rgb.data(), win.height, win.width, mask(win), window_fill.data());
+      filled = win;
+    }
     for (int y = box.y; y < box.y + box.height; ++y) {
       const int* lab = chosen.labels.ptr<int>(y);
       for (int x = box.x; x < box.x + box.width; ++x) {

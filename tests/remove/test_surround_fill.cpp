@@ -211,5 +211,97 @@ TEST(SurroundFill, OnlyTheChosenPartsOfTheReconstructionChange) {
   EXPECT_EQ(ihat, before);
 }
 
+// The rule's limit is inclusive, and both medians are the upper one (index n / 2 of the n
+// sorted values): a surround of 4 pixels at 100 levels and 4 at 106 has the median 106 and the
+// absolute deviations 0, 0, 0, 0, 6, 6, 6, 6, whose upper median is 6. (With lower medians it
+// would be 0, and a limit under 6 would fill it.)
+TEST(SurroundFill, TheLimitIsInclusiveOnTheUpperMedians) {
+  const int h = 3, w = 5;
+  std::vector<float> rgb = flat_planes(h, w, 0.0f, 0.0f, 0.0f);
+  cv::Mat mask(h, w, CV_8U, cv::Scalar(255));
+  // Eight unmasked pixels around a masked part: four at 100 levels, four at 106.
+  const int xs[8] = {0, 1, 2, 3, 0, 1, 2, 3}, ys[8] = {0, 0, 0, 0, 2, 2, 2, 2};
+  const size_t plane = static_cast<size_t>(h) * w;
+  for (int i = 0; i < 8; ++i) {
+    mask.at<unsigned char>(ys[i], xs[i]) = 0;
+    const float v = (i < 4 ? 100.0f : 106.0f) / 255.0f;
+    for (int c = 0; c < 3; ++c) rgb[c * plane + static_cast<size_t>(ys[i]) * w + xs[i]] = v;
+  }
+  int parts = -1;
+  surround_fill_mask(mask, rgb.data(), kSurroundFillArea, 6.0 + 1e-3, &parts);
+  EXPECT_EQ(parts, 1);
+  surround_fill_mask(mask, rgb.data(), kSurroundFillArea, 5.99, &parts);
+  EXPECT_EQ(parts, 0);
+}
+
+// The pipeline passes a tile's window of a larger mask (an ROI, rows not contiguous): the result
+// is the same as for a copy of that window.
+TEST(SurroundFill, AWindowOfALargerMaskIsFilledAsItsCopy) {
+  std::mt19937 rng(21);
+  cv::Mat canvas(90, 160, CV_8U, cv::Scalar(0));
+  for (int k = 0; k < 25; ++k)
+    cv::circle(canvas, {static_cast<int>(rng() % 160), static_cast<int>(rng() % 90)}, 2 + static_cast<int>(rng() % 6),
+               cv::Scalar(255), cv::FILLED);
+  const cv::Rect win(17, 9, 101, 67);
+  const cv::Mat roi = canvas(win), copy = roi.clone();
+  ASSERT_FALSE(roi.isContinuous());
+  const size_t plane = static_cast<size_t>(win.area());
+  std::vector<float> rgb(3 * plane), ihat(3 * plane);
+  std::uniform_real_distribution<float> u(0.45f, 0.46f);  // smooth: every small part qualifies
+  for (float& v : rgb) v = u(rng);
+  for (float& v : ihat) v = 2.0f;
+  std::vector<float> a = ihat, b = ihat;
+  const int na = fill_small_drops_from_surround(rgb.data(), roi, kSurroundFillArea, kSurroundFillMad, a);
+  const int nb = fill_small_drops_from_surround(rgb.data(), copy, kSurroundFillArea, kSurroundFillMad, b);
+  EXPECT_GT(na, 0);
+  EXPECT_EQ(na, nb);
+  EXPECT_EQ(a, b);
+}
+
+// Thin parts have windows far larger than their area; past kSurroundWindowBudget times the image
+// all of them are filled from one push-pull of the whole image, which bounds the cost. Below it,
+// each part from its own window: on a smooth image the two differ only a little.
+TEST(SurroundFill, ManyThinPartsAreFilledFromOneWholeImageFill) {
+  const int h = 300, w = 600;
+  const size_t plane = static_cast<size_t>(h) * w;
+  std::vector<float> rgb(3 * plane);
+  for (int c = 0; c < 3; ++c)
+    for (int y = 0; y < h; ++y)
+      for (int x = 0; x < w; ++x) rgb[c * plane + static_cast<size_t>(y) * w + x] = 0.3f + 0.001f * x + 0.0005f * y;
+  cv::Mat mask(h, w, CV_8U, cv::Scalar(0));
+  for (int x : {20, 320})
+    for (int y = 2; y + 2 < h; y += 4) mask(cv::Rect(x, y, 40, 2)).setTo(255);  // 148 strips of 40x2: 80 px each
+  std::vector<float> ihat(3 * plane, 2.0f);
+  const int n = fill_small_drops_from_surround(rgb.data(), mask, kSurroundFillArea, 255.0, ihat);
+  ASSERT_EQ(n, 148);
+  // Their windows (up to 200 x 162 each, none the whole image) add up to far more than 4 x 300 x
+  // 600: the whole-image fill, exactly.
+  std::vector<float> whole(3 * plane);
+  ASSERT_TRUE(push_pull_fill(rgb.data(), h, w, mask, whole.data()));
+  for (size_t i = 0; i < ihat.size(); ++i) {
+    const size_t p = i % plane;
+    if (mask.at<unsigned char>(static_cast<int>(p / w), static_cast<int>(p % w)))
+      ASSERT_EQ(ihat[i], whole[i]);
+    else
+      ASSERT_EQ(ihat[i], 2.0f);
+  }
+  // One strip alone stays within the budget: its own window's fill, close to the whole image's
+  // but not equal to it (which shows that the comparison above can tell the two apart).
+  cv::Mat one(h, w, CV_8U, cv::Scalar(0));
+  one(cv::Rect(320, 142, 40, 2)).setTo(255);
+  std::vector<float> single(3 * plane, 2.0f), whole_one(3 * plane);
+  ASSERT_EQ(fill_small_drops_from_surround(rgb.data(), one, kSurroundFillArea, 255.0, single), 1);
+  ASSERT_TRUE(push_pull_fill(rgb.data(), h, w, one, whole_one.data()));
+  float largest = 0.0f;
+  for (size_t i = 0; i < single.size(); ++i) {
+    const size_t p = i % plane;
+    if (one.at<unsigned char>(static_cast<int>(p / w), static_cast<int>(p % w))) {
+      ASSERT_NEAR(single[i], whole_one[i], 0.02f);
+      largest = std::max(largest, std::abs(single[i] - whole_one[i]));
+    }
+  }
+  EXPECT_GT(largest, 0.0f);
+}
+
 }  // namespace
 }  // namespace removetest

@@ -37,6 +37,10 @@ inline constexpr int kSurroundRing = 4;
 // The fill of a part interpolates within its bounding box grown on every side by this many
 // times its larger side (at least 2 kSurroundRing pixels), clipped to the image.
 inline constexpr int kSurroundWindow = 2;
+// When the windows of all the parts to fill add up to more than this many times the image's
+// pixels (thin or diagonal parts, whose boxes are large for their area), every part is filled
+// from one push-pull over the whole image instead: the cost stays within a few whole-image fills.
+inline constexpr double kSurroundWindowBudget = 4.0;
 
 // Push-pull interpolation of planar RGB (3 planes of h x w floats) into the pixels where `hole`
 // (CV_8U, h x w) is non-zero, written to `out` (3 planes; the pixels outside the hole get the
@@ -58,7 +62,8 @@ cv::Mat surround_fill_mask(const cv::Mat& mask, const float* rgb, int max_area, 
 
 // Replaces the 3RN's output `ihat` (3 planes of h x w) by the push-pull fill of `rgb` from
 // outside `mask` wherever surround_fill_mask chooses, each part from its own window
-// (kSurroundWindow); the rest of `ihat` is left bit for bit. Returns the number of parts filled.
+// (kSurroundWindow; the whole image past kSurroundWindowBudget); the rest of `ihat` is left bit
+// for bit. Returns the number of parts filled.
 int fill_small_drops_from_surround(const float* rgb, const cv::Mat& mask, int max_area, double max_mad,
                                    std::vector<float>& ihat);
 
