@@ -20,6 +20,11 @@ Exactly, in float32:
 7. ``out`` = clip(rfn(B), 0, 1), cropped to HxW, then ``floor(out * 255 + 0.5)`` as uint8
    (``imageio.to_uint8``).
 
+With ``--surround-fill-area N`` (N > 0; default 0, the steps above exactly), step 5's ``Ihat`` is
+then replaced in the small parts of ``M`` over smooth surroundings by their push-pull fill, as
+``raindrop-remove`` does by default (CONTRACTS.md, "Small drops filled from their surround";
+``surround_fill.py``); the padded image is one window.
+
 Threshold and dilation default to the ``raindrop.threshold`` / ``raindrop.dilation``
 metadata of the graphs. ``--mask`` writes the final mask M (after dilation) as a 0/255 PNG.
 """
@@ -41,6 +46,7 @@ from . import contract as C
 from .edge import edge_map_numpy
 from .imageio import ImageError, check_writable, read_rgb, to_float, to_uint8, write_grey, write_rgb
 from .morphology import dilate_numpy
+from .surround_fill import fill_small_drops_from_surround
 
 
 class ModelError(ValueError):
@@ -187,6 +193,8 @@ class RaindropRemover:
         threshold: float | None = None,
         dilation: int | None = None,
         keep_intermediates: bool = False,
+        surround_fill_area: int = 0,
+        surround_fill_mad: float = 4.0,
     ) -> Removal:
         """The full pipeline (steps 1-7) on an HxWx3 uint8 RGB image."""
         thr = self.threshold if threshold is None else float(threshold)
@@ -205,6 +213,8 @@ class RaindropRemover:
         ihat = self.reconstruct(R, E)
         tm["rrn"] = time.perf_counter() - t
         t = time.perf_counter()
+        if surround_fill_area > 0:
+            fill_small_drops_from_surround(R[0], M, surround_fill_area, surround_fill_mad, ihat[0])
         B = self.blend(M, ihat, R)
         tm["blend"] = time.perf_counter() - t
         t = time.perf_counter()
@@ -243,6 +253,10 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--threshold", type=float, help="mask threshold (default: the models' raindrop.threshold)")
     ap.add_argument("--dilation", type=int, help="dilation size k (default: the models' raindrop.dilation)")
     ap.add_argument("--threads", type=int, help="ONNX Runtime intra-op threads")
+    ap.add_argument("--surround-fill-area", type=int, default=0,
+                    help="fill parts of the mask of at most N px over smooth surroundings from them (0: off)")
+    ap.add_argument("--surround-fill-mad", type=float, default=4.0,
+                    help="smoothness limit of --surround-fill-area, in 8-bit levels")
     ap.add_argument("-v", "--verbose", action="store_true", help="print timings and mask coverage")
     args = ap.parse_args(argv)
     try:
@@ -250,7 +264,10 @@ def main(argv: list[str] | None = None) -> int:
             check_writable(dest)
         remover = RaindropRemover(args.models, threads=args.threads)
         img = read_rgb(args.input)
-        res = remover.remove(img, args.threshold, args.dilation)
+        if args.surround_fill_area < 0 or not args.surround_fill_mad >= 0:
+            raise ValueError("--surround-fill-area must be >= 0 and --surround-fill-mad a number >= 0")
+        res = remover.remove(img, args.threshold, args.dilation, surround_fill_area=args.surround_fill_area,
+                             surround_fill_mad=args.surround_fill_mad)
         write_rgb(args.output, res.output)
         if args.mask:
             write_grey(args.mask, res.mask * np.uint8(255))
