@@ -56,6 +56,18 @@ print(json.dumps(scene, indent=2))' "$4" "$5" "$3" >"$2"
   echo "$2"
 }
 
+# size_sets SPLIT NAME: the paper preset over the Cityscapes frames of SPLIT at 512x288 and
+# 1280x720 (16 variants, seed 9) in data/NAME-<size>, unless already there. With SPLIT val these
+# are the renders of the size test (TrainedModels.DefaultGainsAsMuchOnLargeStreetFrames).
+size_sets() {
+  local s
+  for s in 512x288 1280x720; do
+    [[ -f "data/$2-$s/manifest.jsonl" ]] ||
+      build/raindrop-render --cityscapes "$shared/cityscapes-mini" --split "$1" --variants 16 --seed 9 --size "$s" \
+        --out "data/$2-$s" -q
+  done
+}
+
 # link_cv100: the first 100 CamVid val frames of 4.2, linked into out/results/cv100.
 link_cv100() {
   mkdir -p "$out/cv100"
@@ -876,11 +888,7 @@ if want growth; then
   gr="$out/growth"
   mkdir -p "$gr"
   [[ -f data/real-pairs/manifest.jsonl ]] || $py -m raindrop_tools.realpairs prepare "$shared/real-pairs" --out data/real-pairs
-  for s in 512x288 1280x720; do
-    [[ -f "data/val-size-$s/manifest.jsonl" ]] ||
-      build/raindrop-render --cityscapes "$shared/cityscapes-mini" --split train --variants 16 --seed 9 --size "$s" \
-        --out "data/val-size-$s" -q
-  done
+  size_sets train val-size
   # The choice, on validation sets only (growth 0 is the default before it).
   for g in 0 0.25 0.35 0.5; do
     score_sets "$gr" "g$g" "--large-drop-growth $g --large-drop-sharpness inf -j 2" real-pairs:train:0 val-sparse:-:0 val-windshield-sharp:-:0 \
@@ -1004,11 +1012,7 @@ if want surround; then
   su="$out/surround"
   mkdir -p "$su"
   [[ -f data/real-pairs/manifest.jsonl ]] || $py -m raindrop_tools.realpairs prepare "$shared/real-pairs" --out data/real-pairs
-  for s in 512x288 1280x720; do
-    [[ -f "data/test-size-$s/manifest.jsonl" ]] ||
-      build/raindrop-render --cityscapes "$shared/cityscapes-mini" --split val --limit 2 --variants 16 --seed 9 --size "$s" \
-        --out "data/test-size-$s" -q -j 1
-  done
+  size_sets val test-size
   # The choice, on validation sets only: the largest part filled (0: off), both detectors.
   for a in 0 150 250 400; do
     score_sets "$su" "a$a" "--surround-fill-area $a -j 2" real-pairs:train:0 val-sparse:-:0 val-windshield-sharp:-:0 \

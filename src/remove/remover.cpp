@@ -436,10 +436,8 @@ RemoveResult Remover::run_native(const cv::Mat& image, const RemoveOptions& opt,
       // B = M * Ihat + (1 - M) * R with M in {0, 1} is exactly a choice between the two
       // (as in numpy: 1 * a + 0 * b == a for finite values).
       std::vector<float>& blend = ihat;
-      if (opt.surround_fill_area > 0) {
-        res.surround_filled += fill_small_drops_from_surround(in.r.data(), mask(cv::Rect(x0, y0, in.w, in.h)),
-                                                              opt.surround_fill_area, opt.surround_fill_mad, ihat);
-      }
+      res.surround_filled += fill_small_drops_from_surround(in.r.data(), mask(cv::Rect(x0, y0, in.w, in.h)),
+                                                            opt.surround_fill_area, opt.surround_fill_mad, ihat);
       for (int y = 0; y < in.h; ++y) {
         const unsigned char* mrow = mask.ptr<unsigned char>(y0 + y) + x0;
         for (int c = 0; c < 3; ++c) {

@@ -109,7 +109,6 @@ ChosenParts choose_parts(const cv::Mat& mask, const float* rgb, int max_area, do
   return out;
 }
 
-
 }  // namespace
 
 bool push_pull_fill(const float* rgb, int h, int w, const cv::Mat& hole, float* out) {
@@ -183,7 +182,10 @@ bool push_pull_fill(const float* rgb, int h, int w, const cv::Mat& hole, float* 
 cv::Mat surround_fill_mask(const cv::Mat& mask, const float* rgb, int max_area, double max_mad, int* filled_parts) {
   const ChosenParts chosen = choose_parts(mask, rgb, max_area, max_mad);
   cv::Mat out(mask.size(), CV_8U, cv::Scalar(0));
-  for (size_t i = 0; i < chosen.ids.size(); ++i) out.setTo(255, chosen.labels == chosen.ids[i]);
+  for (size_t i = 0; i < chosen.ids.size(); ++i) {
+    const cv::Rect& box = chosen.boxes[i];
+    out(box).setTo(255, chosen.labels(box) == chosen.ids[i]);
+  }
   if (filled_parts) *filled_parts = static_cast<int>(chosen.ids.size());
   return out;
 }

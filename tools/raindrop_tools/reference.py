@@ -213,8 +213,7 @@ class RaindropRemover:
         ihat = self.reconstruct(R, E)
         tm["rrn"] = time.perf_counter() - t
         t = time.perf_counter()
-        if surround_fill_area > 0:
-            fill_small_drops_from_surround(R[0], M, surround_fill_area, surround_fill_mad, ihat[0])
+        fill_small_drops_from_surround(R[0], M, surround_fill_area, surround_fill_mad, ihat[0])
         B = self.blend(M, ihat, R)
         tm["blend"] = time.perf_counter() - t
         t = time.perf_counter()

@@ -105,14 +105,12 @@ def fill_small_drops_from_surround(rgb: np.ndarray, mask: np.ndarray, max_area: 
     if sum((x1 - x0) * (y1 - y0) for x0, y0, x1, y1 in windows) > SURROUND_WINDOW_BUDGET * h * w:
         windows = [(0, 0, w, h)] * len(chosen)
     hole = (mask != 0).astype(np.uint8)
-    cache: dict[tuple, np.ndarray] = {}
+    filled_win, fill = None, None  # the window `fill` holds (parts share the whole image's)
     for (k, x, y, bw, bh), win in zip(chosen, windows):
-        if win not in cache:
-            x0, y0, x1, y1 = win
-            cache.clear()
-            cache[win] = push_pull_fill(rgb[:, y0:y1, x0:x1], hole[y0:y1, x0:x1])
-        fill = cache[win]
-        x0, y0 = win[0], win[1]
+        x0, y0, x1, y1 = win
+        if win != filled_win:
+            fill = push_pull_fill(rgb[:, y0:y1, x0:x1], hole[y0:y1, x0:x1])
+            filled_win = win
         part = labels[y:y + bh, x:x + bw] == k
         ihat[:, y:y + bh, x:x + bw][:, part] = fill[:, y - y0:y - y0 + bh, x - x0:x - x0 + bw][:, part]
     return len(chosen)

@@ -21,7 +21,6 @@
 // Only the working-scale pass fills; the coarse pass's parts are large by definition. With
 // tiles, the parts are those of each tile's window of the mask (a part cut by a tile's edge
 // is judged by its piece; the default working scale runs one tile).
-#include <cstdint>
 #include <vector>
 
 #include <opencv2/core.hpp>
