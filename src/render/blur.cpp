@@ -1,6 +1,7 @@
 #include "raindrop/render/blur.h"
 
 #include <algorithm>
+#include <atomic>
 #include <cmath>
 #include <memory>
 #include <type_traits>
@@ -113,13 +114,98 @@ void store(const F4Buffer& out, const cv::Mat& label, cv::Mat& color, const cv::
   }
 }
 
+// The kernel flattened for the inner loop: full-weight runs (prefix-sum differences) and
+// partial taps, each with the index of its kernel row.
+struct Run { int row, lo, hi; };
+struct Tap { int row, dx; float w; };
+
+// What the inner loop reads for one row of drop pixels.
+struct RowKernel {
+  const std::vector<Run>& runs;
+  const std::vector<Tap>& taps;
+  const f4* const* prefix_rows;  // per kernel row
+  const f4* const* rgb_rows;     // per kernel row
+  float inv_total;
+};
+
+#if defined(__x86_64__) && defined(__GNUC__)
+// Wider registers hold several pixels' f4 side by side (AVX: 2, AVX-512: 4). Neighbouring
+// pixels' f4 are neighbours in memory, so one load reads all of them, and every lane still does
+// the scalar path's additions, subtractions and multiplications in its order (the build has
+// -ffp-contract=off: no fused multiply-add): the same bits, with half or a quarter of the loads
+// and arithmetic instructions. Chosen at run time (blur_simd_level), so one binary runs
+// everywhere.
+typedef float f8 __attribute__((vector_size(32)));
+typedef float f16 __attribute__((vector_size(64)));
+
+// Neighbouring pixels' f4 from p on, unaligned (memcpy compiles to one load; a V returned by
+// value would trip GCC's ABI warning for wide vectors outside the target functions).
+template <typename V>
+inline __attribute__((always_inline)) void load(V& v, const f4* p) {
+  __builtin_memcpy(&v, p, sizeof v);
+}
+
+// Pixels [x, x + A * P) of a row, P pixels per V, A registers at a time.
+template <typename V, int A>
+inline __attribute__((always_inline)) void sum_wide(const RowKernel& k, int x, cv::Vec3f* dst) {
+  constexpr int P = sizeof(V) / sizeof(f4);
+  V acc[A];
+  for (int a = 0; a < A; ++a) acc[a] = V{};
+  for (const Run& run : k.runs) {
+    const f4* hi = k.prefix_rows[run.row] + x + run.hi;
+    const f4* lo = k.prefix_rows[run.row] + x + run.lo;
+    for (int a = 0; a < A; ++a) {
+      V h, l;
+      load(h, hi + a * P);
+      load(l, lo + a * P);
+      acc[a] += h - l;
+    }
+  }
+  for (const Tap& tap : k.taps) {
+    const f4* src_px = k.rgb_rows[tap.row] + x + tap.dx;
+    for (int a = 0; a < A; ++a) {
+      V v;
+      load(v, src_px + a * P);
+      acc[a] += tap.w * v;
+    }
+  }
+  for (int a = 0; a < A; ++a) {
+    const V o = acc[a] * k.inv_total;
+    for (int q = 0; q < P; ++q) dst[x + a * P + q] = cv::Vec3f(o[4 * q], o[4 * q + 1], o[4 * q + 2]);
+  }
+}
+
+// Each blurs pixels x, x+1, ... of [x, end) in blocks of 8 and returns the first it left.
+__attribute__((target("avx"))) int blur_span_avx(const RowKernel& k, int x, int end, cv::Vec3f* dst) {
+  for (; x + 8 <= end; x += 8) sum_wide<f8, 4>(k, x, dst);
+  return x;
+}
+__attribute__((target("avx512f"))) int blur_span_avx512(const RowKernel& k, int x, int end, cv::Vec3f* dst) {
+  for (; x + 8 <= end; x += 8) sum_wide<f16, 2>(k, x, dst);
+  return x;
+}
+#endif
+
+// The widest path this processor has, unless a test forced one (force_blur_simd_level).
+std::atomic<int> forced_simd_level{-1};
+
+int simd_level() {
+  const int forced = forced_simd_level.load(std::memory_order_relaxed);
+  return forced >= 0 ? std::min(forced, blur_simd_level()) : blur_simd_level();
+}
+
+int blur_span_wide(int level, const RowKernel& k, int x, int end, cv::Vec3f* dst) {
+#if defined(__x86_64__) && defined(__GNUC__)
+  if (level >= 2) return blur_span_avx512(k, x, end, dst);
+  if (level == 1) return blur_span_avx(k, x, end, dst);
+#endif
+  (void)level, (void)k, (void)end, (void)dst;
+  return x;
+}
+
 void blur_rows(const Source& src, const cv::Mat& label, cv::Mat& color, const cv::Rect& mask_box,
                const std::vector<KernelRow>& kernel) {
   const int W = label.cols, H = label.rows;
-  // The kernel flattened for the inner loop: full-weight runs (prefix-sum differences) and
-  // partial taps, each with the index of its kernel row.
-  struct Run { int row, lo, hi; };
-  struct Tap { int row, dx; float w; };
   std::vector<Run> runs;
   std::vector<Tap> taps;
   int reach_x = 0, reach_y = 0;
@@ -159,6 +245,7 @@ void blur_rows(const Source& src, const cv::Mat& label, cv::Mat& color, const cv
     }
     for (int i = 0; i < n; ++i) out[i] = acc[i] * inv_total;
   };
+  const int level = simd_level();
   // Results go straight into `color`: the blur reads only `src`, a copy.
   tbb::parallel_for(tbb::blocked_range<int>(0, mask_box.height, 4), [&](const tbb::blocked_range<int>& r) {
     std::vector<const f4*> prefix_rows(kernel.size()), rgb_rows(kernel.size());
@@ -207,7 +294,8 @@ void blur_rows(const Source& src, const cv::Mat& label, cv::Mat& color, const cv
         while (b < end && lab[b] >= 0) ++b;
         const int a_fast = std::min(std::max(x, fast_lo), b), b_fast = std::max(std::min(b, fast_hi), a_fast);
         for (int i = x; i < a_fast; ++i) border_pixel(i);
-        int i = a_fast;
+        const RowKernel row_kernel{runs, taps, prefix_rows.data(), rgb_rows.data(), inv_total};
+        int i = blur_span_wide(level, row_kernel, a_fast, b_fast, dst);
         f4 block[kBlock];
         for (; i + kBlock <= b_fast; i += kBlock) {
           sum_block(std::integral_constant<int, kBlock>(), prefix_rows.data(), rgb_rows.data(), i, block);
@@ -280,6 +368,17 @@ int kernel_reach(double diameter, BlurMethod method) {
 }
 
 }  // namespace
+
+int blur_simd_level() {
+#if defined(__x86_64__) && defined(__GNUC__)
+  static const int level = __builtin_cpu_supports("avx512f") ? 2 : __builtin_cpu_supports("avx") ? 1 : 0;
+  return level;
+#else
+  return 0;
+#endif
+}
+
+void force_blur_simd_level(int level) { forced_simd_level.store(level, std::memory_order_relaxed); }
 
 void blur_drops(const cv::Mat& clean, const cv::Mat& label, cv::Mat& color, double diameter_px,
                 BlurMethod method, const cv::Rect* drop_box, const Spans* spans) {

@@ -2,6 +2,7 @@
 // closed-form area and variance, only drop pixels change, and constants stay constant.
 #include <algorithm>
 #include <cmath>
+#include <cstring>
 
 #include <gtest/gtest.h>
 #include <opencv2/imgproc.hpp>
@@ -267,6 +268,31 @@ TEST(Blur, EveryDropPixelIsTheKernelsMeanOfItsSource) {
         }
       }
       EXPECT_LT(worst, 2e-5) << to_string(m) << " d " << d;
+    }
+  }
+}
+
+// The wide-register paths (AVX: two pixels per register, AVX-512: four) give the SSE2 path's
+// bits, for both disk methods, diameters up to the paper's 20 px and drops wide enough for
+// whole blocks of 8 pixels and their remainders.
+TEST(Blur, EveryRegisterWidthGivesTheSameBits) {
+  const int widest = blur_simd_level();
+  if (widest == 0) GTEST_SKIP() << "this processor has neither AVX nor AVX-512: only the SSE2 path runs here";
+  for (BlurMethod method : {BlurMethod::DiskAntialiased, BlurMethod::DiskSpan}) {
+    for (double d : {2.5, 7.0, 13.3, 20.0}) {
+      Fixture f = random_fixture(211, 97, static_cast<std::uint64_t>(d * 100));
+      force_blur_simd_level(0);
+      cv::Mat narrow = f.color.clone();
+      blur_drops(f.clean, f.label, narrow, d, method);
+      for (int level = 1; level <= widest; ++level) {
+        force_blur_simd_level(level);
+        cv::Mat wide = f.color.clone();
+        blur_drops(f.clean, f.label, wide, d, method);
+        EXPECT_EQ(0, std::memcmp(narrow.data, wide.data, narrow.total() * narrow.elemSize()))
+            << "level " << level << ", d = " << d << ", max difference " << max_diff_in_mask(f, narrow, wide);
+      }
+      force_blur_simd_level(-1);
+      EXPECT_GT(max_diff_in_mask(f, narrow, f.color), 1e-3) << "the blur changed nothing, d = " << d;
     }
   }
 }

@@ -32,6 +32,12 @@ void blur_drops(const cv::Mat& clean, const cv::Mat& label, cv::Mat& color, doub
                 BlurMethod method, const cv::Rect* drop_box = nullptr,
                 const std::vector<std::vector<Span>>* spans = nullptr);
 
+// The widest registers the disk blurs use on this processor: 0 SSE2 (one pixel per register),
+// 1 AVX (two), 2 AVX-512 (four). Every level gives the same bits (blur.cpp says why).
+int blur_simd_level();
+// Tests: use at most `level` from now on (-1: the processor's widest again).
+void force_blur_simd_level(int level);
+
 // The kernel's weights as a dense (2R+1)^2 matrix, for tests and documentation.
 cv::Mat blur_kernel(double diameter_px, BlurMethod method);
 
