@@ -10,6 +10,7 @@
 #include <jerror.h>
 #include <jpeglib.h>
 
+#include "exif_orientation.h"
 #include "raindrop/common/error.h"
 
 namespace raindrop::jpeg {
@@ -49,6 +50,18 @@ void install(ErrorSink& sink) {
   sink.manager.output_message = [](j_common_ptr) {};
 }
 
+// Keeps the APP1 markers through jpeg_read_header, where the EXIF Orientation is.
+void keep_exif(jpeg_decompress_struct& d) { jpeg_save_markers(&d, JPEG_APP0 + 1, 0xFFFF); }
+
+// The first EXIF APP1 marker's Orientation (exif_orientation.h), 1 without one.
+int orientation_of(const jpeg_decompress_struct& d) {
+  for (jpeg_saved_marker_ptr m = d.marker_list; m; m = m->next) {
+    if (m->marker != JPEG_APP0 + 1 || m->data_length < 6 || std::memcmp(m->data, "Exif\0\0", 6) != 0) continue;
+    return exif::orientation(m->data, m->data_length);
+  }
+  return 1;
+}
+
 bool native_colour(const jpeg_decompress_struct& d) {
   return (d.num_components == 1 && d.jpeg_color_space == JCS_GRAYSCALE) ||
          (d.num_components == 3 && (d.jpeg_color_space == JCS_YCbCr || d.jpeg_color_space == JCS_RGB));
@@ -63,11 +76,14 @@ cv::Mat decode_from(Attach attach, const std::string& what) {
   install(sink);
   cv::Mat image;  // before setjmp: a longjmp skips no C++ frame
   volatile bool created = false;
+  volatile int orientation = 1;
   if (setjmp(sink.jump) == 0) {
     jpeg_create_decompress(&d);
     created = true;
     attach(d);
+    keep_exif(d);
     jpeg_read_header(&d, TRUE);
+    orientation = orientation_of(d);
     if (!native_colour(d)) ERREXIT(&d, JERR_CONVERSION_NOTIMPL);
     d.out_color_space = d.num_components == 1 ? JCS_GRAYSCALE : JCS_RGB;
     jpeg_start_decompress(&d);
@@ -82,6 +98,7 @@ cv::Mat decode_from(Attach attach, const std::string& what) {
   }
   if (created) jpeg_destroy_decompress(&d);
   if (sink.damaged) throw Error(what + ": cannot decode (" + sink.message + ")");
+  exif::make_upright(image, orientation);
   return image;
 }
 
@@ -134,9 +151,11 @@ Info read_info(const fs::path& path) {
     jpeg_create_decompress(&d);
     created = true;
     jpeg_stdio_src(&d, file);
+    keep_exif(d);
     jpeg_read_header(&d, TRUE);
-    info.width = static_cast<int>(d.image_width);
-    info.height = static_cast<int>(d.image_height);
+    const bool swapped = exif::swaps_sides(orientation_of(d));
+    info.width = static_cast<int>(swapped ? d.image_height : d.image_width);
+    info.height = static_cast<int>(swapped ? d.image_width : d.image_height);
     info.native = native_colour(d);
     info.channels = d.num_components == 1 ? 1 : 3;
     ok = true;

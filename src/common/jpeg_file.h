@@ -24,6 +24,9 @@ struct Info {
 // Whether the file starts with a JPEG start-of-image marker.
 bool has_signature(const unsigned char* first3);
 
+// Files are read upright: an EXIF Orientation tag is applied as OpenCV's imread applies it
+// (exif_orientation.h), so width and height are those of the image as shown.
+
 // The file's header, without decoding pixels. Throws raindrop::Error naming the file if libjpeg
 // cannot read it.
 Info read_info(const std::filesystem::path& path);

@@ -8,6 +8,7 @@
 
 #include <onnxruntime_cxx_api.h>
 
+#include "raindrop/common/image_io.h"
 #include "remove_test_util.h"
 
 namespace removetest {
@@ -714,6 +715,30 @@ TEST_F(RemoveCli, TruncatedJpeg) {
   ASSERT_EQ(remove({"whole.jpg", "out.png"}).code, 0) << "the whole file decodes";
 }
 
+
+// A phone photograph stored on its side, with an EXIF Orientation that says "turn a quarter
+// clockwise to show": the networks see it upright, and the output and mask are written upright
+// (no tag needed), the same bytes as for a PNG of the upright pixels.
+TEST_F(RemoveCli, JpegOrientationIsAppliedBeforeRemoval) {
+  write_image(tmp / "stored.jpg", make_image(61, 43, 3));
+  const std::string jpeg = read_file(tmp / "stored.jpg");
+  // APP1: "Exif\0\0", a big-endian TIFF header, one IFD entry: Orientation (0x0112), SHORT, 1, 6.
+  const std::string payload = std::string("Exif\0\0MM\0\x2a\0\0\0\x08\0\x01\x01\x12\0\x03\0\0\0\x01\0\x06\0\0\0\0\0\0", 32);
+  const std::string app1 = std::string("\xff\xe1\0", 3) + static_cast<char>(payload.size() + 2) + payload;
+  write_file(tmp / "side.jpg", jpeg.substr(0, 2) + app1 + jpeg.substr(2));
+  const cv::Mat upright = raindrop::read_image_native(tmp / "side.jpg");
+  ASSERT_EQ(upright.cols, 43);
+  ASSERT_EQ(upright.rows, 61);
+  write_image(tmp / "upright.png", upright);
+  ASSERT_EQ(remove({"side.jpg", "a.png", "--mask", "a-mask.png"}).code, 0);
+  ASSERT_EQ(remove({"upright.png", "b.png", "--mask", "b-mask.png"}).code, 0);
+  EXPECT_EQ(read_file(tmp / "a.png"), read_file(tmp / "b.png"));
+  EXPECT_EQ(read_file(tmp / "a-mask.png"), read_file(tmp / "b-mask.png"));
+  const auto out = read_image(tmp / "a.png");
+  ASSERT_TRUE(out);
+  EXPECT_EQ(out->width, 43);
+  EXPECT_EQ(out->height, 61);
+}
 
 // libpng prints its own "libpng error: ..." line on stderr before OpenImageIO reports the
 // error: malformed image data must be caught first, so that the user sees one line, ours.

@@ -57,6 +57,10 @@ def read_rgb_strict(path: str | os.PathLike) -> np.ndarray:
         raise ImageError(f"{path}: cannot read image (missing or not an image)")
     if img.dtype != np.uint8 or img.ndim != 3 or img.shape[2] != 3:
         raise ImageError(f"{path}: expected 8-bit RGB, got dtype {img.dtype} shape {img.shape}")
+    if str(path).lower().endswith((".jpg", ".jpeg")):
+        # IMREAD_UNCHANGED ignores a JPEG's EXIF orientation; IMREAD_COLOR applies it, as
+        # raindrop-remove and raindrop-render do (the same pixels, upright).
+        img = cv2.imread(str(path), cv2.IMREAD_COLOR)
     return cv2.cvtColor(img, cv2.COLOR_BGR2RGB)
 
 

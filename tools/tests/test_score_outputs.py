@@ -66,3 +66,25 @@ def test_split_keeps_only_that_splits_samples(tmp_path):
     (data / "manifest.jsonl").unlink()
     with pytest.raises(SystemExit, match="manifest"):
         SO.score(data, outs, "test")
+
+
+def test_jpegs_are_read_upright_as_the_programs_read_them(tmp_path):
+    """A JPEG whose EXIF Orientation says "turn a quarter clockwise" reads upright through the
+    strict data-set reader too (OpenCV's IMREAD_UNCHANGED would ignore the tag), so that a
+    user's phone pairs score against raindrop-remove's upright outputs."""
+    import cv2
+    from raindrop_tools.imageio import read_rgb, read_rgb_strict
+    stored = procedural_image(24, 40, 3)
+    ok, jpeg = cv2.imencode(".jpg", cv2.cvtColor(stored, cv2.COLOR_RGB2BGR), [cv2.IMWRITE_JPEG_QUALITY, 95])
+    assert ok
+    # APP1: "Exif\0\0", a big-endian TIFF header, one IFD entry: Orientation (0x0112), SHORT, 1, 6.
+    payload = b"Exif\0\0MM\0\x2a\0\0\0\x08\0\x01\x01\x12\0\x03\0\0\0\x01\0\x06\0\0\0\0\0\0"
+    app1 = b"\xff\xe1" + (len(payload) + 2).to_bytes(2, "big") + payload
+    raw = jpeg.tobytes()
+    (tmp_path / "side.jpg").write_bytes(raw[:2] + app1 + raw[2:])
+    (tmp_path / "plain.jpg").write_bytes(raw)
+    upright = read_rgb_strict(tmp_path / "side.jpg")
+    assert upright.shape == (40, 24, 3)
+    assert np.array_equal(upright, read_rgb(tmp_path / "side.jpg"))
+    # The stored pixels turned a quarter clockwise.
+    assert np.array_equal(upright, np.rot90(read_rgb_strict(tmp_path / "plain.jpg"), k=-1))

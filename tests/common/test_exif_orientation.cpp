@@ -1,0 +1,140 @@
+// EXIF Orientation (src/common/exif_orientation.cpp): the tag read from its bytes in both byte
+// orders, anything malformed read as "as stored", and JPEG files read upright, as OpenCV's
+// imread (and so the Python tools) and image viewers show them.
+#include <gtest/gtest.h>
+
+#include <cstdint>
+#include <fstream>
+
+#include <opencv2/imgcodecs.hpp>
+#include <opencv2/imgproc.hpp>
+
+#include "exif_orientation.h"
+#include "raindrop/common/image_io.h"
+#include "test_images.h"
+#include "test_support.h"
+
+using namespace raindrop;
+namespace fs = std::filesystem;
+
+namespace {
+
+struct Entry {
+  std::uint16_t tag, type;
+  std::uint32_t count, value;
+};
+
+// An APP1 payload: "Exif\0\0", a TIFF header in the given byte order, one IFD holding `entries`.
+std::vector<unsigned char> exif_payload(bool little, const std::vector<Entry>& entries) {
+  std::vector<unsigned char> b = {'E', 'x', 'i', 'f', 0, 0};
+  auto put16 = [&](std::uint32_t v) {
+    const unsigned char lo = v & 255, hi = (v >> 8) & 255;
+    b.push_back(little ? lo : hi);
+    b.push_back(little ? hi : lo);
+  };
+  auto put32 = [&](std::uint32_t v) {
+    put16(little ? v & 0xFFFF : v >> 16);
+    put16(little ? v >> 16 : v & 0xFFFF);
+  };
+  b.push_back(little ? 'I' : 'M');
+  b.push_back(little ? 'I' : 'M');
+  put16(42);
+  put32(8);  // the first IFD right after the header
+  put16(static_cast<std::uint32_t>(entries.size()));
+  for (const Entry& e : entries) {
+    put16(e.tag);
+    put16(e.type);
+    put32(e.count);
+    if (e.type == 3) {  // a SHORT sits in the first two bytes of the value field
+      put16(e.value);
+      put16(0);
+    } else {
+      put32(e.value);
+    }
+  }
+  put32(0);  // no next IFD
+  return b;
+}
+
+constexpr Entry kMake{0x010F, 2, 4, 0};  // another tag before the orientation
+
+int read(const std::vector<unsigned char>& b) { return exif::orientation(b.data(), b.size()); }
+
+// `jpeg` with an APP1 segment holding `payload` inserted after its start-of-image marker.
+std::string with_app1(const std::string& jpeg, const std::vector<unsigned char>& payload) {
+  const size_t length = payload.size() + 2;
+  std::string segment = {'\xFF', '\xE1', static_cast<char>(length >> 8), static_cast<char>(length & 255)};
+  segment.append(payload.begin(), payload.end());
+  return jpeg.substr(0, 2) + segment + jpeg.substr(2);
+}
+
+}  // namespace
+
+TEST(ExifOrientation, ReadsTheTagInBothByteOrders) {
+  for (bool little : {true, false}) {
+    for (std::uint32_t o = 1; o <= 8; ++o) {
+      EXPECT_EQ(read(exif_payload(little, {kMake, {0x0112, 3, 1, o}})), static_cast<int>(o))
+          << (little ? "II" : "MM") << " orientation " << o;
+    }
+  }
+}
+
+TEST(ExifOrientation, AnythingMalformedOrMissingIsAsStored) {
+  const auto good = exif_payload(true, {kMake, {0x0112, 3, 1, 6}});
+  ASSERT_EQ(read(good), 6);
+  EXPECT_EQ(read(exif_payload(true, {kMake})), 1) << "no orientation tag";
+  EXPECT_EQ(read(exif_payload(false, {{0x0112, 3, 1, 0}})), 1) << "value 0";
+  EXPECT_EQ(read(exif_payload(false, {{0x0112, 3, 1, 9}})), 1) << "value 9";
+  EXPECT_EQ(read(exif_payload(true, {{0x0112, 4, 1, 6}})), 1) << "a LONG, not a SHORT";
+  EXPECT_EQ(read(exif_payload(true, {{0x0112, 3, 2, 6}})), 1) << "two values";
+  auto bad_magic = good;
+  bad_magic[8] = 43;
+  EXPECT_EQ(read(bad_magic), 1);
+  auto not_exif = good;
+  not_exif[0] = 'X';
+  EXPECT_EQ(read(not_exif), 1);
+  auto far_ifd = good;
+  far_ifd[10] = 0xFF, far_ifd[11] = 0xFF;  // the IFD offset points past the end
+  EXPECT_EQ(read(far_ifd), 1);
+  // Cut anywhere before the orientation entry ends: as stored, and nothing read past the cut
+  // (each cut is its own allocation, so a read past it is a heap overflow for the sanitizers).
+  const size_t entry_end = 6 + 8 + 2 + 2 * 12;
+  for (size_t n = 0; n < entry_end; ++n) {
+    const std::vector<unsigned char> cut(good.begin(), good.begin() + n);
+    EXPECT_EQ(exif::orientation(cut.empty() ? nullptr : cut.data(), n), 1) << "cut at " << n;
+  }
+  EXPECT_EQ(read(std::vector<unsigned char>(good.begin(), good.begin() + entry_end)), 6);
+}
+
+// A JPEG whose EXIF says how to show it reads as it is shown: exactly our decoder's stored
+// pixels turned and mirrored, and the same picture OpenCV's imread gives (the reference: it
+// applies the tag); 5-8 swap the sides, in the header too.
+TEST(ExifOrientation, JpegFilesReadUprightAsOpenCvReadsThem) {
+  testsupport::TempDir tmp("raindrop-exif-");
+  const cv::Mat rgb = testsupport::street_like(23, 37, 3);  // no symmetry: every turn shows
+  ASSERT_EQ(write_image_atomic(rgb, tmp / "plain.jpg"), "");
+  const cv::Mat stored = read_image_native(tmp / "plain.jpg");
+  const std::string plain = testsupport::read_file(tmp / "plain.jpg");
+  for (bool little : {true, false}) {
+    for (std::uint32_t o = 1; o <= 8; ++o) {
+      SCOPED_TRACE(std::string(little ? "II" : "MM") + " orientation " + std::to_string(o));
+      const fs::path file = tmp / ("o" + std::to_string(o) + ".jpg");
+      std::ofstream(file, std::ios::binary) << with_app1(plain, exif_payload(little, {kMake, {0x0112, 3, 1, o}}));
+      const cv::Mat ours = read_image_native(file);
+      cv::Mat expected = stored.clone();
+      exif::make_upright(expected, static_cast<int>(o));
+      ASSERT_EQ(ours.size(), expected.size());
+      EXPECT_EQ(cv::norm(ours, expected, cv::NORM_INF), 0);
+      cv::Mat theirs = cv::imread(file.string(), cv::IMREAD_COLOR);
+      ASSERT_FALSE(theirs.empty());
+      cv::cvtColor(theirs, theirs, cv::COLOR_BGR2RGB);
+      ASSERT_EQ(ours.size(), theirs.size());
+      // The same decoder library: equal but for rounding, where a wrong turn differs by tens of levels.
+      EXPECT_LE(cv::norm(ours, theirs, cv::NORM_INF), 2);
+      const ImageHeader h = read_header(file);
+      EXPECT_EQ(h.width, ours.cols);
+      EXPECT_EQ(h.height, ours.rows);
+      EXPECT_EQ(h.width, exif::swaps_sides(static_cast<int>(o)) ? 23 : 37);
+    }
+  }
+}
