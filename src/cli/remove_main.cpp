@@ -178,7 +178,7 @@ int run(int argc, char** argv) {
       "tree's models/<name>; <name> is --model-config or the one line of models/DEFAULT.\n"
       "Inputs: 8/16-bit grey, grey+alpha, RGB, RGBA up to 2^26 pixels (e.g. 8192x8192); the output keeps size,\n"
       "channels and depth (grey: the networks see it as RGB, the output is its luma 0.299R+0.587G+0.114B; alpha\n"
-      "is copied). A JPEG's EXIF orientation is applied: phone photographs are processed and written upright.\n"
+      "is copied). An EXIF/TIFF orientation is applied: phone photographs are processed and written upright.\n"
       "Exit codes: 0 success; 1 error (one line on stderr, no partial output); 2 bad command line;\n"
       "3 folder run with --keep-going finished but some images failed.");
   std::string input, output, models_dir, model_config, large_drop_models, mask, mask_dir, sheet, shard_text;

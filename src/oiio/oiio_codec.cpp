@@ -7,6 +7,7 @@
 
 #include <OpenImageIO/imageio.h>
 
+#include "../common/exif_orientation.h"
 #include "../common/format_loss.h"
 #include "../common/oiio_codec.h"
 #include "raindrop/common/error.h"
@@ -39,12 +40,20 @@ std::unique_ptr<OIIO::ImageInput> open_input(const fs::path& path) {
   return in;
 }
 
+// The file's Orientation (EXIF or TIFF tag, 1-8; exif_orientation.h), 1 when it has none.
+int orientation_of(const OIIO::ImageSpec& spec) {
+  const int o = spec.get_int_attribute("Orientation", 1);
+  return o >= 1 && o <= 8 ? o : 1;
+}
+
 ImageHeader read_header(const fs::path& path) {
   auto in = open_input(path);
   const OIIO::ImageSpec& spec = in->spec();
   ImageHeader h;
-  h.width = spec.width;
-  h.height = spec.height;
+  // As shown, like JPEG files through libjpeg (jpeg_file.h).
+  const bool swapped = exif::swaps_sides(orientation_of(spec));
+  h.width = swapped ? spec.height : spec.width;
+  h.height = swapped ? spec.width : spec.height;
   h.channels = spec.nchannels;
   h.bits = static_cast<int>(spec.format.size() * 8);
   h.is_float = is_float(spec.format);
@@ -68,6 +77,7 @@ cv::Mat decode(const fs::path& path) {
   const bool ok = in->read_image(0, 0, 0, nc, type, image.data);
   if (!ok || in->has_error()) throw Error(quoted(path) + ": cannot decode (" + first_line(in->geterror()) + ")");
   in->close();
+  exif::make_upright(image, orientation_of(spec));
   return image;
 }
 

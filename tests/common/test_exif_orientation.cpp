@@ -6,6 +6,7 @@
 #include <cstdint>
 #include <fstream>
 
+#include <OpenImageIO/imageio.h>
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 
@@ -137,4 +138,25 @@ TEST(ExifOrientation, JpegFilesReadUprightAsOpenCvReadsThem) {
       EXPECT_EQ(h.width, exif::swaps_sides(static_cast<int>(o)) ? 23 : 37);
     }
   }
+}
+
+// Other formats, through OpenImageIO's plugin, follow the same tag (a TIFF's own Orientation
+// here): read as shown, header included.
+TEST(ExifOrientation, TiffFilesReadUprightToo) {
+  testsupport::TempDir tmp("raindrop-exif-");
+  const cv::Mat rgb = testsupport::street_like(23, 37, 3);
+  auto out = OIIO::ImageOutput::create("side.tif");
+  ASSERT_TRUE(out);
+  OIIO::ImageSpec spec(rgb.cols, rgb.rows, 3, OIIO::TypeDesc::UINT8);
+  spec.attribute("Orientation", 6);
+  const std::string file = (tmp / "side.tif").string();
+  ASSERT_TRUE(out->open(file, spec) && out->write_image(OIIO::TypeDesc::UINT8, rgb.data) && out->close());
+  const cv::Mat ours = read_image_native(file);
+  cv::Mat expected;
+  cv::rotate(rgb, expected, cv::ROTATE_90_CLOCKWISE);  // 6: turn a quarter clockwise to show
+  ASSERT_EQ(ours.size(), expected.size());
+  EXPECT_EQ(cv::norm(ours, expected, cv::NORM_INF), 0);
+  const ImageHeader h = read_header(file);
+  EXPECT_EQ(h.width, 23);
+  EXPECT_EQ(h.height, 37);
 }
