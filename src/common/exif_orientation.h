@@ -12,8 +12,10 @@
 namespace raindrop::exif {
 
 // The Orientation (1-8) in the payload of an APP1 marker (after its length: "Exif\0\0", then
-// the TIFF header and the first IFD); 1 (as stored) when it has none, or anything in the way
-// is malformed or out of range. Reads nothing outside [data, data + size).
+// the TIFF header and the first IFD); 0 when it holds no such tag, or anything in the way is
+// malformed or out of range (the caller then looks at the next EXIF marker, or takes 1: as
+// stored). Read as OpenCV and PIL read it: a SHORT or a LONG, its count not checked. Reads
+// nothing outside [data, data + size).
 int orientation(const unsigned char* data, std::size_t size);
 
 // Whether an orientation swaps width and height (5-8: a quarter turn).
@@ -21,7 +23,7 @@ inline bool swaps_sides(int orientation) { return orientation >= 5 && orientatio
 
 // `image` made upright as OpenCV's imread does it for `orientation`: 2 mirrors left to right,
 // 3 turns half round, 4 mirrors top to bottom, 5 transposes, 6 turns a quarter clockwise,
-// 7 transposes the other way, 8 turns a quarter anticlockwise; 1 and anything else: as it is.
+// 7 transposes the other way, 8 turns a quarter anticlockwise; 0, 1 and anything else: as it is.
 void make_upright(cv::Mat& image, int orientation);
 
 }  // namespace raindrop::exif

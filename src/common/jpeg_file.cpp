@@ -53,11 +53,12 @@ void install(ErrorSink& sink) {
 // Keeps the APP1 markers through jpeg_read_header, where the EXIF Orientation is.
 void keep_exif(jpeg_decompress_struct& d) { jpeg_save_markers(&d, JPEG_APP0 + 1, 0xFFFF); }
 
-// The first EXIF APP1 marker's Orientation (exif_orientation.h), 1 without one.
+// The Orientation of the first EXIF APP1 marker that has one (exif_orientation.h; other APP1
+// markers, such as XMP, are passed over), 1 without one.
 int orientation_of(const jpeg_decompress_struct& d) {
   for (jpeg_saved_marker_ptr m = d.marker_list; m; m = m->next) {
-    if (m->marker != JPEG_APP0 + 1 || m->data_length < 6 || std::memcmp(m->data, "Exif\0\0", 6) != 0) continue;
-    return exif::orientation(m->data, m->data_length);
+    if (m->marker != JPEG_APP0 + 1) continue;
+    if (const int o = exif::orientation(m->data, m->data_length)) return o;
   }
   return 1;
 }

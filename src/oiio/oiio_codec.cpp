@@ -40,9 +40,12 @@ std::unique_ptr<OIIO::ImageInput> open_input(const fs::path& path) {
   return in;
 }
 
-// The file's Orientation (EXIF or TIFF tag, 1-8; exif_orientation.h), 1 when it has none.
-int orientation_of(const OIIO::ImageSpec& spec) {
-  const int o = spec.get_int_attribute("Orientation", 1);
+// The file's Orientation (EXIF or TIFF tag, 1-8; exif_orientation.h), 1 when it has none. PNG
+// is read as stored, as libpng reads the PNGs that do not come here (an eXIf chunk in a palette
+// PNG must not turn it when the same picture in RGB would not be).
+int orientation_of(const OIIO::ImageInput& in) {
+  if (std::string(in.format_name()) == "png") return 1;
+  const int o = in.spec().get_int_attribute("Orientation", 1);
   return o >= 1 && o <= 8 ? o : 1;
 }
 
@@ -51,7 +54,7 @@ ImageHeader read_header(const fs::path& path) {
   const OIIO::ImageSpec& spec = in->spec();
   ImageHeader h;
   // As shown, like JPEG files through libjpeg (jpeg_file.h).
-  const bool swapped = exif::swaps_sides(orientation_of(spec));
+  const bool swapped = exif::swaps_sides(orientation_of(*in));
   h.width = swapped ? spec.height : spec.width;
   h.height = swapped ? spec.width : spec.height;
   h.channels = spec.nchannels;
@@ -76,8 +79,9 @@ cv::Mat decode(const fs::path& path) {
   // ImageInput. Any recorded error is a failed decode.
   const bool ok = in->read_image(0, 0, 0, nc, type, image.data);
   if (!ok || in->has_error()) throw Error(quoted(path) + ": cannot decode (" + first_line(in->geterror()) + ")");
+  const int orientation = orientation_of(*in);
   in->close();
-  exif::make_upright(image, orientation_of(spec));
+  exif::make_upright(image, orientation);
   return image;
 }
 

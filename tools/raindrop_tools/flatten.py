@@ -19,7 +19,7 @@ import sys
 from pathlib import Path
 
 import numpy as np
-from PIL import Image, ImageFilter
+from PIL import Image, ImageFilter, ImageOps
 
 from .cli_args import width_x_height
 from .imageio import IMAGE_SUFFIXES
@@ -91,6 +91,8 @@ def main(argv: list[str] | None = None) -> int:
         for p in frames:
             try:
                 image = Image.open(p)
+                if image.format != "PNG":  # upright, as the programs read a photograph's EXIF orientation
+                    image = ImageOps.exif_transpose(image)
                 image.load()
             except OSError as e:  # PIL.UnidentifiedImageError is one
                 raise ValueError(f"{p}: cannot read the image ({e})") from e

@@ -44,7 +44,12 @@ def to_uint8(img: np.ndarray) -> np.ndarray:
 def read_rgb(path: str | os.PathLike) -> np.ndarray:
     """Any image OpenCV reads -> HxWx3 uint8 RGB. Grey images are replicated, an alpha channel
     is dropped, 16-bit images are reduced to 8 bits (OpenCV's IMREAD_COLOR conversion)."""
-    img = cv2.imread(str(path), cv2.IMREAD_COLOR)
+    flags = cv2.IMREAD_COLOR
+    if str(path).lower().endswith(".png"):
+        # PNG is read as stored, eXIf chunk or not, as raindrop-remove reads it (JPEG and TIFF
+        # are turned upright by both).
+        flags |= cv2.IMREAD_IGNORE_ORIENTATION
+    img = cv2.imread(str(path), flags)
     if img is None:
         raise ImageError(f"{path}: cannot read image (missing or not an image)")
     return cv2.cvtColor(img, cv2.COLOR_BGR2RGB)

@@ -88,3 +88,16 @@ def test_jpegs_are_read_upright_as_the_programs_read_them(tmp_path):
     assert np.array_equal(upright, read_rgb(tmp_path / "side.jpg"))
     # The stored pixels turned a quarter clockwise.
     assert np.array_equal(upright, np.rot90(read_rgb_strict(tmp_path / "plain.jpg"), k=-1))
+
+
+def test_pngs_are_read_as_stored_whatever_their_exif(tmp_path):
+    """An eXIf chunk does not turn a PNG, in either reader, as raindrop-remove reads it."""
+    from PIL import Image
+    from raindrop_tools.imageio import read_rgb, read_rgb_strict
+    stored = procedural_image(24, 40, 4)
+    exif = Image.Exif()
+    exif[0x0112] = 6
+    Image.fromarray(stored).save(tmp_path / "side.png", exif=exif)
+    assert Image.open(tmp_path / "side.png").getexif().get(0x0112) == 6
+    assert np.array_equal(read_rgb(tmp_path / "side.png"), stored)
+    assert np.array_equal(read_rgb_strict(tmp_path / "side.png"), stored)
