@@ -4,7 +4,6 @@
 #include <atomic>
 #include <cmath>
 #include <memory>
-#include <type_traits>
 #include <vector>
 
 #include <opencv2/imgproc.hpp>
@@ -128,16 +127,6 @@ struct RowKernel {
   float inv_total;
 };
 
-#if defined(__x86_64__) && defined(__GNUC__)
-// Wider registers hold several pixels' f4 side by side (AVX: 2, AVX-512: 4). Neighbouring
-// pixels' f4 are neighbours in memory, so one load reads all of them, and every lane still does
-// the scalar path's additions, subtractions and multiplications in its order (the build has
-// -ffp-contract=off: no fused multiply-add): the same bits, with half or a quarter of the loads
-// and arithmetic instructions. Chosen at run time (blur_simd_level), so one binary runs
-// everywhere.
-typedef float f8 __attribute__((vector_size(32)));
-typedef float f16 __attribute__((vector_size(64)));
-
 // Neighbouring pixels' f4 from p on, unaligned (memcpy compiles to one load; a V returned by
 // value would trip GCC's ABI warning for wide vectors outside the target functions).
 template <typename V>
@@ -145,7 +134,10 @@ inline __attribute__((always_inline)) void load(V& v, const f4* p) {
   __builtin_memcpy(&v, p, sizeof v);
 }
 
-// Pixels [x, x + A * P) of a row, P pixels per V, A registers at a time.
+// Pixels [x, x + A * P) of a row, P pixels per V (f4: one, the SSE2 path), A registers at a
+// time: A independent sums instead of one chain of dependent additions per pixel (which waits
+// on each addition's latency). Each pixel adds the same terms in the same order (runs, then
+// taps, in kernel order), whatever V and A, so the result is the same to the bit.
 template <typename V, int A>
 inline __attribute__((always_inline)) void sum_wide(const RowKernel& k, int x, cv::Vec3f* dst) {
   constexpr int P = sizeof(V) / sizeof(f4);
@@ -174,6 +166,16 @@ inline __attribute__((always_inline)) void sum_wide(const RowKernel& k, int x, c
     for (int q = 0; q < P; ++q) dst[x + a * P + q] = cv::Vec3f(o[4 * q], o[4 * q + 1], o[4 * q + 2]);
   }
 }
+
+#if defined(__x86_64__) && defined(__GNUC__)
+// Wider registers hold several pixels' f4 side by side (AVX: 2, AVX-512: 4). Neighbouring
+// pixels' f4 are neighbours in memory, so one load reads all of them, and every lane still does
+// the SSE2 path's additions, subtractions and multiplications in its order (the build has
+// -ffp-contract=off: no fused multiply-add): the same bits, with half or a quarter of the loads
+// and arithmetic instructions. Chosen at run time (blur_simd_level), so one binary runs
+// everywhere.
+typedef float f8 __attribute__((vector_size(32)));
+typedef float f16 __attribute__((vector_size(64)));
 
 // Each blurs pixels x, x+1, ... of [x, end) in blocks of 8 and returns the first it left.
 __attribute__((target("avx"))) int blur_span_avx(const RowKernel& k, int x, int end, cv::Vec3f* dst) {
@@ -225,26 +227,8 @@ void blur_rows(const Source& src, const cv::Mat& label, cv::Mat& color, const cv
     }
   }
   const float inv_total = 1.0f / total;
-  // Away from the frame border, pixels are summed kBlock at a time, kernel entry by kernel
-  // entry: kBlock independent sums in registers instead of one chain of dependent additions
-  // per pixel (which waits on each addition's latency). Each pixel still adds the same terms
-  // in the same order (runs, then taps, in kernel order), so the result is the same to the bit.
+  // Away from the frame border, pixels are summed 8 at a time (sum_wide).
   constexpr int kBlock = 8;
-  auto sum_block = [&](auto width, const f4* const* prefix_rows, const f4* const* rgb_rows, int x, f4* out) {
-    constexpr int n = decltype(width)::value;
-    f4 acc[n];
-    for (int i = 0; i < n; ++i) acc[i] = f4{0, 0, 0, 0};
-    for (const Run& run : runs) {
-      const f4* hi = prefix_rows[run.row] + x + run.hi;
-      const f4* lo = prefix_rows[run.row] + x + run.lo;
-      for (int i = 0; i < n; ++i) acc[i] += hi[i] - lo[i];
-    }
-    for (const Tap& tap : taps) {
-      const f4* src_px = rgb_rows[tap.row] + x + tap.dx;
-      for (int i = 0; i < n; ++i) acc[i] += tap.w * src_px[i];
-    }
-    for (int i = 0; i < n; ++i) out[i] = acc[i] * inv_total;
-  };
   const int level = simd_level();
   // Results go straight into `color`: the blur reads only `src`, a copy.
   tbb::parallel_for(tbb::blocked_range<int>(0, mask_box.height, 4), [&](const tbb::blocked_range<int>& r) {
@@ -296,15 +280,8 @@ void blur_rows(const Source& src, const cv::Mat& label, cv::Mat& color, const cv
         for (int i = x; i < a_fast; ++i) border_pixel(i);
         const RowKernel row_kernel{runs, taps, prefix_rows.data(), rgb_rows.data(), inv_total};
         int i = blur_span_wide(level, row_kernel, a_fast, b_fast, dst);
-        f4 block[kBlock];
-        for (; i + kBlock <= b_fast; i += kBlock) {
-          sum_block(std::integral_constant<int, kBlock>(), prefix_rows.data(), rgb_rows.data(), i, block);
-          for (int q = 0; q < kBlock; ++q) dst[i + q] = cv::Vec3f(block[q][0], block[q][1], block[q][2]);
-        }
-        for (; i < b_fast; ++i) {
-          sum_block(std::integral_constant<int, 1>(), prefix_rows.data(), rgb_rows.data(), i, block);
-          dst[i] = cv::Vec3f(block[0][0], block[0][1], block[0][2]);
-        }
+        for (; i + kBlock <= b_fast; i += kBlock) sum_wide<f4, kBlock>(row_kernel, i, dst);
+        for (; i < b_fast; ++i) sum_wide<f4, 1>(row_kernel, i, dst);
         for (i = b_fast; i < b; ++i) border_pixel(i);
         x = b;
       }
