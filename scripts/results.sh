@@ -68,6 +68,11 @@ size_sets() {
   done
 }
 
+# real_pairs_data: the real pairs with their train/test split in data/real-pairs, unless already there.
+real_pairs_data() {
+  [[ -f data/real-pairs/manifest.jsonl ]] || $py -m raindrop_tools.realpairs prepare "$shared/real-pairs" --out data/real-pairs
+}
+
 # link_cv100: the first 100 CamVid val frames of 4.2, linked into out/results/cv100.
 link_cv100() {
   mkdir -p "$out/cv100"
@@ -278,7 +283,7 @@ if want photoreal; then
   build/raindrop-render --cityscapes "$shared/cityscapes-mini" --split train -o data/train-cs-lens --scene lens-cover \
     --size 512x256 --variants 20 --seed 8 -q
   $py -m raindrop_tools.merge_datasets --out data/train-mix data/train-lens-cover data/train-windshield-day data/train-cs-lens
-  [[ -f data/real-pairs/manifest.jsonl ]] || $py -m raindrop_tools.realpairs prepare "$shared/real-pairs" --out data/real-pairs
+  real_pairs_data
   # models/compact, and the unshipped compact-lens models where trained and exported into
   # out/models (docs/RESULTS.md 4.3 has the commands).
   for dir in models/compact out/models/compact-lens out/models/compact-lens-real; do
@@ -545,7 +550,7 @@ if want multiscale; then
     else from=(--input "$shared/camvid/test" --limit 100 --variants 1); fi
     build/raindrop-render "${from[@]}" --size "$size" --seed 9 --out "$ms/$src-$size" -q
   done
-  [[ -f data/real-pairs/manifest.jsonl ]] || $py -m raindrop_tools.realpairs prepare "$shared/real-pairs" --out data/real-pairs
+  real_pairs_data
   for m in compact compact-multiscale compact-multiscale-int8; do
     for set in cs-1280x720 cs-512x288 cv-960x720 cv-512x384; do
       rm -rf "$ms/$set-$m" && build/raindrop-remove "$ms/$set/rainy" "$ms/$set-$m" -q --models "models/$m"
@@ -771,7 +776,7 @@ if want windshield; then
   build/raindrop-render -i "$out/cv100" -o data/val-sparse --scene "$out/paper-sparse.json" --size 512x256 \
     --seed 11 --variants 2 -q
   build/raindrop-render -i "$out/cv100" -o data/val-windshield-sharp --scene windshield-sharp --size 512x256 --seed 11 -q
-  [[ -f data/real-pairs/manifest.jsonl ]] || $py -m raindrop_tools.realpairs prepare "$shared/real-pairs" --out data/real-pairs
+  real_pairs_data
   wd="$out/windshield"
   mkdir -p "$wd"
   score_sets "$wd" "compact-multiscale-t0.3" "--models models/compact-multiscale" real-pairs:train:0 val-sparse:-:0 \
@@ -887,7 +892,7 @@ if want growth; then
   # Validation size sets as windshield-followup renders them: the 6 Cityscapes *train* frames.
   gr="$out/growth"
   mkdir -p "$gr"
-  [[ -f data/real-pairs/manifest.jsonl ]] || $py -m raindrop_tools.realpairs prepare "$shared/real-pairs" --out data/real-pairs
+  real_pairs_data
   size_sets train val-size
   # The choice, on validation sets only (growth 0 is the default before it).
   for g in 0 0.25 0.35 0.5; do
@@ -941,7 +946,7 @@ if want sharpness; then
   # data sets as the growth section. "inf" is the coarse pass before the rule.
   sh="$out/sharpness"
   mkdir -p "$sh"
-  [[ -f data/real-pairs/manifest.jsonl ]] || $py -m raindrop_tools.realpairs prepare "$shared/real-pairs" --out data/real-pairs
+  real_pairs_data
   # The choice, on validation sets only; the coarse pass off for comparison.
   for t in inf 7 8 10 12; do
     score_sets "$sh" "t$t" "--large-drop-sharpness $t -j 2" real-pairs:train:0 val-windshield-sharp:-:0 \
@@ -1011,7 +1016,7 @@ if want surround; then
   # TrainedModels.DefaultGainsAsMuchOnLargeStreetFrames makes them).
   su="$out/surround"
   mkdir -p "$su"
-  [[ -f data/real-pairs/manifest.jsonl ]] || $py -m raindrop_tools.realpairs prepare "$shared/real-pairs" --out data/real-pairs
+  real_pairs_data
   size_sets val test-size
   # The choice, on validation sets only: the largest part filled (0: off), both detectors.
   for a in 0 150 250 400; do
