@@ -4,7 +4,9 @@
 // them; every viewer, OpenCV's imread (and so the Python tools) among them, applies it. A
 // program that ignores it processes the photograph on its side (drops and sky where the
 // networks never saw them) and writes it out on its side. So JPEG files are read upright, as
-// they are shown; the written image needs no tag. Internal to raindrop_common.
+// they are shown (jpeg_file.cpp), and so are the files the OpenImageIO plugin reads with an
+// Orientation (src/oiio; PNG excepted); the written image needs no tag. Internal to
+// raindrop_common, and compiled into the plugin.
 #include <cstddef>
 
 #include <opencv2/core.hpp>

@@ -25,8 +25,9 @@ struct Info {
 bool has_signature(const unsigned char* first3);
 
 // Files are read upright: an EXIF Orientation tag is applied as OpenCV's imread applies it
-// (exif_orientation.h), so width and height are those of the image as shown.
-
+// (exif_orientation.h), so read_info's width and height and decode's pixels are those of the
+// image as shown.
+//
 // The file's header, without decoding pixels. Throws raindrop::Error naming the file if libjpeg
 // cannot read it.
 Info read_info(const std::filesystem::path& path);
