@@ -109,6 +109,8 @@ def pack(srcs: list[Path], out: Path, splits: list[str] | None, frames: int | No
         raise PackError("two sources with the same folder name: " + ", ".join(names))
     if not any(sets):
         raise PackError("no samples to pack")
+    if out.exists() and any(out.iterdir()):
+        raise PackError(f"{out}: not empty; a pack goes into a new or empty folder (old files would travel too)")
     out.mkdir(parents=True, exist_ok=True)
 
     def one(job: tuple[Path, str, dict]) -> dict:

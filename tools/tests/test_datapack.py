@@ -80,7 +80,8 @@ def test_cli_refuses_bad_input_in_one_line(two_sets, tmp_path, capsys):
     assert main(["pack", str(tmp_path / "p"), str(a), "--frames", "0"]) == 1
     assert main(["unpack", str(tmp_path / "nothing"), str(tmp_path / "o")]) == 1
     assert main(["pack", str(tmp_path / "p"), str(a)]) == 0
+    assert main(["pack", str(tmp_path / "p"), str(a)]) == 1  # never into a used folder
     assert main(["unpack", str(tmp_path / "p"), str(tmp_path / "o")]) == 0
     assert main(["unpack", str(tmp_path / "p"), str(tmp_path / "o")]) == 1  # never over a data set
     errors = [line for line in capsys.readouterr().err.splitlines() if line]
-    assert len(errors) == 4 and all(line.startswith("error: ") for line in errors)
+    assert len(errors) == 5 and all(line.startswith("error: ") for line in errors)
