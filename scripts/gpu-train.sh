@@ -12,8 +12,11 @@
 #   here again: tar -xf NAME.tar -C tools/runs, then raindrop_tools.export --run tools/runs/NAME
 #
 # The runs (docs/RESULTS.md 4.26):
-#   compact-real-coarse-gpu  tools/configs/compact-real-coarse-gpu.yaml, from models/compact
-#   paper-real-coarse-gpu    tools/configs/paper-real-coarse-gpu.yaml, from models/paper
+#   compact-real-coarse-gpu  tools/configs/compact-real-coarse-gpu.yaml, from models/compact: the
+#                            control (same data and time at compact width; twice the crops on
+#                            the CPU gained nothing held out, RESULTS 4.26)
+#   paper-real-coarse-gpu    tools/configs/paper-real-coarse-gpu.yaml, from models/paper: the
+#                            question (do the paper's widths fill large real drops better?)
 #   paper-gpu                tools/configs/paper.yaml (the paper's settings), from scratch
 # The data: of the training frames, 85 spread evenly, each with up to 4 paper-preset variants
 # (data/train), 2 lens-cover and 2 windshield-day thin-lens variants and 3 Cityscapes lens-cover
