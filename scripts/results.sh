@@ -18,7 +18,7 @@ sections=("$@")
 ((${#sections[@]})) || sections=(data render stats eval remove tradeoffs sheets photoreal scale flatroad largedrops coarsetrain
                                   largedropmodels sensor mirroraverage highlights multiscale veil papermodels outline trails
                                   photos windshield windshield-followup longer growth sharpness coalesce
-                                  surround)
+                                  surround largewidth)
 want() { [[ " ${sections[*]} " == *" $1 "* ]]; }
 # link_set SRC DST SPLIT [LIMIT]: the first LIMIT (default 100; 0: all) samples of data set SRC
 # (of manifest split SPLIT; "-" = all) linked into DST/rainy and DST/clean under plainly named
@@ -1057,4 +1057,31 @@ if want surround; then
       echo "area $a run $r: $(echo "$(date +%s.%N) - $s0" | bc) s"
     done
   done | tee "$su/photo-times.txt"
+fi
+
+if want largewidth; then
+  # The large-drop networks: compact-real-coarse-long's recipe on twice the crops, and at the
+  # paper's widths (docs/RESULTS.md 4.26, 4.27; needs data/train, data/train-mix from photoreal,
+  # data/real-pairs and the validation sets). Scored as the default's large-drop networks.
+  lw="$out/largewidth"
+  mkdir -p "$lw"
+  [[ -f tools/runs/compact-real-coarse-b32/checkpoints/stage2_step00000800.pt ]] ||
+    $py -m raindrop_tools.train --config tools/configs/compact-real-coarse-gpu.yaml --init-from models/compact \
+      --out tools/runs/compact-real-coarse-b32 --no-progress
+  $py -m raindrop_tools.export --run tools/runs/compact-real-coarse-b32 --out out/models/compact-real-coarse-b32
+  [[ -f tools/runs/paper-real-coarse/checkpoints/stage2_step00000400.pt ]] ||
+    $py -m raindrop_tools.train --config tools/configs/paper-real-coarse.yaml --init-from models/paper \
+      --out tools/runs/paper-real-coarse --no-progress
+  $py -m raindrop_tools.export --run tools/runs/paper-real-coarse --out out/models/paper-real-coarse
+  for m in models/compact-real-coarse-long out/models/compact-real-coarse-b32 out/models/paper-real-coarse; do
+    score_sets "$lw" "${m##*/}" "--large-drop-models $m -j 2" real-pairs:train:0 val-sparse:-:0 \
+      val-windshield-sharp:-:0 val-size-512x288:-:0 val-size-1280x720:-:0 real-pairs:test:0
+  done | tee "$lw/scores.txt"
+  for r in 1 2 3; do
+    for m in models/compact-real-coarse-long out/models/paper-real-coarse; do
+      s0=$(date +%s.%N)
+      build/raindrop-remove "$lw/${m##*/}-real-pairs-test/set/rainy" "$lw/timed" -q -j 2 --large-drop-models "$m"
+      echo "${m##*/} run $r: $(echo "$(date +%s.%N) - $s0" | bc) s"
+    done
+  done | tee "$lw/times.txt"
 fi
