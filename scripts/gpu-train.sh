@@ -18,7 +18,7 @@
 #   paper-real-coarse-gpu    tools/configs/paper-real-coarse-gpu.yaml, from models/paper: the
 #                            question (do the paper's widths fill large real drops better?)
 #   paper-gpu                tools/configs/paper.yaml (the paper's settings), from scratch
-# The data: of the training frames, 85 spread evenly, each with up to 4 paper-preset variants
+# The data: of the training frames, 65 spread evenly, each with up to 4 paper-preset variants
 # (data/train), 2 lens-cover and 2 windshield-day thin-lens variants and 3 Cityscapes lens-cover
 # ones (merged into data/train-mix as scripts/results.sh does); and the real pairs' train split
 # (never the test split). Built here by `scripts/results.sh data photoreal` beforehand.
@@ -34,11 +34,15 @@ if [[ $mode == pack ]]; then
   done
   rm -rf "$dir" && mkdir -p "$dir/wheels"
   PYTHONPATH=tools $py -m raindrop_tools.datapack pack "$dir/syn" data/train:4 data/train-lens-cover:2 \
-    data/train-windshield-day:2 data/train-cs-lens:3 --frames 85
+    data/train-windshield-day:2 data/train-cs-lens:3 --frames 65
   PYTHONPATH=tools $py -m raindrop_tools.datapack pack "$dir/real" data/real-pairs --split train
   # the one package the trainer needs that the GPU machine's image lacks
   $py -m pip download -q --no-deps --only-binary=:all: -d "$dir/wheels" pytorch-msssim==1.0.0
-  du -sh "$dir"
+  # What travels: the tracked files, untracked ones git does not ignore, and this folder.
+  tree=$( { git ls-files -z; git ls-files -z -o --exclude-standard; } | du -cb --files0-from=- | tail -n 1 | cut -f1)
+  pack=$(du -sb "$dir" | cut -f1)
+  echo "travels: $((tree / 1048576)) MiB of working tree + $((pack / 1048576)) MiB here, limit 64 MiB"
+  ((tree + pack < 63 * 1048576)) || { echo "error: over the transfer limit; pack fewer --frames" >&2; exit 1; }
   exit 0
 fi
 
