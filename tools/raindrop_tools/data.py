@@ -64,10 +64,12 @@ def _raise(problems: list[str], what: str) -> None:
     raise DatasetError(f"{what}: {len(problems)} problem(s):\n  " + "\n  ".join(shown) + tail)
 
 
-def read_manifest(root: str | os.PathLike, splits: list[str] | None = None) -> list[Sample]:
+def read_manifest(
+    root: str | os.PathLike, splits: list[str] | None = None, left_out: Counter | None = None
+) -> list[Sample]:
     """Parse ``root/manifest.jsonl``; keep the samples whose ``split`` is in ``splits`` (all
     when None). Refuses unparsable lines, missing or mistyped keys, unsafe paths and
-    duplicate ids."""
+    duplicate ids. ``left_out``, if given, counts the split values of the samples not kept."""
     root = Path(root)
     manifest = root / MANIFEST
     try:
@@ -131,25 +133,14 @@ def read_manifest(root: str | os.PathLike, splits: list[str] | None = None) -> l
             samples.append(
                 Sample(sid, paths["rainy"], paths["clean"], paths["mask"], obj["width"], obj["height"], split, lineno, file)
             )
+        elif left_out is not None:
+            left_out[split] += 1
     if problems:
         _raise(problems, f"{manifest}")
     if not samples:
         which = f" with split in {splits}" if splits is not None else ""
         raise DatasetError(f"{manifest}: no samples{which}")
     return samples
-
-
-def split_counts(root: str | os.PathLike) -> Counter:
-    """How many samples of ``root``'s manifest carry each ``split`` value (None: no key)."""
-    counts: Counter = Counter()
-    for _, _, text in manifest_lines(Path(root)):
-        try:
-            obj = json.loads(text)
-        except json.JSONDecodeError:
-            continue  # read_manifest has reported it
-        if isinstance(obj, dict):
-            counts[obj.get("split")] += 1
-    return counts
 
 
 def _decode(sample: Sample) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -309,18 +300,14 @@ class RaindropDataset:
         self.visible_levels = float(visible_levels)
         self.sensor_noise_levels = float(sensor_noise_levels)
         self.flip = bool(flip)
-        self.samples = read_manifest(self.root, splits)
-        if splits is not None:
-            left_out = split_counts(self.root)
-            for smp in self.samples:
-                left_out[smp.split] -= 1
-            left_out = +left_out
-            if left_out:
-                # A split filter that silently drops most of a folder trains on a sliver of it
-                # (CamVid frames carry split "none": [train] kept 36 of this project's 2844).
-                others = ", ".join(f"{k!r} x {n}" for k, n in sorted(left_out.items(), key=str))
-                log(f"data: {self.root}: splits {splits} keep {len(self.samples)} of "
-                    f"{len(self.samples) + sum(left_out.values())} samples; left out: {others}")
+        left_out: Counter = Counter()
+        self.samples = read_manifest(self.root, splits, left_out)
+        if left_out:
+            # A split filter that silently drops most of a folder trains on a sliver of it
+            # (CamVid frames carry split "none": [train] kept 36 of this project's 2844).
+            others = ", ".join(f"{k!r} x {n}" for k, n in sorted(left_out.items(), key=str))
+            log(f"data: {self.root}: splits {splits} keep {len(self.samples)} of "
+                f"{len(self.samples) + sum(left_out.values())} samples; left out: {others}")
         self._cache: dict[int, tuple[np.ndarray, np.ndarray, np.ndarray]] | None = None
         if cache:
             need = sum(s.width * s.height * 7 for s in self.samples) * self.scale**2 / 2**30  # cached downscaled

@@ -62,6 +62,11 @@ def _write(path: Path, img: np.ndarray, params: list[int] | None = None) -> None
         raise PackError(f"{path}: cannot write image")
 
 
+def _where(differs: np.ndarray, a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """``a`` where ``differs`` (one flag per pixel), else ``b``, for grey or colour images."""
+    return np.where(differs[..., None] if a.ndim == 3 else differs, a, b).astype(a.dtype)
+
+
 def _frame(e: dict) -> str:
     """The background a sample was rendered over (its manifest's ``source`` path), so that
     frames, not samples, are chosen; a sample without one (real pairs) is its own frame."""
@@ -121,14 +126,14 @@ def pack(srcs: list[Path], out: Path, splits: list[str] | None, frames: int | No
         if rainy.shape != clean.shape:
             raise PackError(f"{src / e['rainy']}: size differs from its clean image")
         differs = np.any(rainy != clean, axis=2) if rainy.ndim == 3 else rainy != clean
-        layer = np.where(differs[..., None] if rainy.ndim == 3 else differs, rainy, 0).astype(rainy.dtype)
+        layer = _where(differs, rainy, np.zeros_like(rainy))
         stem = f"{name}/{e['id']}"
         _write(out / "layer" / f"{stem}.webp", layer, LOSSLESS_WEBP)
         _write(out / "differs" / f"{stem}.png", differs.astype(np.uint8) * 255)
         _write(out / "mask" / f"{stem}.png", mask)
         # The per-drop list is the largest part of a manifest line and no trainer reads it.
         entry = {k: v for k, v in e.items() if k != "drops"}
-        return {"set": name, "stem": stem, "entry": entry, "clean_digest": _digest(clean), "clean": clean,
+        return {"set": name, "stem": stem, "entry": entry, "clean": clean,
                 "digests": {"rainy": _digest(rainy), "clean": _digest(clean), "mask": _digest(mask)}}
 
     jobs = [(src, name, e) for src, name, entries in zip(srcs, names, sets) for e in entries]
@@ -137,7 +142,7 @@ def pack(srcs: list[Path], out: Path, splits: list[str] | None, frames: int | No
     cleans: dict[str, str] = {}  # digest of a clean image -> its file in the pack
     samples = []
     for p in packed:
-        d = p.pop("clean_digest")
+        d = p["digests"]["clean"]
         img = p.pop("clean")
         if d not in cleans:
             cleans[d] = f"clean/{len(cleans):05d}.webp"
@@ -163,7 +168,7 @@ def unpack(pack_dir: Path, dst: Path, threads: int) -> int:
         clean = _read(pack_dir / s["clean"])
         layer = _read(pack_dir / "layer" / f"{stem}.webp")
         differs = _read(pack_dir / "differs" / f"{stem}.png") > 0
-        rainy = np.where(differs[..., None] if layer.ndim == 3 else differs, layer, clean).astype(clean.dtype)
+        rainy = _where(differs, layer, clean)
         mask = _read(pack_dir / "mask" / f"{stem}.png")
         for key, img in (("rainy", rainy), ("clean", clean), ("mask", mask)):
             if _digest(img) != s["digests"][key]:
