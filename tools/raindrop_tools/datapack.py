@@ -22,6 +22,7 @@ give back the exact pixels is refused, not trained on.
 from __future__ import annotations
 
 import argparse
+import functools
 import hashlib
 import json
 import os
@@ -163,9 +164,13 @@ def unpack(pack_dir: Path, dst: Path, threads: int) -> int:
         if (dst / name / MANIFEST).exists():
             raise PackError(f"{dst / name}: already holds a data set; choose an empty folder")
 
+    # Variants of a frame share one clean file and follow each other in a set: decode it once
+    # (a bounded cache: a pack of large frames must not hold them all).
+    read_clean = functools.lru_cache(maxsize=64)(_read)
+
     def one(s: dict) -> None:
         e, stem = s["entry"], s["stem"]
-        clean = _read(pack_dir / s["clean"])
+        clean = read_clean(pack_dir / s["clean"])
         layer = _read(pack_dir / "layer" / f"{stem}.webp")
         differs = _read(pack_dir / "differs" / f"{stem}.png") > 0
         rainy = _where(differs, layer, clean)
