@@ -1082,6 +1082,16 @@ if want largewidth; then
       s0=$(date +%s.%N)
       build/raindrop-remove "$lw/${m##*/}-real-pairs-test/set/rainy" "$lw/timed" -q -j 2 --large-drop-models "$m"
       echo "${m##*/} run $r: $(echo "$(date +%s.%N) - $s0" | bc) s"
+      s0=$(date +%s.%N)
+      build/raindrop-remove "$shared/real-raindrop/maxim_55.png" "$lw/maxim_55.png" -q -j 2 --large-drop-models "$m"
+      echo "${m##*/} maxim_55 run $r: $(echo "$(date +%s.%N) - $s0" | bc) s"
     done
   done | tee "$lw/times.txt"
+  # The 8 photographs where the coarse pass fires (4.25), each with both large-drop networks, to look at.
+  for n in attgan-fork_test_7 attgan-fork_test_10 attgan-fork_test_11 clarity_00118 clarity_00197 clarity_00334 \
+    clarity_00398 maxim_55; do
+    for m in models/compact-real-coarse-long models/paper-real-coarse; do
+      build/raindrop-remove "$shared/real-raindrop/$n.png" "$lw/photo-$n-${m##*/}.png" -q -j 2 --large-drop-models "$m"
+    done
+  done
 fi
