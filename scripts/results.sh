@@ -4,7 +4,7 @@
 # (default ../shared/data), for the real frames). Sections can be chosen:
 # scripts/results.sh data render stats eval remove tradeoffs sheets photoreal scale flatroad largedrops coarsetrain
 # largedropmodels sensor mirroraverage highlights multiscale veil papermodels outline trails photos windshield
-# windshield-followup longer growth sharpness coalesce surround
+# windshield-followup longer growth sharpness coalesce surround largewidth largedrops-all
 #
 # Nothing here is committed automatically: images derived from Cityscapes, CamVid or the
 # real raindrop photographs stay under out/ (their licences forbid redistribution).
@@ -18,7 +18,7 @@ sections=("$@")
 ((${#sections[@]})) || sections=(data render stats eval remove tradeoffs sheets photoreal scale flatroad largedrops coarsetrain
                                   largedropmodels sensor mirroraverage highlights multiscale veil papermodels outline trails
                                   photos windshield windshield-followup longer growth sharpness coalesce
-                                  surround largewidth)
+                                  surround largewidth largedrops-all)
 want() { [[ " ${sections[*]} " == *" $1 "* ]]; }
 # link_set SRC DST SPLIT [LIMIT]: the first LIMIT (default 100; 0: all) samples of data set SRC
 # (of manifest split SPLIT; "-" = all) linked into DST/rainy and DST/clean under plainly named
@@ -1094,4 +1094,27 @@ if want largewidth; then
       build/raindrop-remove "$shared/real-raindrop/$n.png" "$lw/photo-$n-${m##*/}.png" -q -j 2 --large-drop-models "$m"
     done
   done
+fi
+
+if want largedrops-all; then
+  # docs/RESULTS.md 4.28: the other model folders with each large-drop model in turn (the one
+  # their LARGE_DROPS named before 2026-12-04, and paper-real-coarse), on the real pairs' splits,
+  # two validation sets, and an int8 copy of paper-real-coarse beside the int8 folder (needs
+  # data/real-pairs, data/train-mix from photoreal and the validation sets).
+  la="$out/largedrops-all"
+  mkdir -p "$la"
+  [[ -f out/models/paper-real-coarse-int8/rrn.onnx ]] ||
+    $py -m raindrop_tools.quantize --models models/paper-real-coarse --data data/train-mix --out out/models/paper-real-coarse-int8
+  for m in compact compact-multiscale-int8 compact-windshield paper-multiscale; do
+    for l in compact-real-coarse-long paper-real-coarse; do
+      score_sets "$la" "$m-$l" "-j 2 --models models/$m --large-drop-models models/$l" real-pairs:train:0 real-pairs:test:0
+    done
+  done | tee "$la/scores.txt"
+  for m in compact-multiscale-int8 compact-windshield; do
+    for l in compact-real-coarse-long paper-real-coarse; do
+      score_sets "$la" "$m-$l" "-j 2 --models models/$m --large-drop-models models/$l" val-sparse:-:0 val-size-1280x720:-:0
+    done
+  done | tee -a "$la/scores.txt"
+  score_sets "$la" int8-large "-j 2 --models models/compact-multiscale-int8 --large-drop-models out/models/paper-real-coarse-int8" \
+    real-pairs:train:0 real-pairs:test:0 | tee -a "$la/scores.txt"
 fi

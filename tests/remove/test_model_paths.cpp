@@ -98,7 +98,7 @@ TEST(ModelDefault, SourceTreeNamesCompactMultiscale) {
 }
 
 // The default's large drops go to a committed sibling that holds all three graphs (compact
-// keeps its own LARGE_DROPS, so that --model-config compact runs as before).
+// has its own LARGE_DROPS too, so that --model-config compact also runs the coarse pass's models).
 TEST(ModelDefault, TheDefaultsLargeDropModelsAreCommitted) {
   for (const char* config : {"compact-multiscale", "compact"}) {
     const auto large = large_drop_companion(source_dir() / "models" / config);

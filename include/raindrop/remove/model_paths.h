@@ -36,7 +36,7 @@ std::optional<std::string> read_default_config(const std::filesystem::path& mode
 // The folder of the models that reconstruct the coarse pass's large drops for the models in
 // `model_dir` (large_drops.h): the sibling configuration named by the one line of the
 // optional file `model_dir`/LARGE_DROPS, e.g. models/compact/LARGE_DROPS naming
-// compact-real-coarse-long. std::nullopt without the file; raindrop::Error for a name that is
+// paper-real-coarse. std::nullopt without the file; raindrop::Error for a name that is
 // not a plain folder name.
 std::optional<std::filesystem::path> large_drop_companion(const std::filesystem::path& model_dir);
 
