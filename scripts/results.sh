@@ -1103,8 +1103,9 @@ if want largedrops-all; then
   # data/real-pairs, data/train-mix from photoreal and the validation sets).
   la="$out/largedrops-all"
   mkdir -p "$la"
-  [[ -f out/models/paper-real-coarse-int8/rrn.onnx ]] ||
-    $py -m raindrop_tools.quantize --models models/paper-real-coarse --data data/train-mix --out out/models/paper-real-coarse-int8
+  # models/paper-real-coarse-int8 is this quantization's output (deterministic: seeded calibration).
+  rm -rf out/models/paper-real-coarse-int8
+  $py -m raindrop_tools.quantize --models models/paper-real-coarse --data data/train-mix --out out/models/paper-real-coarse-int8
   for m in compact compact-multiscale-int8 compact-windshield paper-multiscale; do
     for l in compact-real-coarse-long paper-real-coarse; do
       score_sets "$la" "$m-$l" "-j 2 --models models/$m --large-drop-models models/$l" real-pairs:train:0 real-pairs:test:0
@@ -1117,4 +1118,16 @@ if want largedrops-all; then
   done | tee -a "$la/scores.txt"
   score_sets "$la" int8-large "-j 2 --models models/compact-multiscale-int8 --large-drop-models out/models/paper-real-coarse-int8" \
     real-pairs:train:0 real-pairs:test:0 | tee -a "$la/scores.txt"
+  for r in 1 2 3; do
+    for l in models/paper-real-coarse out/models/paper-real-coarse-int8; do
+      s0=$(date +%s.%N)
+      build/raindrop-remove "$la/int8-large-real-pairs-test/set/rainy" "$la/timed" -q -j 2 \
+        --models models/compact-multiscale-int8 --large-drop-models "$l"
+      echo "${l##*/} folder run $r: $(echo "$(date +%s.%N) - $s0" | bc) s"
+      s0=$(date +%s.%N)
+      build/raindrop-remove "$shared/real-raindrop/maxim_55.png" "$la/maxim_55.png" -q -j 2 \
+        --models models/compact-multiscale-int8 --large-drop-models "$l"
+      echo "${l##*/} maxim_55 run $r: $(echo "$(date +%s.%N) - $s0" | bc) s"
+    done
+  done | tee "$la/times.txt"
 fi
