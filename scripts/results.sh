@@ -5,6 +5,7 @@
 # scripts/results.sh data render stats eval remove tradeoffs sheets photoreal scale flatroad largedrops coarsetrain
 # largedropmodels sensor mirroraverage highlights multiscale veil papermodels outline trails photos windshield
 # windshield-followup longer growth sharpness coalesce surround largewidth largedrops-all windshield2
+# errorsplit
 #
 # Nothing here is committed automatically: images derived from Cityscapes, CamVid or the
 # real raindrop photographs stay under out/ (their licences forbid redistribution).
@@ -18,12 +19,12 @@ sections=("$@")
 ((${#sections[@]})) || sections=(data render stats eval remove tradeoffs sheets photoreal scale flatroad largedrops coarsetrain
                                   largedropmodels sensor mirroraverage highlights multiscale veil papermodels outline trails
                                   photos windshield windshield-followup longer growth sharpness coalesce
-                                  surround largewidth largedrops-all windshield2)
+                                  surround largewidth largedrops-all windshield2 errorsplit)
 want() { [[ " ${sections[*]} " == *" $1 "* ]]; }
 # link_set SRC DST SPLIT [LIMIT]: the first LIMIT (default 100; 0: all) samples of data set SRC
-# (of manifest split SPLIT; "-" = all) linked into DST/rainy and DST/clean under plainly named
-# files (older renders named some samples '..-...', which folder walks skip as hidden), DST
-# emptied first.
+# (of manifest split SPLIT; "-" = all) linked into DST/rainy and DST/clean (and DST/mask, where
+# the set has masks) under plainly named files (older renders named some samples '..-...',
+# which folder walks skip as hidden), DST emptied first.
 link_set() {
   rm -rf "$2" && mkdir -p "$2/rainy" "$2/clean"
   $py - "$1" "$2" "$3" "${4:-100}" <<'PY'
@@ -38,6 +39,9 @@ for line in open(os.path.join(src, "manifest.jsonl")):
     name = "s" + os.path.basename(r["rainy"])
     for kind in ("rainy", "clean"):
         os.symlink(os.path.abspath(os.path.join(src, r[kind])), os.path.join(dst, kind, name))
+    if r.get("mask") and os.path.isfile(os.path.join(src, r["mask"])):  # for score_outputs --masks
+        os.makedirs(os.path.join(dst, "mask"), exist_ok=True)
+        os.symlink(os.path.abspath(os.path.join(src, r["mask"])), os.path.join(dst, "mask", name))
     n += 1
     if n == limit:
         break
@@ -147,6 +151,21 @@ score_sets() {
     # shellcheck disable=SC2086
     build/raindrop-remove "$d/set/rainy" "$d/out" -q $flags
     $py -m raindrop_tools.score_outputs --data "$d/set" --outputs "$d/out" --label "$label $name $split"
+  done
+}
+# split_sets DIR LABEL FLAGS SET...: score_sets with the detected masks written too, and the
+# error left split by the set's masks x the detected ones (score_outputs --masks).
+split_sets() {
+  local dir="$1" label="$2" flags="$3" set name split limit d
+  shift 3
+  for set in "$@"; do
+    IFS=: read -r name split limit <<<"$set"
+    d="$dir/$label-$name-$split"
+    link_set "data/$name" "$d/set" "$split" "$limit"
+    # shellcheck disable=SC2086
+    build/raindrop-remove "$d/set/rainy" "$d/out" -q --mask-dir "$d/masks" $flags
+    $py -m raindrop_tools.score_outputs --data "$d/set" --outputs "$d/out" --masks "$d/masks" \
+      --label "$label $name $split"
   done
 }
 
@@ -1161,4 +1180,16 @@ if want windshield2; then
       score_sets "$w2" "second-t$t" "-j 2 --models out/models/compact-windshield-2 --large-drop-models models/paper-real-coarse --threshold $t" $val
     done
   } | tee "$w2/scores.txt"
+fi
+
+if want errorsplit; then
+  # docs/RESULTS.md 4.30: where the error left lies, drops missed or drops found but not
+  # repaired, for the default and compact-windshield on the real pairs (rough masks) and on
+  # rendered validation sets (true masks).
+  es="$out/errorsplit"
+  mkdir -p "$es"
+  for m in compact-multiscale compact-windshield; do
+    split_sets "$es" "$m" "-j 2 --models models/$m" real-pairs:test:0 real-pairs:train:0 val-sparse:-:0 \
+      val-windshield-sharp:-:0
+  done | tee "$es/scores.txt"
 fi

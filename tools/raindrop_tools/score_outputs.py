@@ -10,6 +10,13 @@ produced, so that its own choices (the working scale, tiling) are measured as a 
 For every ``rainy/<name>`` of the set with a ``<name>`` in ``--outputs``: PSNR/SSIM (Y, the pinned
 protocol of ``metrics``) of the rainy input and of the output against ``clean/<name>``. Prints
 one line (means over the images, and the gain) and, with ``--json``, writes every image's scores.
+
+With ``--masks DIR`` (the masks ``raindrop-remove --mask-dir DIR`` wrote, ``<stem>.png``) it also
+says where the error that is left lies, against the set's own masks (``mask/<name>``, or
+``--true-masks``; for real pairs the rough masks of ``realpairs``): the output's squared Y error
+summed over all images and split by true x detected mask (drops found, drops missed, false
+detections, the rest), the share of the input's error removed inside found drops, and the
+masks' pixel recall and precision. It tells a detector's misses from a reconstruction's.
 """
 from __future__ import annotations
 
@@ -22,7 +29,7 @@ import numpy as np
 
 from . import metrics
 from .data import DatasetError, read_manifest
-from .imageio import ImageError, read_rgb_strict
+from .imageio import ImageError, read_mask, read_rgb_strict
 
 
 def split_names(data: Path, split: str) -> set[str]:
@@ -56,6 +63,41 @@ def score(data: Path, outputs: Path, split: str | None = None) -> dict:
     return {"images": len(rows), "mean": mean, "per_image": rows}
 
 
+REGIONS = ("found", "missed", "false", "rest")  # true & detected, true only, detected only, neither
+
+
+def mask_split(data: Path, outputs: Path, masks: Path, names: list[str], true_masks: Path | None = None) -> dict:
+    """Where the squared Y error (8-bit, ``metrics.luma``) of the input and of the output lies,
+    summed over the images `names`, by true mask x detected mask (any non-zero pixel is in a
+    mask); with the masks' pooled pixel recall and precision."""
+    true_dir = true_masks or data / "mask"
+    sums = {f"{w}_{r}": 0.0 for w in ("input", "output") for r in REGIONS}
+    count = {r: 0 for r in REGIONS}
+    for n in names:
+        clean = metrics.luma(read_rgb_strict(data / "clean" / n)).astype(np.float64)
+        err = {"input": (metrics.luma(read_rgb_strict(data / "rainy" / n)) - clean) ** 2,
+               "output": (metrics.luma(read_rgb_strict(outputs / n)) - clean) ** 2}
+        true = read_mask(true_dir / n) > 0
+        det = read_mask(masks / (Path(n).stem + ".png")) > 0
+        if true.shape != clean.shape or det.shape != clean.shape:
+            raise ValueError(f"{n}: a mask's size differs from the image's {clean.shape[::-1]}")
+        for r, where in zip(REGIONS, (true & det, true & ~det, ~true & det, ~true & ~det)):
+            count[r] += int(where.sum())
+            for w in err:
+                sums[f"{w}_{r}"] += float(err[w][where].sum())
+    out_total = sum(sums[f"output_{r}"] for r in REGIONS)
+    share = {r: sums[f"output_{r}"] / out_total if out_total > 0 else 0.0 for r in REGIONS}
+    found_in = sums["input_found"]
+    return {
+        "recall": count["found"] / max(count["found"] + count["missed"], 1),
+        "precision": count["found"] / max(count["found"] + count["false"], 1),
+        "output_error_share": share,
+        "found_error_removed": 1.0 - sums["output_found"] / found_in if found_in > 0 else 0.0,
+        "squared_error_sums": sums,
+        "pixels": count,
+    }
+
+
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--data", required=True, type=Path, help="rendered set with rainy/ and clean/")
@@ -64,15 +106,28 @@ def main(argv: list[str] | None = None) -> int:
                     "that `realpairs prepare` wrote)")
     ap.add_argument("--label", default="", help="text that starts the printed line")
     ap.add_argument("--json", type=Path, help="also write every image's scores here")
+    ap.add_argument("--masks", type=Path, help="the detected masks (raindrop-remove --mask-dir): also split the "
+                    "error that is left by true x detected mask")
+    ap.add_argument("--true-masks", type=Path, help="the true (or rough) masks, named as rainy/ (default: the "
+                    "set's mask/)")
     a = ap.parse_args(argv)
     try:
         r = score(a.data, a.outputs, a.split)
+        if a.masks:
+            r["mask_split"] = mask_split(a.data, a.outputs, a.masks, [p["name"] for p in r["per_image"]], a.true_masks)
     except (ImageError, ValueError, OSError) as e:  # a damaged output, one of another size, an unreadable file
         print(f"score_outputs: error: {e}", file=sys.stderr)
         return 2
     m = r["mean"]
     print(f"{a.label or a.outputs}: {r['images']} images, PSNR-Y {m['input_psnr_y']:.2f} -> {m['output_psnr_y']:.2f} dB "
           f"(gain {m['gain_psnr_y']:+.2f}), SSIM-Y {m['input_ssim_y']:.4f} -> {m['output_ssim_y']:.4f}")
+    if a.masks:
+        ms = r["mask_split"]
+        sh = ms["output_error_share"]
+        print(f"{a.label or a.outputs}: masks recall {ms['recall']:.3f}, precision {ms['precision']:.3f}; the output's "
+              f"squared error: {sh['found']:.0%} in drops found ({ms['found_error_removed']:.0%} of their input's "
+              f"removed), {sh['missed']:.0%} in drops missed, {sh['false']:.0%} in false detections, "
+              f"{sh['rest']:.0%} elsewhere")
     if a.json:
         try:
             a.json.write_text(json.dumps(r, indent=1))

@@ -101,3 +101,55 @@ def test_pngs_are_read_as_stored_whatever_their_exif(tmp_path):
     assert Image.open(tmp_path / "side.png").getexif().get(0x0112) == 6
     assert np.array_equal(read_rgb(tmp_path / "side.png"), stored)
     assert np.array_equal(read_rgb_strict(tmp_path / "side.png"), stored)
+
+
+def write_masks(tmp_path, data, n, true_rows, detected_rows):
+    import cv2
+    (data / "mask").mkdir(exist_ok=True)
+    det = tmp_path / "det"
+    det.mkdir(exist_ok=True)
+    for i in range(n):
+        for folder, (a, b) in ((data / "mask", true_rows), (det, detected_rows)):
+            m = np.zeros((32, 48), np.uint8)
+            m[a:b, 8:24] = 255
+            cv2.imwrite(str(folder / f"{i}.png"), m)
+    return det
+
+
+def test_mask_split_tells_missed_drops_from_found_ones(tmp_path, capsys):
+    """make_set damages rows 8-15 and leaves rows 8-11 in the output. A detector that marks rows
+    12-19 found half the drop (the half the output repaired), missed the rest and marked four clean
+    rows: all the error left lies in the missed drop, and all of the found drop's is removed."""
+    data, outs = make_set(tmp_path, 2)
+    det = write_masks(tmp_path, data, 2, (8, 16), (12, 20))
+    names = ["0.png", "1.png"]
+    ms = SO.mask_split(data, outs, det, names)
+    assert ms["recall"] == pytest.approx(0.5) and ms["precision"] == pytest.approx(0.5)
+    assert ms["output_error_share"]["missed"] == pytest.approx(1.0)
+    assert ms["output_error_share"]["found"] == 0.0 and ms["output_error_share"]["false"] == 0.0
+    assert ms["found_error_removed"] == pytest.approx(1.0)
+    assert ms["pixels"] == {"found": 2 * 4 * 16, "missed": 2 * 4 * 16, "false": 2 * 4 * 16,
+                            "rest": 2 * (32 * 48 - 3 * 4 * 16)}
+    # The output's summed error in the missed rows is the input's there.
+    s = ms["squared_error_sums"]
+    assert s["output_missed"] == pytest.approx(s["input_missed"]) and s["input_missed"] > 0
+    # The detector that marks the repaired rows' complement instead: the error left is in its found drops.
+    (tmp_path / "b").mkdir()
+    det2 = write_masks(tmp_path / "b", data, 2, (8, 16), (8, 12))
+    ms2 = SO.mask_split(data, outs, det2, names)
+    assert ms2["output_error_share"]["found"] == pytest.approx(1.0) and ms2["found_error_removed"] == pytest.approx(0.0)
+    assert SO.main(["--data", str(data), "--outputs", str(outs), "--masks", str(det), "--label", "m"]) == 0
+    lines = capsys.readouterr().out.strip().splitlines()
+    assert lines[1].startswith("m: masks recall 0.500, precision 0.500") and "100% in drops missed" in lines[1]
+
+
+def test_mask_split_refuses_a_missing_or_misfit_mask(tmp_path, capsys):
+    import cv2
+    data, outs = make_set(tmp_path, 1)
+    det = write_masks(tmp_path, data, 1, (8, 16), (12, 20))
+    cv2.imwrite(str(det / "0.png"), np.zeros((16, 16), np.uint8))
+    assert SO.main(["--data", str(data), "--outputs", str(outs), "--masks", str(det)]) == 2
+    assert "size differs" in capsys.readouterr().err
+    (det / "0.png").unlink()
+    assert SO.main(["--data", str(data), "--outputs", str(outs), "--masks", str(det)]) == 2
+    assert "cannot read" in capsys.readouterr().err
