@@ -142,32 +142,23 @@ merged_models_scored() {
 # score_sets DIR LABEL FLAGS SET...: raindrop-remove with FLAGS on each SET (name:split:limit of
 # a data set under data/, linked by link_set into DIR/LABEL-name-split), scored by score_outputs.
 score_sets() {
-  local dir="$1" label="$2" flags="$3" set name split limit d
+  local dir="$1" label="$2" flags="$3" set name split limit d masks
   shift 3
   for set in "$@"; do
     IFS=: read -r name split limit <<<"$set"
     d="$dir/$label-$name-$split"
     link_set "data/$name" "$d/set" "$split" "$limit"
+    masks=()
+    [[ -z ${SPLIT_ERROR:-} ]] || masks=(--mask-dir "$d/masks")
     # shellcheck disable=SC2086
-    build/raindrop-remove "$d/set/rainy" "$d/out" -q $flags
-    $py -m raindrop_tools.score_outputs --data "$d/set" --outputs "$d/out" --label "$label $name $split"
+    build/raindrop-remove "$d/set/rainy" "$d/out" -q $flags "${masks[@]}"
+    [[ -z ${SPLIT_ERROR:-} ]] || masks=(--masks "$d/masks")
+    $py -m raindrop_tools.score_outputs --data "$d/set" --outputs "$d/out" "${masks[@]}" --label "$label $name $split"
   done
 }
 # split_sets DIR LABEL FLAGS SET...: score_sets with the detected masks written too, and the
 # error left split by the set's masks x the detected ones (score_outputs --masks).
-split_sets() {
-  local dir="$1" label="$2" flags="$3" set name split limit d
-  shift 3
-  for set in "$@"; do
-    IFS=: read -r name split limit <<<"$set"
-    d="$dir/$label-$name-$split"
-    link_set "data/$name" "$d/set" "$split" "$limit"
-    # shellcheck disable=SC2086
-    build/raindrop-remove "$d/set/rainy" "$d/out" -q --mask-dir "$d/masks" $flags
-    $py -m raindrop_tools.score_outputs --data "$d/set" --outputs "$d/out" --masks "$d/masks" \
-      --label "$label $name $split"
-  done
-}
+split_sets() { SPLIT_ERROR=1 score_sets "$@"; }
 
 # photos_changed A B: how many of the outputs in folder A differ from those of the same name in
 # B, by how much (mean absolute difference in levels), and which.
