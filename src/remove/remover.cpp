@@ -179,20 +179,31 @@ RemoveResult Remover::run(const cv::Mat& image, const RemoveOptions& opt) {
   const double scale = opt.scale.value_or(auto_working_scale(image.size(), info().working_size));
   const cv::Size small = scaled_size(image.size(), scale);
   // The image as the working-scale pass sees it; the coarse pass measures its sharpness there.
-  cv::Mat working;
-  RemoveResult res;
-  if (small == image.size()) {
-    working = image;
-    res = run_native(image, opt);
-  } else {
+  cv::Mat working = image;
+  double t_down = 0;
+  if (small != image.size()) {
     auto clock = Clock::now();
     // Area averaging: every input pixel counts once (no aliasing of fine texture).
     cv::resize(image, working, small, 0, 0, cv::INTER_AREA);
-    const double t_down = lap_ms(clock);
-    res = run_scaled(image, working, opt, scale);
-    res.times.convert += t_down;
+    t_down = lap_ms(clock);
   }
-  if (opt.large_drops) add_large_drops(image, working, opt, scale, res);
+  RemoveResult res;
+  const auto working_pass = [&] {
+    res = small == image.size() ? run_native(image, opt) : run_scaled(image, working, opt, scale);
+  };
+  CoarsePass coarse;
+  const auto large_drop_pass = [&] { coarse = coarse_pass(image, working, opt, scale); };
+  if (opt.large_drops && models_.branches() > 1) {
+    // Side by side: the coarse pass reads only the input, and its detector alone (what most
+    // photographs need of it) left one core idle while it ran on the other (a fifth of a
+    // 1280x720 photograph's time on two threads; docs/RESULTS.md 3.6).
+    run_side_by_side({working_pass, large_drop_pass});
+  } else {
+    working_pass();
+    if (opt.large_drops) large_drop_pass();
+  }
+  res.times.convert += t_down;
+  if (opt.large_drops) composite_large_drops(coarse, opt, res);
   return res;
 }
 
@@ -276,16 +287,18 @@ RemoveResult Remover::run_scaled(const cv::Mat& image, const cv::Mat& small, con
   return res;
 }
 
-void Remover::add_large_drops(const cv::Mat& image, const cv::Mat& working, const RemoveOptions& opt, double scale,
-                              RemoveResult& res) {
+Remover::CoarsePass Remover::coarse_pass(const cv::Mat& image, const cv::Mat& working, const RemoveOptions& opt,
+                                         double scale) {
+  CoarsePass cp;
   const double coarse_scale = scale / kLargeDropScaleDivisor;
   const cv::Size coarse = scaled_size(image.size(), coarse_scale);
-  if (!coarse_pass_fits(coarse)) return;
+  if (!coarse_pass_fits(coarse)) return cp;
+  cp.ran = true;
+  cp.coarse_scale = coarse_scale;
   auto clock = Clock::now();
   cv::Mat coarse_native;
   cv::resize(image, coarse_native, coarse, 0, 0, cv::INTER_AREA);
-  StageTimes& t = res.times;
-  t.convert += lap_ms(clock);
+  cp.convert_ms = lap_ms(clock);
   RemoveOptions sub = opt;
   sub.scale = 1.0;
   sub.keep_float = true;
@@ -295,16 +308,15 @@ void Remover::add_large_drops(const cv::Mat& image, const cv::Mat& working, cons
   const double growth = opt.large_drop_growth.value_or(info().large_drop_growth);  // checked by run()
   // Most photographs have no large drop: the coarse copy's detector decides before its 3RN and
   // RFN run, which are about two thirds of its cost.
-  cv::Mat large;
   const MaskGate only_with_large_drops = [&](const cv::Mat& mask) {
-    large = large_drop_mask(mask, &res.large_drops);
+    cp.large = large_drop_mask(mask, &cp.large_drops);
     // Only smooth regions: a sharp one is no defocused drop, and the coarse fill would blur it.
-    if (res.large_drops > 0 && std::isfinite(opt.large_drop_max_sharpness)) {
-      const int found = res.large_drops;
-      large = smooth_large_drops(large, sharpness_map(working), opt.large_drop_max_sharpness, &res.large_drops);
-      res.sharp_large_drops = found - res.large_drops;
+    if (cp.large_drops > 0 && std::isfinite(opt.large_drop_max_sharpness)) {
+      const int found = cp.large_drops;
+      cp.large = smooth_large_drops(cp.large, sharpness_map(working), opt.large_drop_max_sharpness, &cp.large_drops);
+      cp.sharp_large_drops = found - cp.large_drops;
     }
-    return res.large_drops > 0;
+    return cp.large_drops > 0;
   };
   // The coarse copy's detector is the main models' (it decides what is large, as it decides
   // what is a drop at the working scale); the large drops' own models reconstruct them, loaded
@@ -312,20 +324,30 @@ void Remover::add_large_drops(const cv::Mat& image, const cv::Mat& working, cons
   // compact's detector did as well on real pairs as that model's own (+4.63 against +4.65 dB on
   // the train split), with one detector session instead of two; other fine-tuned detectors
   // took flat road for large drops.
-  const RemoveResult c =
+  cp.result =
       run_native(coarse_native, sub, only_with_large_drops, [this]() -> Models& { return large_drop_models(); }, growth);
-  t += c.times;
-  res.network_pixels += c.network_pixels;
-  res.reconstructed_pixels += c.reconstructed_pixels;
-  res.coarse_scale = coarse_scale;
-  if (res.large_drops == 0) return;
-  clock = Clock::now();
+  return cp;
+}
+
+void Remover::composite_large_drops(const CoarsePass& cp, const RemoveOptions& opt, RemoveResult& res) {
+  if (!cp.ran) return;
+  StageTimes& t = res.times;
+  t.convert += cp.convert_ms;
+  t += cp.result.times;
+  res.network_pixels += cp.result.network_pixels;
+  res.reconstructed_pixels += cp.result.reconstructed_pixels;
+  res.coarse_scale = cp.coarse_scale;
+  res.large_drops = cp.large_drops;
+  res.sharp_large_drops = cp.sharp_large_drops;
+  if (cp.large_drops == 0) return;
+  auto clock = Clock::now();
   cv::Mat weight;
-  large.convertTo(weight, CV_32F, 1.0 / 255.0);
+  cp.large.convertTo(weight, CV_32F, 1.0 / 255.0);
   // The reconstruction's 2-pixel checkerboard (large_drops.h) would come back as blocks several
   // pixels wide: smoothed away at the coarse copy's own scale first.
   cv::Mat smoothed;
-  cv::GaussianBlur(c.rgb, smoothed, cv::Size(0, 0), kLargeDropSmoothing, kLargeDropSmoothing, cv::BORDER_REPLICATE);
+  cv::GaussianBlur(cp.result.rgb, smoothed, cv::Size(0, 0), kLargeDropSmoothing, kLargeDropSmoothing,
+                   cv::BORDER_REPLICATE);
   Upsampled up = composite_upsampled(res.image, opt.keep_float ? res.rgb : cv::Mat(), smoothed, weight, opt.keep_float);
   res.image = up.image;
   res.mask = res.mask | up.mask;

@@ -108,6 +108,34 @@ TEST(LargeDrops, AFullMaskIsTheCoarseCopysResultUpsampled) {
   EXPECT_LE(max_abs_diff(r.image, coarse_result_upsampled(smoke(), img, coarse_scale)), 1);
 }
 
+// With two threads the coarse pass runs beside the working-scale pass (it reads only the
+// input); with one, after it. The result must not depend on that: the same large drops, mask
+// and pixel counts, and the image equal up to the rounding of RFN's thread split (as
+// Remover.SideBySideEqualsInOrder holds for RDN and 3RN).
+TEST(LargeDrops, BesideTheWorkingPassEqualsInOrder) {
+  SessionConfig one, two;
+  one.threads = 1;
+  two.threads = 2;
+  Remover in_order(smoke_models(), one), beside(smoke_models(), two);
+  const cv::Mat img = make_image(600, 300, 7);
+  RemoveOptions all;
+  all.threshold = -1.0;  // every pixel a drop: both passes run every network
+  all.large_drop_max_sharpness = kNoLimit;
+  RemoveOptions found;    // the models' threshold: the coarse pass may stop after its detector
+  found.large_drop_max_sharpness = kNoLimit;
+  for (const RemoveOptions& o : {all, found}) {
+    const RemoveResult a = in_order.run(img, o), b = beside.run(img, o);
+    EXPECT_EQ(a.large_drops, b.large_drops);
+    EXPECT_EQ(a.sharp_large_drops, b.sharp_large_drops);
+    EXPECT_DOUBLE_EQ(a.coarse_scale, b.coarse_scale);
+    EXPECT_DOUBLE_EQ(a.network_pixels, b.network_pixels);
+    EXPECT_DOUBLE_EQ(a.reconstructed_pixels, b.reconstructed_pixels);
+    EXPECT_EQ(cv::countNonZero(a.mask != b.mask), 0);
+    EXPECT_LE(max_abs_diff(a.image, b.image), 1);
+  }
+  EXPECT_EQ(in_order.run(img, all).large_drops, 1);
+}
+
 // The coarse pass keeps what the working-scale pass keeps: size, channels, depth, alpha.
 TEST(LargeDrops, FormatsAreKept) {
   const cv::Mat rgb = make_image(300, 150, 8);

@@ -49,7 +49,9 @@
 // of the pixels (a third on each side). Its detector runs first; only when it finds a large
 // drop do its 3RN and RFN run and its result get composited (one more pass over the full-size
 // image's rows), so a photograph without large drops pays for a ninth-size detection only
-// (`raindrop-bench remove` measures both cases).
+// (`raindrop-bench remove` measures both cases). With two or more threads the coarse pass runs
+// beside the working-scale pass, which it does not read (Remover::run): that detection, on
+// one thread, had left the other core idle (docs/RESULTS.md 3.6).
 #include <vector>
 
 #include <opencv2/core.hpp>

@@ -126,10 +126,18 @@ class Remover {
   // The pipeline on `small` (the image area-averaged down to the working scale), brought back
   // to the image's size.
   RemoveResult run_scaled(const cv::Mat& image, const cv::Mat& small, const RemoveOptions& options, double scale);
-  // The coarse pass for large drops over `res`, the result at `scale` (large_drops.h);
-  // `working`: the image as the working-scale pass saw it.
-  void add_large_drops(const cv::Mat& image, const cv::Mat& working, const RemoveOptions& options, double scale,
-                       RemoveResult& res);
+  // The coarse pass for large drops (large_drops.h) at a third of `scale`, on its own: it reads
+  // only the image and `working` (the image as the working-scale pass sees it), so it can run
+  // beside that pass. Its result goes over the working-scale result in composite_large_drops.
+  struct CoarsePass {
+    bool ran = false;    // the coarse copy was large enough (coarse_pass_fits)
+    RemoveResult result;  // rgb: the coarse copy's reconstruction (when large drops were found)
+    cv::Mat large;        // the large drops' mask at the coarse scale (CV_8U 0/255)
+    int large_drops = 0, sharp_large_drops = 0;
+    double coarse_scale = 0, convert_ms = 0;
+  };
+  CoarsePass coarse_pass(const cv::Mat& image, const cv::Mat& working, const RemoveOptions& options, double scale);
+  void composite_large_drops(const CoarsePass& coarse, const RemoveOptions& options, RemoveResult& res);
 
   Models models_;
   SessionConfig config_;
