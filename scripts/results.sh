@@ -1128,10 +1128,13 @@ if want largedrops-all; then
   done | tee -a "$la/scores.txt"
   score_sets "$la" int8-large "-j 2 --models models/compact-multiscale-int8 --large-drop-models out/models/paper-real-coarse-int8" \
     real-pairs:train:0 real-pairs:test:0 | tee -a "$la/scores.txt"
-  # paper-int8, which had no LARGE_DROPS: its own networks (--large-drop-models its own folder) or the int8 copy.
-  for l in paper-int8 paper-real-coarse-int8; do
-    score_sets "$la" "paper-int8-$l" "-j 2 --models models/paper-int8 --large-drop-models models/$l" real-pairs:train:0 \
-      val-sparse:-:0 val-windshield-sharp:-:0 real-pairs:test:0
+  # paper-int8 and compact-int8, which had no LARGE_DROPS: their own networks (--large-drop-models
+  # their own folder) or the int8 copy.
+  for m in paper-int8 compact-int8; do
+    for l in "$m" paper-real-coarse-int8; do
+      score_sets "$la" "$m-$l" "-j 2 --models models/$m --large-drop-models models/$l" real-pairs:train:0 \
+        val-sparse:-:0 val-windshield-sharp:-:0 real-pairs:test:0
+    done
   done | tee -a "$la/scores.txt"
   for r in 1 2 3; do
     for l in models/paper-real-coarse out/models/paper-real-coarse-int8; do

@@ -39,7 +39,8 @@
 //
 // The coarse copy's detector is the main models'; its 3RN and RFN can be another model's, one
 // trained for drops at that scale: the folder named by the main models' LARGE_DROPS file
-// (model_paths.h; every committed folder names paper-real-coarse or, the int8 ones, its int8 copy) or Remover's large_drop_dir.
+// (model_paths.h; every committed removal folder names paper-real-coarse or, the int8 ones, its int8 copy) or Remover's
+// large_drop_dir.
 // Measured (docs/RESULTS.md 4.8, 4.11): the default then gains +3.00 dB on real lens-cover pairs
 // instead of +1.49, and nothing changes on the paper preset's drops or the sparse set.
 //
