@@ -159,6 +159,14 @@ score_sets() {
 # split_sets DIR LABEL FLAGS SET...: score_sets with the detected masks written too, and the
 # error left split by the set's masks x the detected ones (score_outputs --masks).
 split_sets() { SPLIT_ERROR=1 score_sets "$@"; }
+# timed LABEL CMD...: runs CMD and prints "LABEL: <wall seconds> s".
+timed() {
+  local label="$1" s0
+  shift
+  s0=$(date +%s.%N)
+  "$@"
+  echo "$label: $(echo "$(date +%s.%N) - $s0" | bc) s"
+}
 
 # photos_changed A B: how many of the outputs in folder A differ from those of the same name in
 # B, by how much (mean absolute difference in levels), and which.
@@ -937,10 +945,8 @@ PY
   # Folder runs of the split, alternated three times (wall seconds).
   for r in 1 2 3; do
     for g in 0 0.35; do
-      s0=$(date +%s.%N)
-      build/raindrop-remove "$gr/test-g$g-real-pairs-test/set/rainy" "$gr/timed-g$g" -q -j 2 --large-drop-growth "$g" \
+      timed "G $g run $r" build/raindrop-remove "$gr/test-g$g-real-pairs-test/set/rainy" "$gr/timed-g$g" -q -j 2 --large-drop-growth "$g" \
         --large-drop-sharpness inf
-      echo "G $g run $r: $(echo "$(date +%s.%N) - $s0" | bc) s"
     done
   done | tee "$gr/folder-times.txt"
   # The 44 real photographs with and without it (masks too), to look at, and how many change.
@@ -985,9 +991,7 @@ if want sharpness; then
   photos_changed "$sh/photos-tinf/removed" "$sh/photos-t8/removed" | tee "$sh/photos-changed.txt"
   for r in 1 2 3; do
     for t in inf 8; do
-      s0=$(date +%s.%N)
-      build/raindrop-remove "$shared/real-raindrop" "$sh/timed-photos-t$t" -q -j 2 --large-drop-sharpness "$t"
-      echo "limit $t run $r: $(echo "$(date +%s.%N) - $s0" | bc) s"
+      timed "limit $t run $r" build/raindrop-remove "$shared/real-raindrop" "$sh/timed-photos-t$t" -q -j 2 --large-drop-sharpness "$t"
     done
   done | tee "$sh/photo-times.txt"
 fi
@@ -1062,9 +1066,7 @@ if want surround; then
   done | tee "$su/photos.txt"
   for r in 1 2 3; do
     for a in 0 150; do
-      s0=$(date +%s.%N)
-      build/raindrop-remove "$shared/real-raindrop" "$su/timed-photos-a$a" -q -j 2 --surround-fill-area "$a"
-      echo "area $a run $r: $(echo "$(date +%s.%N) - $s0" | bc) s"
+      timed "area $a run $r" build/raindrop-remove "$shared/real-raindrop" "$su/timed-photos-a$a" -q -j 2 --surround-fill-area "$a"
     done
   done | tee "$su/photo-times.txt"
 fi
@@ -1089,12 +1091,8 @@ if want largewidth; then
   done | tee "$lw/scores.txt"
   for r in 1 2 3; do
     for m in models/compact-real-coarse-long out/models/paper-real-coarse; do
-      s0=$(date +%s.%N)
-      build/raindrop-remove "$lw/${m##*/}-real-pairs-test/set/rainy" "$lw/timed" -q -j 2 --large-drop-models "$m"
-      echo "${m##*/} run $r: $(echo "$(date +%s.%N) - $s0" | bc) s"
-      s0=$(date +%s.%N)
-      build/raindrop-remove "$shared/real-raindrop/maxim_55.png" "$lw/maxim_55.png" -q -j 2 --large-drop-models "$m"
-      echo "${m##*/} maxim_55 run $r: $(echo "$(date +%s.%N) - $s0" | bc) s"
+      timed "${m##*/} run $r" build/raindrop-remove "$lw/${m##*/}-real-pairs-test/set/rainy" "$lw/timed" -q -j 2 --large-drop-models "$m"
+      timed "${m##*/} maxim_55 run $r" build/raindrop-remove "$shared/real-raindrop/maxim_55.png" "$lw/maxim_55.png" -q -j 2 --large-drop-models "$m"
     done
   done | tee "$lw/times.txt"
   # The 8 photographs where the coarse pass fires (4.25), each with both large-drop networks, to look at.
@@ -1138,14 +1136,10 @@ if want largedrops-all; then
   done | tee -a "$la/scores.txt"
   for r in 1 2 3; do
     for l in models/paper-real-coarse out/models/paper-real-coarse-int8; do
-      s0=$(date +%s.%N)
-      build/raindrop-remove "$la/int8-large-real-pairs-test/set/rainy" "$la/timed" -q -j 2 \
+      timed "${l##*/} folder run $r" build/raindrop-remove "$la/int8-large-real-pairs-test/set/rainy" "$la/timed" -q -j 2 \
         --models models/compact-multiscale-int8 --large-drop-models "$l"
-      echo "${l##*/} folder run $r: $(echo "$(date +%s.%N) - $s0" | bc) s"
-      s0=$(date +%s.%N)
-      build/raindrop-remove "$shared/real-raindrop/maxim_55.png" "$la/maxim_55.png" -q -j 2 \
+      timed "${l##*/} maxim_55 run $r" build/raindrop-remove "$shared/real-raindrop/maxim_55.png" "$la/maxim_55.png" -q -j 2 \
         --models models/compact-multiscale-int8 --large-drop-models "$l"
-      echo "${l##*/} maxim_55 run $r: $(echo "$(date +%s.%N) - $s0" | bc) s"
     done
   done | tee "$la/times.txt"
 fi
