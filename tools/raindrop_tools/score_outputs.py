@@ -41,7 +41,47 @@ def split_names(data: Path, split: str) -> set[str]:
         raise SystemExit(f"score_outputs: --split: {e}") from None
 
 
-def score(data: Path, outputs: Path, split: str | None = None) -> dict:
+REGIONS = ("found", "missed", "false", "rest")  # true & detected, true only, detected only, neither
+
+
+class MaskSplit:
+    """Where the squared Y error (8-bit, ``metrics.luma``) of the input and of the output lies,
+    summed over images, by true mask x detected mask (any non-zero pixel is in a mask); with the
+    masks' pooled pixel recall and precision."""
+
+    def __init__(self):
+        self.sums = {f"{w}_{r}": 0.0 for w in ("input", "output") for r in REGIONS}
+        self.count = {r: 0 for r in REGIONS}
+
+    def add(self, name: str, rainy: np.ndarray, output: np.ndarray, clean: np.ndarray,
+            true: np.ndarray, det: np.ndarray) -> None:
+        y = metrics.luma(clean).astype(np.float64)
+        if true.shape != y.shape or det.shape != y.shape:
+            raise ValueError(f"{name}: a mask's size differs from the image's {y.shape[::-1]}")
+        err = {"input": (metrics.luma(rainy) - y) ** 2, "output": (metrics.luma(output) - y) ** 2}
+        for r, where in zip(REGIONS, (true & det, true & ~det, ~true & det, ~true & ~det)):
+            self.count[r] += int(where.sum())
+            for w in err:
+                self.sums[f"{w}_{r}"] += float(err[w][where].sum())
+
+    def summary(self) -> dict:
+        sums, count = self.sums, self.count
+        out_total = sum(sums[f"output_{r}"] for r in REGIONS)
+        found_in = sums["input_found"]
+        return {
+            "recall": count["found"] / max(count["found"] + count["missed"], 1),
+            "precision": count["found"] / max(count["found"] + count["false"], 1),
+            "output_error_share": {r: sums[f"output_{r}"] / out_total if out_total > 0 else 0.0 for r in REGIONS},
+            "found_error_removed": 1.0 - sums["output_found"] / found_in if found_in > 0 else 0.0,
+            "squared_error_sums": dict(sums),
+            "pixels": dict(count),
+        }
+
+
+def score(data: Path, outputs: Path, split: str | None = None, masks: Path | None = None,
+          true_masks: Path | None = None) -> dict:
+    """The scores; with `masks` (the detected masks, ``<stem>.png``) also ``mask_split``, the
+    error left split by the true masks (`true_masks`, default the set's ``mask/``) x those."""
     rainy_dir, clean_dir = data / "rainy", data / "clean"
     if not rainy_dir.is_dir() or not clean_dir.is_dir():
         raise SystemExit(f"score_outputs: {data} has no rainy/ and clean/ folders")
@@ -50,52 +90,25 @@ def score(data: Path, outputs: Path, split: str | None = None) -> dict:
                    if (outputs / p.name).is_file() and (wanted is None or p.name in wanted))
     if not names:
         raise SystemExit(f"score_outputs: no image of {rainy_dir} has an output in {outputs}")
+    split_by_mask = MaskSplit() if masks else None
     rows = []
     for n in names:
         clean = read_rgb_strict(clean_dir / n)
-        before = metrics.image_metrics(read_rgb_strict(rainy_dir / n), clean)
-        after = metrics.image_metrics(read_rgb_strict(outputs / n), clean)
+        rainy, output = read_rgb_strict(rainy_dir / n), read_rgb_strict(outputs / n)
+        before = metrics.image_metrics(rainy, clean)
+        after = metrics.image_metrics(output, clean)
         rows.append({"name": n, "input_psnr_y": before["psnr_y"], "output_psnr_y": after["psnr_y"],
                      "input_ssim_y": before["ssim_y"], "output_ssim_y": after["ssim_y"]})
+        if split_by_mask:
+            split_by_mask.add(n, rainy, output, clean, read_mask((true_masks or data / "mask") / n) > 0,
+                              read_mask(masks / (Path(n).stem + ".png")) > 0)
     mean = {k: float(np.mean([r[k] for r in rows])) for k in rows[0] if k != "name"}
     mean["gain_psnr_y"] = mean["output_psnr_y"] - mean["input_psnr_y"]
     mean["gain_ssim_y"] = mean["output_ssim_y"] - mean["input_ssim_y"]
-    return {"images": len(rows), "mean": mean, "per_image": rows}
-
-
-REGIONS = ("found", "missed", "false", "rest")  # true & detected, true only, detected only, neither
-
-
-def mask_split(data: Path, outputs: Path, masks: Path, names: list[str], true_masks: Path | None = None) -> dict:
-    """Where the squared Y error (8-bit, ``metrics.luma``) of the input and of the output lies,
-    summed over the images `names`, by true mask x detected mask (any non-zero pixel is in a
-    mask); with the masks' pooled pixel recall and precision."""
-    true_dir = true_masks or data / "mask"
-    sums = {f"{w}_{r}": 0.0 for w in ("input", "output") for r in REGIONS}
-    count = {r: 0 for r in REGIONS}
-    for n in names:
-        clean = metrics.luma(read_rgb_strict(data / "clean" / n)).astype(np.float64)
-        err = {"input": (metrics.luma(read_rgb_strict(data / "rainy" / n)) - clean) ** 2,
-               "output": (metrics.luma(read_rgb_strict(outputs / n)) - clean) ** 2}
-        true = read_mask(true_dir / n) > 0
-        det = read_mask(masks / (Path(n).stem + ".png")) > 0
-        if true.shape != clean.shape or det.shape != clean.shape:
-            raise ValueError(f"{n}: a mask's size differs from the image's {clean.shape[::-1]}")
-        for r, where in zip(REGIONS, (true & det, true & ~det, ~true & det, ~true & ~det)):
-            count[r] += int(where.sum())
-            for w in err:
-                sums[f"{w}_{r}"] += float(err[w][where].sum())
-    out_total = sum(sums[f"output_{r}"] for r in REGIONS)
-    share = {r: sums[f"output_{r}"] / out_total if out_total > 0 else 0.0 for r in REGIONS}
-    found_in = sums["input_found"]
-    return {
-        "recall": count["found"] / max(count["found"] + count["missed"], 1),
-        "precision": count["found"] / max(count["found"] + count["false"], 1),
-        "output_error_share": share,
-        "found_error_removed": 1.0 - sums["output_found"] / found_in if found_in > 0 else 0.0,
-        "squared_error_sums": sums,
-        "pixels": count,
-    }
+    r = {"images": len(rows), "mean": mean, "per_image": rows}
+    if split_by_mask:
+        r["mask_split"] = split_by_mask.summary()
+    return r
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -112,9 +125,7 @@ def main(argv: list[str] | None = None) -> int:
                     "set's mask/)")
     a = ap.parse_args(argv)
     try:
-        r = score(a.data, a.outputs, a.split)
-        if a.masks:
-            r["mask_split"] = mask_split(a.data, a.outputs, a.masks, [p["name"] for p in r["per_image"]], a.true_masks)
+        r = score(a.data, a.outputs, a.split, a.masks, a.true_masks)
     except (ImageError, ValueError, OSError) as e:  # a damaged output, one of another size, an unreadable file
         print(f"score_outputs: error: {e}", file=sys.stderr)
         return 2

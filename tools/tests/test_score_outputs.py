@@ -122,8 +122,7 @@ def test_mask_split_tells_missed_drops_from_found_ones(tmp_path, capsys):
     rows: all the error left lies in the missed drop, and all of the found drop's is removed."""
     data, outs = make_set(tmp_path, 2)
     det = write_masks(tmp_path, data, 2, (8, 16), (12, 20))
-    names = ["0.png", "1.png"]
-    ms = SO.mask_split(data, outs, det, names)
+    ms = SO.score(data, outs, masks=det)["mask_split"]
     assert ms["recall"] == pytest.approx(0.5) and ms["precision"] == pytest.approx(0.5)
     assert ms["output_error_share"]["missed"] == pytest.approx(1.0)
     assert ms["output_error_share"]["found"] == 0.0 and ms["output_error_share"]["false"] == 0.0
@@ -136,7 +135,7 @@ def test_mask_split_tells_missed_drops_from_found_ones(tmp_path, capsys):
     # The detector that marks the repaired rows' complement instead: the error left is in its found drops.
     (tmp_path / "b").mkdir()
     det2 = write_masks(tmp_path / "b", data, 2, (8, 16), (8, 12))
-    ms2 = SO.mask_split(data, outs, det2, names)
+    ms2 = SO.score(data, outs, masks=det2)["mask_split"]
     assert ms2["output_error_share"]["found"] == pytest.approx(1.0) and ms2["found_error_removed"] == pytest.approx(0.0)
     assert SO.main(["--data", str(data), "--outputs", str(outs), "--masks", str(det), "--label", "m"]) == 0
     lines = capsys.readouterr().out.strip().splitlines()
