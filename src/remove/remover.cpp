@@ -293,7 +293,6 @@ Remover::CoarsePass Remover::coarse_pass(const cv::Mat& image, const cv::Mat& wo
   const double coarse_scale = scale / kLargeDropScaleDivisor;
   const cv::Size coarse = scaled_size(image.size(), coarse_scale);
   if (!coarse_pass_fits(coarse)) return cp;
-  cp.ran = true;
   cp.coarse_scale = coarse_scale;
   auto clock = Clock::now();
   cv::Mat coarse_native;
@@ -330,7 +329,7 @@ Remover::CoarsePass Remover::coarse_pass(const cv::Mat& image, const cv::Mat& wo
 }
 
 void Remover::composite_large_drops(const CoarsePass& cp, const RemoveOptions& opt, RemoveResult& res) {
-  if (!cp.ran) return;
+  if (cp.coarse_scale == 0) return;  // it did not run
   StageTimes& t = res.times;
   t.convert += cp.convert_ms;
   t += cp.result.times;

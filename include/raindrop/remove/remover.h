@@ -130,11 +130,11 @@ class Remover {
   // only the image and `working` (the image as the working-scale pass sees it), so it can run
   // beside that pass. Its result goes over the working-scale result in composite_large_drops.
   struct CoarsePass {
-    bool ran = false;    // the coarse copy was large enough (coarse_pass_fits)
-    RemoveResult result;  // rgb: the coarse copy's reconstruction (when large drops were found)
-    cv::Mat large;        // the large drops' mask at the coarse scale (CV_8U 0/255)
+    double coarse_scale = 0;  // 0: the coarse copy was too small to run (coarse_pass_fits)
+    RemoveResult result;      // rgb: the coarse copy's reconstruction (when large drops were found)
+    cv::Mat large;            // the large drops' mask at the coarse scale (CV_8U 0/255)
     int large_drops = 0, sharp_large_drops = 0;
-    double coarse_scale = 0, convert_ms = 0;
+    double convert_ms = 0;
   };
   CoarsePass coarse_pass(const cv::Mat& image, const cv::Mat& working, const RemoveOptions& options, double scale);
   void composite_large_drops(const CoarsePass& coarse, const RemoveOptions& options, RemoveResult& res);
