@@ -18,6 +18,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <cstring>
 #include <filesystem>
 #include <iostream>
 #include <map>
@@ -30,10 +31,13 @@
 #include <tuple>
 #include <vector>
 
+#include <unistd.h>
+
 #include <CLI/CLI.hpp>
 #include <opencv2/imgproc.hpp>
 
 #include "options.h"
+#include "own_outputs.h"
 #include "raindrop/common/contact_sheet.h"
 #include "raindrop/common/error.h"
 #include "raindrop/common/image_files.h"
@@ -47,6 +51,9 @@
 namespace fs = std::filesystem;
 using namespace raindrop;
 using namespace raindrop::removal;
+using raindrop::cli::add_own_outputs;
+using raindrop::cli::kOwnOutputsList;
+using raindrop::cli::read_own_outputs;
 
 namespace {
 
@@ -89,28 +96,33 @@ cv::Mat sheet_panel(const cv::Mat& img) {
   return rgb.data == img.data ? rgb.clone() : rgb;
 }
 
-// A hidden file in an output or mask folder that lies inside the input folder: the folder's
-// images are this program's outputs, which a later run may replace.
-constexpr const char* kOwnFolderMarker = ".raindrop-remove-outputs";
-
 struct Job {
   fs::path input, output;
   std::optional<fs::path> mask;
   std::string caption;
   bool make_dirs = false;  // folder mode: create the output's sub-folders
+  std::string shard_key;   // folder mode: the input's name relative to the input folder (shard.h)
 };
 
 // Refuses a run in which two of the places it reads and writes are one: the later write
 // would silently replace the input (or an earlier output). Paths are compared canonically,
-// so "./a.png", "a.png" and "sub/../a.png" are the same file. Each entry: (role, path).
-void refuse_coinciding(const std::vector<std::pair<std::string, fs::path>>& places, const char* kind) {
-  std::map<fs::path, const std::pair<std::string, fs::path>*> seen;
+// so "./a.png", "a.png" and "sub/../a.png" are the same file.
+struct Place {
+  std::string role;
+  fs::path path;
+  fs::path of;  // the input a written file comes from (named in the message), or empty
+};
+
+void refuse_coinciding(const std::vector<Place>& places, const char* kind) {
+  std::map<fs::path, const Place*> seen;
+  const auto said = [](const Place& p) {
+    return "the " + p.role + " '" + p.path.string() + "'" + (p.of.empty() ? "" : " (of '" + p.of.string() + "')");
+  };
   for (const auto& place : places) {
-    if (place.second.empty()) continue;
-    auto [it, fresh] = seen.emplace(canonical_form(place.second), &place);
+    if (place.path.empty()) continue;
+    auto [it, fresh] = seen.emplace(canonical_form(place.path), &place);
     if (!fresh)
-      throw UsageError("the " + it->second->first + " '" + it->second->second.string() + "' and the " + place.first +
-                       " '" + place.second.string() + "' are the same " + kind + "; choose another one");
+      throw UsageError(said(*it->second) + " and " + said(place) + " are the same " + kind + "; choose another one");
   }
 }
 
@@ -179,6 +191,9 @@ int run(int argc, char** argv) {
       "Inputs: 8/16-bit grey, grey+alpha, RGB, RGBA up to 2^26 pixels (e.g. 8192x8192); the output keeps size,\n"
       "channels and depth (grey: the networks see it as RGB, the output is its luma 0.299R+0.587G+0.114B; alpha\n"
       "is copied). An EXIF/TIFF orientation is applied: phone photographs are processed and written upright.\n"
+      "Other metadata (EXIF, an ICC colour profile) is not copied. Existing output files are replaced, except in\n"
+      "an output or mask folder that holds the input or lies inside it: there only files an earlier run wrote\n"
+      "(listed in its hidden .raindrop-remove-outputs).\n"
       "Exit codes: 0 success; 1 error (one line on stderr, no partial output); 2 bad command line;\n"
       "3 folder run with --keep-going finished but some images failed.");
   std::string input, output, models_dir, model_config, large_drop_models, mask, mask_dir, sheet, shard_text;
@@ -307,45 +322,27 @@ int run(int argc, char** argv) {
 
   std::vector<Job> jobs;
   if (batch && mask_dir.empty()) std::swap(mask, mask_dir);  // folder mode: --mask is a folder
-  // Folder mode: an output or mask folder inside the input folder that this program did not
-  // make (no marker file): its files are left out of the inputs and may be the user's own.
-  const auto foreign_inside = [&](const fs::path& folder) {
-    return batch && !folder.empty() && strictly_inside(folder, in_path) && !fs::exists(folder / kOwnFolderMarker, ec);
-  };
-  const bool out_inside = foreign_inside(out_arg), mask_inside = foreign_inside(mask_dir);
   if (batch) {
     if (fs::exists(out_arg, ec) && !fs::is_directory(out_arg, ec))
       throw Error("input '" + input + "' is a folder, so the output must be a folder too; '" + output + "' is a file");
     // Masks written into the input or output folder would replace the images there.
-    refuse_coinciding({{"input folder", in_path}, {"output folder", out_arg}, {"mask folder", fs::path(mask_dir)}},
+    refuse_coinciding({{"input folder", in_path, {}}, {"output folder", out_arg, {}}, {"mask folder", fs::path(mask_dir), {}}},
                       "folder");
     const auto images = list_images(in_path, {out_arg, fs::path(mask_dir)});
     if (images.empty()) throw Error("no image files (" + image_extensions() + "; exr not taken) under '" + input + "'");
+    // Every image's job, this shard's or not: the checks below hold for the whole run, so that
+    // no shard writes over another shard's input or output.
     for (const auto& rel : images) {
-      if (!shard.owns(rel.generic_string())) continue;  // another shard's (shard.h)
-      Job j{in_path / rel, out_arg / rel, std::nullopt, rel.string(), true};
+      Job j{in_path / rel, out_arg / rel, std::nullopt, rel.string(), true, rel.generic_string()};
       if (!mask_dir.empty()) j.mask = (fs::path(mask_dir) / rel).replace_extension(".png");
       jobs.push_back(j);
     }
-    // Such a folder's images may be the user's own (photos/2023/a.png, when photos/a.png's
-    // output is photos/2023/a.png): never replaced silently. In a folder this program made,
-    // they are an earlier run's outputs.
-    for (const auto& j : jobs) {
-      for (const auto& [role, inside, folder, file] :
-           {std::tuple{"output", out_inside, out_arg, std::optional<fs::path>(j.output)},
-            std::tuple{"mask", mask_inside, fs::path(mask_dir), j.mask}}) {
-        if (!file || !inside || !fs::exists(*file, ec)) continue;
-        throw UsageError(std::string("the ") + role + " folder '" + folder.string() + "' lies inside the input folder '" +
-                         input + "', and '" + file->string() +
-                         "' already exists there: it is not an input, and this run would replace it; choose " +
-                         (std::string(role) == "output" ? "an " : "a ") + role +
-                         " folder outside the input folder, or move that file");
-      }
-    }
   } else {
     fs::path out = out_arg;
+    // "out/" names a folder: one that is not there is said so, not taken for a file without a format.
+    if (!out.has_filename() && !fs::is_directory(out, ec)) throw Error("output folder '" + output + "' does not exist");
     if (fs::is_directory(out, ec)) out /= in_path.filename();
-    Job j{in_path, out, std::nullopt, in_path.filename().string()};
+    Job j{in_path, out, std::nullopt, in_path.filename().string(), false, {}};
     if (!mask.empty()) j.mask = fs::path(mask);
     if (!mask_dir.empty()) j.mask = (fs::path(mask_dir) / in_path.filename()).replace_extension(".png");
     jobs.push_back(j);
@@ -362,6 +359,57 @@ int run(int argc, char** argv) {
   // stops the run with nothing written, not after hours with part of the outputs there. Damage
   // inside the pixel data (a cut file) is still found only when the image is decoded. With
   // --keep-going such inputs are reported as failed at the end instead.
+  // Every file read or written, once: no write may land on an input or on another output
+  // (checked before anything is read or written, over every shard's files).
+  {
+    std::vector<Place> places;
+    for (const auto& j : jobs) places.push_back({"input", j.input, {}});
+    for (const auto& j : jobs) {
+      places.push_back({"output", j.output, j.input});
+      if (j.mask) places.push_back({"mask", *j.mask, j.input});
+    }
+    places.push_back({"contact sheet", fs::path(sheet), {}});
+    refuse_coinciding(places, "file");
+  }
+  // Folders whose file names this program chooses (an output folder, a mask folder) and that
+  // hold the input or lie inside it may hold the user's own photographs: there a run replaces
+  // only what an earlier run wrote (own_outputs.h). A file named on the command line is the
+  // user's choice and is replaced as asked.
+  struct Guarded {
+    std::string role;
+    fs::path folder;
+    std::set<std::string> own;  // what earlier runs wrote there
+    std::set<std::string> names;  // what this run writes there
+  };
+  std::vector<Guarded> guarded;
+  const auto nested = [&](const fs::path& folder) {
+    return strictly_inside(folder, in_path) || strictly_inside(in_path, folder);
+  };
+  if ((batch || fs::is_directory(out_arg, ec)) && nested(out_arg)) guarded.push_back({"output", out_arg, {}, {}});
+  if (!mask_dir.empty() && nested(mask_dir)) guarded.push_back({"mask", fs::path(mask_dir), {}, {}});
+  for (auto& g : guarded) {
+    g.own = read_own_outputs(g.folder);
+    for (const auto& j : jobs) {
+      const std::optional<fs::path> file = g.role == "output" ? std::optional<fs::path>(j.output) : j.mask;
+      if (!file) continue;
+      const std::string rel = file->lexically_relative(g.folder).generic_string();
+      g.names.insert(rel);
+      if (!fs::exists(*file, ec) || g.own.count(rel)) continue;
+      const bool holds = strictly_inside(in_path, g.folder);
+      throw UsageError("'" + file->string() + "' already exists in the " + g.role + " folder '" + g.folder.string() +
+                       "', which " + (holds ? "holds" : "lies inside") + " the input '" + input +
+                       "'; raindrop-remove did not write it (it is not in that folder's " + kOwnOutputsList +
+                       " list), and this run would replace it: choose " + (g.role == "output" ? "an " : "a ") + g.role +
+                       " folder that neither holds nor lies inside the input, or move that file");
+    }
+  }
+  if (batch) {
+    std::vector<Job> owned;
+    for (auto& j : jobs) {
+      if (shard.owns(j.shard_key)) owned.push_back(std::move(j));  // another shard's otherwise (shard.h)
+    }
+    jobs = std::move(owned);
+  }
   std::vector<std::string> errors;
   if (batch) {
     std::vector<Job> readable;
@@ -376,33 +424,26 @@ int run(int argc, char** argv) {
     }
     jobs = std::move(readable);
   }
-  // Every file read or written, once: no write may land on an input or on another output
-  // (checked before anything is read or written).
-  {
-    std::vector<std::pair<std::string, fs::path>> places;
-    for (const auto& j : jobs) places.push_back({"input", j.input});
-    for (const auto& j : jobs) {
-      places.push_back({"output", j.output});
-      if (j.mask) places.push_back({"mask", *j.mask});
-    }
-    places.push_back({"contact sheet", fs::path(sheet)});
-    refuse_coinciding(places, "file");
-  }
   // Every destination is checked before the (slow) inference and the first write, so that a
   // mask or sheet that cannot be written does not leave the output behind. In folder mode the
   // output and mask sub-folders are made as the run goes; the formats are the inputs'.
   if (!mask_dir.empty()) ensure_writable_dir(mask_dir);
   if (batch) ensure_writable_dir(out_arg);
-  // Folders inside the input folder are marked as this program's, so that a later run into
-  // them may replace what this one writes (checked above).
-  for (const auto& [inside, folder] : {std::pair{out_inside, out_arg}, std::pair{mask_inside, fs::path(mask_dir)}}) {
-    if (inside) write_text_atomic("raindrop-remove writes its outputs here; a later run may replace them.\n", folder / kOwnFolderMarker);
-  }
+  // What this run writes into a guarded folder is listed there before it is written, so that a
+  // later run may replace it (own_outputs.h). Every shard lists the whole run's names: each
+  // checked them all above, so shards writing the list at once agree on it.
+  for (const auto& g : guarded) add_own_outputs(g.folder, g.names);
   std::set<std::string> checked_formats;
   for (const Job& j : jobs) {
     for (const fs::path* p : {&j.output, j.mask ? &*j.mask : nullptr}) {
       if (!p) continue;
-      if (!batch || checked_formats.insert(p->extension().string()).second) check_image_destination(*p, batch);
+      if (!batch || checked_formats.insert(p->extension().string()).second) {
+        check_image_destination(*p, batch);
+      } else if (fs::exists(*p, ec) && ::access(p->c_str(), W_OK) != 0) {
+        // The rest of a folder run's files: a read-only one is not replaced behind its owner's
+        // back (renaming over it would), as in check_image_destination.
+        throw Error("'" + p->string() + "': cannot write (" + std::strerror(errno) + ")");
+      }
     }
   }
   if (!sheet.empty()) check_image_destination(sheet);

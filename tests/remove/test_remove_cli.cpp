@@ -611,6 +611,62 @@ TEST_F(RemoveCli, AnOutputFolderHoldingTheInputSkipsNoSubfolder) {
   EXPECT_TRUE(fs::exists(tmp / "x" / "sub" / "c.png"));
 }
 
+// A folder that holds the input or lies inside it replaces only the files an earlier run wrote
+// there, as its list names them. A folder-wide mark used to be written into such a folder even
+// when it already held the user's photographs, and every later run then replaced them.
+TEST_F(RemoveCli, ANestedFolderReplacesOnlyWhatItsListNames) {
+  write_image(tmp / "photos" / "a.png", make_image(40, 30, 1));
+  write_image(tmp / "photos" / "2023" / "b.png", make_image(50, 20, 2));  // the user's own
+  const std::string mine = read_file(tmp / "photos" / "2023" / "b.png");
+  ASSERT_EQ(remove({"photos", "photos/2023", "-q"}).code, 0);  // writes photos/2023/a.png only
+  write_image(tmp / "photos" / "b.png", make_image(40, 30, 3));  // its output would be 2023/b.png
+  const RunResult r = remove({"photos", "photos/2023", "-q"});
+  EXPECT_EQ(r.code, 2) << r.describe();
+  EXPECT_NE(r.err.find("'photos/2023/b.png' already exists"), std::string::npos) << r.describe();
+  EXPECT_EQ(read_file(tmp / "photos" / "2023" / "b.png"), mine);
+  fs::remove(tmp / "photos" / "b.png");
+  const std::string first = read_file(tmp / "photos" / "2023" / "a.png");
+  write_image(tmp / "photos" / "a.png", make_image(40, 30, 4));
+  const RunResult again = remove({"photos", "photos/2023", "-q"});  // its own output: replaced
+  ASSERT_EQ(again.code, 0) << again.describe();
+  EXPECT_NE(read_file(tmp / "photos" / "2023" / "a.png"), first);
+  EXPECT_EQ(read_file(tmp / "photos" / "2023" / "b.png"), mine);
+}
+
+// An output folder that holds the input folder (photos/ for photos/wet/) may hold the user's
+// photographs under the names its outputs take: refused, as for a folder inside the input.
+// The same with a single image whose mask folder is the image's own folder (a.jpg's mask is
+// a.png there), and across shards: each shard checks every shard's files.
+TEST_F(RemoveCli, AFolderHoldingTheInputNeverHasAFileReplaced) {
+  write_image(tmp / "P" / "wet" / "im.png", make_image(40, 30, 1));
+  write_image(tmp / "P" / "im.png", make_image(40, 30, 2));  // the user's own
+  write_image(tmp / "ph" / "a.jpg", make_image(40, 30, 3));
+  write_image(tmp / "ph" / "a.png", make_image(40, 30, 4));  // the user's own
+  const std::string p_im = read_file(tmp / "P" / "im.png"), ph_a = read_file(tmp / "ph" / "a.png");
+  for (const std::vector<std::string>& args :
+       {std::vector<std::string>{"P/wet", "P"}, {"P/wet", "P", "--shard", "0/2"}, {"P/wet", "P", "--shard", "1/2"},
+        {"ph/a.jpg", "out.jpg", "--mask-dir", "ph"}}) {
+    const RunResult r = remove(args);
+    SCOPED_TRACE(r.command);
+    EXPECT_EQ(r.code, 2) << r.describe();
+    EXPECT_NE(r.err.find("already exists"), std::string::npos) << r.describe();
+  }
+  EXPECT_EQ(read_file(tmp / "P" / "im.png"), p_im);
+  EXPECT_EQ(read_file(tmp / "ph" / "a.png"), ph_a);
+  EXPECT_FALSE(fs::exists(tmp / "out.jpg"));
+  // Two inputs whose masks are one file are refused by every shard, not only by the shard
+  // that holds both.
+  write_image(tmp / "Q" / "x.png", make_image(40, 30, 5));
+  write_image(tmp / "Q" / "x.jpg", make_image(40, 30, 6));
+  for (const char* shard : {"0/3", "1/3", "2/3"}) {
+    const RunResult r = remove({"Q", "Qo", "--mask-dir", "Qm", "--shard", shard});
+    SCOPED_TRACE(r.command);
+    EXPECT_EQ(r.code, 2) << r.describe();
+    EXPECT_NE(r.err.find("(of 'Q/x.jpg')"), std::string::npos) << "names both inputs\n" << r.describe();
+    EXPECT_FALSE(fs::exists(tmp / "Qm"));
+  }
+}
+
 // Any two of input, output, mask and contact sheet naming one file (or, in folder mode, the
 // mask folder being the input or output folder) would overwrite one with another: refused as
 // a usage error before anything is read or written.
