@@ -23,18 +23,29 @@ std::map<std::string, ManifestEntry> read_manifest(const fs::path& file) {
     ++number;
     if (!pending_error.empty()) throw Error(pending_error);  // a bad line that was not the last
     if (line.empty()) continue;
+    const bool cut = in.eof();  // no line break after it: the last line, perhaps cut
+    nlohmann::json j;
     try {
-      const auto j = nlohmann::json::parse(line);
+      j = nlohmann::json::parse(line);
+    } catch (const nlohmann::json::exception& ex) {
+      pending_error = "'" + file.string() + "' line " + std::to_string(number) + " is not a manifest record (" +
+                      ex.what() + ")";
+      if (!cut) throw Error(pending_error);  // a whole line: not an interrupted append
+      continue;
+    }
+    try {
       ManifestEntry e;
       e.line = line;
       e.job = j.value("job", "");
+      e.source = j.value("source", "");
       e.files[0] = j.at("rainy").get<std::string>();
       e.files[1] = j.at("clean").get<std::string>();
       e.files[2] = j.at("mask").get<std::string>();
       entries[j.at("id").get<std::string>()] = std::move(e);
     } catch (const nlohmann::json::exception& ex) {
-      pending_error = "'" + file.string() + "' line " + std::to_string(number) + " is not a manifest record (" +
-                      ex.what() + ")";
+      // Whole JSON that is no record: an append cut short is never a whole value.
+      throw Error("'" + file.string() + "' line " + std::to_string(number) + " is not a manifest record (" + ex.what() +
+                  "); is this folder a data set raindrop-render wrote?");
     }
   }
   return entries;  // a bad last line is an interrupted append: ignored

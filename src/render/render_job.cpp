@@ -24,6 +24,7 @@
 #include <tbb/task_arena.h>
 
 #include "raindrop/common/error.h"
+#include "raindrop/common/image_files.h"
 #include "raindrop/common/image_io.h"
 #include "raindrop/common/progress.h"
 #include "raindrop/common/rng.h"
@@ -135,9 +136,19 @@ void remove_stale_temporaries(const fs::path& dir, const std::set<std::string>* 
   std::error_code ec;
   for (auto it = fs::directory_iterator(dir, ec); !ec && it != fs::directory_iterator(); it.increment(ec)) {
     const std::string name = it->path().filename().string();
-    const auto tmp = name.rfind(".tmp-");  // ".<temporary_stem(file name)>.tmp-<pid>-<n>"
-    if (!name.empty() && name[0] == '.' && tmp != std::string::npos && (!only || only->count(name.substr(1, tmp - 1))))
-      fs::remove(it->path(), ec);
+    // Only names this program gives its temporaries: ".<stem>.tmp-<pid>-<n>", the stem a PNG
+    // or a manifest. A user's own hidden ".notes.tmp-keep" is left alone.
+    const auto tmp = name.rfind(".tmp-");
+    if (name.empty() || name[0] != '.' || tmp == std::string::npos || tmp < 2) continue;
+    const std::string stem = name.substr(1, tmp - 1), tail = name.substr(tmp + 5);
+    const auto dash = tail.find('-');
+    const auto digits = [](const std::string& t) {
+      return !t.empty() && std::all_of(t.begin(), t.end(), [](unsigned char c) { return std::isdigit(c) != 0; });
+    };
+    if (dash == std::string::npos || !digits(tail.substr(0, dash)) || !digits(tail.substr(dash + 1))) continue;
+    const std::string ext = lowercase_extension(fs::path(stem));
+    if (ext != ".png" && ext != ".jsonl") continue;
+    if (!only || only->count(stem)) fs::remove(it->path(), ec);
   }
 }
 
@@ -370,11 +381,25 @@ RenderSummary render_dataset(const std::vector<InputImage>& inputs, const Render
       if (o.shard.owns(input_of(id))) existing.emplace(id, std::move(entry));
     }
   }
+  // A sample is this run's only if it came from this run's input of that name: resuming from
+  // a sample of another image that had the same name (rA/x.png, then rB/x.png) would keep it
+  // as done, under a manifest that names the other image.
+  // The recorded name is as that run gave it (perhaps relative to another working folder), so
+  // only a recorded image that is here and is another file than this run's counts.
+  std::map<std::string, fs::path> source_of;
+  for (const auto& t : tasks) source_of[t.input->id] = t.input->path;
   std::map<std::string, ManifestEntry> kept;
   for (const auto& [id, entry] : existing) {
     if (entry.job != job)
       throw Error("'" + o.out_dir.string() + "' holds samples rendered with other settings (scene, seed, size, "
                   "--convert or renderer version); render into a new folder or delete that one");
+    const auto input = source_of.find(input_of(id));
+    std::error_code differs;
+    if (input != source_of.end() && !entry.source.empty() && fs::is_regular_file(entry.source, ec) &&
+        fs::exists(input->second, ec) && !fs::equivalent(entry.source, input->second, differs) && !differs)
+      throw Error("'" + o.out_dir.string() + "' holds sample " + id + " rendered from '" + entry.source +
+                  "', but this run's input of that name is '" + input->second.string() +
+                  "'; render into a new folder, or delete that one");
     bool complete = true;
     for (const auto& f : entry.files) complete = complete && fs::exists(o.out_dir / f);
     if (complete) kept[id] = entry;

@@ -284,6 +284,56 @@ TEST(RenderResume, RefusesFolderRenderedWithOtherSettings) {
 }
 
 
+
+// A sample is resumed only from the image it was rendered from: the same file name in another
+// input folder (in/one.png, then other/one.png) is refused, not counted as done under a
+// manifest that names the first image. The same folder given another way is still itself.
+TEST(RenderResume, RefusesASampleOfAnotherImageWithTheSameName) {
+  TempDir tmp;
+  const std::vector<std::string> base = {"-i", "in", "--out", "out", "--variants", "2", "--seed", "4", "-j", "2", "-q"};
+  render_two_inputs(tmp, base);
+  if (HasFatalFailure()) return;
+  const auto before = snapshot(tmp / "out");
+  write_image(tmp / "other" / "one.png", make_background(320, 160, 7));
+  auto args = base;
+  args[1] = "other";
+  const auto r = run_render(args, tmp.path());
+  EXPECT_EQ(r.code, 1) << r.describe();
+  const auto lines = r.message_lines();
+  ASSERT_EQ(lines.size(), 1u) << r.describe();
+  EXPECT_NE(lines[0].find("rendered from 'in/one.png'"), std::string::npos) << lines[0];
+  EXPECT_TRUE(snapshot(tmp / "out") == before);
+  args[1] = "./in/";
+  const auto same = run_render(args, tmp.path());
+  ASSERT_EQ(same.code, 0) << same.describe();
+  const auto counts = parse_counts(same.err);
+  ASSERT_TRUE(counts) << same.describe();
+  EXPECT_EQ(counts->skipped, 4);
+}
+
+// A folder holding the user's own files: a manifest.jsonl of one whole line that is no record
+// is not an interrupted append (that leaves a line cut short, without its line break), and a
+// hidden file that only looks like a temporary is not one of ours. Both used to be replaced
+// or deleted; now the run is refused and they are kept.
+TEST(RenderResume, KeepsAUsersManifestAndHiddenFiles) {
+  TempDir tmp;
+  write_image(tmp / "in" / "one.png", make_background(320, 160, 0));
+  write_file(tmp / "out" / "manifest.jsonl", "{\"my\": \"own notes\"}\n");
+  write_file(tmp / "out" / ".notes.tmp-keep", "mine");
+  write_file(tmp / "keep" / ".notes.tmp-keep", "mine");
+  const auto r = run_render({"-i", "in", "--out", "out", "-q"}, tmp.path());
+  EXPECT_EQ(r.code, 1) << r.describe();
+  EXPECT_NE(r.err.find("is not a manifest record"), std::string::npos) << r.describe();
+  EXPECT_EQ(read_file(tmp / "out" / "manifest.jsonl"), "{\"my\": \"own notes\"}\n");
+  EXPECT_TRUE(fs::exists(tmp / "out" / ".notes.tmp-keep"));
+  // A run into a folder without a manifest cleans up only its own kind of temporaries.
+  write_file(tmp / "keep" / ".one_v00.png.tmp-12345-0", "stale");
+  const auto k = run_render({"-i", "in", "--out", "keep", "-q"}, tmp.path());
+  ASSERT_EQ(k.code, 0) << k.describe();
+  EXPECT_EQ(read_file(tmp / "keep" / ".notes.tmp-keep"), "mine");
+  EXPECT_FALSE(fs::exists(tmp / "keep" / ".one_v00.png.tmp-12345-0"));
+}
+
 // Two runs into one folder: the second used to delete the first's temporaries (which then
 // died with "cannot move the finished file into place"). The folder is locked for a run: a
 // second run is refused with one line naming the owner, the first finishes untouched, and a

@@ -23,10 +23,13 @@ struct ManifestEntry {
   std::string line;  // the JSON object, one line
   std::string job;   // the fingerprint of the settings that produced it
   std::string files[3];  // rainy, clean, mask (relative to the data set folder)
+  std::string source;    // the input image it was rendered from, as that run named it
 };
 
-// Entries by id. Missing file: empty. A line that does not parse is an error unless it is
-// the last line (an interrupted append).
+// Entries by id. Missing file: empty. A line that is not a record is an error, except a last
+// line that is cut: no line break after it and not a whole JSON value (an interrupted append,
+// ignored). A whole line that is no record (someone's own notes in a file of that name) is
+// an error, so that a resumed run does not replace the file.
 std::map<std::string, ManifestEntry> read_manifest(const std::filesystem::path& file);
 
 // "manifest.jsonl" for the whole run, "manifest.part-K-of-N.jsonl" for shard K of N.
