@@ -16,6 +16,7 @@
 // stderr, no partial output file); 2 bad command line; 3 batch run with --keep-going
 // finished but some inputs failed.
 #include <algorithm>
+#include <cerrno>
 #include <cmath>
 #include <cstdio>
 #include <cstring>
@@ -31,6 +32,7 @@
 #include <tuple>
 #include <vector>
 
+#include <signal.h>
 #include <unistd.h>
 
 #include <CLI/CLI.hpp>
@@ -135,6 +137,29 @@ void warn_format_loss(const fs::path& file, const std::string& lost) {
   said = true;
   std::fprintf(stderr, "raindrop-remove: warning: '%s': %s (write .png or .tif to keep it whole)\n",
                file.string().c_str(), lost.c_str());
+}
+
+// Temporaries an earlier run left beside this run's outputs when it was stopped (its process
+// gone: a run still going, another shard say, keeps its own). Only names this program gives
+// them, for the files this run writes.
+void remove_stale_temporaries(const std::vector<Job>& jobs) {
+  std::map<fs::path, std::set<std::string>> stems;  // folder -> stems of the files written there
+  for (const auto& j : jobs) {
+    for (const fs::path* p : {&j.output, j.mask ? &*j.mask : nullptr}) {
+      if (p) stems[p->has_parent_path() ? p->parent_path() : fs::path(".")].insert(temporary_stem(p->filename().string()));
+    }
+  }
+  std::error_code ec;
+  for (const auto& [dir, names] : stems) {
+    for (auto it = fs::directory_iterator(dir, ec); !ec && it != fs::directory_iterator(); it.increment(ec)) {
+      const auto temporary = parse_temporary_name(it->path().filename().string());
+      if (!temporary || !names.count(temporary->stem)) continue;
+      if (::kill(static_cast<pid_t>(temporary->pid), 0) == 0 || errno != ESRCH) continue;  // its writer still runs
+      std::error_code ignored;
+      fs::remove(it->path(), ignored);
+    }
+    ec.clear();
+  }
 }
 
 struct Settings {
@@ -433,6 +458,7 @@ int run(int argc, char** argv) {
   // later run may replace it (own_outputs.h). Every shard lists the whole run's names: each
   // checked them all above, so shards writing the list at once agree on it.
   for (const auto& g : guarded) add_own_outputs(g.folder, g.names);
+  remove_stale_temporaries(jobs);
   std::set<std::string> checked_formats;
   for (const Job& j : jobs) {
     for (const fs::path* p : {&j.output, j.mask ? &*j.mask : nullptr}) {

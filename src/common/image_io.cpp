@@ -155,6 +155,19 @@ std::string temporary_stem(const std::string& file_name) {
   return file_name.substr(0, kMaxFileNameBytes - kSuffix);
 }
 
+std::optional<TemporaryName> parse_temporary_name(const std::string& name) {
+  const auto tmp = name.rfind(".tmp-");
+  if (name.size() < 2 || name[0] != '.' || tmp == std::string::npos || tmp < 2) return std::nullopt;
+  const std::string tail = name.substr(tmp + 5);
+  const auto dash = tail.find('-');
+  const auto digits = [](const std::string& t) {
+    return !t.empty() && t.size() <= 10 &&
+           std::all_of(t.begin(), t.end(), [](unsigned char c) { return std::isdigit(c) != 0; });
+  };
+  if (dash == std::string::npos || !digits(tail.substr(0, dash)) || !digits(tail.substr(dash + 1))) return std::nullopt;
+  return TemporaryName{name.substr(1, tmp - 1), std::stol(tail.substr(0, dash))};
+}
+
 void check_file_name_length(const fs::path& path) {
   const std::size_t bytes = path.filename().string().size();
   if (bytes > kMaxFileNameBytes)

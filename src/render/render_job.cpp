@@ -136,16 +136,11 @@ void remove_stale_temporaries(const fs::path& dir, const std::set<std::string>* 
   std::error_code ec;
   for (auto it = fs::directory_iterator(dir, ec); !ec && it != fs::directory_iterator(); it.increment(ec)) {
     const std::string name = it->path().filename().string();
-    // Only names this program gives its temporaries: ".<stem>.tmp-<pid>-<n>", the stem a PNG
-    // or a manifest. A user's own hidden ".notes.tmp-keep" is left alone.
-    const auto tmp = name.rfind(".tmp-");
-    if (name.empty() || name[0] != '.' || tmp == std::string::npos || tmp < 2) continue;
-    const std::string stem = name.substr(1, tmp - 1), tail = name.substr(tmp + 5);
-    const auto dash = tail.find('-');
-    const auto digits = [](const std::string& t) {
-      return !t.empty() && std::all_of(t.begin(), t.end(), [](unsigned char c) { return std::isdigit(c) != 0; });
-    };
-    if (dash == std::string::npos || !digits(tail.substr(0, dash)) || !digits(tail.substr(dash + 1))) continue;
+    // Only names this program gives its temporaries, the stem a PNG or a manifest: a user's
+    // own hidden ".notes.tmp-keep" is left alone.
+    const auto temporary = parse_temporary_name(name);
+    if (!temporary) continue;
+    const std::string& stem = temporary->stem;
     const std::string ext = lowercase_extension(fs::path(stem));
     if (ext != ".png" && ext != ".jsonl") continue;
     if (!only || only->count(stem)) fs::remove(it->path(), ec);

@@ -667,6 +667,22 @@ TEST_F(RemoveCli, AFolderHoldingTheInputNeverHasAFileReplaced) {
   }
 }
 
+// A run stopped while writing leaves a hidden temporary beside its output; the next run into
+// that folder removes it, and only it: not a temporary whose writer still runs (another shard,
+// here this test's own process) and not a user's file that only looks like one.
+TEST_F(RemoveCli, ARunRemovesTheTemporariesOfAStoppedOne) {
+  write_image(tmp / "in" / "a.png", make_image(40, 30, 1));
+  fs::create_directories(tmp / "out");
+  const std::string live = ".a.png.tmp-" + std::to_string(::getpid()) + "-0";
+  for (const std::string& name : {std::string(".a.png.tmp-4194303-7"), live, std::string(".notes.tmp-keep")})
+    write_file(tmp / "out" / name, "x");
+  const RunResult r = remove({"in", "out", "-q"});
+  ASSERT_EQ(r.code, 0) << r.describe();
+  EXPECT_FALSE(fs::exists(tmp / "out" / ".a.png.tmp-4194303-7"));
+  EXPECT_TRUE(fs::exists(tmp / "out" / live));
+  EXPECT_TRUE(fs::exists(tmp / "out" / ".notes.tmp-keep"));
+}
+
 // Any two of input, output, mask and contact sheet naming one file (or, in folder mode, the
 // mask folder being the input or output folder) would overwrite one with another: refused as
 // a usage error before anything is read or written.

@@ -16,6 +16,7 @@ import argparse
 import contextlib
 import dataclasses
 import datetime as _dt
+import glob
 import io
 import json
 import logging
@@ -218,6 +219,21 @@ def take_reconstruction(nets: dict[str, nn.Module], folder: Path, source: dict |
     return {**(source or {}), "reconstruction_from": str(folder)}
 
 
+def _remove_stale_stages(out_dir: Path) -> None:
+    """Staging folders beside ``out_dir`` left by an export that a signal stopped (SIGTERM ends
+    Python without its ``finally``): those whose process is gone. A running export's is kept."""
+    for stage in out_dir.parent.glob(f".{glob.escape(out_dir.name)}.export-*"):
+        pid = stage.name.rsplit("-", 1)[-1]
+        if not pid.isdigit() or not stage.is_dir():
+            continue
+        try:
+            os.kill(int(pid), 0)
+        except ProcessLookupError:
+            shutil.rmtree(stage, ignore_errors=True)
+        except (PermissionError, OverflowError):
+            pass  # another user's process, or no process id at all: not ours to judge
+
+
 def export_networks(cfg: RunConfig, nets: dict[str, nn.Module], out_dir: Path, source: dict | None = None) -> dict:
     """Export, check and describe the three networks into ``out_dir``; returns export.json.
 
@@ -227,6 +243,7 @@ def export_networks(cfg: RunConfig, nets: dict[str, nn.Module], out_dir: Path, s
     one new graph beside two old ones. Other files in ``out_dir`` (LARGE_DROPS, notes) are kept."""
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
+    _remove_stale_stages(out_dir)
     stage = out_dir.parent / f".{out_dir.name}.export-{os.getpid()}"
     shutil.rmtree(stage, ignore_errors=True)
     stage.mkdir()

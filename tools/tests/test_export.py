@@ -2,6 +2,7 @@
 
 import hashlib
 import json
+import os
 
 import numpy as np
 import pytest
@@ -178,6 +179,22 @@ def test_a_failed_export_leaves_the_folder_as_it_was(tmp_path):
         export_networks(cfg, nets, out, source={"second": True})
     assert {p.name: p.read_bytes() for p in out.iterdir()} == before
     assert [p.name for p in tmp_path.iterdir()] == ["model"], "the staging folder is removed"
+
+
+def test_an_export_removes_the_staging_folder_of_a_stopped_one(tmp_path):
+    """SIGTERM ends an export without its clean-up: the next export into the folder removes
+    that staging folder (its process is gone), and keeps a running export's and the user's."""
+    cfg, nets = _smoke_nets()
+    out = tmp_path / "model"
+    stale = tmp_path / ".model.export-4194303"
+    live = tmp_path / f".model.export-{os.getpid()}-other"  # not a process id: left alone
+    running = tmp_path / f".model.export-{os.getppid()}"
+    for d in (stale, live, running):
+        (d / "rdn.onnx").parent.mkdir(parents=True)
+        (d / "rdn.onnx").write_bytes(b"x")
+    export_networks(cfg, nets, out, source={"test": True})
+    assert not stale.exists()
+    assert live.exists() and running.exists()
 
 
 def test_export_cli_refuses_unsafe_names_and_unreadable_checkpoints(tmp_path, capsys, monkeypatch):

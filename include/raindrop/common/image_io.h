@@ -11,6 +11,7 @@
 #include <cstddef>
 #include <cstdint>
 #include <filesystem>
+#include <optional>
 #include <string>
 #include <utility>
 #include <vector>
@@ -121,6 +122,14 @@ void check_file_name_length(const std::filesystem::path& path);
 // The part of a file name that its hidden temporary (".<stem>.tmp-<pid>-<n>", beside it in
 // its folder) carries: the name itself, cut where the temporary would pass kMaxFileNameBytes.
 std::string temporary_stem(const std::string& file_name);
+
+// A hidden temporary's name taken apart: ".<stem>.tmp-<pid>-<n>" gives its stem and the id of
+// the process that wrote it; any other name (a user's ".notes.tmp-keep", say) gives nothing.
+struct TemporaryName {
+  std::string stem;
+  long pid = 0;
+};
+std::optional<TemporaryName> parse_temporary_name(const std::string& file_name);
 
 // Creates the folder if needed and proves it is writable; throws a one-line Error if not.
 void ensure_writable_dir(const std::filesystem::path& dir);
