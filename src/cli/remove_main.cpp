@@ -172,7 +172,8 @@ struct Settings {
 // sheet.
 std::vector<cv::Mat> process(Remover& remover, const Job& job, const Settings& s, bool want_panels,
                              StagedImages* files, std::string* lost) {
-  const cv::Mat input = read_image_native(job.input);
+  std::string icc_profile;  // the input's colour profile, given to the output (image_io.h)
+  const cv::Mat input = read_image_native(job.input, 1, &icc_profile);
   RemoveResult r = remover.run(input, s.options);
   if (job.make_dirs) {
     for (const fs::path* p : {&job.output, job.mask ? &*job.mask : nullptr}) {
@@ -181,7 +182,7 @@ std::vector<cv::Mat> process(Remover& remover, const Job& job, const Settings& s
         throw Error("cannot create the folder '" + p->parent_path().string() + "' (" + ec.message() + ")");
     }
   }
-  *lost = files->stage(r.image, job.output);
+  *lost = files->stage(r.image, job.output, kDefaultPngLevel, icc_profile);
   if (job.mask) files->stage(r.mask, *job.mask);
   if (s.time) {
     const double coverage = 100.0 * cv::countNonZero(r.mask) / static_cast<double>(r.mask.total());
@@ -216,9 +217,9 @@ int run(int argc, char** argv) {
       "Inputs: 8/16-bit grey, grey+alpha, RGB, RGBA up to 2^26 pixels (e.g. 8192x8192); the output keeps size,\n"
       "channels and depth (grey: the networks see it as RGB, the output is its luma 0.299R+0.587G+0.114B; alpha\n"
       "is copied). An EXIF/TIFF orientation is applied: phone photographs are processed and written upright.\n"
-      "Other metadata (EXIF, an ICC colour profile) is not copied. Existing output files are replaced, except in\n"
-      "an output or mask folder that holds the input or lies inside it: there only files an earlier run wrote\n"
-      "(listed in its hidden .raindrop-remove-outputs).\n"
+      "A PNG or JPEG input's ICC colour profile goes into a PNG or JPEG output; other metadata (EXIF) does not.\n"
+      "Existing output files are replaced, except in an output or mask folder that holds the input or lies\n"
+      "inside it: there only files an earlier run wrote (listed in its hidden .raindrop-remove-outputs).\n"
       "Exit codes: 0 success; 1 error (one line on stderr, no partial output); 2 bad command line;\n"
       "3 folder run with --keep-going finished but some images failed.");
   std::string input, output, models_dir, model_config, large_drop_models, mask, mask_dir, sheet, shard_text;

@@ -92,10 +92,11 @@ Opened open_image(const fs::path& path, bool check_data = true) {
 }
 
 // The whole image as stored: CV_8U, CV_16U or (float files) CV_32F, with the header's channels.
-cv::Mat decode(const fs::path& path, const Opened& o) {
+cv::Mat decode(const fs::path& path, const Opened& o, std::string* icc = nullptr) {
   cv::Mat image = o.route == Route::png    ? png::decode(path, o.png)
-                  : o.route == Route::jpeg ? jpeg::decode(path)
+                  : o.route == Route::jpeg ? jpeg::decode(path, icc)
                                            : oiio::codec(quoted(path) + ": reading this file").decode(path);
+  if (icc && o.route == Route::png) *icc = png::icc_profile(o.png);
   if (image.cols != o.header.width || image.rows != o.header.height || image.channels() != o.header.channels)
     throw Error(quoted(path) + ": cannot decode (the pixels do not match the header)");
   return image;
@@ -236,10 +237,11 @@ void check_native_header(const fs::path& path, int min_size) {
   check_native_spec(path, open_image(path, /*check_data=*/false).header, min_size);
 }
 
-cv::Mat read_image_native(const fs::path& path, int min_size) {
+cv::Mat read_image_native(const fs::path& path, int min_size, std::string* icc_profile) {
   const Opened o = open_image(path);
   check_native_spec(path, o.header, min_size);
-  return decode(path, o);
+  if (icc_profile) icc_profile->clear();
+  return decode(path, o, icc_profile);
 }
 
 namespace {
@@ -266,16 +268,17 @@ cv::Mat for_jpeg(const cv::Mat& image, std::string* lost) {
 }
 
 // Writes a PNG or JPEG to `tmp` with libpng or libjpeg; removes it and throws on any failure.
-std::string write_native(const cv::Mat& image, const fs::path& tmp, const fs::path& path, int png_level) {
+std::string write_native(const cv::Mat& image, const fs::path& tmp, const fs::path& path, int png_level,
+                         const std::string& icc) {
   std::FILE* file = std::fopen(tmp.c_str(), "wb");
   if (!file) throw Error(quoted(path) + ": cannot write (" + std::strerror(errno) + ")");
   std::string lost;
   std::error_code ec;
   try {
     if (is_png_name(path)) {
-      png::encode(image, file, png_level, path);
+      png::encode(image, file, png_level, path, icc);
     } else {
-      jpeg::encode(for_jpeg(image, &lost), file, jpeg::kDefaultQuality, path);
+      jpeg::encode(for_jpeg(image, &lost), file, jpeg::kDefaultQuality, path, icc);
     }
   } catch (...) {
     std::fclose(file);
@@ -299,11 +302,12 @@ namespace {
 
 // Writes `image` for `path` (whose extension picks the format) into the file `tmp`; removes
 // `tmp` and throws on any failure. Returns what the format lost (write_image_atomic).
-std::string write_image_file(const cv::Mat& image, const fs::path& tmp, const fs::path& path, int png_level) {
+std::string write_image_file(const cv::Mat& image, const fs::path& tmp, const fs::path& path, int png_level,
+                             const std::string& icc = {}) {
   CV_Assert((image.depth() == CV_8U || image.depth() == CV_16U) && image.channels() >= 1 && image.channels() <= 4);
   std::string lost;
   if (is_png_name(path) || is_jpeg_name(path)) {
-    lost = write_native(image, tmp, path, png_level);
+    lost = write_native(image, tmp, path, png_level, icc);
   } else {
     const oiio::Codec& codec = oiio::codec(quoted(path) + ": writing this format");
     try {
@@ -319,9 +323,9 @@ std::string write_image_file(const cv::Mat& image, const fs::path& tmp, const fs
 
 }  // namespace
 
-std::string write_image_atomic(const cv::Mat& image, const fs::path& path, int png_level) {
+std::string write_image_atomic(const cv::Mat& image, const fs::path& path, int png_level, const std::string& icc_profile) {
   const fs::path tmp = temporary_beside(path);
-  const std::string lost = write_image_file(image, tmp, path, png_level);
+  const std::string lost = write_image_file(image, tmp, path, png_level, icc_profile);
   move_into_place(tmp, path);
   return lost;
 }
@@ -331,9 +335,10 @@ StagedImages::~StagedImages() {
   for (const auto& [tmp, path] : pending_) fs::remove(tmp, ec);
 }
 
-std::string StagedImages::stage(const cv::Mat& image, const fs::path& path, int png_level) {
+std::string StagedImages::stage(const cv::Mat& image, const fs::path& path, int png_level,
+                                const std::string& icc_profile) {
   const fs::path tmp = temporary_beside(path);
-  const std::string lost = write_image_file(image, tmp, path, png_level);
+  const std::string lost = write_image_file(image, tmp, path, png_level, icc_profile);
   pending_.emplace_back(tmp, path);
   return lost;
 }

@@ -2,6 +2,7 @@
 
 #include <csetjmp>
 #include <cstdio>
+#include <cstdlib>
 #include <cstring>
 #include <cerrno>
 #include <string>
@@ -70,7 +71,7 @@ bool native_colour(const jpeg_decompress_struct& d) {
 
 // Decodes from a source that `attach` sets up; `what` names it in errors.
 template <typename Attach>
-cv::Mat decode_from(Attach attach, const std::string& what) {
+cv::Mat decode_from(Attach attach, const std::string& what, std::string* icc = nullptr) {
   ErrorSink sink;
   jpeg_decompress_struct d{};
   d.err = &sink.manager;
@@ -83,8 +84,15 @@ cv::Mat decode_from(Attach attach, const std::string& what) {
     created = true;
     attach(d);
     keep_exif(d);
+    if (icc) jpeg_save_markers(&d, JPEG_APP0 + 2, 0xFFFF);  // where an ICC profile is
     jpeg_read_header(&d, TRUE);
     orientation = orientation_of(d);
+    if (icc) {
+      JOCTET* profile = nullptr;
+      unsigned int length = 0;
+      if (jpeg_read_icc_profile(&d, &profile, &length) && profile) icc->assign(reinterpret_cast<char*>(profile), length);
+      std::free(profile);
+    }
     if (!native_colour(d)) ERREXIT(&d, JERR_CONVERSION_NOTIMPL);
     d.out_color_space = d.num_components == 1 ? JCS_GRAYSCALE : JCS_RGB;
     jpeg_start_decompress(&d);
@@ -104,7 +112,7 @@ cv::Mat decode_from(Attach attach, const std::string& what) {
 }
 
 template <typename Attach>
-void encode_to(const cv::Mat& image, int quality, Attach attach, const std::string& what) {
+void encode_to(const cv::Mat& image, int quality, Attach attach, const std::string& what, const std::string& icc = {}) {
   CV_Assert(image.type() == CV_8UC1 || image.type() == CV_8UC3);
   ErrorSink sink;
   jpeg_compress_struct c{};
@@ -122,6 +130,8 @@ void encode_to(const cv::Mat& image, int quality, Attach attach, const std::stri
     jpeg_set_defaults(&c);  // standard tables, 4:2:0 chroma, as OpenImageIO writes
     jpeg_set_quality(&c, quality, TRUE);
     jpeg_start_compress(&c, TRUE);
+    if (!icc.empty())
+      jpeg_write_icc_profile(&c, reinterpret_cast<const JOCTET*>(icc.data()), static_cast<unsigned int>(icc.size()));
     while (c.next_scanline < c.image_height) {
       JSAMPROW row = const_cast<JSAMPROW>(image.ptr(static_cast<int>(c.next_scanline)));
       jpeg_write_scanlines(&c, &row, 1);
@@ -167,11 +177,11 @@ Info read_info(const fs::path& path) {
   return info;
 }
 
-cv::Mat decode(const fs::path& path) {
+cv::Mat decode(const fs::path& path, std::string* icc) {
   std::FILE* file = std::fopen(path.c_str(), "rb");
   if (!file) throw Error(quoted(path) + ": cannot open (" + std::strerror(errno) + ")");
   try {
-    cv::Mat image = decode_from([file](jpeg_decompress_struct& d) { jpeg_stdio_src(&d, file); }, quoted(path));
+    cv::Mat image = decode_from([file](jpeg_decompress_struct& d) { jpeg_stdio_src(&d, file); }, quoted(path), icc);
     std::fclose(file);
     return image;
   } catch (...) {
@@ -185,8 +195,8 @@ cv::Mat decode(const std::vector<unsigned char>& bytes) {
                      "JPEG in memory");
 }
 
-void encode(const cv::Mat& image, std::FILE* file, int quality, const fs::path& name) {
-  encode_to(image, quality, [file](jpeg_compress_struct& c) { jpeg_stdio_dest(&c, file); }, quoted(name));
+void encode(const cv::Mat& image, std::FILE* file, int quality, const fs::path& name, const std::string& icc) {
+  encode_to(image, quality, [file](jpeg_compress_struct& c) { jpeg_stdio_dest(&c, file); }, quoted(name), icc);
 }
 
 namespace {

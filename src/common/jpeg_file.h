@@ -6,6 +6,7 @@
 // OpenImageIO made of them. Internal to raindrop_common.
 #include <cstdio>
 #include <filesystem>
+#include <string>
 #include <vector>
 
 #include <opencv2/core.hpp>
@@ -36,10 +37,13 @@ Info read_info(const std::filesystem::path& path);
 // the file on any error, and on the warnings that mean missing or damaged pixels (libjpeg would
 // fill them with grey: a file cut short, data that ends early); a few stray bytes before a
 // marker, which damage nothing, are accepted.
-cv::Mat decode(const std::filesystem::path& path);
+// With `icc`, also the ICC profile its APP2 markers hold ("" when none).
+cv::Mat decode(const std::filesystem::path& path, std::string* icc = nullptr);
 
 // Writes `image` (CV_8UC1 or CV_8UC3) as a baseline JPEG of `quality` (1-100).
-void encode(const cv::Mat& image, std::FILE* file, int quality, const std::filesystem::path& name);
+// With a non-empty `icc` (an ICC profile), APP2 markers hold it.
+void encode(const cv::Mat& image, std::FILE* file, int quality, const std::filesystem::path& name,
+            const std::string& icc = {});
 
 // The same in memory, and back.
 std::vector<unsigned char> encode(const cv::Mat& image, int quality);

@@ -26,7 +26,13 @@ struct Info {
   // The IDAT chunks' bytes, joined, kept by check(..., check_data = true) for a native()
   // non-interlaced file, so that decode() inflates them without reading the file again.
   std::string image_data;
+  // The iCCP chunk's data as stored (profile name, 0, compression method, zlib stream), or empty.
+  std::string iccp;
 };
+
+// The ICC profile an iCCP chunk holds (inflated), or "" when there is none or it does not
+// inflate (a damaged profile is dropped, not an error: the pixels are intact). At most 64 MiB.
+std::string icc_profile(const Info& info);
 
 // Whether the file starts with PNG's signature.
 bool has_signature(const unsigned char* first8);
@@ -59,6 +65,8 @@ std::optional<cv::Mat> decode_image_data(const Info& info);
 // (0-9) and libpng's adaptive row filters, (kPngRunLength) zlib's run-length strategy with
 // Paeth filters, or (kPngFast) Paeth filters deflated by libdeflate. Throws raindrop::Error
 // naming `name`.
-void encode(const cv::Mat& image, std::FILE* file, int level, const std::filesystem::path& name);
+// With a non-empty `icc` (an ICC profile), an iCCP chunk holds it.
+void encode(const cv::Mat& image, std::FILE* file, int level, const std::filesystem::path& name,
+            const std::string& icc = {});
 
 }  // namespace raindrop::png

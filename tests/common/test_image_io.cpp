@@ -1,6 +1,7 @@
 // Image input conversions that the CLI tests do not reach: float (linear) files.
 #include <cerrno>
 #include <cmath>
+#include <cstdint>
 #include <cstring>
 #include <filesystem>
 #include <random>
@@ -124,6 +125,33 @@ TEST(ImageIo, FailedRenameReportsItsOwnError) {
   size_t left = 0;
   for (const auto& e : std::filesystem::directory_iterator(dir)) left += e.path().filename().string()[0] == '.';
   EXPECT_EQ(left, 0u) << "temporaries left behind";
+  std::filesystem::remove_all(dir);
+}
+
+// A photograph's colour profile goes from input to output: written into PNG (our fast writer
+// and libpng's) and JPEG, read back byte for byte, grey and colour; a file without one reads
+// back none. The pixels are those written without it.
+TEST(ImageIo, ColourProfilesAreWrittenAndReadBack) {
+  const auto dir = std::filesystem::temp_directory_path() / ("raindrop_icc_" + std::to_string(::getpid()));
+  std::filesystem::create_directories(dir);
+  cv::Mat rgb(24, 32, CV_8UC3), grey(24, 32, CV_8UC1);
+  cv::randu(rgb, 0, 256);
+  cv::randu(grey, 0, 256);
+  for (const auto& [image, space] : {std::pair{rgb, "RGB "}, std::pair{grey, "GRAY"}}) {
+    const std::string icc = testsupport::test_icc_profile(space, 1000);
+    for (const auto& [name, level] : {std::pair{"fast.png", kPngFast}, std::pair{"rle.png", kPngRunLength},
+                                      std::pair{"level6.png", 6}, std::pair{"photo.jpg", kPngFast}}) {
+      SCOPED_TRACE(std::string(name) + " " + space);
+      write_image_atomic(image, dir / name, level, icc);
+      std::string read;
+      const cv::Mat back = read_image_native(dir / name, 1, &read);
+      EXPECT_EQ(read, icc);
+      write_image_atomic(image, dir / name, level);  // the same file again, without a profile
+      const cv::Mat plain = read_image_native(dir / name, 1, &read);
+      EXPECT_EQ(read, "");
+      EXPECT_EQ(cv::norm(back, plain, cv::NORM_INF), 0.0);
+    }
+  }
   std::filesystem::remove_all(dir);
 }
 

@@ -3,6 +3,8 @@
 // wrote exactly as stored, and writing fixtures of any depth and channel count.
 #include <gtest/gtest.h>
 
+#include <cstdint>
+#include <cstring>
 #include <filesystem>
 #include <optional>
 #include <string>
@@ -76,6 +78,27 @@ inline void write_image(const std::filesystem::path& p, const cv::Mat& m) {
   ASSERT_TRUE(out->open(p.string(), spec)) << out->geterror();
   ASSERT_TRUE(out->write_image(type, data.data)) << out->geterror();
   ASSERT_TRUE(out->close()) << out->geterror();
+}
+
+// A minimal ICC profile that libpng accepts: the 128-byte header (size, version 4.3, a display
+// device, `space` ("RGB " or "GRAY"), XYZ connection space, "acsp", the D50 illuminant) and an
+// empty tag table, then `filler` bytes of padding that tell profiles apart.
+inline std::string test_icc_profile(const char* space, int filler) {
+  std::string p(132 + 4 * static_cast<size_t>(filler), '\0');
+  const auto put32 = [&p](size_t at, std::uint32_t v) {
+    for (int i = 0; i < 4; ++i) p[at + i] = static_cast<char>(v >> (24 - 8 * i));
+  };
+  put32(0, static_cast<std::uint32_t>(p.size()));
+  put32(8, 0x04300000);
+  std::memcpy(&p[12], "mntr", 4);
+  std::memcpy(&p[16], space, 4);
+  std::memcpy(&p[20], "XYZ ", 4);
+  std::memcpy(&p[36], "acsp", 4);
+  put32(68, 0x0000F6D6);  // D50: X 0.9642, Y 1.0, Z 0.8249 (s15Fixed16)
+  put32(72, 0x00010000);
+  put32(76, 0x0000D32D);
+  for (int i = 0; i < filler; ++i) put32(132 + 4 * static_cast<size_t>(i), static_cast<std::uint32_t>(i * 2654435761u));
+  return p;
 }
 
 }  // namespace testsupport

@@ -683,6 +683,22 @@ TEST_F(RemoveCli, ARunRemovesTheTemporariesOfAStoppedOne) {
   EXPECT_TRUE(fs::exists(tmp / "out" / ".notes.tmp-keep"));
 }
 
+// A photograph's colour profile (a wide-gamut phone photograph's, say) is given to its output,
+// PNG or JPEG, so that it keeps its colours in a colour-managed viewer; the mask gets none.
+TEST_F(RemoveCli, TheOutputKeepsTheInputsColourProfile) {
+  const std::string icc = testsupport::test_icc_profile("RGB ", 300);
+  raindrop::write_image_atomic(make_image(64, 48, 1), tmp / "photo.jpg", raindrop::kDefaultPngLevel, icc);
+  for (const char* out : {"out.png", "out.jpg"}) {
+    const RunResult r = remove({"photo.jpg", out, "--mask", "mask.png", "-q"});
+    ASSERT_EQ(r.code, 0) << r.describe();
+    std::string read;
+    raindrop::read_image_native(tmp / out, 1, &read);
+    EXPECT_EQ(read, icc) << out;
+    raindrop::read_image_native(tmp / "mask.png", 1, &read);
+    EXPECT_EQ(read, "") << "the mask is no photograph";
+  }
+}
+
 // Any two of input, output, mask and contact sheet naming one file (or, in folder mode, the
 // mask folder being the input or output folder) would overwrite one with another: refused as
 // a usage error before anything is read or written.

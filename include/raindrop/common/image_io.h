@@ -52,7 +52,10 @@ void check_rgb8_header(const std::filesystem::path& path, bool convert, int min_
 
 // The image with its own channels (1-4) and depth: CV_8U or CV_16U (float inputs are refused,
 // other integer depths become CV_16U). For raindrop-remove, which keeps size, channels and bit depth.
-cv::Mat read_image_native(const std::filesystem::path& path, int min_size = 1);
+// With `icc_profile`, also the file's ICC colour profile, for writing it back with the output
+// (PNG's iCCP chunk, JPEG's APP2 markers; "" when the file has none, or for the formats that go
+// through OpenImageIO, whose profiles are not carried).
+cv::Mat read_image_native(const std::filesystem::path& path, int min_size = 1, std::string* icc_profile = nullptr);
 
 // Throws the Error read_image_native would throw for what the file's header shows, without
 // decoding the pixels (as check_rgb8_header does for read_rgb8).
@@ -77,7 +80,10 @@ std::string png_level_name(int png_level);
 // from the extension (`png_level` applies to PNG). Throws raindrop::Error on failure, leaving no file behind.
 // Returns what the format could not hold, in a few words (e.g. "jpeg cannot hold this 16-bit
 // RGBA image: rounded to 8 bits, alpha dropped"), or "" when the file keeps the image whole.
-std::string write_image_atomic(const cv::Mat& image, const std::filesystem::path& path, int png_level = kDefaultPngLevel);
+// A non-empty `icc_profile` is embedded in a PNG or JPEG (the formats read_image_native reads
+// one from), so that a photograph in another colour space than sRGB keeps its colours.
+std::string write_image_atomic(const cv::Mat& image, const std::filesystem::path& path, int png_level = kDefaultPngLevel,
+                               const std::string& icc_profile = {});
 
 // Images that appear together or not at all (a program's output, mask and contact sheet): each
 // is written to a hidden temporary beside its name (stage, which returns what
@@ -93,7 +99,8 @@ class StagedImages {
   StagedImages(const StagedImages&) = delete;
   StagedImages& operator=(const StagedImages&) = delete;
   ~StagedImages();
-  std::string stage(const cv::Mat& image, const std::filesystem::path& path, int png_level = kDefaultPngLevel);
+  std::string stage(const cv::Mat& image, const std::filesystem::path& path, int png_level = kDefaultPngLevel,
+                    const std::string& icc_profile = {});
   void commit();
 
  private:
