@@ -72,7 +72,15 @@ class UsageError : public Error {
 // Image files under `dir`, recursively, sorted, relative to `dir`; files under the `skip`
 // folders (the output and mask folders, when they lie inside the input folder) are left out.
 std::vector<fs::path> list_images(const fs::path& dir, const std::vector<fs::path>& skip) {
-  std::vector<fs::path> files = list_image_files(dir, true, skip);
+  std::vector<fs::path> unfollowed;
+  std::vector<fs::path> files = list_image_files(dir, true, skip, &unfollowed);
+  // Not followed (a link may lead back up the tree), and not silently: their images are not inputs.
+  if (!unfollowed.empty())
+    std::fprintf(stderr,
+                 "raindrop-remove: warning: not following %zu symbolic link%s to folders under '%s' (first: '%s'): "
+                 "the images behind them are not processed (give such a folder as an input of its own)\n",
+                 unfollowed.size(), unfollowed.size() == 1 ? "" : "s", dir.string().c_str(),
+                 unfollowed.front().string().c_str());
   // EXR holds float images, which this program does not take (read_image_native): a folder's
   // EXR files are not inputs here, as before image_files.h gave both programs one list.
   files.erase(std::remove_if(files.begin(), files.end(),

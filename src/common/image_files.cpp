@@ -54,7 +54,8 @@ std::string image_extensions() {
   return all;
 }
 
-std::vector<fs::path> list_image_files(const fs::path& dir, bool recursive, const std::vector<fs::path>& skip) {
+std::vector<fs::path> list_image_files(const fs::path& dir, bool recursive, const std::vector<fs::path>& skip,
+                                      std::vector<fs::path>* unfollowed) {
   std::vector<fs::path> files;
   std::error_code ec;
   // Only folders strictly inside `dir` are left out: a skip folder that is `dir` itself or
@@ -74,10 +75,12 @@ std::vector<fs::path> list_image_files(const fs::path& dir, bool recursive, cons
         it.disable_recursion_pending();
         continue;
       }
+      if (unfollowed && it->is_symlink() && it->is_directory()) unfollowed->push_back(it->path());
       if (it->is_regular_file() && is_image_name(it->path())) files.push_back(it->path());
     }
   } else {
     for (auto it = fs::directory_iterator(dir, ec); !ec && it != fs::directory_iterator(); it.increment(ec)) {
+      if (unfollowed && it->is_symlink() && it->is_directory()) unfollowed->push_back(it->path());
       if (it->is_regular_file() && is_image_name(it->path())) files.push_back(it->path());
     }
   }

@@ -699,6 +699,20 @@ TEST_F(RemoveCli, TheOutputKeepsTheInputsColourProfile) {
   }
 }
 
+// A link to a folder inside the input folder is not followed (it may lead back up the tree),
+// and not silently: a warning says its images are not processed.
+TEST_F(RemoveCli, ALinkedFolderIsNotFollowedSilently) {
+  write_image(tmp / "in" / "a.png", make_image(40, 30, 1));
+  write_image(tmp / "elsewhere" / "b.png", make_image(40, 30, 2));
+  fs::create_directory_symlink(tmp / "elsewhere", tmp / "in" / "linked");
+  const RunResult r = remove({"in", "out", "-q"});
+  ASSERT_EQ(r.code, 0) << r.describe();
+  EXPECT_NE(r.err.find("not following 1 symbolic link to folders under 'in' (first: 'in/linked')"), std::string::npos)
+      << r.describe();
+  EXPECT_TRUE(fs::exists(tmp / "out" / "a.png"));
+  EXPECT_FALSE(fs::exists(tmp / "out" / "linked"));
+}
+
 // Any two of input, output, mask and contact sheet naming one file (or, in folder mode, the
 // mask folder being the input or output folder) would overwrite one with another: refused as
 // a usage error before anything is read or written.

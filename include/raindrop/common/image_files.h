@@ -33,8 +33,10 @@ bool strictly_inside(const std::filesystem::path& p, const std::filesystem::path
 // a symbolic link keeps its own name). Folders in `skip` that lie strictly inside `dir` (and
 // what lies under them) are left out: an output folder inside the input folder, whose files
 // are not inputs; a skip folder that is `dir` or holds it leaves nothing out. Throws
-// raindrop::Error if `dir` cannot be listed.
+// raindrop::Error if `dir` cannot be listed. Symbolic links to folders are not followed (a link
+// may lead back up the tree): with `unfollowed`, they are listed there, for a warning.
 std::vector<std::filesystem::path> list_image_files(const std::filesystem::path& dir, bool recursive,
-                                                    const std::vector<std::filesystem::path>& skip = {});
+                                                    const std::vector<std::filesystem::path>& skip = {},
+                                                    std::vector<std::filesystem::path>* unfollowed = nullptr);
 
 }  // namespace raindrop
