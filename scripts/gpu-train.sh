@@ -32,7 +32,13 @@ if [[ $mode == pack ]]; then
   for d in data/train data/train-lens-cover data/train-windshield-day data/train-cs-lens data/real-pairs; do
     [[ -f $d/manifest.jsonl ]] || { echo "error: $d is missing (scripts/results.sh data photoreal makes it)" >&2; exit 1; }
   done
-  rm -rf "$dir" && mkdir -p "$dir/wheels"
+  # Only a folder this script packed before (its marker) is emptied: DIR may be any folder a
+  # user names, and `pack data` once deleted the data sets themselves.
+  if [[ -e $dir && ! -f $dir/.gpu-train-pack ]] && [[ -n $(ls -A "$dir" 2>/dev/null) || ! -d $dir ]]; then
+    echo "error: '$dir' exists and was not made by 'scripts/gpu-train.sh pack' (no .gpu-train-pack in it); choose an empty or new folder" >&2
+    exit 1
+  fi
+  rm -rf "$dir" && mkdir -p "$dir/wheels" && echo "made by scripts/gpu-train.sh pack; replaced by the next pack" >"$dir/.gpu-train-pack"
   PYTHONPATH=tools $py -m raindrop_tools.datapack pack "$dir/syn" data/train:4 data/train-lens-cover:2 \
     data/train-windshield-day:2 data/train-cs-lens:3 --frames 65
   PYTHONPATH=tools $py -m raindrop_tools.datapack pack "$dir/real" data/real-pairs --split train
@@ -89,9 +95,9 @@ status=0
 for i in 0 1 2; do wait "${runs[$i]}" || { echo "${names[$i]}: exit $?"; status=1; }; tail -n 4 "runs-${names[$i]}.log"; done
 echo "training done in $((SECONDS - t0)) s"
 # The final checkpoints without optimizer state (the paper-width ones are 20 MiB with it).
-python3 - <<'PY'
-import glob, os, torch
-for run in sorted(glob.glob("runs/*")):
+python3 - "${names[@]}" <<'PY'
+import glob, os, sys, torch
+for run in [f"runs/{name}" for name in sys.argv[1:]]:  # this script's runs only
     ckpts = sorted(glob.glob(f"{run}/checkpoints/stage*_step*.pt"))
     for old in ckpts[:-1]:
         os.remove(old)

@@ -11,7 +11,12 @@ set -euo pipefail
 cd "$(dirname "${BASH_SOURCE[0]}")/.."
 
 run_demo=1
-[[ "${1:-}" == "--no-demo" ]] && run_demo=0
+case "${1:-}" in
+  "") ;;
+  --no-demo) run_demo=0 ;;
+  -h|--help) sed -n '2,9p' "$0" | sed 's/^# \{0,1\}//'; exit 0 ;;
+  *) echo "setup: unknown option '$1' (scripts/setup.sh [--no-demo]; --help says more)" >&2; exit 2 ;;
+esac
 
 packages=(build-essential cmake ninja-build pkg-config ca-certificates dpkg
           libopencv-dev libembree-dev libopenimageio-dev openimageio-tools python3-imath

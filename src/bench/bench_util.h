@@ -1,7 +1,13 @@
 #pragma once
 // Shared helpers of the benchmark programs: timing, statistics, machine description.
+#include <stdlib.h>
+
 #include <algorithm>
+#include <cerrno>
 #include <chrono>
+#include <cstring>
+#include <filesystem>
+#include <stdexcept>
 #include <fstream>
 #include <string>
 #include <thread>
@@ -18,6 +24,17 @@ inline double median(std::vector<double> v) {
   std::sort(v.begin(), v.end());
   const size_t n = v.size();
   return n % 2 ? v[n / 2] : 0.5 * (v[n / 2 - 1] + v[n / 2]);
+}
+
+// A new, private scratch folder under the system's temporary folder (mkdtemp: a fresh random
+// name, created here, mode 0700). A name made from the process id could already exist (as a
+// link to somewhere else, say) and would then be written through.
+inline std::filesystem::path make_scratch_dir() {
+  std::string pattern = (std::filesystem::temp_directory_path() / "raindrop-bench-XXXXXX").string();
+  if (!::mkdtemp(pattern.data()))
+    throw std::runtime_error("cannot create a scratch folder in " + std::filesystem::temp_directory_path().string() +
+                             " (" + std::strerror(errno) + ")");
+  return pattern;
 }
 
 inline double mean(const std::vector<double>& v) {

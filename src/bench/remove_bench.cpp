@@ -289,8 +289,7 @@ int run_remove_bench(RemoveBenchOptions o) {
   if (process) {
     std::error_code ec;
     const fs::path program = fs::read_symlink("/proc/self/exe", ec).parent_path() / "raindrop-remove";
-    const fs::path tmp = fs::temp_directory_path() / ("raindrop-bench-" + std::to_string(::getpid()));
-    fs::create_directories(tmp);
+    const fs::path tmp = bench::make_scratch_dir();
     write_image_atomic(demo_street(process->width, process->height), tmp / "in.png");
     const int threads = thread_counts.back();
     std::cout << "\n## raindrop-remove: process start to file written\n\n"

@@ -719,8 +719,7 @@ int run_render_bench(RenderBenchOptions o) {
     }
     if (wanted.empty()) throw Error("--sections names no section (" + names + ")");
   }
-  const fs::path tmp = fs::temp_directory_path() / ("raindrop-bench-" + std::to_string(::getpid()));
-  ensure_writable_dir(tmp);
+  const fs::path tmp = bench::make_scratch_dir();
   // Removed however the run ends, an error included.
   struct RemoveOnExit {
     fs::path dir;

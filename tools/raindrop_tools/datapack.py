@@ -163,6 +163,20 @@ def unpack(pack_dir: Path, dst: Path, threads: int) -> int:
     for name in index["sets"]:
         if (dst / name / MANIFEST).exists():
             raise PackError(f"{dst / name}: already holds a data set; choose an empty folder")
+    # Every file lands inside its set's folder, as a new file: a pack's index is data, and a
+    # name in it ("/home/x", "../../y") must not make the unpack write anywhere else, nor over a
+    # file already there.
+    root = dst.resolve()
+    for s in index["samples"]:
+        for key in ("rainy", "clean", "mask"):
+            rel = Path(str(s["set"])) / str(s["entry"][key])
+            target = (dst / rel).resolve()
+            if rel.is_absolute() or ".." in rel.parts or not target.is_relative_to(root / str(s["set"])):
+                raise PackError(f"{pack_dir}: sample {s.get('stem')!r}: {key} path {str(rel)!r} leaves the data set's folder")
+            if target.suffix.lower() != ".png":
+                raise PackError(f"{pack_dir}: sample {s.get('stem')!r}: {key} path {str(rel)!r} is not a .png")
+            if target.exists():
+                raise PackError(f"{target}: already exists; unpack into an empty folder")
 
     # Variants of a frame share one clean file and follow each other in a set: decode it once
     # (a bounded cache: a pack of large frames must not hold them all).

@@ -283,6 +283,24 @@ def export_networks(cfg: RunConfig, nets: dict[str, nn.Module], out_dir: Path, s
     return info
 
 
+def _refuse_another_runs_folder(out: Path, source: dict | None) -> None:
+    """The default folder, models/<name>, may hold a shipped model of that name (a run's
+    config keeps the name it was copied with): replaced only when it came from the same run.
+    An --out given by name is the user's choice and is replaced as asked."""
+    info_file = out / C.EXPORT_INFO
+    if not info_file.exists():
+        return
+    try:
+        before = (json.loads(info_file.read_text()).get("checkpoint") or {}).get("path")
+    except (OSError, ValueError, AttributeError):
+        before = None
+    now = (source or {}).get("path")
+    same_run = before and now and Path(before).parent.parent.resolve() == Path(now).parent.parent.resolve()
+    if not same_run:
+        raise ExportError(f"{out} already holds a model exported from {before or 'another run'}; this run would replace "
+                          f"it: give --out {out} to replace it, or another --out (or --name)")
+
+
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(prog="python -m raindrop_tools.export", description="Export a run to ONNX.")
     ap.add_argument("--run", required=True, help="run folder (from raindrop_tools.train)")
@@ -319,6 +337,8 @@ def main(argv: list[str] | None = None) -> int:
         if args.threshold is not None:
             cfg = dataclasses.replace(cfg, pipeline=dataclasses.replace(cfg.pipeline, threshold=args.threshold))
         out = Path(args.out) if args.out else Path("models") / cfg.name
+        if not args.out:
+            _refuse_another_runs_folder(out, source)
         info = export_networks(cfg, nets, out, source)
     except (ExportError, OSError) as e:
         print(f"error: {e}", file=sys.stderr)

@@ -86,6 +86,17 @@ def main(argv: list[str] | None = None) -> int:
     if args.output.exists() and not args.output.is_dir():
         print(f"flatten: error: the output {args.output} is not a folder", file=sys.stderr)
         return 2
+    # An output folder that holds the input folder, or lies inside it, may hold the user's own
+    # pictures under the names the outputs take (photos/a.png for photos/wet/a.png): none is
+    # replaced there. Elsewhere a rerun replaces its own earlier outputs.
+    out_dir, in_dir = args.output.resolve(), args.input.resolve()
+    if out_dir in in_dir.parents or in_dir in out_dir.parents:
+        for p in frames:
+            if (args.output / (p.stem + ".png")).exists():
+                print(f"flatten: error: {args.output / (p.stem + '.png')} already exists in the output folder, which "
+                      f"{'holds' if out_dir in in_dir.parents else 'lies inside'} the input folder, and would be "
+                      "replaced; choose an output folder apart from the input", file=sys.stderr)
+                return 2
     args.output.mkdir(parents=True, exist_ok=True)
     try:
         for p in frames:

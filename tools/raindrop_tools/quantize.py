@@ -16,6 +16,7 @@ from __future__ import annotations
 import argparse
 import json
 import random
+import os
 import shutil
 import sys
 import tempfile
@@ -78,6 +79,28 @@ def quantize_models(models_dir: Path, data_dir: Path, out_dir: Path, count: int 
     out_dir.mkdir(parents=True, exist_ok=True)
     info = json.loads((models_dir / EXPORT_INFO).read_text()) if (models_dir / EXPORT_INFO).is_file() else {}
     base_config = info.get("config", models_dir.name)
+    # Everything is written into a staging folder beside out_dir and moved in at the end (each
+    # file renamed over its name): an interrupted run leaves the folder's model as it was, and a
+    # graph there that is a link (to the fp32 model, say) is replaced, not written through.
+    stage = out_dir.parent / f".{out_dir.name}.quantize-{os.getpid()}"
+    shutil.rmtree(stage, ignore_errors=True)
+    stage.mkdir()
+    try:
+        _quantize_into(stage, models_dir, data_dir, count, seed, feeds, info, base_config)
+        for name in [*(GRAPH_FILES[n] for n in NETWORKS), EXPORT_INFO]:
+            os.replace(stage / name, out_dir / name)
+    finally:
+        shutil.rmtree(stage, ignore_errors=True)
+    for extra in ("README.md",):
+        if (models_dir / extra).is_file() and not (out_dir / extra).exists():
+            shutil.copy(models_dir / extra, out_dir / extra)
+    return info
+
+
+def _quantize_into(out_dir: Path, models_dir: Path, data_dir: Path, count: int, seed: int, feeds: dict, info: dict,
+                   base_config: str) -> None:
+    """The three int8 graphs and their export.json, written into the (staging) folder out_dir;
+    `info` (the fp32 export.json) is updated in place."""
     with tempfile.TemporaryDirectory() as tmp:
         for name in NETWORKS:
             src = models_dir / GRAPH_FILES[name]
@@ -121,10 +144,6 @@ def quantize_models(models_dir: Path, data_dir: Path, out_dir: Path, count: int 
     )
     info.pop("parity_max_abs_diff", None)
     (out_dir / EXPORT_INFO).write_text(json.dumps(info, indent=2) + "\n")
-    for extra in ("README.md",):
-        if (models_dir / extra).is_file() and not (out_dir / extra).exists():
-            shutil.copy(models_dir / extra, out_dir / extra)
-    return info
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -85,3 +85,32 @@ def test_cli_refuses_bad_input_in_one_line(two_sets, tmp_path, capsys):
     assert main(["unpack", str(tmp_path / "p"), str(tmp_path / "o")]) == 1  # never over a data set
     errors = [line for line in capsys.readouterr().err.splitlines() if line]
     assert len(errors) == 5 and all(line.startswith("error: ") for line in errors)
+
+
+@pytest.mark.parametrize("where", ["/tmp/elsewhere.png", "../../victim.png", "../paper2/x.png", "a.txt"])
+def test_an_index_cannot_make_unpack_write_outside_its_set(two_sets, tmp_path, where):
+    """A pack's index is data: a path in it that leaves the set's folder (absolute, '..') or is
+    not a PNG is refused before anything is written, and nothing outside is touched."""
+    a, _ = two_sets
+    pack([a], tmp_path / "pack", None, None, [None], threads=1)
+    index = json.loads((tmp_path / "pack" / datapack.INDEX).read_text())
+    index["samples"][1]["entry"]["clean"] = where
+    (tmp_path / "pack" / datapack.INDEX).write_text(json.dumps(index))
+    victim = tmp_path / "victim.png"
+    victim.write_bytes(b"mine")
+    with pytest.raises(PackError, match="leaves the data set's folder|is not a .png"):
+        unpack(tmp_path / "pack", tmp_path / "out" / "deep", threads=1)
+    assert victim.read_bytes() == b"mine"
+    assert not (tmp_path / "out").exists() or not any((tmp_path / "out").rglob("*.png"))
+
+
+def test_unpack_never_writes_over_a_file_already_there(two_sets, tmp_path):
+    a, _ = two_sets
+    pack([a], tmp_path / "pack", None, None, [None], threads=1)
+    first = _manifest(a)[0]
+    mine = tmp_path / "out" / "paper" / first["clean"]
+    mine.parent.mkdir(parents=True)
+    mine.write_bytes(b"mine")
+    with pytest.raises(PackError, match="already exists"):
+        unpack(tmp_path / "pack", tmp_path / "out", threads=1)
+    assert mine.read_bytes() == b"mine"

@@ -273,3 +273,18 @@ def test_reconstruction_from_ships_the_runs_detector_with_another_folders_3rn_an
     # a folder without the graphs is a one-line error, and writes nothing
     assert E.main(["--run", str(run), "--out", str(tmp_path / "n"), "--reconstruction-from", str(tmp_path)]) == 2
     assert f"--reconstruction-from {tmp_path}: no rrn.onnx" in capsys.readouterr().err and not (tmp_path / "n").exists()
+
+
+def test_the_default_folder_is_not_replaced_by_another_runs_model(tmp_path):
+    """Without --out the folder is models/<name>, where a shipped model of that name may live: a
+    run that kept a copied config's name must not silently replace it. The same run may
+    export there again."""
+    from raindrop_tools.export import ExportError, _refuse_another_runs_folder
+
+    out = tmp_path / "models" / "compact"
+    out.mkdir(parents=True)
+    (out / C.EXPORT_INFO).write_text(json.dumps({"checkpoint": {"path": str(tmp_path / "runs/shipped/checkpoints/s.pt")}}))
+    with pytest.raises(ExportError, match="already holds a model exported from"):
+        _refuse_another_runs_folder(out, {"path": str(tmp_path / "runs/smoke/checkpoints/s.pt")})
+    _refuse_another_runs_folder(out, {"path": str(tmp_path / "runs/shipped/checkpoints/later.pt")})  # no error
+    _refuse_another_runs_folder(tmp_path / "models" / "new", {"path": "x"})  # nothing there yet

@@ -65,3 +65,16 @@ def test_cli_never_replaces_frames_and_stops_on_a_bad_one(tmp_path, capsys):
     assert main([str(src), str(tmp_path / "o2"), "--size", "64x32"]) == 2
     assert "cannot read the image" in capsys.readouterr().err
     assert sorted(p.name for p in (tmp_path / "o2").iterdir()) == ["a.png", "b.png"], "no half-written or hidden file"
+
+
+def test_cli_never_replaces_a_picture_in_a_folder_holding_the_input(tmp_path, capsys):
+    """photos/ as the output of photos/wet/ would write photos/a.png over the user's own a.png."""
+    wet = tmp_path / "photos" / "wet"
+    wet.mkdir(parents=True)
+    textured(0).save(wet / "a.png")
+    textured(1).save(tmp_path / "photos" / "a.png")
+    mine = (tmp_path / "photos" / "a.png").read_bytes()
+    assert main([str(wet), str(tmp_path / "photos"), "--size", "64x32"]) == 2
+    assert "holds the input folder" in capsys.readouterr().err
+    assert (tmp_path / "photos" / "a.png").read_bytes() == mine
+    assert main([str(wet), str(tmp_path / "photos" / "new"), "--size", "64x32"]) == 0  # a new folder: fine

@@ -67,3 +67,20 @@ def test_quantize_refuses_its_own_models_folder_and_bad_input(tmp_path, tiny_dat
     assert Q.main(["--models", str(models), "--data", str(tmp_path / "none"), "--out", str(tmp_path / "q")]) == 2
     assert capsys.readouterr().err.startswith("error: ")
     assert not (tmp_path / "q").exists()
+
+
+def test_quantize_replaces_a_linked_graph_instead_of_writing_through_it(tmp_path, tiny_dataset):
+    """A graph in --out that is a link to the fp32 model's file was written through: the fp32
+    model became int8. Now the link itself is replaced, and no staging folder is left."""
+    import shutil
+
+    fp32 = tmp_path / "fp32"
+    shutil.copytree(FIXTURE_MODELS, fp32)
+    before = (fp32 / FILES["rdn"]).read_bytes()
+    out = tmp_path / "int8"
+    out.mkdir()
+    (out / FILES["rdn"]).symlink_to(fp32 / FILES["rdn"])
+    quantize_models(fp32, tiny_dataset, out, count=1)
+    assert (fp32 / FILES["rdn"]).read_bytes() == before
+    assert not (out / FILES["rdn"]).is_symlink()
+    assert not any(p.name.startswith(".int8.quantize-") for p in tmp_path.iterdir())
