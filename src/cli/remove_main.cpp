@@ -53,7 +53,8 @@
 namespace fs = std::filesystem;
 using namespace raindrop;
 using namespace raindrop::removal;
-using raindrop::cli::add_own_outputs;
+using raindrop::cli::is_own_output;
+using raindrop::cli::record_own_output;
 using raindrop::cli::kOwnOutputsList;
 using raindrop::cli::read_own_outputs;
 
@@ -113,6 +114,23 @@ struct Job {
   bool make_dirs = false;  // folder mode: create the output's sub-folders
   std::string shard_key;   // folder mode: the input's name relative to the input folder (shard.h)
 };
+
+// Whether the folder `outer` holds `inner` (at any depth, not being it): by name, and by
+// identity (device and inode) for every folder above `inner`, so that the same folder reached
+// through a bind mount or another link counts too.
+bool holds_by_identity(const fs::path& outer, const fs::path& inner) {
+  if (outer.empty() || inner.empty()) return false;
+  if (strictly_inside(inner, outer)) return true;
+  std::error_code ec;
+  if (!fs::is_directory(outer, ec)) return false;
+  const fs::path start = fs::weakly_canonical(fs::absolute(inner, ec), ec);
+  for (fs::path p = start.parent_path(); !p.empty(); p = p.parent_path()) {
+    std::error_code e;
+    if (fs::equivalent(p, outer, e) && !e) return !fs::equivalent(start, outer, e);
+    if (p == p.root_path()) break;
+  }
+  return false;
+}
 
 // Refuses a run in which two of the places it reads and writes are one: the later write
 // would silently replace the input (or an earlier output). Paths are compared canonically,
@@ -412,28 +430,33 @@ int run(int argc, char** argv) {
   struct Guarded {
     std::string role;
     fs::path folder;
-    std::set<std::string> own;  // what earlier runs wrote there
-    std::set<std::string> names;  // what this run writes there
+    bool holds = false;  // it holds the input (else it lies inside it)
+    std::map<std::string, raindrop::cli::WrittenFile> own;  // what earlier runs wrote there
   };
   std::vector<Guarded> guarded;
-  const auto nested = [&](const fs::path& folder) {
-    return strictly_inside(folder, in_path) || strictly_inside(in_path, folder);
+  const auto guard = [&](const std::string& role, const fs::path& folder) {
+    if (holds_by_identity(folder, in_path)) {
+      guarded.push_back({role, folder, true, {}});
+    } else if (holds_by_identity(in_path, folder)) {
+      guarded.push_back({role, folder, false, {}});
+    }
   };
-  if ((batch || fs::is_directory(out_arg, ec)) && nested(out_arg)) guarded.push_back({"output", out_arg, {}, {}});
-  if (!mask_dir.empty() && nested(mask_dir)) guarded.push_back({"mask", fs::path(mask_dir), {}, {}});
+  if (batch || fs::is_directory(out_arg, ec)) guard("output", out_arg);
+  if (!mask_dir.empty()) guard("mask", fs::path(mask_dir));
   for (auto& g : guarded) {
     g.own = read_own_outputs(g.folder);
     for (const auto& j : jobs) {
       const std::optional<fs::path> file = g.role == "output" ? std::optional<fs::path>(j.output) : j.mask;
       if (!file) continue;
-      const std::string rel = file->lexically_relative(g.folder).generic_string();
-      g.names.insert(rel);
-      if (!fs::exists(*file, ec) || g.own.count(rel)) continue;
-      const bool holds = strictly_inside(in_path, g.folder);
+      // Anything there, a link that leads nowhere included, unless it is an unchanged own output.
+      if (!fs::exists(fs::symlink_status(*file, ec)) ||
+          is_own_output(g.own, file->lexically_relative(g.folder).generic_string(), *file))
+        continue;
       throw UsageError("'" + file->string() + "' already exists in the " + g.role + " folder '" + g.folder.string() +
-                       "', which " + (holds ? "holds" : "lies inside") + " the input '" + input +
-                       "'; raindrop-remove did not write it (it is not in that folder's " + kOwnOutputsList +
-                       " list), and this run would replace it: choose " + (g.role == "output" ? "an " : "a ") + g.role +
+                       "', which " + (g.holds ? "holds" : "lies inside") + " the input '" + input +
+                       "', and this run would replace it: that folder's " + kOwnOutputsList +
+                       " does not list it as a file raindrop-remove wrote there, or it changed since; choose " +
+                       (g.role == "output" ? "an " : "a ") + g.role +
                        " folder that neither holds nor lies inside the input, or move that file");
     }
   }
@@ -463,10 +486,6 @@ int run(int argc, char** argv) {
   // output and mask sub-folders are made as the run goes; the formats are the inputs'.
   if (!mask_dir.empty()) ensure_writable_dir(mask_dir);
   if (batch) ensure_writable_dir(out_arg);
-  // What this run writes into a guarded folder is listed there before it is written, so that a
-  // later run may replace it (own_outputs.h). Every shard lists the whole run's names: each
-  // checked them all above, so shards writing the list at once agree on it.
-  for (const auto& g : guarded) add_own_outputs(g.folder, g.names);
   remove_stale_temporaries(jobs);
   std::set<std::string> checked_formats;
   for (const Job& j : jobs) {
@@ -529,6 +548,14 @@ int run(int argc, char** argv) {
                  thread_text.c_str());
   }
 
+  // A file written into a guarded folder is recorded there as written (own_outputs.h), so that
+  // a later run may replace it while it is unchanged.
+  const auto record_in_guarded = [&](const Job& j) {
+    for (const auto& g : guarded) {
+      const std::optional<fs::path> file = g.role == "output" ? std::optional<fs::path>(j.output) : j.mask;
+      if (file) record_own_output(g.folder, file->lexically_relative(g.folder).generic_string(), *file);
+    }
+  };
   std::vector<std::vector<cv::Mat>> rows;
   std::vector<std::string> captions;
   const std::size_t refused = errors.size();
@@ -544,6 +571,7 @@ int run(int argc, char** argv) {
       std::string lost;
       auto panels = process(remover, job, s, want_panels, batch ? &files : &single, batch ? &lost : &single_lost);
       files.commit();
+      if (batch) record_in_guarded(job);
       warn_format_loss(job.output, lost);
       if (want_panels) {
         rows.push_back(std::move(panels));
@@ -566,6 +594,7 @@ int run(int argc, char** argv) {
     }
   }
   single.commit();
+  if (!batch) record_in_guarded(jobs.front());
   if (!batch) warn_format_loss(jobs.front().output, single_lost);
   for (const auto& e : errors) std::cerr << "raindrop-remove: failed: " << e << "\n";
   if (batch && (!quiet || !errors.empty()))

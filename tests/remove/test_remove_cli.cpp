@@ -633,6 +633,29 @@ TEST_F(RemoveCli, ANestedFolderReplacesOnlyWhatItsListNames) {
   EXPECT_EQ(read_file(tmp / "photos" / "2023" / "b.png"), mine);
 }
 
+// The list records each file as written (size, modification time): a photograph the user put
+// where an earlier output of the same name had been is not taken for that output, and a link
+// there (even one that leads nowhere) is not replaced either.
+TEST_F(RemoveCli, AListedNameIsNotEnoughToReplaceAFile) {
+  write_image(tmp / "photos" / "wet" / "IMG_1.png", make_image(40, 30, 1));
+  write_image(tmp / "photos" / "wet" / "IMG_2.png", make_image(40, 30, 2));
+  ASSERT_EQ(remove({"photos/wet", "photos", "-q"}).code, 0);  // writes photos/IMG_1.png, IMG_2.png
+  fs::remove(tmp / "photos" / "IMG_1.png");
+  write_image(tmp / "photos" / "IMG_1.png", make_image(50, 20, 3));  // the user's own, same name
+  const std::string mine = read_file(tmp / "photos" / "IMG_1.png");
+  const RunResult r = remove({"photos/wet", "photos", "-q"});
+  EXPECT_EQ(r.code, 2) << r.describe();
+  EXPECT_NE(r.err.find("'photos/IMG_1.png' already exists"), std::string::npos) << r.describe();
+  EXPECT_EQ(read_file(tmp / "photos" / "IMG_1.png"), mine);
+  fs::remove(tmp / "photos" / "IMG_1.png");
+  fs::create_symlink(tmp / "nowhere.png", tmp / "photos" / "IMG_1.png");
+  EXPECT_EQ(remove({"photos/wet", "photos", "-q"}).code, 2);
+  EXPECT_TRUE(fs::is_symlink(tmp / "photos" / "IMG_1.png"));
+  fs::remove(tmp / "photos" / "IMG_1.png");
+  const RunResult again = remove({"photos/wet", "photos", "-q"});  // IMG_2.png is its own, unchanged
+  EXPECT_EQ(again.code, 0) << again.describe();
+}
+
 // An output folder that holds the input folder (photos/ for photos/wet/) may hold the user's
 // photographs under the names its outputs take: refused, as for a folder inside the input.
 // The same with a single image whose mask folder is the image's own folder (a.jpg's mask is
