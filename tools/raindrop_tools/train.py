@@ -24,6 +24,7 @@ from __future__ import annotations
 
 import argparse
 import datetime as _dt
+import fcntl
 import json
 import os
 import platform
@@ -101,27 +102,58 @@ def _write_json_atomic(path: Path, obj) -> None:
     _write_text_atomic(path, json.dumps(obj, indent=2) + "\n")
 
 
+_LOCKS: list = []  # the run folders' lock files this process holds (released by release_run_locks)
+
+
+def lock_run_dir(run_dir: Path) -> None:
+    """One training process per run folder, until release_run_locks: two at once wrote each
+    other's checkpoints into one folder, and one died pruning a file the other had removed."""
+    f = open(run_dir / ".train.lock", "a")
+    try:
+        fcntl.flock(f, fcntl.LOCK_EX | fcntl.LOCK_NB)
+    except BlockingIOError:
+        f.close()
+        raise TrainingError(f"{run_dir} is being trained by another process; wait for it to end, or use another --out") from None
+    _LOCKS.append(f)
+
+
+def release_run_locks() -> None:
+    while _LOCKS:
+        _LOCKS.pop().close()  # closing the file releases its lock
+
+
 def prepare_run_dir(run_dir: Path, cfg: RunConfig | None) -> RunConfig:
     """Create the run folder with ``cfg``, or reopen it: a run folder holds one configuration,
-    so a ``cfg`` that differs from the one recorded there is refused."""
+    so a ``cfg`` that differs from the one recorded there is refused. The folder is locked for
+    this process (lock_run_dir)."""
     run_dir = Path(run_dir)
     cfg_file = run_dir / CONFIG_FILE
     if run_dir.exists() and not run_dir.is_dir():
         raise TrainingError(f"--out {run_dir} is a file, not a run folder")
+    if cfg is None and not cfg_file.is_file():
+        raise TrainingError(f"{run_dir}: no {CONFIG_FILE} there; give --config to start a run")
+    run_dir.mkdir(parents=True, exist_ok=True)
+    lock_run_dir(run_dir)
     if cfg_file.is_file():
         try:
             loaded = yaml.safe_load(cfg_file.read_text())
             if not isinstance(loaded, dict):
                 raise yaml.YAMLError("empty, or not a mapping")
             recorded = config_from_dict(loaded)
-        except yaml.YAMLError as e:
+        except (yaml.YAMLError, ValueError) as e:  # ValueError: config.ConfigError (unknown keys, bad values)
             raise TrainingError(f"{cfg_file}: not a readable configuration ({str(e).splitlines()[0]})") from e
         # A run that never saved a checkpoint trained nothing with its configuration: a
         # corrected command (a mistyped --data, a bad --set) may start it again.
-        if cfg is not None and to_dict(cfg) != to_dict(recorded) and ckpt.latest_checkpoint(run_dir) is None:
+        # (Only in a run folder, which run.json marks: a config.yaml of the user's own, in a
+        # folder named as --out, is not replaced.)
+        if (cfg is not None and to_dict(cfg) != to_dict(recorded) and ckpt.latest_checkpoint(run_dir) is None
+                and (run_dir / RUN_FILE).is_file()):
             print(f"train: {cfg_file}: replacing the configuration of a run that saved no checkpoint", file=sys.stderr)
             _write_text_atomic(cfg_file, dump_config(cfg))
             return cfg
+        if cfg is not None and to_dict(cfg) != to_dict(recorded) and not (run_dir / RUN_FILE).is_file():
+            raise TrainingError(f"{cfg_file} is not a training run's configuration (no {RUN_FILE} beside it) and "
+                                "differs from the one given; use a new --out")
         if cfg is not None and to_dict(cfg) != to_dict(recorded):
             a, b = to_dict(recorded), to_dict(cfg)
             diffs = _diff(a, b)
@@ -770,7 +802,10 @@ def main(argv: list[str] | None = None) -> int:
         print(f"error: {e}", file=sys.stderr)
         return 2
     if world is not None:
-        return _main_distributed(args, argv, world)
+        try:
+            return _main_distributed(args, argv, world)
+        finally:
+            release_run_locks()
     try:
         cfg, run_dir = _open_run(args)
         device = choose_device(args.device)
@@ -783,6 +818,8 @@ def main(argv: list[str] | None = None) -> int:
     except REPORTED as e:
         print(f"error: {e}", file=sys.stderr)
         return 2
+    finally:
+        release_run_locks()
     print(f"{result}: run folder {run_dir}")
     return _exit_status(result, trainer)
 

@@ -318,20 +318,26 @@ def test_a_run_that_saved_nothing_may_be_started_again_with_a_corrected_command(
     as 'a different configuration'. A run with checkpoints still refuses one."""
     out = tmp_path / "run"
     typo = load_config(CONFIGS / "smoke.yaml", [("data.train", str(tmp_path / "nowhere"))])
+    # Each call stands for one invocation (a process of its own): its lock is let go after it.
     train.prepare_run_dir(out, typo)
+    (out / train.RUN_FILE).write_text("{}\n")  # as the failed invocation recorded itself
+    train.release_run_locks()
     good = load_config(CONFIGS / "smoke.yaml", [("data.train", str(smoke_run["data"]))])
     assert train.prepare_run_dir(out, good) == good
+    train.release_run_locks()
     assert "replacing the configuration of a run that saved no checkpoint" in capsys.readouterr().err
     (out / "checkpoints").mkdir()
     shutil.copy(smoke_run["run"] / "checkpoints" / "stage1_step00000006.pt", out / "checkpoints")
     with pytest.raises(train.TrainingError, match="records a different configuration"):
         train.prepare_run_dir(out, typo)
+    train.release_run_locks()
     (tmp_path / "afile").write_text("x")
     with pytest.raises(train.TrainingError, match="is a file"):
         train.prepare_run_dir(tmp_path / "afile", good)
     (out / train.CONFIG_FILE).write_text("a: [unclosed\n")
     with pytest.raises(train.TrainingError, match="not a readable configuration"):
         train.prepare_run_dir(out, good)
+    train.release_run_locks()
 
 
 def test_resume_drops_the_log_lines_past_its_checkpoint(smoke_run, tmp_path):
@@ -389,3 +395,35 @@ def test_a_non_finite_weight_is_never_saved(smoke_run, tmp_path, monkeypatch):
     assert ckpt.checkpoint_path(out, 1, 2).is_file()
     assert not ckpt.checkpoint_path(out, 1, 4).exists()
     assert not list((out / "checkpoints").glob(".tmp-*"))
+
+
+def test_a_users_config_in_the_out_folder_is_not_replaced(tmp_path):
+    """--out naming a folder that holds the user's own config.yaml (no run.json: no training run
+    wrote it) replaced that file with the run's configuration."""
+    out = tmp_path / "project"
+    out.mkdir()
+    (out / "config.yaml").write_text("name: myproject\nseed: 3\n")
+    cfg = load_config(CONFIGS / "smoke.yaml", [("data.train", str(tmp_path / "data"))])
+    with pytest.raises(train.TrainingError, match="not a training run's configuration"):
+        train.prepare_run_dir(out, cfg)
+    train.release_run_locks()
+    assert (out / "config.yaml").read_text() == "name: myproject\nseed: 3\n"
+    (out / "config.yaml").write_text("name: myproject\nserver: x\n")
+    with pytest.raises(train.TrainingError, match="config.yaml: not a readable configuration.*server"):
+        train.prepare_run_dir(out, cfg)
+    train.release_run_locks()
+
+
+def test_one_training_process_per_run_folder(tmp_path):
+    """Two trainings into one --out wrote each other's checkpoints: the second is refused while
+    the first holds the folder, and may start once it has let go."""
+    out = tmp_path / "run"
+    cfg = load_config(CONFIGS / "smoke.yaml", [("data.train", str(tmp_path / "data"))])
+    train.prepare_run_dir(out, cfg)
+    try:
+        with pytest.raises(train.TrainingError, match="being trained by another process"):
+            train.prepare_run_dir(out, cfg)
+    finally:
+        train.release_run_locks()
+    train.prepare_run_dir(out, cfg)
+    train.release_run_locks()
