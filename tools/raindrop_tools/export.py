@@ -37,6 +37,7 @@ from . import onnx_weights
 from .config import RunConfig, config_from_dict, is_safe_name, to_dict
 from .flops import gflops, parameter_count
 from .networks import build_networks
+from .phase_conv import split_transposed_convs
 
 OPSET = 18
 PAD_MULTIPLE = 1
@@ -142,6 +143,9 @@ def export_network(name: str, net: nn.Module, cfg: RunConfig, path: Path) -> onn
         )
     _fix_io(model, name)
     _strip_debug_info(model)
+    # conv4's transposed convolution as four phase convolutions: the same function, 1.1-1.5x
+    # faster networks in ONNX Runtime (phase_conv.py; checked against PyTorch by parity()).
+    split_transposed_convs(model)
     del model.metadata_props[:]
     onnx.helper.set_model_props(model, _metadata(name, cfg))
     model.doc_string = f"raindrop {name} ({cfg.name}); see docs/CONTRACTS.md section 2"

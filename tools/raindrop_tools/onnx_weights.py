@@ -24,6 +24,7 @@ from torch import nn
 
 from . import contract as C
 from .networks import example_inputs
+from .phase_conv import phase_groups, transposed_kernel
 
 CONV_OPS = ("Conv", "ConvTranspose")
 CONV_MODULES = (nn.Conv2d, nn.ConvTranspose2d)
@@ -43,14 +44,23 @@ def _graph_convs(model: onnx.ModelProto) -> list[tuple[str, np.ndarray, np.ndarr
             for a in node.attribute:
                 if a.name == "value":
                     tensors[node.output[0]] = numpy_helper.to_array(a.t)
+    # A transposed convolution split into four phase convolutions (phase_conv.py) is read back
+    # as the one it was.
+    groups = phase_groups(model)
+    in_group = {n for names in groups.values() for n in names[1:]}
+    nodes = {n.name: n for n in model.graph.node}
     out = []
     for node in model.graph.node:
-        if node.op_type not in CONV_OPS:
+        if node.op_type not in CONV_OPS or node.name in in_group:
             continue
-        if node.input[1] not in tensors:
+        members = [nodes[n] for n in groups.get(node.name, [node.name])]
+        if any(m.input[1] not in tensors for m in members):
             raise OnnxWeightsError(f"{node.op_type} node {node.name!r}: its weight is computed, not stored")
         bias = tensors.get(node.input[2]) if len(node.input) > 2 and node.input[2] else None
-        out.append((node.op_type, tensors[node.input[1]], bias))
+        if node.name in groups:
+            out.append(("ConvTranspose", transposed_kernel([tensors[m.input[1]] for m in members]), bias))
+        else:
+            out.append((node.op_type, tensors[node.input[1]], bias))
     return out
 
 

@@ -288,3 +288,12 @@ def test_the_default_folder_is_not_replaced_by_another_runs_model(tmp_path):
         _refuse_another_runs_folder(out, {"path": str(tmp_path / "runs/smoke/checkpoints/s.pt")})
     _refuse_another_runs_folder(out, {"path": str(tmp_path / "runs/shipped/checkpoints/later.pt")})  # no error
     _refuse_another_runs_folder(tmp_path / "models" / "new", {"path": "x"})  # nothing there yet
+
+
+def test_conv4_is_exported_as_phase_convolutions(exported):
+    """The transposed convolution goes out as four phase convolutions (phase_conv.py), which
+    ONNX Runtime runs faster; parity with PyTorch is checked by the tests above."""
+    out = exported["dir"]
+    for name in ("rdn", "rrn"):
+        ops = [n.op_type for n in onnx.load(str(out / C.FILES[name])).graph.node]
+        assert "ConvTranspose" not in ops and ops.count("DepthToSpace") == 1, name

@@ -30,3 +30,24 @@ def test_a_difference_the_structure_hides_is_caught_by_onnxruntime():
     nets = networks.build_networks(load_config(CONFIGS / "paper.yaml").network)
     with pytest.raises(OW.OnnxWeightsError, match="differ from the graph"):
         OW.load_model_folder(nets, REPO / "models" / "paper")
+
+
+def test_split_transposed_convolutions_come_back_as_they_were(tmp_path):
+    """A folder whose conv4 was split into phase convolutions (phase_conv.py) loads the same
+    weights as before the split: the transposed kernel is rebuilt exactly."""
+    import shutil
+
+    from raindrop_tools.phase_conv import rewrite_folder
+
+    if not (REPO / "models" / "compact" / "rdn.onnx").is_file():
+        pytest.skip("models/compact is not in this checkout")
+    shutil.copytree(REPO / "models" / "compact", tmp_path / "split")
+    assert rewrite_folder(tmp_path / "split")["rdn"] == 1
+    cfg = load_config(CONFIGS / "compact.yaml").network
+    before, after = networks.build_networks(cfg), networks.build_networks(cfg)
+    OW.load_model_folder(before, REPO / "models" / "compact")
+    diffs = OW.load_model_folder(after, tmp_path / "split")
+    assert max(diffs.values()) < 1e-4
+    for name in ("rdn", "rrn", "rfn"):
+        for (k, a), (_, b) in zip(before[name].state_dict().items(), after[name].state_dict().items()):
+            assert torch.equal(a, b), f"{name}.{k}"
