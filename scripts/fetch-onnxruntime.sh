@@ -13,6 +13,10 @@ here="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 # shellcheck source=../deps/onnxruntime.env
 source "$here/deps/onnxruntime.env"
 gpu=0
+if [[ "${1:-}" == "-h" || "${1:-}" == "--help" ]]; then
+  sed -n '2,10p' "$0" | sed 's/^# \{0,1\}//'
+  exit 0
+fi
 if [[ "${1:-}" == "--gpu" ]]; then
   gpu=1
   shift
@@ -23,6 +27,14 @@ if ((gpu)); then
 else
   package=onnxruntime wheel="$ORT_WHEEL" wheel_sha256="$ORT_WHEEL_SHA256"
   dest="${1:-$here/build/_deps/onnxruntime}"
+fi
+[[ $dest == -* ]] && { echo "fetch-onnxruntime: unknown option '$dest' (usage: scripts/fetch-onnxruntime.sh [--gpu] [DEST])" >&2; exit 2; }
+# DEST is emptied before the new files go in: only a folder this script filled before (its
+# .complete stamp, whatever version) or an empty or new one. Any other folder a user names
+# may hold their own files (a DEST of ~ or /usr/local would otherwise be wiped).
+if [[ -e $dest && ! -f $dest/.complete && ! -f $dest/.fetching ]] && [[ ! -d $dest || -n $(ls -A "$dest" 2>/dev/null) ]]; then
+  echo "fetch-onnxruntime: '$dest' exists and was not made by this script (no .complete or .fetching in it); give a new or empty folder" >&2
+  exit 1
 fi
 stamp="$ORT_LIB_VERSION/$ORT_HEADERS_DEB_VERSION"
 ((gpu)) && stamp="gpu-$stamp"
@@ -55,7 +67,7 @@ apt-get "${apt_opts[@]}" -qq update >&2
 (cd "$work" && apt-get "${apt_opts[@]}" -qq download "libonnxruntime-dev=$ORT_HEADERS_DEB_VERSION" >&2)
 echo "$ORT_HEADERS_DEB_SHA256  $work/$ORT_HEADERS_DEB" | sha256sum --check --quiet -
 
-rm -rf "$dest" && mkdir -p "$dest/lib" "$dest/include"
+rm -rf "$dest" && mkdir -p "$dest/lib" "$dest/include" && : >"$dest/.fetching"  # ours, even if cut short
 python3 - "$work/wheel/$wheel" "$dest/lib" "$ORT_LIB_VERSION" "$gpu" <<'PY'
 import sys, zipfile, os
 whl, out, ver, gpu = sys.argv[1:]

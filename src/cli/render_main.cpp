@@ -81,7 +81,7 @@ std::vector<InputImage> make_demo_inputs(const fs::path& out) {
 int run(int argc, char** argv) {
   CLI::App app{"raindrop-render: physically based adherent raindrops on street images.\n"
                "Renders rainy/clean/mask triplets and manifest.jsonl (docs/CONTRACTS.md).\n"
-               "Without an input it renders the built-in demo backgrounds."};
+               "Without any input or --out it renders the built-in demo backgrounds into out/demo."};
   std::string cityscapes, split = "train", out = "out/render", scene_name = "paper", size_text, sheet, shard_text,
       merge_dir;
   std::vector<std::string> input_paths;
@@ -95,7 +95,7 @@ int run(int argc, char** argv) {
       ->check(CLI::IsMember({"train", "val", "test", "all"}))
       ->needs(cityscapes_opt);
   app.add_option("-i,--input", input_paths, "Image file, folder (recursive) or list file; repeatable");
-  app.add_flag("--demo", demo, "Render the built-in checkerboard and street backgrounds (the default without inputs)");
+  app.add_flag("--demo", demo, "Render the built-in checkerboard and street backgrounds (the default when neither an input nor --out is given)");
   app.add_option("-o,--out", out, "Output folder")->capture_default_str();
   app.add_option("--variants", variants, "Rendered variants per input image")->capture_default_str()->check(CLI::Range(1, 1000));
   // Unsigned 64-bit: checked as text, since CLI11 wraps "-1" and clamps past 2^64 - 1 silently.
@@ -187,7 +187,15 @@ int run(int argc, char** argv) {
     auto more = find_images(p, skip);
     inputs.insert(inputs.end(), more.begin(), more.end());
   }
-  if (inputs.empty()) demo = true;
+  // No input at all renders the demo into its own folder. Into a folder the user names, only
+  // when asked (--demo): a forgotten --input once wrote the demo's backgrounds and samples into
+  // the user's folder, and added them to a data set rendered there with the same settings.
+  if (inputs.empty() && !demo) {
+    if (app.get_option("--out")->count() > 0)
+      throw Error("no input: give --input or --cityscapes (or --demo for the built-in backgrounds into '" +
+                  options.out_dir.string() + "')");
+    demo = true;
+  }
   if (demo) {
     if (!cityscapes.empty() || !input_paths.empty()) throw Error("--demo renders its own backgrounds; drop --cityscapes/--input");
     // The demo's own default folder, unless the user named one (out/render included).

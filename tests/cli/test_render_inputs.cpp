@@ -205,9 +205,20 @@ TEST(RenderCityscapes, MissingLayoutIsAnError) {
   expect_clean_failure(r, tmp / "out", "not-cityscapes");
 }
 
+// Into a folder the user names, the demo only when asked: a forgotten input is an error there
+// (it used to write the demo's backgrounds and samples into that folder).
+TEST(RenderDemo, AnOutputFolderWithoutAnInputIsAnError) {
+  TempDir tmp;
+  fs::create_directories(tmp / "mine");
+  const auto r = run_render({"--out", "mine", "-j", "2"}, tmp.path());
+  EXPECT_EQ(r.code, 1) << r.describe();
+  EXPECT_NE(r.err.find("no input"), std::string::npos) << r.describe();
+  EXPECT_TRUE(fs::is_empty(tmp / "mine"));
+}
+
 TEST(RenderDemo, NoInputRendersTheDemoAndAContactSheet) {
   TempDir tmp;
-  const auto r = run_render({"--out", "demo", "-j", "2"}, tmp.path());
+  const auto r = run_render({"--demo", "--out", "demo", "-j", "2"}, tmp.path());
   ASSERT_EQ(r.code, 0) << r.describe();
   std::string why;
   const auto sheet = read_image(tmp / "demo" / "contact_sheet.png", &why);
@@ -352,11 +363,10 @@ TEST(RenderFolder, TheContactSheetNeitherReplacesAFileNorFailsLate) {
   EXPECT_EQ(loop.message_lines().size(), 1u) << loop.describe();
 }
 
-// Without inputs the demo renders into out/demo, unless an output folder is named, even the
-// default's own name.
+// The demo renders into out/demo, unless an output folder is named, even the default's own name.
 TEST(RenderFolder, TheDemoWritesWhereItIsTold) {
   TempDir tmp;
-  const auto r = run_render({"-o", "out/render", "--size", "64x32", "-q"}, tmp.path());
+  const auto r = run_render({"--demo", "-o", "out/render", "--size", "64x32", "-q"}, tmp.path());
   ASSERT_EQ(r.code, 0) << r.describe();
   EXPECT_TRUE(fs::exists(tmp / "out" / "render" / "manifest.jsonl"));
   EXPECT_FALSE(fs::exists(tmp / "out" / "demo"));

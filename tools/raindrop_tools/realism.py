@@ -82,6 +82,7 @@ from .cli_args import at_least
 from .data import DatasetError, read_manifest
 from .imageio import IMAGE_SUFFIXES, ImageError, read_mask_strict, read_rgb, read_rgb_strict
 from .metrics import luma_float
+from .report_file import report_path_problem, write_report
 
 MIN_DROP_AREA = 5
 MIN_SOLIDITY_AREA = 50
@@ -454,6 +455,12 @@ def main(argv: list[str] | None = None) -> int:
         ap.error("give --real-pairs, --real-photos or both")
     if args.real_photos and not args.rendered:
         ap.error("--real-photos scores rendered sets: give at least one --rendered")
+    if args.json and (problem := report_path_problem(Path(args.json))):
+        print(f"realism: error: {problem}", file=sys.stderr)
+        return 2
+    if args.real_photos and not Path(args.real_photos).is_dir():
+        print(f"realism: error: --real-photos {args.real_photos}: not a folder", file=sys.stderr)
+        return 2
     try:
         params = RP.mask_params_from_args(args)
         real = None
@@ -496,13 +503,12 @@ def main(argv: list[str] | None = None) -> int:
                  f"{CROP}x{CROP} crops (0.5 = indistinguishable).\n\n" + score_table(scores))
     print(text)
     if args.json:
-        Path(args.json).parent.mkdir(parents=True, exist_ok=True)
-        Path(args.json).write_text(json.dumps({
+        write_report(Path(args.json), {
             "argv": sys.argv if argv is None else ["python -m raindrop_tools.realism", *argv],
             "sets": [{"name": st.name, "kind": st.kind, **st.summary()} for st in sets],
             "scores": scores,
             "photo_scores": photo_scores,
-        }, indent=2) + "\n")
+        })
     return 0
 
 

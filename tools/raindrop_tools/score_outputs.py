@@ -30,6 +30,7 @@ import numpy as np
 from . import metrics
 from .data import DatasetError, read_manifest
 from .imageio import ImageError, read_mask, read_rgb_strict
+from .report_file import report_path_problem, write_report
 
 
 def split_names(data: Path, split: str) -> set[str]:
@@ -124,6 +125,9 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--true-masks", type=Path, help="the true (or rough) masks, named as rainy/ (default: the "
                     "set's mask/)")
     a = ap.parse_args(argv)
+    if a.json and (problem := report_path_problem(a.json)):
+        print(f"score_outputs: error: {problem}", file=sys.stderr)
+        return 2
     try:
         r = score(a.data, a.outputs, a.split, a.masks, a.true_masks)
     except (ImageError, ValueError, OSError) as e:  # a damaged output, one of another size, an unreadable file
@@ -141,7 +145,7 @@ def main(argv: list[str] | None = None) -> int:
               f"{sh['rest']:.0%} elsewhere")
     if a.json:
         try:
-            a.json.write_text(json.dumps(r, indent=1))
+            write_report(a.json, r)
         except OSError as e:
             print(f"score_outputs: error: --json {a.json}: {e.strerror}", file=sys.stderr)
             return 2
