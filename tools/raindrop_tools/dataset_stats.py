@@ -82,7 +82,7 @@ def main(argv: list[str] | None = None) -> int:
     args = ap.parse_args(argv)
     try:
         rows = [summarize(Path(d)) for d in args.data]
-    except (ValueError, KeyError, OSError) as e:  # no or an unreadable manifest, records without a scene
+    except (ValueError, KeyError, TypeError, OSError) as e:  # no or an unreadable manifest, records without a scene, a line that is no record
         what = f"a record has no {e}" if isinstance(e, KeyError) else str(e)
         print(f"dataset_stats: error: {what} (rendered data sets only)", file=sys.stderr)
         return 2

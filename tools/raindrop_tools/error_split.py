@@ -71,8 +71,13 @@ def main(argv: list[str] | None = None) -> int:
         split = ErrorSplit()
         for s in samples:
             rainy, clean = read_rgb_strict(s.rainy), read_rgb_strict(s.clean)
+            mask = read_mask_strict(s.mask)
+            if mask.shape != rainy.shape[:2] or clean.shape != rainy.shape:
+                raise ImageError(f"{s.mask}: the sample's rainy, clean and mask images differ in size "
+                                 f"({rainy.shape[1]}x{rainy.shape[0]}, {clean.shape[1]}x{clean.shape[0]}, "
+                                 f"{mask.shape[1]}x{mask.shape[0]})")
             res = remover.remove(rainy, keep_intermediates=True)
-            split.add(read_mask_strict(s.mask) > 127, clean, {
+            split.add(mask > 127, clean, {
                 "input": rainy, "reconstruction": to_uint8(res.reconstruction),
                 "blend": to_uint8(res.blend), "output": res.output})
     except (DatasetError, ImageError, ModelError) as e:

@@ -37,6 +37,10 @@ def _is_earlier_merge(out: Path) -> bool:
     """Whether ``out`` holds a manifest this tool wrote: every image of every record a link."""
     for name, number, line in manifest_lines(out):
         r = _record(out, name, number, line)
+        # rainy, clean and mask present (a record of ids and notes alone is someone else's file),
+        # and every image a link.
+        if not all(k in r for k in ("rainy", "clean", "mask")):
+            return False
         if not all(isinstance(r[k], str) and (out / r[k]).is_symlink() for k in IMAGE_KEYS if k in r):
             return False
     return True

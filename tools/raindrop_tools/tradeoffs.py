@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import os
 import subprocess
 import sys
 from dataclasses import dataclass
@@ -143,20 +144,39 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--plot-only", action="store_true", help="redraw pareto.png from --out's tradeoffs.json")
     args = ap.parse_args(argv)
     out = Path(args.out)
+    if args.runs < 1:
+        print(f"tradeoffs: error: --runs must be at least 1, got {args.runs}", file=sys.stderr)
+        return 2
     if args.plot_only:
         if not (out / "tradeoffs.json").is_file():
             print(f"tradeoffs: error: no {out / 'tradeoffs.json'} to plot (run without --plot-only first)", file=sys.stderr)
             return 2
-        plot_pareto(json.loads((out / "tradeoffs.json").read_text()), out / "pareto.png")
+        try:
+            plot_pareto(json.loads((out / "tradeoffs.json").read_text()), out / "pareto.png")
+        except (ValueError, TypeError, KeyError) as e:  # not this tool's table
+            print(f"tradeoffs: error: {out / 'tradeoffs.json'} is not a table this tool wrote ({e})", file=sys.stderr)
+            return 2
         return 0
     rows = []
     for v in DEFAULT_VARIANTS:
         if not Path(v.models).is_dir():
             print(f"tradeoffs: skipping {v.label}: no {v.models}", file=sys.stderr)
             continue
+        if not (Path(args.bench).is_file() and os.access(args.bench, os.X_OK)):
+            print(f"tradeoffs: error: --bench {args.bench}: no such program (build it: cmake --build build)", file=sys.stderr)
+            return 2
         print(f"tradeoffs: {v.label}", file=sys.stderr)
-        t = bench_ms(args.bench, v, args.runs)
-        rows.append({"variant": v.__dict__, **t, "accuracy": accuracy(Path(args.eval_root), v.models)})
+        try:
+            t = bench_ms(args.bench, v, args.runs)
+            acc = accuracy(Path(args.eval_root), v.models)
+        except subprocess.CalledProcessError as e:
+            last = (e.stderr or "").strip().splitlines()[-1:] or [f"exit {e.returncode}"]
+            print(f"tradeoffs: error: {' '.join(e.cmd)} failed: {last[0]}", file=sys.stderr)
+            return 2
+        except (RuntimeError, ValueError, KeyError, TypeError) as e:
+            print(f"tradeoffs: error: {v.label}: {e!r}", file=sys.stderr)
+            return 2
+        rows.append({"variant": v.__dict__, **t, "accuracy": acc})
     # Nothing measured (e.g. run outside the repository, where the model folders are not):
     # an error, not empty tables written over the last run's.
     if not rows:

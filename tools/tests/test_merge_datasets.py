@@ -87,3 +87,18 @@ def test_a_bad_manifest_line_is_one_line_naming_its_file_and_line(tmp_path, caps
     assert err.count("\n") == 1 and err.startswith("merge_datasets: error: ")
     assert f"{manifest}:3: " in err and says in err
     assert not (tmp_path / "mix").exists(), "nothing is linked before every line is read"
+
+
+def test_a_manifest_of_ids_and_notes_is_not_taken_for_an_earlier_merge(tmp_path, capsys):
+    """A manifest.jsonl of records with an id and no images (someone's notes) passed for one
+    this tool wrote (no image that is not a link), and was replaced."""
+    src = tmp_path / "set"
+    for sub in ("rainy", "clean", "mask"):
+        (src / sub).mkdir(parents=True)
+    _set(src, ["x"], 10)
+    out = tmp_path / "mg"
+    out.mkdir()
+    (out / "manifest.jsonl").write_text('{"id": "note1", "text": "keep"}\n')
+    assert main(["--out", str(out), str(src)]) == 1
+    assert "holds a data set of its own" in capsys.readouterr().err
+    assert (out / "manifest.jsonl").read_text() == '{"id": "note1", "text": "keep"}\n'

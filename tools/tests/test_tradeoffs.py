@@ -62,3 +62,16 @@ def test_no_models_found_keeps_the_last_tables(tmp_path, monkeypatch, capsys):
     assert (out / "tradeoffs.json").read_text() == "[1]\n" and (out / "tradeoffs.md").read_text() == "last run\n"
     assert T.main(["--out", str(tmp_path / "none"), "--plot-only"]) == 2
     assert not (tmp_path / "none").exists()
+
+
+def test_a_missing_bench_or_no_runs_is_one_line(tmp_path, monkeypatch, capsys):
+    """A missing --bench was a FileNotFoundError traceback, --runs 0 a CalledProcessError."""
+    from helpers import REPO
+    from raindrop_tools import tradeoffs as T
+
+    monkeypatch.chdir(REPO)  # where the model folders are
+    assert T.main(["--bench", str(tmp_path / "nope"), "--out", str(tmp_path / "o")]) == 2
+    assert "no such program" in capsys.readouterr().err
+    assert T.main(["--runs", "0", "--out", str(tmp_path / "o")]) == 2
+    assert "--runs must be at least 1" in capsys.readouterr().err
+    assert not (tmp_path / "o").exists()
