@@ -39,13 +39,13 @@ def test_split_transposed_convolutions_come_back_as_they_were(tmp_path):
 
     from raindrop_tools.phase_conv import rewrite_folder
 
-    if not (REPO / "models" / "compact" / "rdn.onnx").is_file():
-        pytest.skip("models/compact is not in this checkout")
-    shutil.copytree(REPO / "models" / "compact", tmp_path / "split")
+    from helpers import FIXTURE_MODELS  # exported before the split: ConvTranspose
+
+    shutil.copytree(FIXTURE_MODELS, tmp_path / "split")
     assert rewrite_folder(tmp_path / "split")["rdn"] == 1
-    cfg = load_config(CONFIGS / "compact.yaml").network
+    cfg = load_config(CONFIGS / "smoke.yaml").network
     before, after = networks.build_networks(cfg), networks.build_networks(cfg)
-    OW.load_model_folder(before, REPO / "models" / "compact")
+    OW.load_model_folder(before, FIXTURE_MODELS)
     diffs = OW.load_model_folder(after, tmp_path / "split")
     assert max(diffs.values()) < 1e-4
     for name in ("rdn", "rrn", "rfn"):
