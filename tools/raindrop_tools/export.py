@@ -16,12 +16,10 @@ import argparse
 import contextlib
 import dataclasses
 import datetime as _dt
-import glob
 import io
 import json
 import logging
 import os
-import shutil
 import sys
 import warnings
 from pathlib import Path
@@ -38,6 +36,7 @@ from .config import RunConfig, config_from_dict, is_safe_name, to_dict
 from .flops import gflops, parameter_count
 from .networks import build_networks
 from .phase_conv import split_transposed_convs
+from .staging import staged_model_files
 
 OPSET = 18
 PAD_MULTIPLE = 1
@@ -223,35 +222,15 @@ def take_reconstruction(nets: dict[str, nn.Module], folder: Path, source: dict |
     return {**(source or {}), "reconstruction_from": str(folder)}
 
 
-def _remove_stale_stages(out_dir: Path) -> None:
-    """Staging folders beside ``out_dir`` left by an export that a signal stopped (SIGTERM ends
-    Python without its ``finally``): those whose process is gone. A running export's is kept."""
-    for stage in out_dir.parent.glob(f".{glob.escape(out_dir.name)}.export-*"):
-        pid = stage.name.rsplit("-", 1)[-1]
-        if not pid.isdigit() or not stage.is_dir():
-            continue
-        try:
-            os.kill(int(pid), 0)
-        except ProcessLookupError:
-            shutil.rmtree(stage, ignore_errors=True)
-        except (PermissionError, OverflowError):
-            pass  # another user's process, or no process id at all: not ours to judge
-
-
 def export_networks(cfg: RunConfig, nets: dict[str, nn.Module], out_dir: Path, source: dict | None = None) -> dict:
     """Export, check and describe the three networks into ``out_dir``; returns export.json.
 
-    Everything is written into a hidden staging folder beside ``out_dir`` and checked there
-    first; only then do the three graphs and export.json replace those in ``out_dir`` (export.json
-    last), so a failed check or an interrupted export leaves the folder's model as it was, not
-    one new graph beside two old ones. Other files in ``out_dir`` (LARGE_DROPS, notes) are kept."""
+    Everything is written and checked in a staging folder first (staging.py): a failed check or
+    an interrupted export leaves the folder's model as it was. Other files in ``out_dir``
+    (LARGE_DROPS, notes) are kept."""
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
-    _remove_stale_stages(out_dir)
-    stage = out_dir.parent / f".{out_dir.name}.export-{os.getpid()}"
-    shutil.rmtree(stage, ignore_errors=True)
-    stage.mkdir()
-    try:
+    with staged_model_files(out_dir, "export") as stage:
         g = torch.Generator().manual_seed(0)
         diffs = {}
         for name in C.NETWORKS:
@@ -280,10 +259,6 @@ def export_networks(cfg: RunConfig, nets: dict[str, nn.Module], out_dir: Path, s
             "versions": {"torch": torch.__version__, "onnx": onnx.__version__},
         }
         (stage / C.EXPORT_INFO).write_text(json.dumps(info, indent=2) + "\n")
-        for name in [*(C.FILES[n] for n in C.NETWORKS), C.EXPORT_INFO]:
-            os.replace(stage / name, out_dir / name)
-    finally:
-        shutil.rmtree(stage, ignore_errors=True)
     return info
 
 

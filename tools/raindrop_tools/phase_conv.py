@@ -24,8 +24,6 @@ from __future__ import annotations
 
 import argparse
 import json
-import os
-import shutil
 import sys
 from pathlib import Path
 
@@ -34,6 +32,7 @@ import onnx
 from onnx import helper, numpy_helper
 
 from . import contract as C
+from .staging import staged_model_files
 
 # Kernel taps that phase 0 / phase 1 of an axis uses, in the order of its two input positions.
 TAPS = {0: (3, 1), 1: (2, 0)}
@@ -151,11 +150,8 @@ def rewrite_folder(models_dir: Path) -> dict[str, int]:
     import onnxruntime as ort
 
     models_dir = Path(models_dir)
-    stage = models_dir.parent / f".{models_dir.name}.phase-conv-{os.getpid()}"
-    shutil.rmtree(stage, ignore_errors=True)
-    stage.mkdir()
     counts = {}
-    try:
+    with staged_model_files(models_dir, "phase-conv") as stage:
         rng = np.random.default_rng(0)
         for name in C.NETWORKS:
             src = models_dir / C.FILES[name]
@@ -176,11 +172,6 @@ def rewrite_folder(models_dir: Path) -> dict[str, int]:
             info["files"] = C.graph_files(stage)
             info["phase_conv"] = "4x4 stride-2 transposed convolutions as four 2x2 phase convolutions (phase_conv.py)"
             (stage / C.EXPORT_INFO).write_text(json.dumps(info, indent=2) + "\n")
-        for f in [*(C.FILES[n] for n in C.NETWORKS), C.EXPORT_INFO]:
-            if (stage / f).exists():
-                os.replace(stage / f, models_dir / f)
-    finally:
-        shutil.rmtree(stage, ignore_errors=True)
     return counts
 
 

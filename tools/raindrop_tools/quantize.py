@@ -16,7 +16,6 @@ from __future__ import annotations
 import argparse
 import json
 import random
-import os
 import shutil
 import sys
 import tempfile
@@ -31,6 +30,7 @@ from .contract import EXPORT_INFO, FILES as GRAPH_FILES, NETWORKS, graph_files
 from .imageio import read_rgb
 from .manifest import manifest_lines
 from .reference import RaindropRemover
+from .staging import staged_model_files
 
 
 
@@ -79,18 +79,10 @@ def quantize_models(models_dir: Path, data_dir: Path, out_dir: Path, count: int 
     out_dir.mkdir(parents=True, exist_ok=True)
     info = json.loads((models_dir / EXPORT_INFO).read_text()) if (models_dir / EXPORT_INFO).is_file() else {}
     base_config = info.get("config", models_dir.name)
-    # Everything is written into a staging folder beside out_dir and moved in at the end (each
-    # file renamed over its name): an interrupted run leaves the folder's model as it was, and a
-    # graph there that is a link (to the fp32 model, say) is replaced, not written through.
-    stage = out_dir.parent / f".{out_dir.name}.quantize-{os.getpid()}"
-    shutil.rmtree(stage, ignore_errors=True)
-    stage.mkdir()
-    try:
+    # Staged and renamed in (staging.py): an interrupted run leaves the folder's model as it was,
+    # and a graph there that is a link (to the fp32 model, say) is replaced, not written through.
+    with staged_model_files(out_dir, "quantize") as stage:
         _quantize_into(stage, models_dir, data_dir, count, seed, feeds, info, base_config)
-        for name in [*(GRAPH_FILES[n] for n in NETWORKS), EXPORT_INFO]:
-            os.replace(stage / name, out_dir / name)
-    finally:
-        shutil.rmtree(stage, ignore_errors=True)
     for extra in ("README.md",):
         if (models_dir / extra).is_file() and not (out_dir / extra).exists():
             shutil.copy(models_dir / extra, out_dir / extra)
