@@ -19,7 +19,6 @@
 #include <cerrno>
 #include <cmath>
 #include <cstdio>
-#include <cstring>
 #include <filesystem>
 #include <iostream>
 #include <map>
@@ -29,11 +28,9 @@
 #include <string>
 #include <system_error>
 #include <thread>
-#include <tuple>
 #include <vector>
 
 #include <signal.h>
-#include <unistd.h>
 
 #include <CLI/CLI.hpp>
 #include <opencv2/imgproc.hpp>
@@ -406,11 +403,6 @@ int run(int argc, char** argv) {
     if (j.mask) check_file_name_length(*j.mask);
   }
   if (!sheet.empty()) check_file_name_length(sheet);
-  // Folder mode: every input's header is read before the models load and before the first
-  // write, so that a file this program refuses (float, 5 channels, too large, not an image)
-  // stops the run with nothing written, not after hours with part of the outputs there. Damage
-  // inside the pixel data (a cut file) is still found only when the image is decoded. With
-  // --keep-going such inputs are reported as failed at the end instead.
   // Every file read or written, once: no write may land on an input or on another output
   // (checked before anything is read or written, over every shard's files).
   {
@@ -432,6 +424,8 @@ int run(int argc, char** argv) {
     fs::path folder;
     bool holds = false;  // it holds the input (else it lies inside it)
     std::map<std::string, raindrop::cli::WrittenFile> own;  // what earlier runs wrote there
+    // The file a job writes into this folder, if any.
+    std::optional<fs::path> file_of(const Job& j) const { return role == "output" ? std::optional<fs::path>(j.output) : j.mask; }
   };
   std::vector<Guarded> guarded;
   const auto guard = [&](const std::string& role, const fs::path& folder) {
@@ -446,7 +440,7 @@ int run(int argc, char** argv) {
   for (auto& g : guarded) {
     g.own = read_own_outputs(g.folder);
     for (const auto& j : jobs) {
-      const std::optional<fs::path> file = g.role == "output" ? std::optional<fs::path>(j.output) : j.mask;
+      const std::optional<fs::path> file = g.file_of(j);
       if (!file) continue;
       // Anything there, a link that leads nowhere included, unless it is an unchanged own output.
       if (!fs::exists(fs::symlink_status(*file, ec)) ||
@@ -467,6 +461,11 @@ int run(int argc, char** argv) {
     }
     jobs = std::move(owned);
   }
+  // Folder mode: every input's header is read before the models load and before the first
+  // write, so that a file this program refuses (float, 5 channels, too large, not an image)
+  // stops the run with nothing written, not after hours with part of the outputs there. Damage
+  // inside the pixel data (a cut file) is still found only when the image is decoded. With
+  // --keep-going such inputs are reported as failed at the end instead.
   std::vector<std::string> errors;
   if (batch) {
     std::vector<Job> readable;
@@ -493,10 +492,8 @@ int run(int argc, char** argv) {
       if (!p) continue;
       if (!batch || checked_formats.insert(p->extension().string()).second) {
         check_image_destination(*p, batch);
-      } else if (fs::exists(*p, ec) && ::access(p->c_str(), W_OK) != 0) {
-        // The rest of a folder run's files: a read-only one is not replaced behind its owner's
-        // back (renaming over it would), as in check_image_destination.
-        throw Error("'" + p->string() + "': cannot write (" + std::strerror(errno) + ")");
+      } else {
+        check_replaceable(*p);  // the rest of a folder run's files: not read-only
       }
     }
   }
@@ -552,7 +549,7 @@ int run(int argc, char** argv) {
   // a later run may replace it while it is unchanged.
   const auto record_in_guarded = [&](const Job& j) {
     for (const auto& g : guarded) {
-      const std::optional<fs::path> file = g.role == "output" ? std::optional<fs::path>(j.output) : j.mask;
+      const std::optional<fs::path> file = g.file_of(j);
       if (file) record_own_output(g.folder, file->lexically_relative(g.folder).generic_string(), *file);
     }
   };

@@ -389,6 +389,11 @@ void check_image_destination(const fs::path& path, bool folder_may_be_created) {
   // writable, and an existing read-only file is not replaced behind its owner's back.
   if (::access(dir.c_str(), W_OK | X_OK) != 0)
     throw Error(quoted(path) + ": cannot write (folder " + quoted(dir) + ": " + std::strerror(errno) + ")");
+  check_replaceable(path);
+}
+
+void check_replaceable(const fs::path& path) {
+  std::error_code ec;
   if (fs::exists(path, ec) && ::access(path.c_str(), W_OK) != 0)
     throw Error(quoted(path) + ": cannot write (" + std::strerror(errno) + ")");
 }

@@ -118,6 +118,11 @@ cv::Mat jpeg_round_trip(const cv::Mat& rgb, int quality);
 // checking every destination of a run before its first write.
 void check_image_destination(const std::filesystem::path& path, bool folder_may_be_created = false);
 
+// Throws the one-line Error check_image_destination throws for an existing file at `path` that
+// is read-only: the file is written beside its name and renamed over it, which would replace
+// it behind its owner's back. (The cheap part of that check, for a run's many destinations.)
+void check_replaceable(const std::filesystem::path& path);
+
 // The longest file name (bytes) that Linux file systems take (NAME_MAX on ext4, XFS, Btrfs).
 inline constexpr std::size_t kMaxFileNameBytes = 255;
 
