@@ -18,20 +18,17 @@ std::map<std::string, ManifestEntry> read_manifest(const fs::path& file) {
   if (!in) return entries;
   std::string line;
   int number = 0;
-  std::string pending_error;
   while (std::getline(in, line)) {
     ++number;
-    if (!pending_error.empty()) throw Error(pending_error);  // a bad line that was not the last
     if (line.empty()) continue;
-    const bool cut = in.eof();  // no line break after it: the last line, perhaps cut
+    const std::string bad = "'" + file.string() + "' line " + std::to_string(number) + " is not a manifest record (";
     nlohmann::json j;
     try {
       j = nlohmann::json::parse(line);
     } catch (const nlohmann::json::exception& ex) {
-      pending_error = "'" + file.string() + "' line " + std::to_string(number) + " is not a manifest record (" +
-                      ex.what() + ")";
-      if (!cut) throw Error(pending_error);  // a whole line: not an interrupted append
-      continue;
+      // Only the last line, cut short (no line break after it), is an interrupted append: ignored.
+      if (in.eof()) break;
+      throw Error(bad + ex.what() + ")");
     }
     try {
       ManifestEntry e;
@@ -44,11 +41,10 @@ std::map<std::string, ManifestEntry> read_manifest(const fs::path& file) {
       entries[j.at("id").get<std::string>()] = std::move(e);
     } catch (const nlohmann::json::exception& ex) {
       // Whole JSON that is no record: an append cut short is never a whole value.
-      throw Error("'" + file.string() + "' line " + std::to_string(number) + " is not a manifest record (" + ex.what() +
-                  "); is this folder a data set raindrop-render wrote?");
+      throw Error(bad + ex.what() + "); is this folder a data set raindrop-render wrote?");
     }
   }
-  return entries;  // a bad last line is an interrupted append: ignored
+  return entries;
 }
 
 std::string manifest_name(const Shard& shard) {

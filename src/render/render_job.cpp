@@ -378,9 +378,9 @@ RenderSummary render_dataset(const std::vector<InputImage>& inputs, const Render
   }
   // A sample is this run's only if it came from this run's input of that name: resuming from
   // a sample of another image that had the same name (rA/x.png, then rB/x.png) would keep it
-  // as done, under a manifest that names the other image.
-  // The recorded name is as that run gave it (perhaps relative to another working folder), so
-  // only a recorded image that is here and is another file than this run's counts.
+  // as done, under a manifest that names the other image. The recorded name is as that run gave
+  // it (perhaps relative to another working folder), so only a recorded image that is here and
+  // is another file than this run's counts.
   std::map<std::string, fs::path> source_of;
   for (const auto& t : tasks) source_of[t.input->id] = t.input->path;
   std::map<std::string, ManifestEntry> kept;
