@@ -29,6 +29,18 @@ bool stat_regular(const fs::path& file, WrittenFile& out) {
   return true;
 }
 
+// `text` in one write() to `file` opened with `flags` (one short line in append mode does not
+// interleave with another process's); false, with errno saying why, on failure.
+bool write_once(const fs::path& file, int flags, const std::string& text) {
+  const int fd = ::open(file.c_str(), flags, 0644);
+  if (fd < 0) return false;
+  const bool ok = ::write(fd, text.data(), text.size()) == static_cast<ssize_t>(text.size());
+  const int err = errno;
+  ::close(fd);
+  errno = err;
+  return ok;
+}
+
 }  // namespace
 
 std::map<std::string, WrittenFile> read_own_outputs(const fs::path& folder) {
@@ -58,21 +70,11 @@ void record_own_output(const fs::path& folder, const std::string& name, const fs
   WrittenFile f;
   if (name.find_first_of("\r\n") != std::string::npos || !stat_regular(file, f)) return;
   const fs::path list = folder / kOwnOutputsList;
+  const auto fail = [&list] { throw Error("'" + list.string() + "': cannot write (" + std::strerror(errno) + ")"); };
   // The header once, by whichever run makes the list (O_EXCL: never over another's).
-  const int made = ::open(list.c_str(), O_WRONLY | O_CREAT | O_EXCL, 0644);
-  if (made >= 0) {
-    const bool ok = ::write(made, kHeader, std::strlen(kHeader)) == static_cast<ssize_t>(std::strlen(kHeader));
-    ::close(made);
-    if (!ok) throw Error("'" + list.string() + "': cannot write (" + std::strerror(errno) + ")");
-  } else if (errno != EEXIST) {
-    throw Error("'" + list.string() + "': cannot write (" + std::strerror(errno) + ")");
-  }
+  if (!write_once(list, O_WRONLY | O_CREAT | O_EXCL, kHeader) && errno != EEXIST) fail();
   const std::string line = std::to_string(f.size) + " " + std::to_string(f.mtime_ns) + " " + name + "\n";
-  const int fd = ::open(list.c_str(), O_WRONLY | O_APPEND);
-  const bool ok = fd >= 0 && ::write(fd, line.data(), line.size()) == static_cast<ssize_t>(line.size());
-  const int err = errno;
-  if (fd >= 0) ::close(fd);
-  if (!ok) throw Error("'" + list.string() + "': cannot write (" + std::strerror(err) + ")");
+  if (!write_once(list, O_WRONLY | O_APPEND, line)) fail();
 }
 
 }  // namespace raindrop::cli
