@@ -4,18 +4,21 @@
 # (backgrounds drawn by the program, no data set needed) with its contact sheet.
 #
 #   scripts/setup.sh            install + build + demo
-#   scripts/setup.sh --no-demo  install + build only (used by scripts/test.sh)
+#   scripts/setup.sh --no-demo  install + build only
+#   scripts/setup.sh --test     install + build, plus what only the tests need (scripts/test.sh)
 #
 # PyTorch is not part of this: tools/ has its own opt-in step, scripts/setup-tools.sh.
 set -euo pipefail
 cd "$(dirname "${BASH_SOURCE[0]}")/.."
 
 run_demo=1
+test_packages=0
 case "${1:-}" in
   "") ;;
   --no-demo) run_demo=0 ;;
-  -h|--help) sed -n '2,9p' "$0" | sed 's/^# \{0,1\}//'; exit 0 ;;
-  *) echo "setup: unknown option '$1' (scripts/setup.sh [--no-demo]; --help says more)" >&2; exit 2 ;;
+  --test) run_demo=0; test_packages=1 ;;
+  -h|--help) sed -n '2,10p' "$0" | sed 's/^# \{0,1\}//'; exit 0 ;;
+  *) echo "setup: unknown option '$1' (scripts/setup.sh [--no-demo | --test]; --help says more)" >&2; exit 2 ;;
 esac
 
 packages=(build-essential cmake ninja-build pkg-config ca-certificates dpkg
@@ -23,6 +26,9 @@ packages=(build-essential cmake ninja-build pkg-config ca-certificates dpkg
           libglm-dev libtbb-dev
           nlohmann-json3-dev libcli11-dev libgtest-dev zlib1g-dev libpng-dev libjpeg62-turbo-dev libdeflate-dev
           python3 python3-pip python3-venv)
+# qemu-user: the int8 models are tested on an emulated CPU without VNNI
+# (tests/remove/test_int8_precision.cpp).
+((test_packages)) && packages+=(qemu-user)
 missing=()
 for p in "${packages[@]}"; do
   dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")

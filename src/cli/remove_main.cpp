@@ -44,6 +44,7 @@
 #include "raindrop/common/progress.h"
 #include "raindrop/common/shard.h"
 #include "raindrop/common/version.h"
+#include "raindrop/remove/int8_precision.h"
 #include "raindrop/remove/model_paths.h"
 #include "raindrop/remove/remover.h"
 
@@ -333,7 +334,8 @@ int run(int argc, char** argv) {
                  "Folder mode: process only shard K of N (0 <= K < N, e.g. $SLURM_ARRAY_TASK_ID/$SLURM_ARRAY_TASK_COUNT): "
                  "the images whose relative name hashes to K");
   app.add_flag("-q,--quiet", quiet, "No progress bar");
-  app.set_version_flag("--version", std::string("raindrop-remove ") + kVersion + " (" + ort_description() + ")");
+  app.set_version_flag("--version", std::string("raindrop-remove ") + kVersion + " (" + ort_description() +
+                                        "; int8 models: " + int8_kernels_description() + ")");
   try {
     app.parse(argc, argv);
     // NaN passes CLI::Range (every comparison with it is false).

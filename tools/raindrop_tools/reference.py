@@ -43,6 +43,7 @@ import numpy as np
 import onnxruntime as ort
 
 from . import contract as C
+from . import int8_precision
 from .edge import edge_map_numpy
 from .imageio import ImageError, check_writable, read_rgb, to_float, to_uint8, write_grey, write_rgb
 from .morphology import dilate_numpy
@@ -85,6 +86,7 @@ class RaindropRemover:
         if threads:
             so.intra_op_num_threads = int(threads)
             so.inter_op_num_threads = 1
+        int8_precision.apply(so)  # int8 folders: the same output on every x86 CPU, as raindrop-remove
         self.providers = _providers(providers)
         self.threads = threads
         self.sessions: dict[str, ort.InferenceSession] = {}

@@ -1,0 +1,114 @@
+// int8 model folders give the same output on a CPU without VNNI as on one with it
+// (include/raindrop/remove/int8_precision.h). Without VNNI, ONNX Runtime's fast uint8 x int8
+// products saturate at 16 bits and changed the detector's masks; raindrop-remove then asks for
+// its exact kernels. No machine has both kinds of CPU, so the program runs twice: natively, and
+// under QEMU's user-mode emulator with a Haswell CPU (AVX2, no VNNI, no AVX-512), which runs the
+// same binary and ONNX Runtime library down their non-VNNI code paths. Needs qemu-x86_64
+// (Debian: qemu-user, which scripts/test.sh installs); skips with a message without it.
+#include <gtest/gtest.h>
+
+#include <cstdlib>
+#include <sstream>
+
+#include "raindrop/remove/int8_precision.h"
+#include "remove_test_util.h"
+
+namespace removetest {
+namespace {
+
+// qemu-x86_64 on the PATH, or empty.
+fs::path find_qemu() {
+  const char* path = std::getenv("PATH");
+  std::stringstream dirs(path ? path : "");
+  std::string dir;
+  while (std::getline(dirs, dir, ':')) {
+    const fs::path p = fs::path(dir) / "qemu-x86_64";
+    std::error_code ec;
+    if (!dir.empty() && fs::is_regular_file(p, ec)) return p;
+  }
+  return {};
+}
+
+// The committed int8 folder of the default model (models/<DEFAULT>-int8), or the first int8 one.
+fs::path int8_models() {
+  std::string default_name;
+  std::ifstream in(source_dir() / "models" / "DEFAULT");
+  std::getline(in, default_name);
+  fs::path first;
+  for (const auto& dir : trained_models()) {
+    const std::string name = dir.filename().string();
+    if (name.size() < 5 || name.compare(name.size() - 5, 5, "-int8") != 0) continue;
+    if (name == default_name + "-int8") return dir;
+    if (first.empty()) first = dir;
+  }
+  return first;
+}
+
+TEST(Int8Precision, OnlyX86CpusWithoutVnniNeedTheExactKernels) {
+#if defined(__x86_64__) || defined(__i386__)
+  __builtin_cpu_init();
+  const bool vnni = __builtin_cpu_supports("avx512vnni") || __builtin_cpu_supports("avxvnni");
+  EXPECT_EQ(raindrop::removal::int8_products_saturate(), !vnni);
+  EXPECT_EQ(std::string(raindrop::removal::int8_kernels_description()),
+            vnni ? "VNNI" : "exact uint8 kernels (this CPU has no VNNI)");
+#else
+  EXPECT_FALSE(raindrop::removal::int8_products_saturate());
+#endif
+}
+
+TEST(Int8Precision, AnInt8FolderGivesTheSameOutputOnACpuWithoutVnni) {
+#if !defined(__x86_64__)
+  GTEST_SKIP() << "x86-64 only (the saturating products are x86's)";
+#endif
+  REQUIRE_RENDER();
+  const fs::path qemu = find_qemu();
+  if (qemu.empty()) GTEST_SKIP() << "qemu-x86_64 not on the PATH (Debian: apt-get install qemu-user; scripts/test.sh installs it)";
+  const fs::path models = int8_models();
+  if (models.empty()) GTEST_SKIP() << "no int8 model folder in " << (source_dir() / "models");
+  TempDir tmp;
+  // Two demo frames at the models' training size (512x256: working scale 1). The large-drop
+  // pass is left out: its graphs are float, whose sums may differ in their last bits between
+  // AVX-512 and AVX2 kernels, and this test is about the int8 products.
+  RunResult r = run_command(RAINDROP_RENDER_BIN, {"--demo", "--size", "512x256", "--seed", "7", "--out", "set", "-q", "-j", "1"},
+                            tmp.path());
+  ASSERT_EQ(r.code, 0) << r.describe();
+
+  // The emulated CPU is one without VNNI, as the program sees it.
+  r = run_command(qemu, {"-cpu", "Haswell", remove_bin().string(), "--version"}, tmp.path());
+  ASSERT_EQ(r.code, 0) << r.describe();
+  ASSERT_NE(r.out.find("int8 models: exact uint8 kernels (this CPU has no VNNI)"), std::string::npos) << r.describe();
+
+  const std::vector<std::string> common{"--models", models.string(), "--no-large-drops", "-q", "-j", "2"};
+  auto args = [&](const std::string& tag) {
+    std::vector<std::string> a{"set/rainy", "out-" + tag, "--mask-dir", "mask-" + tag};
+    a.insert(a.end(), common.begin(), common.end());
+    return a;
+  };
+  r = run_remove(args("native"), tmp.path());
+  ASSERT_EQ(r.code, 0) << r.describe();
+  std::vector<std::string> emulated{"-cpu", "Haswell", remove_bin().string()};
+  for (const auto& a : args("haswell")) emulated.push_back(a);
+  r = run_command(qemu, emulated, tmp.path());
+  ASSERT_EQ(r.code, 0) << r.describe();
+
+  int compared = 0;
+  for (const auto& e : fs::directory_iterator(tmp / "set/rainy")) {
+    const std::string n = e.path().filename().string();
+    for (const std::string kind : {"out", "mask"}) {
+      std::string why;
+      const auto a = read_image(tmp / (kind + "-native") / n, &why);
+      ASSERT_TRUE(a.has_value()) << why;
+      const auto b = read_image(tmp / (kind + "-haswell") / n, &why);
+      ASSERT_TRUE(b.has_value()) << why;
+      ASSERT_EQ(a->pixels.size(), b->pixels.size());
+      const double diff = cv::norm(a->pixels, b->pixels, cv::NORM_INF);
+      EXPECT_EQ(diff, 0.0) << models.filename() << " " << kind << " of " << n
+                           << " differs between this CPU and an emulated one without VNNI (max " << diff << " levels)";
+      ++compared;
+    }
+  }
+  EXPECT_EQ(compared, 4);
+}
+
+}  // namespace
+}  // namespace removetest
