@@ -28,6 +28,7 @@
 #include "../cli/options.h"
 #include "bench_util.h"
 #include "raindrop/common/error.h"
+#include "raindrop/remove/int8_precision.h"
 #include "raindrop/common/image_io.h"
 #include "raindrop/remove/model_paths.h"
 #include "raindrop/remove/remover.h"
@@ -265,7 +266,8 @@ int run_remove_bench(RemoveBenchOptions o) {
   }
 
   std::cout << "## raindrop-remove: time per image\n\n"
-            << "Machine: " << bench::machine_description() << "; " << ort_description() << ", CPU, graph optimisation "
+            << "Machine: " << bench::machine_description() << "; " << ort_description() << ", CPU (int8 models: "
+            << int8_kernels_description() << "), graph optimisation "
             << to_string(o.graph_opt) << "; tile " << (o.tile ? std::to_string(o.tile) : std::string("off")) << " (overlap " << o.overlap
             << "). Mean of " << runs << " runs after " << warmup << " warm-up run" << (warmup == 1 ? "" : "s")
             << ", in ms; input: the built-in street image (8-bit RGB). \"other\": input conversion, tile blending and "
