@@ -156,4 +156,17 @@ inline std::vector<std::string> hidden_temporaries(const fs::path& dir) {
   return found;
 }
 
+// `name` found in a folder of $PATH, or empty. (qemu-x86_64: the tests that run our programs on
+// an emulated CPU without VNNI or AVX-512 skip where it is absent.)
+inline fs::path find_on_path(const std::string& name) {
+  const char* path = std::getenv("PATH");
+  std::stringstream dirs(path ? path : "");
+  std::string dir;
+  while (std::getline(dirs, dir, ':')) {
+    std::error_code ec;
+    if (!dir.empty() && fs::is_regular_file(fs::path(dir) / name, ec)) return fs::path(dir) / name;
+  }
+  return {};
+}
+
 }  // namespace testsupport

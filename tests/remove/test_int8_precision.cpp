@@ -7,27 +7,11 @@
 // (Debian: qemu-user, which scripts/test.sh installs); skips with a message without it.
 #include <gtest/gtest.h>
 
-#include <cstdlib>
-#include <sstream>
-
 #include "raindrop/remove/int8_precision.h"
 #include "remove_test_util.h"
 
 namespace removetest {
 namespace {
-
-// qemu-x86_64 on the PATH, or empty.
-fs::path find_qemu() {
-  const char* path = std::getenv("PATH");
-  std::stringstream dirs(path ? path : "");
-  std::string dir;
-  while (std::getline(dirs, dir, ':')) {
-    const fs::path p = fs::path(dir) / "qemu-x86_64";
-    std::error_code ec;
-    if (!dir.empty() && fs::is_regular_file(p, ec)) return p;
-  }
-  return {};
-}
 
 // The committed int8 folder of the default model (models/<DEFAULT>-int8), or the first int8 one.
 fs::path int8_models() {
@@ -61,7 +45,7 @@ TEST(Int8Precision, AnInt8FolderGivesTheSameOutputOnACpuWithoutVnni) {
   GTEST_SKIP() << "x86-64 only (the saturating products are x86's)";
 #endif
   REQUIRE_RENDER();
-  const fs::path qemu = find_qemu();
+  const fs::path qemu = testsupport::find_on_path("qemu-x86_64");
   if (qemu.empty()) GTEST_SKIP() << "qemu-x86_64 not on the PATH (Debian: apt-get install qemu-user; scripts/test.sh installs it)";
   const fs::path models = int8_models();
   if (models.empty()) GTEST_SKIP() << "no int8 model folder in " << (source_dir() / "models");
