@@ -45,10 +45,27 @@ if up_to_date "$mode" || { [[ "$mode" == light ]] && up_to_date full; }; then
   exit 0
 fi
 
+# Only into an environment this script made (its marker, or a stamp of an earlier run) or a new
+# one: pip would otherwise replace the packages of someone else's environment (RAINDROP_VENV
+# pointing at a project's venv: its torch, numpy, ... changed to our pins), and `python -m venv`
+# would write into a folder of the user's files.
+marker="$venv/.raindrop-tools-venv"
+if [[ -e "$venv" && ! -e "$marker" ]] && ! compgen -G "$venv/.raindrop-tools-*.stamp" >/dev/null; then
+  if [[ -e "$venv/pyvenv.cfg" ]]; then
+    echo "setup-tools: $venv is a Python environment this script did not make; installing would change its packages." \
+         "Choose a new folder for RAINDROP_VENV, or create $marker to allow it" >&2
+    exit 1
+  elif [[ ! -d "$venv" ]] || [[ -n "$(ls -A "$venv")" ]]; then
+    echo "setup-tools: $venv exists and is not an empty folder or a Python environment; choose a new folder for RAINDROP_VENV" >&2
+    exit 1
+  fi
+fi
 if [[ ! -x "$venv/bin/python" ]]; then
   echo "setup-tools: creating $venv with $("$python" --version 2>&1)" >&2
+  mkdir -p "$venv" && touch "$marker"  # first, so that a stopped creation can be resumed
   "$python" -m venv "$venv"
 fi
+touch "$marker"
 echo "setup-tools: installing the $mode set from $(basename "$(req_for "$mode")") into $venv" >&2
 "$venv/bin/python" -m pip install -q -r "$(req_for "$mode")"
 # Editable install of the package itself; its dependencies came from the pinned file.
