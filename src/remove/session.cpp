@@ -88,11 +88,13 @@ Ort::SessionOptions make_session_options(const SessionConfig& config) {
   // The graphs are chains: parallelism is inside the operators, not between them.
   so.SetInterOpNumThreads(1);
   so.SetExecutionMode(ORT_SEQUENTIAL);
-  // The environment's shared CPU arena (ort_env); a CUDA session keeps its own allocators.
-  if (config.device == Device::cpu) so.AddConfigEntry("session.use_env_allocators", "1");
-  // int8 graphs: exact integer products where the CPU's fast ones saturate (int8_precision.h),
-  // so that an int8 folder gives the same output on every x86 CPU.
-  if (config.device == Device::cpu && int8_products_saturate()) so.AddConfigEntry("session.x64quantprecision", "1");
+  if (config.device == Device::cpu) {
+    // The environment's shared CPU arena (ort_env); a CUDA session keeps its own allocators.
+    so.AddConfigEntry("session.use_env_allocators", "1");
+    // int8 graphs: exact integer products where the CPU's fast ones saturate (int8_precision.h),
+    // so that an int8 folder gives the same output on every x86 CPU.
+    if (int8_products_saturate()) so.AddConfigEntry("session.x64quantprecision", "1");
+  }
   switch (config.graph_opt) {
     case GraphOpt::disable: so.SetGraphOptimizationLevel(ORT_DISABLE_ALL); break;
     case GraphOpt::basic: so.SetGraphOptimizationLevel(ORT_ENABLE_BASIC); break;

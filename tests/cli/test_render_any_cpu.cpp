@@ -1,6 +1,6 @@
 // A data set does not depend on the CPU it was rendered on: raindrop-render writes the same bytes
-// on a CPU without AVX-512 as on this one. Embree and the compiler's vector code may take other
-// paths there; the drops' optics must not. The program runs natively and under QEMU's user-mode
+// on a CPU without AVX-512 as on this one. Embree and the disk blur (blur.cpp: AVX-512 and AVX
+// paths, chosen at run time) take other paths there; the bytes must not change. The program runs natively and under QEMU's user-mode
 // emulator with a Haswell CPU (AVX2, no AVX-512: `qemu-x86_64 -cpu Haswell`), which sends Embree
 // and every library down their AVX2 paths. Needs qemu-x86_64 (Debian: qemu-user, which
 // scripts/test.sh installs); skips with a message without it. Where this CPU has no AVX-512

@@ -142,29 +142,25 @@ def prepare_run_dir(run_dir: Path, cfg: RunConfig | None) -> RunConfig:
             recorded = config_from_dict(loaded)
         except (yaml.YAMLError, ValueError) as e:  # ValueError: config.ConfigError (unknown keys, bad values)
             raise TrainingError(f"{cfg_file}: not a readable configuration ({str(e).splitlines()[0]})") from e
+        if cfg is None or to_dict(cfg) == to_dict(recorded):
+            return recorded
+        # Only a run folder (run.json marks one) holds a run's configuration: a config.yaml of the
+        # user's own, in a folder named as --out, is never replaced.
+        if not (run_dir / RUN_FILE).is_file():
+            raise TrainingError(f"{cfg_file} is not a training run's configuration (no {RUN_FILE} beside it) and "
+                                "differs from the one given; use a new --out")
         # A run that never saved a checkpoint trained nothing with its configuration: a
         # corrected command (a mistyped --data, a bad --set) may start it again.
-        # (Only in a run folder, which run.json marks: a config.yaml of the user's own, in a
-        # folder named as --out, is not replaced.)
-        if (cfg is not None and to_dict(cfg) != to_dict(recorded) and ckpt.latest_checkpoint(run_dir) is None
-                and (run_dir / RUN_FILE).is_file()):
+        if ckpt.latest_checkpoint(run_dir) is None:
             print(f"train: {cfg_file}: replacing the configuration of a run that saved no checkpoint", file=sys.stderr)
             _write_text_atomic(cfg_file, dump_config(cfg))
             return cfg
-        if cfg is not None and to_dict(cfg) != to_dict(recorded) and not (run_dir / RUN_FILE).is_file():
-            raise TrainingError(f"{cfg_file} is not a training run's configuration (no {RUN_FILE} beside it) and "
-                                "differs from the one given; use a new --out")
-        if cfg is not None and to_dict(cfg) != to_dict(recorded):
-            a, b = to_dict(recorded), to_dict(cfg)
-            diffs = _diff(a, b)
-            raise TrainingError(
-                f"{cfg_file} records a different configuration than the one given "
-                f"({'; '.join(diffs[:5])}); use a new --out, or omit --config to use the recorded one"
-            )
-        return recorded
-    if cfg is None:
-        raise TrainingError(f"{run_dir}: no {CONFIG_FILE} there; give --config to start a run")
-    run_dir.mkdir(parents=True, exist_ok=True)
+        diffs = _diff(to_dict(recorded), to_dict(cfg))
+        raise TrainingError(
+            f"{cfg_file} records a different configuration than the one given "
+            f"({'; '.join(diffs[:5])}); use a new --out, or omit --config to use the recorded one"
+        )
+    # A new run (cfg is given: a missing one was refused above).
     _write_text_atomic(cfg_file, dump_config(cfg))
     return cfg
 
