@@ -5,7 +5,7 @@
 # scripts/results.sh data render stats eval remove tradeoffs sheets photoreal scale flatroad largedrops coarsetrain
 # largedropmodels sensor mirroraverage highlights multiscale veil papermodels outline trails photos windshield
 # windshield-followup longer growth sharpness coalesce surround largewidth largedrops-all windshield2
-# errorsplit
+# errorsplit withoutvnni
 #
 # Nothing here is committed automatically: images derived from Cityscapes, CamVid or the
 # real raindrop photographs stay under out/ (their licences forbid redistribution).
@@ -19,7 +19,7 @@ sections=("$@")
 ((${#sections[@]})) || sections=(data render stats eval remove tradeoffs sheets photoreal scale flatroad largedrops coarsetrain
                                   largedropmodels sensor mirroraverage highlights multiscale veil papermodels outline trails
                                   photos windshield windshield-followup longer growth sharpness coalesce
-                                  surround largewidth largedrops-all windshield2 errorsplit)
+                                  surround largewidth largedrops-all windshield2 errorsplit withoutvnni)
 want() { [[ " ${sections[*]} " == *" $1 "* ]]; }
 # link_set SRC DST SPLIT [LIMIT]: the first LIMIT (default 100; 0: all) samples of data set SRC
 # (of manifest split SPLIT; "-" = all) linked into DST/rainy and DST/clean (and DST/mask, where
@@ -1185,4 +1185,39 @@ if want errorsplit; then
     split_sets "$es" "$m" "-j 2 --models models/$m" real-pairs:test:0 real-pairs:train:0 val-sparse:-:0 \
       val-windshield-sharp:-:0
   done | tee "$es/scores.txt"
+fi
+
+if want withoutvnni; then
+  # docs/RESULTS.md 3.10: the float default and its int8 copy on this CPU's code paths and on
+  # those of a CPU without AVX-512 and VNNI (libraindrop_hide_avx512.so), the program timed on a
+  # 1280x720 photograph in 15 rounds of the four in turn, then the bench both ways.
+  wv="$out/withoutvnni"
+  mkdir -p "$wv"
+  hide="LD_PRELOAD=$PWD/build/libraindrop_hide_avx512.so"
+  photo="$shared/real-raindrop/windshield_2.jpg"
+  for i in $(seq 15); do
+    for how in native hidden; do
+      for m in compact-multiscale compact-multiscale-int8; do
+        pre=(); [[ $how == hidden ]] && pre=("$hide")
+        s=$(date +%s%N)
+        env "${pre[@]}" build/raindrop-remove "$photo" "$wv/out.png" -j 2 --models "models/$m" -q
+        echo "$how $m $(( ($(date +%s%N) - s) / 1000000 ))"
+      done
+    done
+  done >"$wv/times.txt"
+  $py - "$wv/times.txt" <<'PY' | tee "$wv/summary.txt"
+import collections, statistics, sys
+t = collections.defaultdict(list)
+for line in open(sys.argv[1]):
+    how, m, ms = line.split()
+    t[(how, m)].append(int(ms))
+for (how, m), v in t.items():
+    print(f"{how:7s} {m:24s} median {statistics.median(v):.0f} ms (min {min(v)}, max {max(v)})")
+PY
+  for how in native hidden; do
+    pre=(); [[ $how == hidden ]] && pre=("$hide")
+    env "${pre[@]}" build/raindrop-bench remove --models models/compact-multiscale --models models/compact-multiscale-int8 \
+      --threads 2 --size 1280x720 --runs 10 >"$wv/bench-$how.md"
+    env "${pre[@]}" build/raindrop-bench render --sections core --frames 2 --repeats 3 >"$wv/render-$how.md"
+  done
 fi

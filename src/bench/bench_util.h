@@ -1,5 +1,6 @@
 #pragma once
 // Shared helpers of the benchmark programs: timing, statistics, machine description.
+#include <dlfcn.h>
 #include <stdlib.h>
 
 #include <algorithm>
@@ -43,7 +44,21 @@ inline double mean(const std::vector<double>& v) {
   return v.empty() ? 0 : s / v.size();
 }
 
-// "AMD EPYC, 2 hardware threads" from /proc/cpuinfo.
+// The widest vector instructions this process is told it may use (x86-64), and whether
+// libraindrop_hide_avx512.so hides some: the kernels ONNX Runtime, Embree and the blur choose.
+inline std::string vector_instructions() {
+#if defined(__x86_64__) || defined(__i386__)
+  __builtin_cpu_init();
+  std::string isa = __builtin_cpu_supports("avx512f") ? "AVX-512" : __builtin_cpu_supports("avx2") ? "AVX2" : "SSE";
+  if (const auto* hidden = static_cast<const int*>(::dlsym(RTLD_DEFAULT, "raindrop_hide_avx512_active")); hidden && *hidden)
+    isa += " (AVX-512 and VNNI hidden by libraindrop_hide_avx512.so)";
+  return isa;
+#else
+  return "not x86";
+#endif
+}
+
+// "AMD EPYC, 2 hardware threads, AVX2" from /proc/cpuinfo and the instructions seen.
 inline std::string machine_description() {
   std::ifstream in("/proc/cpuinfo");
   std::string line, model = "unknown CPU";
@@ -53,7 +68,8 @@ inline std::string machine_description() {
       break;
     }
   }
-  return model + ", " + std::to_string(std::thread::hardware_concurrency()) + " hardware threads";
+  return model + ", " + std::to_string(std::thread::hardware_concurrency()) + " hardware threads, " +
+         vector_instructions();
 }
 
 }  // namespace raindrop::bench
