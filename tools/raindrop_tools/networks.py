@@ -9,10 +9,16 @@
   then ReLU.
 * RFN (refine): conv 3x3 -> basic residual blocks (two 3x3) -> conv 3x3, linear output.
 
-All networks accept any H, W >= 1: before the stride-2 convolution the feature map is padded
-(replicate) to even size, and the full-resolution result is cropped back. The padding is
-written with static pad widths plus a slice to a symbolic length, which the ONNX exporter
-turns into shape-generic Pad/Slice nodes (dynamic H and W).
+All networks accept any H, W >= 1. At an odd height or width the stride-2 convolution's own
+zero padding covers the last row or column, conv4 returns one more, and conv5's result is
+cropped back (a slice to the symbolic input size, which the ONNX exporter writes as
+shape-generic Slice nodes). The pipelines never show the networks an odd size: they pad the
+image to even first (replicate; docs/CONTRACTS.md section 2), and the networks were trained on
+even crops. Where H and W are even nothing is padded or cropped. (Earlier exports padded the
+feature map to even size inside the graph, replicate, before the stride-2 convolution, and
+cropped before conv5: at even sizes the same function, but the pad and the slices copied
+full-resolution tensors and cost the RDN 10% of its time; ``inner_padding.py`` rewrites such
+graphs.)
 
 Weights: Xavier (Glorot) uniform, zero biases, BN weight 1 / bias 0. With
 ``global_residual`` the last convolution starts at zero so the network starts as the
@@ -61,18 +67,6 @@ class BasicBlock(nn.Module):
         return F.relu(x + self.conv2(self.conv1(x)))
 
 
-def pad_to_even(x: torch.Tensor) -> torch.Tensor:
-    """Replicate-pad the bottom/right of an NCHW tensor to even H and W (no-op when even).
-
-    Always pads by one and slices back to the even length: the pad widths stay constants and
-    only the slice end is a function of the (dynamic) size, which keeps the exported graph
-    valid for every H and W."""
-    h, w = x.shape[-2], x.shape[-1]
-    he = (h + 1) // 2 * 2
-    we = (w + 1) // 2 * 2
-    return F.pad(x, (0, 1, 0, 1), mode="replicate")[:, :, :he, :we]
-
-
 class HalfResNet(nn.Module):
     """The RDN / 3RN body: full-res conv, stride-2 conv, blocks at half res, upsampling."""
 
@@ -93,9 +87,8 @@ class HalfResNet(nn.Module):
 
     def forward(self, x: torch.Tensor) -> torch.Tensor:
         h, w = x.shape[-2], x.shape[-1]
-        y = pad_to_even(self.conv1(x))
-        y = self.conv4(self.blocks(self.conv3(self.conv2(y))))
-        return self.conv5(y[:, :, :h, :w])
+        y = self.conv4(self.blocks(self.conv3(self.conv2(self.conv1(x)))))
+        return self.conv5(y)[:, :, :h, :w]
 
 
 class RDN(nn.Module):

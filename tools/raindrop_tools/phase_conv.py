@@ -22,17 +22,13 @@ first, export.json's digests updated). ``export`` writes new graphs this way alr
 
 from __future__ import annotations
 
-import argparse
-import json
-import sys
 from pathlib import Path
 
 import numpy as np
 import onnx
 from onnx import helper, numpy_helper
 
-from . import contract as C
-from .staging import staged_model_files
+from . import graph_rewrite
 
 # Kernel taps that phase 0 / phase 1 of an axis uses, in the order of its two input positions.
 TAPS = {0: (3, 1), 1: (2, 0)}
@@ -105,12 +101,10 @@ def split_transposed_convs(model: onnx.ModelProto) -> int:
         nodes.append(helper.make_node("DepthToSpace", [cat], [n.output[0]], name=f"{n.name}.interleave", blocksize=2,
                                       mode="DCR"))
         count += 1
-    del g.node[:]
-    g.node.extend(nodes)
-    used = {i for n in g.node for i in n.input}
-    kept = [t for t in g.initializer if t.name in used]
-    del g.initializer[:]
-    g.initializer.extend(kept)
+    if count:
+        del g.node[:]
+        g.node.extend(nodes)
+        graph_rewrite.prune(model)
     return count
 
 
@@ -147,47 +141,18 @@ def rewrite_folder(models_dir: Path) -> dict[str, int]:
     graph is checked against the old one with ONNX Runtime on random inputs (MAX_ABS_DIFF), and
     the graphs and export.json's digests replace the old ones only when all three pass (staged
     beside the folder and renamed in). Returns the count per graph."""
-    import onnxruntime as ort
-
-    models_dir = Path(models_dir)
-    counts = {}
-    with staged_model_files(models_dir, "phase-conv") as stage:
-        rng = np.random.default_rng(0)
-        for name in C.NETWORKS:
-            src = models_dir / C.FILES[name]
-            model = onnx.load(str(src))
-            counts[name] = split_transposed_convs(model)
-            onnx.checker.check_model(model)
-            onnx.save(model, str(stage / C.FILES[name]))
-            old = ort.InferenceSession(str(src), providers=["CPUExecutionProvider"])
-            new = ort.InferenceSession(str(stage / C.FILES[name]), providers=["CPUExecutionProvider"])
-            for h, w in ((37, 53), (64, 96)):
-                feed = {i.name: rng.random((1, i.shape[1], h, w), dtype=np.float32) for i in old.get_inputs()}
-                diff = float(np.abs(old.run(None, feed)[0] - new.run(None, feed)[0]).max())
-                if not diff <= MAX_ABS_DIFF:
-                    raise PhaseConvError(f"{src}: the split graph differs from the old one by {diff:g} > {MAX_ABS_DIFF}")
-        info_file = models_dir / C.EXPORT_INFO
-        if info_file.is_file():
-            info = json.loads(info_file.read_text())
-            info["files"] = C.graph_files(stage)
-            info["phase_conv"] = "4x4 stride-2 transposed convolutions as four 2x2 phase convolutions (phase_conv.py)"
-            (stage / C.EXPORT_INFO).write_text(json.dumps(info, indent=2) + "\n")
-    return counts
+    try:
+        return graph_rewrite.rewrite_folder(
+            models_dir, "phase-conv", split_transposed_convs, ((37, 53), (64, 96)), MAX_ABS_DIFF,
+            "4x4 stride-2 transposed convolutions as four 2x2 phase convolutions (phase_conv.py)")
+    except graph_rewrite.GraphRewriteError as e:
+        raise PhaseConvError(str(e)) from e
 
 
 def main(argv: list[str] | None = None) -> int:
-    ap = argparse.ArgumentParser(prog="python -m raindrop_tools.phase_conv", description=__doc__.split("\n\n")[0])
-    ap.add_argument("--models", required=True, action="append", help="model folder to rewrite in place (repeatable)")
-    args = ap.parse_args(argv)
-    for d in args.models:
-        try:
-            counts = rewrite_folder(Path(d))
-        except (PhaseConvError, OSError, onnx.checker.ValidationError) as e:
-            print(f"phase_conv: error: {e}", file=sys.stderr)
-            return 2
-        print(f"phase_conv: {d}: " + ", ".join(f"{n} {c}" for n, c in counts.items()) + " transposed convolutions split")
-    return 0
+    return graph_rewrite.command("phase_conv", __doc__.split("\n\n")[0], rewrite_folder, (PhaseConvError,),
+                                 "transposed convolutions split", argv)
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    raise SystemExit(main())

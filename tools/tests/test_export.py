@@ -297,3 +297,15 @@ def test_conv4_is_exported_as_phase_convolutions(exported):
     for name in ("rdn", "rrn"):
         ops = [n.op_type for n in onnx.load(str(out / C.FILES[name])).graph.node]
         assert "ConvTranspose" not in ops and ops.count("DepthToSpace") == 1, name
+
+
+def test_no_inner_padding_is_exported(exported):
+    """The RDN and 3RN go out without the Pad that earlier exports put before the stride-2
+    convolution (inner_padding.py), and crop after conv5: at even sizes nothing is copied.
+    (Parity with PyTorch at odd and even sizes: the tests above.)"""
+    out = exported["dir"]
+    for name in ("rdn", "rrn"):
+        ops = [n.op_type for n in onnx.load(str(out / C.FILES[name])).graph.node]
+        assert "Pad" not in ops and ops.count("Slice") == 2, name
+        last_conv = max(i for i, op in enumerate(ops) if op == "Conv")
+        assert all(op != "Slice" for op in ops[:last_conv]), name
