@@ -36,6 +36,7 @@ from .config import RunConfig, config_from_dict, is_safe_name, to_dict
 from .flops import gflops, parameter_count
 from .networks import build_networks
 from .phase_conv import split_transposed_convs
+from .phase_final_conv import fold_final_convs
 from .staging import staged_model_files
 
 OPSET = 18
@@ -145,6 +146,9 @@ def export_network(name: str, net: nn.Module, cfg: RunConfig, path: Path) -> onn
     # conv4's transposed convolution as four phase convolutions: the same function, 1.1-1.5x
     # faster networks in ONNX Runtime (phase_conv.py; checked against PyTorch by parity()).
     split_transposed_convs(model)
+    # conv5 on those phases before they are interleaved: no full-resolution feature map
+    # (phase_final_conv.py; also checked against PyTorch by parity()).
+    fold_final_convs(model)
     del model.metadata_props[:]
     onnx.helper.set_model_props(model, _metadata(name, cfg))
     model.doc_string = f"raindrop {name} ({cfg.name}); see docs/CONTRACTS.md section 2"

@@ -26,6 +26,15 @@ class GraphRewriteError(ValueError):
     pass
 
 
+def consumers(model: onnx.ModelProto) -> dict[str, list[onnx.NodeProto]]:
+    """For each tensor name, the nodes that read it, in graph order."""
+    out: dict[str, list[onnx.NodeProto]] = {}
+    for n in model.graph.node:
+        for i in n.input:
+            out.setdefault(i, []).append(n)
+    return out
+
+
 def prune(model: onnx.ModelProto) -> None:
     """Removes nodes whose outputs nothing reads (repeatedly), then initializers and value_info
     entries that no longer name a tensor of the graph."""
@@ -67,13 +76,13 @@ def topological_sort(model: onnx.ModelProto) -> None:
 
 
 def rewrite_folder(models_dir: Path, tag: str, transform: Callable[[onnx.ModelProto], int],
-                   sizes: tuple[tuple[int, int], ...], max_abs_diff: float, note: str) -> dict[str, int]:
+                   sizes: tuple[tuple[int, int], ...], max_abs_diff: float, note: str,
+                   error: type[GraphRewriteError] = GraphRewriteError) -> dict[str, int]:
     """Applies ``transform`` (which changes a graph in place and returns how many places it
     changed) to the folder's three graphs; each changed graph must give the old one's outputs to
     ``max_abs_diff`` at every (H, W) of ``sizes``. export.json gets the new digests and
     ``note`` under ``tag``. A graph the transform left alone keeps its bytes, and a folder where
-    nothing changed is not touched at all. Returns the count per graph; raises
-    GraphRewriteError."""
+    nothing changed is not touched at all. Returns the count per graph; raises ``error``."""
     import onnxruntime as ort
 
     models_dir = Path(models_dir)
@@ -99,7 +108,7 @@ def rewrite_folder(models_dir: Path, tag: str, transform: Callable[[onnx.ModelPr
                 want, got = old.run(None, feed)[0], new.run(None, feed)[0]
                 diff = float(np.abs(want - got).max()) if want.shape == got.shape else float("inf")
                 if not diff <= max_abs_diff:
-                    raise GraphRewriteError(f"{src}: the rewritten graph differs from the old one by {diff:g} > "
+                    raise error(f"{src}: the rewritten graph differs from the old one by {diff:g} > "
                                             f"{max_abs_diff} at {h}x{w}")
         info_file = models_dir / C.EXPORT_INFO
         if info_file.is_file():
@@ -110,8 +119,8 @@ def rewrite_folder(models_dir: Path, tag: str, transform: Callable[[onnx.ModelPr
     return counts
 
 
-def command(prog: str, description: str, rewrite: Callable[[Path], dict[str, int]], errors: tuple,
-            done: str, argv: list[str] | None) -> int:
+def command(prog: str, description: str, rewrite: Callable[[Path], dict[str, int]], done: str,
+            argv: list[str] | None) -> int:
     """The command line of a folder rewrite: ``--models DIR`` (repeatable), one line per folder
     (the counts per graph, then ``done``), a one-line error and exit 2 on failure."""
     ap = argparse.ArgumentParser(prog=f"python -m raindrop_tools.{prog}", description=description)
@@ -120,7 +129,7 @@ def command(prog: str, description: str, rewrite: Callable[[Path], dict[str, int
     for d in args.models:
         try:
             counts = rewrite(Path(d))
-        except (*errors, OSError, onnx.checker.ValidationError) as e:
+        except (GraphRewriteError, OSError, onnx.checker.ValidationError) as e:
             print(f"{prog}: error: {e}", file=sys.stderr)
             return 2
         print(f"{prog}: {d}: " + ", ".join(f"{n} {c}" for n, c in counts.items()) + " " + done)

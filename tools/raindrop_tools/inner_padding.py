@@ -33,16 +33,8 @@ CHECK_SIZES = ((38, 54), (64, 96))
 _PASS_THROUGH = {"Slice", "QuantizeLinear", "DequantizeLinear"}
 
 
-class InnerPaddingError(ValueError):
+class InnerPaddingError(graph_rewrite.GraphRewriteError):
     pass
-
-
-def _consumers(model: onnx.ModelProto) -> dict[str, list[onnx.NodeProto]]:
-    out: dict[str, list[onnx.NodeProto]] = {}
-    for n in model.graph.node:
-        for i in n.input:
-            out.setdefault(i, []).append(n)
-    return out
 
 
 def _only_consumer(consumers: dict, tensor: str) -> onnx.NodeProto | None:
@@ -122,7 +114,7 @@ def drop_inner_padding(model: onnx.ModelProto) -> int:
         return 0
     if len(pads) != 1:
         raise InnerPaddingError(f"{len(pads)} Pad nodes; expected the one before the stride-2 convolution")
-    consumers = _consumers(model)
+    consumers = graph_rewrite.consumers(model)
     by_output = {o: n for n in model.graph.node for o in n.output}
     _rewire_start(model, pads[0], consumers)
     convs = [n for n in model.graph.node if n.op_type == "Conv"]
@@ -135,16 +127,13 @@ def drop_inner_padding(model: onnx.ModelProto) -> int:
 def rewrite_folder(models_dir: Path) -> dict[str, int]:
     """Rewrites a model folder's graphs in place (graph_rewrite.rewrite_folder): each new graph
     must give the old one's outputs at even sizes to MAX_ABS_DIFF. Returns the count per graph."""
-    try:
-        return graph_rewrite.rewrite_folder(
-            models_dir, "inner-padding", drop_inner_padding, CHECK_SIZES, MAX_ABS_DIFF,
-            "the inner even-size padding of the RDN and 3RN removed (inner_padding.py)")
-    except graph_rewrite.GraphRewriteError as e:
-        raise InnerPaddingError(str(e)) from e
+    return graph_rewrite.rewrite_folder(
+        models_dir, "inner-padding", drop_inner_padding, CHECK_SIZES, MAX_ABS_DIFF,
+        "the inner even-size padding of the RDN and 3RN removed (inner_padding.py)", InnerPaddingError)
 
 
 def main(argv: list[str] | None = None) -> int:
-    return graph_rewrite.command("inner_padding", __doc__.split("\n\n")[0], rewrite_folder, (InnerPaddingError,),
+    return graph_rewrite.command("inner_padding", __doc__.split("\n\n")[0], rewrite_folder,
                                  "graphs rewritten", argv)
 
 

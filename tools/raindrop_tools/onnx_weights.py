@@ -25,6 +25,7 @@ from torch import nn
 from . import contract as C
 from .networks import example_inputs
 from .phase_conv import phase_groups, transposed_kernel
+from .phase_final_conv import final_kernel, folded_final_convs
 
 CONV_OPS = ("Conv", "ConvTranspose")
 CONV_MODULES = (nn.Conv2d, nn.ConvTranspose2d)
@@ -48,6 +49,8 @@ def _graph_convs(model: onnx.ModelProto) -> list[tuple[str, np.ndarray, np.ndarr
     # as the one it was.
     groups = phase_groups(model)
     in_group = {n for names in groups.values() for n in names[1:]}
+    # So is a final convolution computed on those phases (phase_final_conv.py).
+    folded = folded_final_convs(model)
     nodes = {n.name: n for n in model.graph.node}
     out = []
     for node in model.graph.node:
@@ -59,6 +62,9 @@ def _graph_convs(model: onnx.ModelProto) -> list[tuple[str, np.ndarray, np.ndarr
         bias = tensors.get(node.input[2]) if len(node.input) > 2 and node.input[2] else None
         if node.name in groups:
             out.append(("ConvTranspose", transposed_kernel([tensors[m.input[1]] for m in members]), bias))
+        elif node.name in folded:
+            w = final_kernel(tensors[node.input[1]])
+            out.append(("Conv", w, None if bias is None else bias[: w.shape[0]]))
         else:
             out.append((node.op_type, tensors[node.input[1]], bias))
     return out

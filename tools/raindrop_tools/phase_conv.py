@@ -37,7 +37,7 @@ PHASES = ((0, 0), (0, 1), (1, 0), (1, 1))
 MAX_ABS_DIFF = 1e-4
 
 
-class PhaseConvError(ValueError):
+class PhaseConvError(graph_rewrite.GraphRewriteError):
     pass
 
 
@@ -108,26 +108,34 @@ def split_transposed_convs(model: onnx.ModelProto) -> int:
     return count
 
 
+def _is_interleave(node: onnx.NodeProto) -> bool:
+    """A DepthToSpace that interleaves four phases (DCR, block 2)."""
+    a = _attrs(node)
+    return node.op_type == "DepthToSpace" and a.get("blocksize") == 2 and a.get("mode", b"DCR") in (b"DCR", "DCR")
+
+
+def _is_interleaved_conv(node: onnx.NodeProto, consumers: dict) -> bool:
+    """A Conv whose output only an interleaving DepthToSpace reads (phase_final_conv.py)."""
+    after = consumers.get(node.output[0], [])
+    return node.op_type == "Conv" and len(after) == 1 and _is_interleave(after[0])
+
+
 def phase_groups(model: onnx.ModelProto) -> dict[str, list[str]]:
     """The four Conv nodes (by name, in phase order) of every split transposed convolution, keyed
-    by the first one's name: four 2x2 Convs on one input, concatenated in that order and
-    interleaved by DepthToSpace (DCR, block 2)."""
+    by the first one's name: four 2x2 Convs on one input, concatenated in that order (each
+    directly, or through its own Relu) and interleaved by DepthToSpace (DCR, block 2), or read
+    by the phase-domain final convolution that phase_final_conv.py makes of conv5."""
     by_output = {o: n for n in model.graph.node for o in n.output}
-    consumers: dict[str, list[onnx.NodeProto]] = {}
-    for n in model.graph.node:
-        for i in n.input:
-            consumers.setdefault(i, []).append(n)
+    consumers = graph_rewrite.consumers(model)
     groups = {}
     for n in model.graph.node:
         if n.op_type != "Concat" or len(n.input) != 4 or _attrs(n).get("axis") != 1:
             continue
         after = consumers.get(n.output[0], [])
-        if len(after) != 1 or after[0].op_type != "DepthToSpace":
-            continue
-        d2s = _attrs(after[0])
-        if d2s.get("blocksize") != 2 or d2s.get("mode", b"DCR") not in (b"DCR", "DCR"):
+        if len(after) != 1 or not (_is_interleave(after[0]) or _is_interleaved_conv(after[0], consumers)):
             continue
         convs = [by_output.get(i) for i in n.input]
+        convs = [by_output.get(c.input[0]) if c is not None and c.op_type == "Relu" else c for c in convs]
         if any(c is None or c.op_type != "Conv" for c in convs) or len({c.input[0] for c in convs}) != 1:
             continue
         if [list(_attrs(c).get("pads", [])) for c in convs] != [[1 - a, 1 - b, a, b] for a, b in PHASES]:
@@ -141,16 +149,13 @@ def rewrite_folder(models_dir: Path) -> dict[str, int]:
     graph is checked against the old one with ONNX Runtime on random inputs (MAX_ABS_DIFF), and
     the graphs and export.json's digests replace the old ones only when all three pass (staged
     beside the folder and renamed in). Returns the count per graph."""
-    try:
-        return graph_rewrite.rewrite_folder(
-            models_dir, "phase-conv", split_transposed_convs, ((37, 53), (64, 96)), MAX_ABS_DIFF,
-            "4x4 stride-2 transposed convolutions as four 2x2 phase convolutions (phase_conv.py)")
-    except graph_rewrite.GraphRewriteError as e:
-        raise PhaseConvError(str(e)) from e
+    return graph_rewrite.rewrite_folder(
+        models_dir, "phase-conv", split_transposed_convs, ((37, 53), (64, 96)), MAX_ABS_DIFF,
+        "4x4 stride-2 transposed convolutions as four 2x2 phase convolutions (phase_conv.py)", PhaseConvError)
 
 
 def main(argv: list[str] | None = None) -> int:
-    return graph_rewrite.command("phase_conv", __doc__.split("\n\n")[0], rewrite_folder, (PhaseConvError,),
+    return graph_rewrite.command("phase_conv", __doc__.split("\n\n")[0], rewrite_folder,
                                  "transposed convolutions split", argv)
 
 

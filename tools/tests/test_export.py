@@ -19,6 +19,7 @@ from raindrop_tools.edge import edge_map_numpy  # noqa: E402
 from raindrop_tools.export import export_networks  # noqa: E402
 from raindrop_tools.imageio import to_float  # noqa: E402
 from raindrop_tools.networks import build_networks  # noqa: E402
+from raindrop_tools.phase_final_conv import folded_final_convs  # noqa: E402
 
 TOLERANCE = 1e-4
 
@@ -290,13 +291,16 @@ def test_the_default_folder_is_not_replaced_by_another_runs_model(tmp_path):
     _refuse_another_runs_folder(tmp_path / "models" / "new", {"path": "x"})  # nothing there yet
 
 
-def test_conv4_is_exported_as_phase_convolutions(exported):
+def test_conv4_and_conv5_are_exported_on_phases(exported):
     """The transposed convolution goes out as four phase convolutions (phase_conv.py), which
     ONNX Runtime runs faster; parity with PyTorch is checked by the tests above."""
     out = exported["dir"]
     for name in ("rdn", "rrn"):
         ops = [n.op_type for n in onnx.load(str(out / C.FILES[name])).graph.node]
         assert "ConvTranspose" not in ops and ops.count("DepthToSpace") == 1, name
+        # conv5 runs on the phases, and the one DepthToSpace interleaves its output
+        # (phase_final_conv.py): no full-resolution feature map.
+        assert len(folded_final_convs(onnx.load(str(out / C.FILES[name])))) == 1, name
 
 
 def test_no_inner_padding_is_exported(exported):

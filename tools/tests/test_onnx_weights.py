@@ -51,3 +51,28 @@ def test_split_transposed_convolutions_come_back_as_they_were(tmp_path):
     for name in ("rdn", "rrn", "rfn"):
         for (k, a), (_, b) in zip(before[name].state_dict().items(), after[name].state_dict().items()):
             assert torch.equal(a, b), f"{name}.{k}"
+
+
+def test_final_convolutions_on_the_phases_come_back_as_they_were(tmp_path):
+    """A folder whose conv5 was folded onto conv4's phases (phase_final_conv.py, after the
+    split and without inner padding) loads the same weights as before: conv5's kernel and bias
+    are read back exactly from the phase-domain kernel."""
+    import shutil
+
+    from raindrop_tools import inner_padding, phase_conv, phase_final_conv
+
+    from helpers import FIXTURE_MODELS
+
+    folder = tmp_path / "folded"
+    shutil.copytree(FIXTURE_MODELS, folder)
+    phase_conv.rewrite_folder(folder)
+    inner_padding.rewrite_folder(folder)
+    assert phase_final_conv.rewrite_folder(folder) == {"rdn": 1, "rrn": 1, "rfn": 0}
+    cfg = load_config(CONFIGS / "smoke.yaml").network
+    before, after = networks.build_networks(cfg), networks.build_networks(cfg)
+    OW.load_model_folder(before, FIXTURE_MODELS)
+    diffs = OW.load_model_folder(after, folder)
+    assert max(diffs.values()) < 1e-4
+    for name in ("rdn", "rrn", "rfn"):
+        for (k, a), (_, b) in zip(before[name].state_dict().items(), after[name].state_dict().items()):
+            assert torch.equal(a, b), f"{name}.{k}"
