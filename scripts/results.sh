@@ -5,7 +5,7 @@
 # scripts/results.sh data render stats eval remove tradeoffs sheets photoreal scale flatroad largedrops coarsetrain
 # largedropmodels sensor mirroraverage highlights multiscale veil papermodels outline trails photos windshield
 # windshield-followup longer growth sharpness coalesce surround largewidth largedrops-all windshield2
-# errorsplit withoutvnni
+# errorsplit withoutvnni graphrewrites
 #
 # Nothing here is committed automatically: images derived from Cityscapes, CamVid or the
 # real raindrop photographs stay under out/ (their licences forbid redistribution).
@@ -19,7 +19,7 @@ sections=("$@")
 ((${#sections[@]})) || sections=(data render stats eval remove tradeoffs sheets photoreal scale flatroad largedrops coarsetrain
                                   largedropmodels sensor mirroraverage highlights multiscale veil papermodels outline trails
                                   photos windshield windshield-followup longer growth sharpness coalesce
-                                  surround largewidth largedrops-all windshield2 errorsplit withoutvnni)
+                                  surround largewidth largedrops-all windshield2 errorsplit withoutvnni graphrewrites)
 want() { [[ " ${sections[*]} " == *" $1 "* ]]; }
 # link_set SRC DST SPLIT [LIMIT]: the first LIMIT (default 100; 0: all) samples of data set SRC
 # (of manifest split SPLIT; "-" = all) linked into DST/rainy and DST/clean (and DST/mask, where
@@ -1220,4 +1220,70 @@ PY
       --threads 2 --size 1280x720 --runs 10 >"$wv/bench-$how.md"
     env "${pre[@]}" build/raindrop-bench render --sections core --frames 2 --repeats 3 >"$wv/render-$how.md"
   done
+fi
+
+if want graphrewrites; then
+  # docs/RESULTS.md 3.11 and 3.12: the committed graphs before the inner padding went (39f09dc),
+  # after it (51ee86f) and now, side by side: outputs compared image by image per folder, the
+  # bench's three rows and the program on a 1280x720 photograph in 20 rounds of the three in turn.
+  gr="$out/graphrewrites"
+  rm -rf "$gr" && mkdir -p "$gr/before" "$gr/inner" "$gr/sets/realpairs"
+  git archive 39f09dc models | tar -x -C "$gr/before"
+  git archive 51ee86f models | tar -x -C "$gr/inner"
+  for f in "$shared"/real-pairs/*_rain.png; do ln -s "$(realpath "$f")" "$gr/sets/realpairs/"; done
+  ln -s "$(realpath "$shared/real-raindrop")" "$gr/sets/photos"
+  ln -s "$(realpath data/val-size-1280x720/rainy)" "$gr/sets/val1280"
+  for state in before:"$gr/before/models" inner:"$gr/inner/models" now:models; do
+    for m in compact-multiscale compact-multiscale-int8 compact compact-int8 compact-windshield paper paper-int8 paper-multiscale; do
+      sets=(realpairs); [[ $m == compact-multiscale ]] && sets=(realpairs photos val1280)
+      for s in "${sets[@]}"; do
+        o="$gr/out-${state%%:*}/$m/$s"
+        mkdir -p "$o"
+        build/raindrop-remove "$gr/sets/$s" "$o/out" -j 2 -q --models "${state#*:}/$m" --mask-dir "$o/mask" --keep-going
+      done
+    done
+  done
+  $py - "$gr" <<'PY' | tee "$gr/compare.txt"
+import os, sys
+import cv2
+import numpy as np
+gr = sys.argv[1]
+for a_tag, b_tag in (("before", "inner"), ("inner", "now")):
+    a_root = os.path.join(gr, "out-" + a_tag)
+    for m in sorted(os.listdir(a_root)):
+        for s in sorted(os.listdir(os.path.join(a_root, m))):
+            a = os.path.join(a_root, m, s)
+            images = differ = samples = changed = worst = 0
+            for root, _, files in os.walk(a):
+                for f in files:
+                    p = os.path.join(root, f)
+                    x = cv2.imread(p, cv2.IMREAD_UNCHANGED)
+                    y = cv2.imread(p.replace(a, os.path.join(gr, "out-" + b_tag, m, s), 1), cv2.IMREAD_UNCHANGED)
+                    images += 1
+                    samples += x.size
+                    d = np.abs(x.astype(int) - y.astype(int))
+                    changed += int((d > 0).sum())
+                    differ += bool(d.any())
+                    worst = max(worst, int(d.max()))
+            print(f"{a_tag} -> {b_tag} {m} {s}: {differ} of {images} images differ, {changed} of {samples} samples, max {worst}")
+PY
+  build/raindrop-bench remove --models "$gr/before/models/compact-multiscale" --models "$gr/inner/models/compact-multiscale" \
+    --models models/compact-multiscale --threads 2 --size 1280x720 --runs 10 >"$gr/bench.md"
+  photo="$shared/real-raindrop/windshield_2.jpg"
+  for i in $(seq 20); do
+    for m in "$gr/before/models/compact-multiscale" "$gr/inner/models/compact-multiscale" models/compact-multiscale; do
+      s=$(date +%s%N)
+      build/raindrop-remove "$photo" "$gr/photo.png" -j 2 --models "$m" -q
+      echo "$m $(( ($(date +%s%N) - s) / 1000000 ))"
+    done
+  done >"$gr/times.txt"
+  $py - "$gr/times.txt" <<'PY' | tee "$gr/times-summary.txt"
+import collections, statistics, sys
+t = collections.defaultdict(list)
+for line in open(sys.argv[1]):
+    m, ms = line.split()
+    t[m].append(int(ms))
+for m, v in t.items():
+    print(f"{m}: median {statistics.median(v):.1f} ms (min {min(v)}, max {max(v)})")
+PY
 fi

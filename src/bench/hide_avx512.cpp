@@ -12,10 +12,18 @@
 // unlike an emulator it cannot stop code that uses AVX-512 without asking, so it is for speed and
 // kernel choice, not for proving a binary runs on an older CPU.
 //
-// What it cannot hide: glibc's own string functions chose their variants before this library
-// was loaded; a program that installs its own SIGSEGV handler replaces this one. Where cpuid
-// cannot trap, the process stops at start (exit 3) with a one-line message rather than run with
-// nothing hidden and give a misleading measurement.
+// What it cannot hide, or where it fails:
+// - glibc's own string functions chose their variants before this library was loaded, and a
+//   shared library that asks `cpuid` in its own load-time constructor may run before this one
+//   (ONNX Runtime 1.31, Embree and GCC's __builtin_cpu_supports in an executable ask later);
+// - a program that installs its own SIGSEGV handler (Python with PYTHONFAULTHANDLER set, for
+//   one) replaces this one, and a thread that blocks SIGSEGV dies at its first `cpuid`;
+// - under AddressSanitizer the sanitizer's runtime must come first: run with
+//   ASAN_OPTIONS=verify_asan_link_order=0.
+// Where cpuid cannot trap, the process stops at start (exit 3) with a one-line message rather
+// than run with nothing hidden and give a misleading measurement. A SIGSEGV that is not a
+// trapped `cpuid` (a real fault, or one sent with kill) ends the process as it would without
+// this library.
 #include <asm/prctl.h>
 #include <cpuid.h>
 #include <signal.h>
@@ -42,19 +50,23 @@ void hide(unsigned leaf, unsigned subleaf, unsigned* a, unsigned* b, unsigned* c
     *c &= ~((1u << 1) | (1u << 6) | (1u << 11) | (1u << 12) | (1u << 14));
     *d &= ~((1u << 2) | (1u << 3) | (1u << 8) | (1u << 22) | (1u << 23) | (1u << 24) | (1u << 25));
   } else if (leaf == 7 && subleaf == 1) {
-    // EAX: AVX-VNNI, AVX512-BF16. EDX: AVX-VNNI-INT8, AVX-NE-CONVERT, AVX-VNNI-INT16, AVX10.
-    *a &= ~((1u << 4) | (1u << 5));
-    *d &= ~((1u << 4) | (1u << 5) | (1u << 10) | (1u << 19));
+    // EAX: AVX-VNNI, AVX512-BF16, AMX-FP16. EDX: AVX-VNNI-INT8, AVX-NE-CONVERT, AMX-COMPLEX,
+    // AVX-VNNI-INT16, AVX10.
+    *a &= ~((1u << 4) | (1u << 5) | (1u << 21));
+    *d &= ~((1u << 4) | (1u << 5) | (1u << 8) | (1u << 10) | (1u << 19));
   }
 }
 
-void on_sigsegv(int sig, siginfo_t*, void* context) {
+void on_sigsegv(int sig, siginfo_t* info, void* context) {
   auto* uc = static_cast<ucontext_t*>(context);
   greg_t* r = uc->uc_mcontext.gregs;
-  const unsigned char* ip = reinterpret_cast<const unsigned char*>(r[REG_RIP]);
-  if (ip[0] != 0x0f || ip[1] != 0xa2) {  // not cpuid: a real fault, die of it as without us
+  // A trapped cpuid arrives from the kernel (SI_KERNEL) with RIP on the instruction, 0F A2.
+  const bool from_kernel = info->si_code == SI_KERNEL;
+  const auto* ip = reinterpret_cast<const unsigned char*>(r[REG_RIP]);
+  if (!from_kernel || ip[0] != 0x0f || ip[1] != 0xa2) {
     signal(sig, SIG_DFL);
-    return;  // the faulting instruction runs again and now kills the process
+    if (info->si_code <= 0) raise(sig);  // sent by a process (kill, raise): delivered as without us
+    return;  // a fault: the instruction runs again and now kills the process
   }
   const auto leaf = static_cast<unsigned>(r[REG_RAX]), subleaf = static_cast<unsigned>(r[REG_RCX]);
   unsigned a, b, c, d;

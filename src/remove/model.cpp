@@ -199,9 +199,11 @@ Models::Models(const fs::path& dir, const SessionConfig& config, Graphs graphs) 
   // At least 2, whatever the graphs say: the RDN and 3RN run their blocks at half resolution
   // (a stride-2 convolution), and were trained on even-sized crops. At an odd height the
   // bottom border falls on the other phase of that stride-2 grid, and the networks' last rows
-  // there come out wrong: measured on real drops at 77 px, the bottom 4 rows of the
-  // reconstruction differed from those of the same image padded to even by 85 levels of 8 bits
-  // on average (up to 183), which cost 1-4 dB per image once the working scale enlarged them.
+  // there come out wrong: measured on real drops at 77 px (with the graphs of that time, which
+  // replicated the border row inside; they pad with zeros since docs/RESULTS.md 3.11, as
+  // unseen in training), the bottom 4 rows of the reconstruction differed from those of the
+  // same image padded to even by 85 levels of 8 bits on average (up to 183), which cost 1-4 dB
+  // per image once the working scale enlarged them.
   // Replicate-padding to even size removes that (tests/remove/test_trained_models.cpp,
   // TrainedModels.OddSizesAreRestoredAsWellAtTheirBorders).
   int multiple = 2;

@@ -286,8 +286,10 @@ def validate_config(cfg: RunConfig) -> None:
         problems.append("network.rdn.global_residual: RDN predicts a mask, it has no residual")
     if cfg.network.rfn.width < 1 or cfg.network.rfn.blocks < 0:
         problems.append("network.rfn: width must be >= 1 and blocks >= 0")
-    if cfg.data.crop < 1:
-        problems.append("data.crop must be >= 1")
+    if cfg.data.crop < 2 or cfg.data.crop % 2:
+        # The RDN and 3RN halve and double the resolution; the pipelines only ever show them
+        # even sizes (they pad images to even first), so they must learn at even sizes.
+        problems.append("data.crop must be an even number >= 2")
     if cfg.data.validate not in ("full", "header"):
         problems.append("data.validate must be 'full' or 'header'")
     if cfg.data.workers < 0:

@@ -129,7 +129,9 @@ def command(prog: str, description: str, rewrite: Callable[[Path], dict[str, int
     for d in args.models:
         try:
             counts = rewrite(Path(d))
-        except (GraphRewriteError, OSError, onnx.checker.ValidationError) as e:
+        # (ONNX Runtime's load and run errors are RuntimeErrors; a graph the transforms do not
+        # expect may raise KeyError or ValueError from onnx.)
+        except (GraphRewriteError, OSError, onnx.checker.ValidationError, KeyError, ValueError, RuntimeError) as e:
             print(f"{prog}: error: {e}", file=sys.stderr)
             return 2
         print(f"{prog}: {d}: " + ", ".join(f"{n} {c}" for n, c in counts.items()) + " " + done)

@@ -14,7 +14,7 @@ summed in another order: outputs agree to float rounding (about 1e-7).
 
 Why: ONNX Runtime's blocked convolutions pad their output channels to 8 or 16, so conv5 at full
 resolution computed 16 channels for the RDN's one and was the largest single node of both
-networks (10-11 ms of about 95 at 512x288 on one thread here), and the full-resolution
+networks (10-11 ms of about 105-115 at 512x288 on one thread here), and the full-resolution
 interleave, ReLU and layout reorders around it cost as much again (docs/RESULTS.md 3.12).
 
     python -m raindrop_tools.phase_final_conv --models models/compact-multiscale
@@ -92,7 +92,8 @@ def fold_final_convs(model: onnx.ModelProto) -> int:
         d2s = concat and _only(consumers, concat.output[0], "DepthToSpace")
         relu = d2s and _only(consumers, d2s.output[0], "Relu")
         conv5 = relu and _only(consumers, relu.output[0], "Conv")
-        if conv5 is None or conv5.input[1] not in weights:
+        has_bias = len(conv5.input) > 2 and conv5.input[2] if conv5 is not None else False
+        if conv5 is None or conv5.input[1] not in weights or (has_bias and conv5.input[2] not in weights):
             continue
         a = _attrs(conv5)
         if (list(a.get("kernel_shape", [3, 3])) != [3, 3] or list(a.get("pads", [0, 0, 0, 0])) != [1, 1, 1, 1]
@@ -100,7 +101,6 @@ def fold_final_convs(model: onnx.ModelProto) -> int:
                 or a.get("group", 1) != 1):
             continue
         w = numpy_helper.to_array(weights[conv5.input[1]])
-        has_bias = len(conv5.input) > 2 and conv5.input[2]
         bias = numpy_helper.to_array(weights[conv5.input[2]]) if has_bias else np.zeros(w.shape[0], w.dtype)
         # ReLU on each phase, then the phase-domain convolution and one interleave.
         relus = []

@@ -56,6 +56,9 @@ def test_overrides_and_range_checks():
         config_from_dict({"network": {"rdn": {"global_residual": True}}})
     with pytest.raises(ConfigError):
         parse_overrides(["no-equals-sign"])
+    # The networks only ever see even sizes in the pipelines, so they train on even crops.
+    with pytest.raises(ConfigError, match="data.crop must be an even number"):
+        config_from_dict({"data": {"crop": 63}})
 
 
 def test_relative_data_path_resolves_against_cwd(tmp_path, monkeypatch):
