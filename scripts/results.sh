@@ -48,6 +48,20 @@ for line in open(os.path.join(src, "manifest.jsonl")):
 PY
 }
 
+# median_times FILE: FILE's lines are "KEY... MS" (timed runs); per key, in first-seen order, the
+# median, minimum and maximum of the milliseconds.
+median_times() {
+  $py - "$1" <<'PY'
+import collections, statistics, sys
+t = collections.defaultdict(list)
+for line in open(sys.argv[1]):
+    *key, ms = line.split()
+    t[" ".join(key)].append(int(ms))
+for key, v in t.items():
+    print(f"{key}: median {statistics.median(v):.1f} ms (min {min(v)}, max {max(v)})")
+PY
+}
+
 # with_effect PRESET FILE SUFFIX EFFECT JSON: the preset's resolved scene with effects.EFFECT set to
 # JSON and "-SUFFIX" added to its name, written to FILE (printed).
 with_effect() {
@@ -1205,15 +1219,7 @@ if want withoutvnni; then
       done
     done
   done >"$wv/times.txt"
-  $py - "$wv/times.txt" <<'PY' | tee "$wv/summary.txt"
-import collections, statistics, sys
-t = collections.defaultdict(list)
-for line in open(sys.argv[1]):
-    how, m, ms = line.split()
-    t[(how, m)].append(int(ms))
-for (how, m), v in t.items():
-    print(f"{how:7s} {m:24s} median {statistics.median(v):.0f} ms (min {min(v)}, max {max(v)})")
-PY
+  median_times "$wv/times.txt" | tee "$wv/summary.txt"
   for how in native hidden; do
     pre=(); [[ $how == hidden ]] && pre=("$hide")
     env "${pre[@]}" build/raindrop-bench remove --models models/compact-multiscale --models models/compact-multiscale-int8 \
@@ -1277,13 +1283,5 @@ PY
       echo "$m $(( ($(date +%s%N) - s) / 1000000 ))"
     done
   done >"$gr/times.txt"
-  $py - "$gr/times.txt" <<'PY' | tee "$gr/times-summary.txt"
-import collections, statistics, sys
-t = collections.defaultdict(list)
-for line in open(sys.argv[1]):
-    m, ms = line.split()
-    t[m].append(int(ms))
-for m, v in t.items():
-    print(f"{m}: median {statistics.median(v):.1f} ms (min {min(v)}, max {max(v)})")
-PY
+  median_times "$gr/times.txt" | tee "$gr/times-summary.txt"
 fi

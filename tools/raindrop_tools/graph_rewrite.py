@@ -1,5 +1,6 @@
 """Rewriting a committed model folder's graphs in place, checked: the tools that change how a
-graph computes, not what (phase_conv.py, inner_padding.py), share this.
+graph computes, not what (phase_conv.py, inner_padding.py, phase_final_conv.py), share this,
+and the small graph queries they all make.
 
 Each graph is transformed, checked by ONNX's checker, and compared with the old graph by ONNX
 Runtime on random inputs of the sizes given; only when all three graphs pass do they and
@@ -24,6 +25,17 @@ from .staging import staged_model_files
 
 class GraphRewriteError(ValueError):
     pass
+
+
+def attrs(node: onnx.NodeProto) -> dict:
+    """A node's attributes by name, as Python values."""
+    return {a.name: onnx.helper.get_attribute_value(a) for a in node.attribute}
+
+
+def only_consumer(consumers: dict[str, list[onnx.NodeProto]], tensor: str, op: str | None = None) -> onnx.NodeProto | None:
+    """The one node that reads ``tensor`` (of type ``op``, if given), or None."""
+    c = consumers.get(tensor, [])
+    return c[0] if len(c) == 1 and (op is None or c[0].op_type == op) else None
 
 
 def consumers(model: onnx.ModelProto) -> dict[str, list[onnx.NodeProto]]:
@@ -109,7 +121,7 @@ def rewrite_folder(models_dir: Path, tag: str, transform: Callable[[onnx.ModelPr
                 diff = float(np.abs(want - got).max()) if want.shape == got.shape else float("inf")
                 if not diff <= max_abs_diff:
                     raise error(f"{src}: the rewritten graph differs from the old one by {diff:g} > "
-                                            f"{max_abs_diff} at {h}x{w}")
+                                f"{max_abs_diff} at {h}x{w}")
         info_file = models_dir / C.EXPORT_INFO
         if info_file.is_file():
             info = json.loads(info_file.read_text())

@@ -37,17 +37,12 @@ class InnerPaddingError(graph_rewrite.GraphRewriteError):
     pass
 
 
-def _only_consumer(consumers: dict, tensor: str) -> onnx.NodeProto | None:
-    c = consumers.get(tensor, [])
-    return c[0] if len(c) == 1 else None
-
-
 def _rewire_start(model: onnx.ModelProto, pad: onnx.NodeProto, consumers: dict) -> None:
     """Pad (-> Q/DQ) -> Slice (-> Q/DQ) -> Slice (-> Q/DQ) -> Conv(stride 2): the Conv reads
     the Pad's input instead."""
     node, slices = pad, 0
     while True:
-        nxt = _only_consumer(consumers, node.output[0])
+        nxt = graph_rewrite.only_consumer(consumers, node.output[0])
         if nxt is None:
             raise InnerPaddingError(f"{pad.name}: its output is read by more than one node")
         if nxt.op_type == "Conv":
@@ -56,8 +51,7 @@ def _rewire_start(model: onnx.ModelProto, pad: onnx.NodeProto, consumers: dict) 
             raise InnerPaddingError(f"{pad.name}: a {nxt.op_type} between the Pad and the stride-2 convolution")
         slices += nxt.op_type == "Slice"
         node = nxt
-    strides = next((list(onnx.helper.get_attribute_value(a)) for a in nxt.attribute if a.name == "strides"), [1, 1])
-    if slices != 2 or strides != [2, 2]:
+    if slices != 2 or list(graph_rewrite.attrs(nxt).get("strides", [1, 1])) != [2, 2]:
         raise InnerPaddingError(f"{pad.name}: not the even-size padding before a stride-2 convolution")
     nxt.input[0] = pad.input[0]
 
@@ -78,15 +72,14 @@ def _move_end_crop(model: onnx.ModelProto, conv5: onnx.NodeProto, by_output: dic
         raise InnerPaddingError(f"{conv5.name}: its input is not cropped by two Slices")
     second, first = slices  # in graph order: Y -> first -> ... -> second
     # What read the second slice now reads Y (the Q/DQ pairs between the Slices fall away).
-    reader = _only_consumer(consumers, second.output[0])
+    reader = graph_rewrite.only_consumer(consumers, second.output[0])
     reader.input[0] = first.input[0]
     # The crop after conv5, or after the QuantizeLinear/DequantizeLinear pair that follows it.
     result = conv5.output[0]
-    q = _only_consumer(consumers, result)
-    if q is not None and q.op_type == "QuantizeLinear":
-        dq = _only_consumer(consumers, q.output[0])
-        if dq is not None and dq.op_type == "DequantizeLinear":
-            result = dq.output[0]
+    q = graph_rewrite.only_consumer(consumers, result, "QuantizeLinear")
+    dq = q and graph_rewrite.only_consumer(consumers, q.output[0], "DequantizeLinear")
+    if dq:
+        result = dq.output[0]
     second.input[0] = first.output[0]  # not through the Q/DQ pair between them: its scale is Y's
     if any(o.name == result for o in model.graph.output):
         # The result is the graph's output (a 3RN without global residual): it keeps its name,

@@ -41,12 +41,8 @@ class PhaseConvError(graph_rewrite.GraphRewriteError):
     pass
 
 
-def _attrs(node: onnx.NodeProto) -> dict:
-    return {a.name: helper.get_attribute_value(a) for a in node.attribute}
-
-
 def _splittable(node: onnx.NodeProto, weights: dict) -> bool:
-    a = _attrs(node)
+    a = graph_rewrite.attrs(node)
     return (
         node.op_type == "ConvTranspose"
         and node.input[1] in weights
@@ -110,7 +106,7 @@ def split_transposed_convs(model: onnx.ModelProto) -> int:
 
 def _is_interleave(node: onnx.NodeProto) -> bool:
     """A DepthToSpace that interleaves four phases (DCR, block 2)."""
-    a = _attrs(node)
+    a = graph_rewrite.attrs(node)
     return node.op_type == "DepthToSpace" and a.get("blocksize") == 2 and a.get("mode", b"DCR") in (b"DCR", "DCR")
 
 
@@ -129,7 +125,7 @@ def phase_groups(model: onnx.ModelProto) -> dict[str, list[str]]:
     consumers = graph_rewrite.consumers(model)
     groups = {}
     for n in model.graph.node:
-        if n.op_type != "Concat" or len(n.input) != 4 or _attrs(n).get("axis") != 1:
+        if n.op_type != "Concat" or len(n.input) != 4 or graph_rewrite.attrs(n).get("axis") != 1:
             continue
         after = consumers.get(n.output[0], [])
         if len(after) != 1 or not (_is_interleave(after[0]) or _is_interleaved_conv(after[0], consumers)):
@@ -138,7 +134,7 @@ def phase_groups(model: onnx.ModelProto) -> dict[str, list[str]]:
         convs = [by_output.get(c.input[0]) if c is not None and c.op_type == "Relu" else c for c in convs]
         if any(c is None or c.op_type != "Conv" for c in convs) or len({c.input[0] for c in convs}) != 1:
             continue
-        if [list(_attrs(c).get("pads", [])) for c in convs] != [[1 - a, 1 - b, a, b] for a, b in PHASES]:
+        if [list(graph_rewrite.attrs(c).get("pads", [])) for c in convs] != [[1 - a, 1 - b, a, b] for a, b in PHASES]:
             continue
         groups[convs[0].name] = [c.name for c in convs]
     return groups

@@ -33,7 +33,7 @@ import onnx
 from onnx import helper, numpy_helper
 
 from . import graph_rewrite
-from .phase_conv import PHASES, _attrs, phase_groups
+from .phase_conv import PHASES, phase_groups
 
 MAX_ABS_DIFF = 1e-4
 CHECK_SIZES = ((37, 53), (64, 96))
@@ -72,11 +72,6 @@ def final_kernel(v: np.ndarray) -> np.ndarray:
     return w
 
 
-def _only(consumers: dict, tensor: str, op: str) -> onnx.NodeProto | None:
-    c = consumers.get(tensor, [])
-    return c[0] if len(c) == 1 and c[0].op_type == op else None
-
-
 def fold_final_convs(model: onnx.ModelProto) -> int:
     """Rewrites every split conv4 followed by DepthToSpace -> Relu -> a 3x3 pad-1 Conv in place;
     returns how many. The Conv's output keeps its name. Graphs without that chain (int8 graphs,
@@ -88,14 +83,16 @@ def fold_final_convs(model: onnx.ModelProto) -> int:
     for names in phase_groups(model).values():
         consumers = graph_rewrite.consumers(model)
         convs = [nodes[n] for n in names]
-        concat = _only(consumers, convs[0].output[0], "Concat")
-        d2s = concat and _only(consumers, concat.output[0], "DepthToSpace")
-        relu = d2s and _only(consumers, d2s.output[0], "Relu")
-        conv5 = relu and _only(consumers, relu.output[0], "Conv")
-        has_bias = len(conv5.input) > 2 and conv5.input[2] if conv5 is not None else False
-        if conv5 is None or conv5.input[1] not in weights or (has_bias and conv5.input[2] not in weights):
+        concat = graph_rewrite.only_consumer(consumers, convs[0].output[0], "Concat")
+        d2s = concat and graph_rewrite.only_consumer(consumers, concat.output[0], "DepthToSpace")
+        relu = d2s and graph_rewrite.only_consumer(consumers, d2s.output[0], "Relu")
+        conv5 = relu and graph_rewrite.only_consumer(consumers, relu.output[0], "Conv")
+        if conv5 is None:
             continue
-        a = _attrs(conv5)
+        has_bias = len(conv5.input) > 2 and conv5.input[2]
+        if conv5.input[1] not in weights or (has_bias and conv5.input[2] not in weights):
+            continue
+        a = graph_rewrite.attrs(conv5)
         if (list(a.get("kernel_shape", [3, 3])) != [3, 3] or list(a.get("pads", [0, 0, 0, 0])) != [1, 1, 1, 1]
                 or list(a.get("strides", [1, 1])) != [1, 1] or list(a.get("dilations", [1, 1])) != [1, 1]
                 or a.get("group", 1) != 1):
@@ -133,10 +130,10 @@ def folded_final_convs(model: onnx.ModelProto) -> set[str]:
     nodes = {n.name: n for n in model.graph.node}
     out = set()
     for names in phase_groups(model).values():
-        concat = _only(consumers, nodes[names[0]].output[0], "Relu")
-        concat = concat and _only(consumers, concat.output[0], "Concat")
-        conv = concat and _only(consumers, concat.output[0], "Conv")
-        if conv is not None and _only(consumers, conv.output[0], "DepthToSpace") is not None:
+        relu = graph_rewrite.only_consumer(consumers, nodes[names[0]].output[0], "Relu")
+        concat = relu and graph_rewrite.only_consumer(consumers, relu.output[0], "Concat")
+        conv = concat and graph_rewrite.only_consumer(consumers, concat.output[0], "Conv")
+        if conv is not None and graph_rewrite.only_consumer(consumers, conv.output[0], "DepthToSpace") is not None:
             out.add(conv.name)
     return out
 

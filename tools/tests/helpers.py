@@ -166,3 +166,15 @@ def load_small_rgb(path: Path, max_side: int = 160) -> np.ndarray:
     if s < 1:
         img = cv2.resize(img, (max(1, round(w * s)), max(1, round(h * s))), interpolation=cv2.INTER_AREA)
     return img
+
+
+def quiet_session(model_or_path):
+    """An ONNX Runtime CPU session of an onnx.ModelProto or a graph file, warnings silenced (the
+    graph-rewrite tests build graphs the runtime would comment on)."""
+    import onnx
+    import onnxruntime as ort
+
+    so = ort.SessionOptions()
+    so.log_severity_level = 3
+    src = model_or_path.SerializeToString() if isinstance(model_or_path, onnx.ModelProto) else str(model_or_path)
+    return ort.InferenceSession(src, so, providers=["CPUExecutionProvider"])

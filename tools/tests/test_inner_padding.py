@@ -9,10 +9,9 @@ import shutil
 
 import numpy as np
 import onnx
-import onnxruntime as ort
 import pytest
 
-from helpers import FIXTURE_MODELS
+from helpers import FIXTURE_MODELS, quiet_session
 from raindrop_tools import contract as C
 from raindrop_tools.inner_padding import InnerPaddingError, drop_inner_padding, main, rewrite_folder
 from raindrop_tools.quantize import quantize_models
@@ -20,12 +19,6 @@ from raindrop_tools.quantize import quantize_models
 
 def _ops(path):
     return [n.op_type for n in onnx.load(str(path)).graph.node]
-
-
-def _session(path_or_bytes):
-    so = ort.SessionOptions()
-    so.log_severity_level = 3
-    return ort.InferenceSession(path_or_bytes, so, providers=["CPUExecutionProvider"])
 
 
 def _compare(before, after, sizes, seed=3):
@@ -46,7 +39,7 @@ def test_a_model_folder_is_rewritten_in_place_with_its_digests(tmp_path):
     (folder / "NOTES.txt").write_text("mine\n")
     assert "Pad" in _ops(folder / C.FILES["rdn"])  # the fixture is an old export
     rfn_bytes = (folder / C.FILES["rfn"]).read_bytes()
-    before = {n: _session(str(folder / C.FILES[n])) for n in C.NETWORKS}
+    before = {n: quiet_session(str(folder / C.FILES[n])) for n in C.NETWORKS}
     assert rewrite_folder(folder) == {"rdn": 1, "rrn": 1, "rfn": 0}
     info = json.loads((folder / C.EXPORT_INFO).read_text())
     for f, entry in info["files"].items():
@@ -55,7 +48,7 @@ def test_a_model_folder_is_rewritten_in_place_with_its_digests(tmp_path):
     for n in C.NETWORKS:
         ops = _ops(folder / C.FILES[n])
         assert "Pad" not in ops, n
-        after = _session(str(folder / C.FILES[n]))
+        after = quiet_session(str(folder / C.FILES[n]))
         # The same operations in the same order at even sizes: the same bits.
         assert _compare(before[n], after, ((2, 2), (30, 44), (64, 96))) == 0.0, n
         # Odd sizes still run and keep their size (the values differ near the bottom and
@@ -77,12 +70,12 @@ def test_quantized_graphs_lose_their_padding_and_keep_their_bits(tmp_path, tiny_
     quantize_models(FIXTURE_MODELS, tiny_dataset, int8, count=3)
     for n in ("rdn", "rrn"):
         model = onnx.load(str(int8 / C.FILES[n]))
-        before = _session(model.SerializeToString())
+        before = quiet_session(model)
         assert drop_inner_padding(model) == 1
         onnx.checker.check_model(model)
         ops = [x.op_type for x in model.graph.node]
         assert "Pad" not in ops and ops.count("Slice") == 2, n
-        assert _compare(before, _session(model.SerializeToString()), ((38, 54), (64, 96))) == 0.0, n
+        assert _compare(before, quiet_session(model), ((38, 54), (64, 96))) == 0.0, n
 
 
 def test_a_graph_it_does_not_understand_is_refused():

@@ -9,20 +9,12 @@ import shutil
 
 import numpy as np
 import onnx
-import onnxruntime as ort
 
-from helpers import FIXTURE_MODELS
+from helpers import FIXTURE_MODELS, quiet_session
 from raindrop_tools import contract as C
 from raindrop_tools import inner_padding, phase_conv
 from raindrop_tools.phase_final_conv import (final_kernel, fold_final_convs, folded_final_convs, main, phase_kernel,
                                              rewrite_folder)
-
-
-def _session(model_or_path):
-    so = ort.SessionOptions()
-    so.log_severity_level = 3
-    src = model_or_path.SerializeToString() if isinstance(model_or_path, onnx.ModelProto) else str(model_or_path)
-    return ort.InferenceSession(src, so, providers=["CPUExecutionProvider"])
 
 
 def _split_folder(tmp_path):
@@ -49,13 +41,13 @@ def test_the_folded_graph_computes_the_same_at_odd_and_even_sizes(tmp_path):
     rng = np.random.default_rng(4)
     for name in ("rdn", "rrn"):
         model = onnx.load(str(folder / C.FILES[name]))
-        before = _session(model)
+        before = quiet_session(model)
         assert fold_final_convs(model) == 1
         onnx.checker.check_model(model)
         ops = [n.op_type for n in model.graph.node]
         assert ops.count("DepthToSpace") == 1 and ops.count("Relu") >= 4, name
         assert len(folded_final_convs(model)) == 1 and len(phase_conv.phase_groups(model)) == 1, name
-        after = _session(model)
+        after = quiet_session(model)
         for h, w in ((1, 1), (2, 2), (37, 53), (64, 96)):
             feed = {i.name: rng.random((1, i.shape[1], h, w), dtype=np.float32) for i in before.get_inputs()}
             a, b = before.run(None, feed)[0], after.run(None, feed)[0]
