@@ -12,11 +12,16 @@
 #endif
 #ifdef RAINDROP_HAVE_REMOVE_BENCH
 #include "../bench/remove_bench.h"
+#include "raindrop/remove/session.h"
 #endif
 #include "raindrop/common/error.h"
 #include "raindrop/common/version.h"
 
 int main(int argc, char** argv) {
+#ifdef RAINDROP_HAVE_REMOVE_BENCH
+  // First, while this is the only thread (raindrop/remove/session.h says why).
+  raindrop::removal::turn_off_onnxruntime_telemetry();
+#endif
   CLI::App app{"raindrop-bench: benchmark tables (markdown on stdout, progress on stderr). Speed is measured here, "
                "never asserted in tests."};
   app.set_version_flag("--version", std::string("raindrop-bench ") + raindrop::kVersion);

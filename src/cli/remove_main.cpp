@@ -335,7 +335,8 @@ int run(int argc, char** argv) {
                  "the images whose relative name hashes to K");
   app.add_flag("-q,--quiet", quiet, "No progress bar");
   app.set_version_flag("--version", std::string("raindrop-remove ") + kVersion + " (" + ort_description() +
-                                        "; int8 models: " + int8_kernels_description() + ")");
+                                        "; int8 models: " + int8_kernels_description() + "; telemetry off unless you opt in: " +
+                                        onnxruntime_telemetry_setting() + ")");
   try {
     app.parse(argc, argv);
     // NaN passes CLI::Range (every comparison with it is false).
@@ -605,6 +606,8 @@ int run(int argc, char** argv) {
 }  // namespace
 
 int main(int argc, char** argv) {
+  // First, while this is the only thread: ONNX Runtime reads it when its environment is created.
+  raindrop::removal::turn_off_onnxruntime_telemetry();
   try {
     return run(argc, argv);
   } catch (const UsageError& e) {

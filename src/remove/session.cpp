@@ -1,6 +1,7 @@
 #include "raindrop/remove/session.h"
 
 #include <algorithm>
+#include <cstdlib>
 #include <filesystem>
 
 #include <dlfcn.h>
@@ -33,6 +34,16 @@ const char* to_string(GraphOpt g) {
   return "?";
 }
 
+void turn_off_onnxruntime_telemetry() {
+  const char* set = std::getenv("ORT_DISABLE_TELEMETRY");
+  if (!set || !*set) ::setenv("ORT_DISABLE_TELEMETRY", "1", /*overwrite=*/1);
+}
+
+std::string onnxruntime_telemetry_setting() {
+  const char* set = std::getenv("ORT_DISABLE_TELEMETRY");
+  return set ? std::string("ORT_DISABLE_TELEMETRY=") + set : std::string("ORT_DISABLE_TELEMETRY unset");
+}
+
 Ort::Env& ort_env() {
   // Function-local static: created on first use, after main() has started, and destroyed
   // after every session (sessions are owned by objects with shorter lives).
@@ -49,6 +60,7 @@ Ort::Env& ort_env() {
   // (95,000 to 69,000 on a rendered 1280x720 frame), 13-30 ms of its 0.4 s, and a third of the
   // peak memory (357 to 253 MB), with the same output (docs/RESULTS.md 3.6).
   static Ort::Env env = [] {
+    turn_off_onnxruntime_telemetry();  // before the environment: ONNX Runtime reads it then
     Ort::Env e(ORT_LOGGING_LEVEL_FATAL, "raindrop-remove");
     const Ort::MemoryInfo cpu = Ort::MemoryInfo::CreateCpu(OrtArenaAllocator, OrtMemTypeDefault);
     const Ort::ArenaCfg arena(0, -1, -1, -1);  // ONNX Runtime's defaults: no limit, grow by powers of two
