@@ -244,6 +244,7 @@ int run(int argc, char** argv) {
       "A PNG or JPEG input's ICC colour profile goes into a PNG or JPEG output; other metadata (EXIF) does not.\n"
       "Existing output files are replaced, except in an output or mask folder that holds the input or lies\n"
       "inside it: there only files an earlier run wrote and nobody changed since (its hidden .raindrop-remove-outputs).\n"
+      "A read-only file (chmod a-w) is never replaced, also not by root: the run stops before writing.\n"
       "Exit codes: 0 success; 1 error (one line on stderr, no partial output); 2 bad command line;\n"
       "3 folder run with --keep-going finished but some images failed.");
   std::string input, output, models_dir, model_config, large_drop_models, mask, mask_dir, sheet, shard_text;

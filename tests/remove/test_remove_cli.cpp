@@ -810,19 +810,45 @@ TEST_F(RemoveCli, MaskOrSheetThatEvenRootCannotWriteLeavesNoOutput) {
   }
 }
 
-TEST_F(RemoveCli, ReadOnlyMaskOrSheetLeavesNoOutput) {
-  if (::geteuid() == 0) GTEST_SKIP() << "running as root, who may write into read-only folders and files (MaskOrSheetThatEvenRootCannotWriteLeavesNoOutput covers root)";
+TEST_F(RemoveCli, ReadOnlyFolderForMaskOrSheetLeavesNoOutput) {
+  if (::geteuid() == 0) GTEST_SKIP() << "running as root, who may write into read-only folders (MaskOrSheetThatEvenRootCannotWriteLeavesNoOutput covers root; ReadOnlyFileIsKeptEvenByRoot the files)";
   fs::create_directories(tmp / "ro");
   fs::permissions(tmp / "ro", fs::perms::owner_read | fs::perms::owner_exec);
-  write_file(tmp / "locked.png", "x");
-  fs::permissions(tmp / "locked.png", fs::perms::owner_read);
   for (const std::vector<std::string>& args :
-       {std::vector<std::string>{"in.png", "out.png", "--mask", "ro/m.png"}, {"in.png", "out.png", "--mask", "locked.png"},
-        {"in.png", "out.png", "--contact-sheet", "ro/s.png"}, {"in.png", "out.png", "--contact-sheet", "locked.png"}}) {
+       {std::vector<std::string>{"in.png", "out.png", "--mask", "ro/m.png"}, {"in.png", "out.png", "--contact-sheet", "ro/s.png"}}) {
     SCOPED_TRACE(args.back());
     expect_clean_failure(remove(args), args.back());
   }
   fs::permissions(tmp / "ro", fs::perms::owner_all);
+}
+
+// A file made read-only (chmod a-w) is not replaced, whoever runs the program: as output, mask
+// or sheet, alone or in a folder run. Root passes access() for every file, and the write
+// replaces the file by a rename, which needs only the folder's permission: without the check
+// on the file's mode, root's run lost it silently.
+TEST_F(RemoveCli, ReadOnlyFileIsKeptEvenByRoot) {
+  write_file(tmp / "locked.png", "mine");
+  fs::permissions(tmp / "locked.png", fs::perms::owner_read | fs::perms::group_read | fs::perms::others_read);
+  fs::create_directories(tmp / "batch");
+  write_image(tmp / "batch" / "a.png", make_image(64, 48, 1));
+  fs::create_directories(tmp / "results");
+  write_file(tmp / "results" / "a.png", "mine");
+  fs::permissions(tmp / "results" / "a.png", fs::perms::owner_read);
+  for (const std::vector<std::string>& args :
+       {std::vector<std::string>{"in.png", "locked.png"}, {"in.png", "out.png", "--mask", "locked.png"},
+        {"in.png", "out.png", "--contact-sheet", "locked.png"}, {"batch", "results", "-q"}}) {
+    SCOPED_TRACE(args[1] + " " + args.back());
+    const RunResult r = remove(args);
+    EXPECT_EQ(r.code, 1) << r.describe();
+    EXPECT_NE(r.err.find("read-only"), std::string::npos) << r.describe();
+    EXPECT_EQ(read_file(tmp / "locked.png"), "mine");
+    EXPECT_EQ(read_file(tmp / "results" / "a.png"), "mine");
+    EXPECT_FALSE(fs::exists(tmp / "out.png"));
+  }
+  // Writable again, it is replaced as any output is.
+  fs::permissions(tmp / "locked.png", fs::perms::owner_write, fs::perm_options::add);
+  ASSERT_EQ(remove({"in.png", "locked.png"}).code, 0);
+  EXPECT_NE(read_file(tmp / "locked.png"), "mine");
 }
 
 
