@@ -336,8 +336,7 @@ int run(int argc, char** argv) {
                  "the images whose relative name hashes to K");
   app.add_flag("-q,--quiet", quiet, "No progress bar");
   app.set_version_flag("--version", std::string("raindrop-remove ") + kVersion + " (" + ort_description() +
-                                        "; int8 models: " + int8_kernels_description() + "; telemetry off unless you opt in: " +
-                                        onnxruntime_telemetry_setting() + ")");
+                                        "; int8 models: " + int8_kernels_description() + "; " + onnxruntime_telemetry_state() + ")");
   try {
     app.parse(argc, argv);
     // NaN passes CLI::Range (every comparison with it is false).
@@ -443,6 +442,9 @@ int run(int argc, char** argv) {
   if (!mask_dir.empty()) guard("mask", fs::path(mask_dir));
   for (auto& g : guarded) {
     g.own = read_own_outputs(g.folder);
+    // Each file written there is appended to this list: one this run may not write would stop
+    // it after its first output, so it is checked now, before any.
+    check_replaceable(g.folder / kOwnOutputsList);
     for (const auto& j : jobs) {
       const std::optional<fs::path> file = g.file_of(j);
       if (!file) continue;

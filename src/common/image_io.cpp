@@ -395,12 +395,13 @@ void check_image_destination(const fs::path& path, bool folder_may_be_created) {
 void check_replaceable(const fs::path& path) {
   std::error_code ec;
   if (!fs::exists(path, ec)) return;
-  if (::access(path.c_str(), W_OK) != 0) throw Error(quoted(path) + ": cannot write (" + std::strerror(errno) + ")");
-  // Root passes access() for every file; a mode without any write bit still says "keep this".
+  // The mode first, so that every user reads the same message: root passes access() for every
+  // file, and a mode without any write bit still says "keep this".
   const fs::perms p = fs::status(path, ec).permissions();
   const fs::perms any_write = fs::perms::owner_write | fs::perms::group_write | fs::perms::others_write;
   if (!ec && fs::is_regular_file(path, ec) && (p & any_write) == fs::perms::none)
-    throw Error(quoted(path) + ": cannot write (the file is read-only, for root too; make it writable or remove it to replace it)");
+    throw Error(quoted(path) + ": read-only (no write permission for anyone); make it writable, or remove it");
+  if (::access(path.c_str(), W_OK) != 0) throw Error(quoted(path) + ": cannot write (" + std::strerror(errno) + ")");
 }
 
 void ensure_writable_dir(const fs::path& dir) {

@@ -178,6 +178,9 @@ Models::Models(const fs::path& dir, const SessionConfig& config, Graphs graphs) 
   auto load = [&dir](const char* name, const SessionConfig& c) {
     return std::make_unique<Network>(dir / (std::string(name) + ".onnx"), name, c);
   };
+  // The environment first, on this thread: creating it sets the process environment
+  // (turn_off_onnxruntime_telemetry), which must not race the loading thread's getenv calls.
+  ort_env();
   std::future<std::unique_ptr<Network>> first = std::async(std::launch::async, load, detector ? "rdn" : "rrn", branch);
   try {
     if (detector) rrn_ = load("rrn", branch);

@@ -1,6 +1,7 @@
 #include "raindrop/remove/session.h"
 
 #include <algorithm>
+#include <cctype>
 #include <cstdlib>
 #include <filesystem>
 
@@ -39,9 +40,15 @@ void turn_off_onnxruntime_telemetry() {
   if (!set || !*set) ::setenv("ORT_DISABLE_TELEMETRY", "1", /*overwrite=*/1);
 }
 
-std::string onnxruntime_telemetry_setting() {
+std::string onnxruntime_telemetry_state() {
   const char* set = std::getenv("ORT_DISABLE_TELEMETRY");
-  return set ? std::string("ORT_DISABLE_TELEMETRY=") + set : std::string("ORT_DISABLE_TELEMETRY unset");
+  std::string v = set ? set : "";
+  v.erase(0, v.find_first_not_of(" \t"));
+  v.erase(v.find_last_not_of(" \t") + 1);
+  for (char& c : v) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
+  const bool off = v == "1" || v == "true" || v == "yes" || v == "y" || v == "on";
+  const std::string said = set ? std::string("ORT_DISABLE_TELEMETRY=") + set : "ORT_DISABLE_TELEMETRY unset";
+  return off ? "ONNX Runtime telemetry off (" + said + ")" : "ONNX Runtime telemetry ON (" + said + " in the environment)";
 }
 
 Ort::Env& ort_env() {

@@ -68,6 +68,7 @@ std::vector<std::pair<fs::path, Shard>> find_manifest_parts(const fs::path& dir)
 }
 
 void write_manifest(const std::map<std::string, std::string>& lines_by_id, const fs::path& file) {
+  check_replaceable(file);  // a manifest made read-only is kept (image_io.h)
   std::string text;
   for (const auto& [id, line] : lines_by_id) text += line + "\n";
   write_text_atomic(text, file);

@@ -433,6 +433,17 @@ RenderSummary render_dataset(const std::vector<InputImage>& inputs, const Render
       if (!e.empty()) throw Error(e);
     }
   }
+  // The files a resumed run writes over (an incomplete sample's images, the manifest it
+  // rewrites): one made read-only is kept, and the run stops here, before any write (image_io.h).
+  if (existed) {
+    if (fs::exists(manifest_path, ec)) check_replaceable(manifest_path);
+    for (const auto& t : tasks) {
+      for (int v : t.variants) {
+        for (const char* sub : {"rainy", "clean", "mask", "alpha"})
+          check_replaceable(o.out_dir / sub / (variant_id(t.input->id, v) + ".png"));
+      }
+    }
+  }
   if (!existed) {
     lock_folder();
     // Another run may have made and filled the folder meanwhile: its manifests were not read.

@@ -334,6 +334,40 @@ TEST(RenderResume, KeepsAUsersManifestAndHiddenFiles) {
   EXPECT_FALSE(fs::exists(tmp / "keep" / ".one_v00.png.tmp-12345-0"));
 }
 
+// A file of the data set made read-only (chmod a-w: a sample kept as it is, a manifest frozen)
+// is not written over by a resumed run, whoever runs it: the run stops with one line, before
+// writing anything. (Files are replaced by a rename, which needs only the folder's permission.)
+TEST(RenderResume, KeepsReadOnlyFiles) {
+  TempDir tmp;
+  write_image(tmp / "in" / "one.png", make_background(320, 160, 0));
+  const std::vector<std::string> args = {"-i", "in", "--out", "out", "--variants", "2", "-q"};
+  ASSERT_EQ(run_render(args, tmp.path()).code, 0);
+  // one_v00 incomplete (its rainy image gone), its clean image read-only.
+  fs::remove(tmp / "out" / "rainy" / "one_v00.png");
+  const fs::path clean = tmp / "out" / "clean" / "one_v00.png";
+  const std::string before = read_file(clean);
+  fs::permissions(clean, fs::perms::owner_read | fs::perms::group_read | fs::perms::others_read);
+  const std::string manifest = read_file(tmp / "out" / "manifest.jsonl");
+  const auto r = run_render(args, tmp.path());
+  EXPECT_EQ(r.code, 1) << r.describe();
+  ASSERT_EQ(r.message_lines().size(), 1u) << r.describe();
+  EXPECT_NE(r.err.find("read-only"), std::string::npos) << r.describe();
+  EXPECT_EQ(read_file(clean), before);
+  EXPECT_FALSE(fs::exists(tmp / "out" / "rainy" / "one_v00.png"));
+  EXPECT_EQ(read_file(tmp / "out" / "manifest.jsonl"), manifest);
+  // The manifest itself read-only: the same.
+  fs::permissions(clean, fs::perms::owner_write, fs::perm_options::add);
+  fs::permissions(tmp / "out" / "manifest.jsonl", fs::perms::owner_read);
+  const auto m = run_render(args, tmp.path());
+  EXPECT_EQ(m.code, 1) << m.describe();
+  EXPECT_NE(m.err.find("manifest.jsonl': read-only"), std::string::npos) << m.describe();
+  EXPECT_FALSE(fs::exists(tmp / "out" / "rainy" / "one_v00.png"));
+  // Writable again: the sample is completed.
+  fs::permissions(tmp / "out" / "manifest.jsonl", fs::perms::owner_write, fs::perm_options::add);
+  ASSERT_EQ(run_render(args, tmp.path()).code, 0);
+  EXPECT_TRUE(fs::exists(tmp / "out" / "rainy" / "one_v00.png"));
+}
+
 // Two runs into one folder: the second used to delete the first's temporaries (which then
 // died with "cannot move the finished file into place"). The folder is locked for a run: a
 // second run is refused with one line naming the owner, the first finishes untouched, and a

@@ -656,6 +656,26 @@ TEST_F(RemoveCli, AListedNameIsNotEnoughToReplaceAFile) {
   EXPECT_EQ(again.code, 0) << again.describe();
 }
 
+// The list is appended after each file written: one the run may not write (read-only, for
+// root too) stops it before its first output, not after it with exit 1 and an output on disk.
+TEST_F(RemoveCli, AReadOnlyListStopsTheRunBeforeAnyOutput) {
+  write_image(tmp / "photos" / "a.png", make_image(40, 30, 1));
+  write_image(tmp / "photos" / "b.png", make_image(40, 30, 2));
+  ASSERT_EQ(remove({"photos", "photos/clean", "-q"}).code, 0);
+  const fs::path list = tmp / "photos" / "clean" / ".raindrop-remove-outputs";
+  ASSERT_TRUE(fs::exists(list));
+  fs::remove(tmp / "photos" / "clean" / "a.png");
+  fs::remove(tmp / "photos" / "clean" / "b.png");
+  fs::permissions(list, fs::perms::owner_read);
+  const RunResult r = remove({"photos", "photos/clean", "-q"});
+  EXPECT_EQ(r.code, 1) << r.describe();
+  EXPECT_EQ(split_lines(r.err).size(), 1u) << r.describe();
+  EXPECT_NE(r.err.find(".raindrop-remove-outputs"), std::string::npos) << r.describe();
+  EXPECT_FALSE(fs::exists(tmp / "photos" / "clean" / "a.png"));
+  EXPECT_FALSE(fs::exists(tmp / "photos" / "clean" / "b.png"));
+  EXPECT_TRUE(hidden_temporaries(tmp / "photos" / "clean").empty());
+}
+
 // An output folder that holds the input folder (photos/ for photos/wet/) may hold the user's
 // photographs under the names its outputs take: refused, as for a folder inside the input.
 // The same with a single image whose mask folder is the image's own folder (a.jpg's mask is

@@ -13,9 +13,9 @@ __version__ = "0.1.0"
 
 # ONNX Runtime's official builds for Linux and macOS (the PyPI wheel: 1.31 does) collect
 # usage telemetry: importing onnxruntime writes a persistent device id and an event database
-# under ~/.cache/Microsoft (or $XDG_CACHE_HOME) and a file in $TMPDIR, and uploads events where
-# a network is reachable. Turned off here, before any of our modules imports onnxruntime (it
+# under ~/.cache/Microsoft (or $XDG_CACHE_HOME/Microsoft) and a file in $TMPDIR, and its
+# uploader sends the events to Microsoft. Turned off here, before any of our modules imports onnxruntime (it
 # reads the variable once, at import), as raindrop-remove does (raindrop/remove/session.h).
-# A value the user set is kept: ORT_DISABLE_TELEMETRY=0 opts back in.
+# A non-empty value the user set is kept: ORT_DISABLE_TELEMETRY=0 opts back in.
 if not _os.environ.get("ORT_DISABLE_TELEMETRY"):
     _os.environ["ORT_DISABLE_TELEMETRY"] = "1"

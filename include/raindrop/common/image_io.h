@@ -121,9 +121,9 @@ void check_image_destination(const std::filesystem::path& path, bool folder_may_
 // Throws the one-line Error check_image_destination throws for an existing file at `path` that
 // is read-only: the file is written beside its name and renamed over it, which would replace
 // it behind its owner's back. (The cheap part of that check, for a run's many destinations.)
-// Read-only means: this user may not write it, or its mode grants nobody write permission.
-// The second holds for root too, whom access() lets write anything: a file made read-only with
-// chmod a-w is how people protect one, and root replacing it would lose it as silently.
+// Read-only means: its mode grants nobody write permission (for root too, whom access() lets
+// write anything: chmod a-w is how people protect a file, and root replacing it would lose it
+// as silently), or this user may not write it.
 void check_replaceable(const std::filesystem::path& path);
 
 // The longest file name (bytes) that Linux file systems take (NAME_MAX on ext4, XFS, Btrfs).

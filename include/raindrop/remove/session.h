@@ -37,20 +37,23 @@ const char* to_string(GraphOpt g);
 Ort::Env& ort_env();
 
 // ONNX Runtime's official Linux and macOS builds (the PyPI wheel this project links: 1.31
-// does; older releases did not) collect usage telemetry: at start-up the library writes a persistent device id
-// and an event cache (a SQLite database, synced to disk) under $XDG_CACHE_HOME or
-// ~/.cache/Microsoft/DeveloperTools/.onnxruntime, and uploads the events where a network is
-// reachable. A tool that processes a fleet's camera images must not do that behind its users'
-// backs, so raindrop turns it off: this sets ORT_DISABLE_TELEMETRY=1, ONNX Runtime's full
-// opt-out, which it reads once, when its environment is created. A value the user set
-// (non-empty) is kept: ORT_DISABLE_TELEMETRY=0 opts back in. Call it before starting threads
-// that read the environment; the programs do so first thing in main(), and ort_env() does it
-// for library users.
+// does; older releases did not) collect usage telemetry: at start-up the library writes a
+// persistent device id and an event cache (a SQLite database, synced to disk) under
+// ~/.cache/Microsoft/DeveloperTools/.onnxruntime (or $XDG_CACHE_HOME/Microsoft/...) and a file
+// in $TMPDIR, and its uploader sends the events to Microsoft. A tool that processes a fleet's
+// camera images must not do that behind its users' backs, so raindrop turns it off: this sets
+// ORT_DISABLE_TELEMETRY=1, ONNX Runtime's full opt-out, which it reads once, when the process's
+// first environment is created (so it works only if raindrop creates that environment, or the
+// host program set the variable before making its own). A non-empty value the user set is
+// kept: ORT_DISABLE_TELEMETRY=0 opts back in. Call it before starting threads that read the
+// environment; the programs do so first thing in main(), Models before it starts its loading
+// thread, and ort_env() for everything else.
 void turn_off_onnxruntime_telemetry();
 
-// "ORT_DISABLE_TELEMETRY=1" (or the value the user set, or "ORT_DISABLE_TELEMETRY unset"),
-// for --version: what this process tells ONNX Runtime about its telemetry.
-std::string onnxruntime_telemetry_setting();
+// "ONNX Runtime telemetry off (ORT_DISABLE_TELEMETRY=1)", or "ON" with the value from the
+// environment that leaves it on, read as ONNX Runtime reads it (off for 1, true, yes, y or on,
+// in any case), for --version.
+std::string onnxruntime_telemetry_state();
 
 // Execution providers compiled into the loaded library, e.g. {"CPUExecutionProvider"}.
 std::vector<std::string> available_providers();
