@@ -5,6 +5,7 @@
 #include <exception>
 #include <functional>
 #include <future>
+#include <thread>
 #include <numeric>
 #include <string>
 #include <vector>
@@ -142,6 +143,11 @@ Remover::Remover(const std::filesystem::path& model_dir, const SessionConfig& co
   }
 }
 
+int Remover::composite_workers() const {
+  if (config_.device != Device::cpu) return 1;
+  return config_.threads > 0 ? config_.threads : static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
+}
+
 Models& Remover::large_drop_models() {
   if (large_drop_dir_.empty()) return models_;
   // Loaded once; a failure is kept and rethrown for every later image (a folder run with
@@ -219,49 +225,78 @@ struct Upsampled {
 };
 
 Upsampled composite_upsampled(const cv::Mat& base, const cv::Mat& base_rgb, const cv::Mat& rgb_small,
-                              const cv::Mat& weight_small, bool keep_float) {
+                              const cv::Mat& weight_small, bool keep_float, int workers) {
   const cv::Size full = base.size();
   Upsampled up;
   up.image.create(full, base.type());
   up.mask.create(full, CV_8U);
   if (keep_float) up.rgb.create(full, CV_32FC3);
   const size_t pixel_bytes = base.elemSize();
-  // Bands of rows, and within a band only the columns that a drop reaches: most of a
-  // photograph is the base's own bytes, copied (float work there was half of the full-size
-  // cost: docs/RESULTS.md 3.6).
-  constexpr int kBand = 16;
-  for (int y0 = 0; y0 < full.height; y0 += kBand) {
-    const int rows = std::min(kBand, full.height - y0);
-    const cv::Rect band(0, y0, full.width, rows);
-    const cv::Mat alpha = upsample_region(weight_small, full, band);
-    int x0 = full.width, x1 = 0;
-    for (int y = 0; y < rows; ++y) {
-      const float* a = alpha.ptr<float>(y);
-      unsigned char* m = up.mask.ptr<unsigned char>(y0 + y);
-      for (int x = 0; x < full.width; ++x) {
-        m[x] = a[x] >= 0.5f ? 255 : 0;
-        if (a[x] > 0.0f) x0 = std::min(x0, x), x1 = std::max(x1, x + 1);
-      }
-    }
-    base(band).copyTo(up.image(band));
-    if (keep_float) (base_rgb.empty() ? to_rgb_float(base, band) : base_rgb(band)).copyTo(up.rgb(band));
-    if (x0 >= x1) continue;
-    const cv::Rect span(x0, y0, x1 - x0, rows);
+  // One span of a band through float: the blend where a > 0, the base's own bytes elsewhere.
+  const auto blend_span = [&](const cv::Rect& span) {
     cv::Mat span_alpha;
     const cv::Mat blended = blend_upsampled(base_rgb.empty() ? to_rgb_float(base, span) : base_rgb(span), span, full,
                                             rgb_small, weight_small, span_alpha);
     store_rgb_float(blended, up.image, span.tl());
     if (keep_float) blended.copyTo(up.rgb(span));
     // Where a == 0 the base's own pixels, bit for bit (no round trip through float).
-    for (int y = 0; y < rows; ++y) {
+    for (int y = 0; y < span.height; ++y) {
       const float* a = span_alpha.ptr<float>(y);
-      const unsigned char* src = base.ptr<unsigned char>(y0 + y) + x0 * pixel_bytes;
-      unsigned char* dst = up.image.ptr<unsigned char>(y0 + y) + x0 * pixel_bytes;
+      const unsigned char* src = base.ptr<unsigned char>(span.y + y) + span.x * pixel_bytes;
+      unsigned char* dst = up.image.ptr<unsigned char>(span.y + y) + span.x * pixel_bytes;
       for (int x = 0; x < span.width; ++x) {
         if (a[x] <= 0.0f) std::memcpy(dst + x * pixel_bytes, src + x * pixel_bytes, pixel_bytes);
       }
     }
-  }
+  };
+  // Bands of rows; in a band only the columns a drop's weight reaches are interpolated (it is
+  // exactly 0 elsewhere: working_scale.h), and only the runs of columns where it is above 0 go
+  // through float, split where at least kGap columns between drops need none. Most of a
+  // photograph is the base's own bytes, copied (float work there was half of the full-size
+  // cost: docs/RESULTS.md 3.6; scattered small drops made one span of nearly every band).
+  constexpr int kBand = 16, kGap = 16;
+  const auto composite_bands = [&](int first, int last) {
+    std::vector<unsigned char> drop_column;
+    for (int y0 = first * kBand; y0 < std::min(last * kBand, full.height); y0 += kBand) {
+      const int rows = std::min(kBand, full.height - y0);
+      const cv::Rect band(0, y0, full.width, rows);
+      base(band).copyTo(up.image(band));
+      up.mask(band).setTo(0);
+      if (keep_float) (base_rgb.empty() ? to_rgb_float(base, band) : base_rgb(band)).copyTo(up.rgb(band));
+      const cv::Rect reach = upsampled_reach(weight_small, full, band);
+      if (reach.empty()) continue;
+      const cv::Mat alpha = upsample_region(weight_small, full, reach);
+      drop_column.assign(static_cast<size_t>(reach.width), 0);
+      for (int y = 0; y < rows; ++y) {
+        const float* a = alpha.ptr<float>(y);
+        unsigned char* m = up.mask.ptr<unsigned char>(y0 + y) + reach.x;
+        for (int x = 0; x < reach.width; ++x) {
+          m[x] = a[x] >= 0.5f ? 255 : 0;
+          drop_column[x] |= a[x] > 0.0f;
+        }
+      }
+      for (int x = 0; x < reach.width;) {
+        if (!drop_column[x]) {
+          ++x;
+          continue;
+        }
+        int end = x + 1, gap = 0;  // the run: up to its last drop column before a gap of kGap
+        for (int i = end; i < reach.width && gap < kGap; ++i) {
+          gap = drop_column[i] ? 0 : gap + 1;
+          if (drop_column[i]) end = i + 1;
+        }
+        blend_span(cv::Rect(reach.x + x, y0, end - x, rows));
+        x = end;
+      }
+    }
+  };
+  // Bands are independent (each writes its own rows): split among `workers` threads, which
+  // the networks have left idle by now (a 12-megapixel photograph spent 0.16 s here on one).
+  const int bands = (full.height + kBand - 1) / kBand;
+  const int n = std::clamp(workers, 1, std::max(1, bands));
+  std::vector<std::function<void()>> jobs;
+  for (int i = 0; i < n; ++i) jobs.push_back([&, i] { composite_bands(bands * i / n, bands * (i + 1) / n); });
+  run_side_by_side(jobs);
   copy_alpha(base, up.image);
   return up;
 }
@@ -279,7 +314,7 @@ RemoveResult Remover::run_scaled(const cv::Mat& image, const cv::Mat& small, con
   auto clock = Clock::now();
   cv::Mat mask_small;
   res.mask.convertTo(mask_small, CV_32F, 1.0 / 255.0);
-  Upsampled up = composite_upsampled(image, cv::Mat(), res.rgb, mask_small, opt.keep_float);
+  Upsampled up = composite_upsampled(image, cv::Mat(), res.rgb, mask_small, opt.keep_float, composite_workers());
   res.image = up.image;
   res.mask = up.mask;
   res.rgb = up.rgb;
@@ -347,7 +382,8 @@ void Remover::composite_large_drops(const CoarsePass& cp, const RemoveOptions& o
   cv::Mat smoothed;
   cv::GaussianBlur(cp.result.rgb, smoothed, cv::Size(0, 0), kLargeDropSmoothing, kLargeDropSmoothing,
                    cv::BORDER_REPLICATE);
-  Upsampled up = composite_upsampled(res.image, opt.keep_float ? res.rgb : cv::Mat(), smoothed, weight, opt.keep_float);
+  Upsampled up = composite_upsampled(res.image, opt.keep_float ? res.rgb : cv::Mat(), smoothed, weight, opt.keep_float,
+                                     composite_workers());
   res.image = up.image;
   res.mask = res.mask | up.mask;
   if (opt.keep_float) res.rgb = up.rgb;

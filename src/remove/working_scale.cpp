@@ -68,6 +68,32 @@ cv::Mat upsample_region(const cv::Mat& small, cv::Size full, const cv::Rect& reg
   return out;
 }
 
+cv::Rect upsampled_reach(const cv::Mat& small, cv::Size full, const cv::Rect& region) {
+  CV_Assert(small.type() == CV_32F);
+  if (region.empty()) return {};
+  const Taps ty = axis_taps(small.rows, full.height, region.y, region.height);
+  // Small rows read by the region's rows (the taps grow with the index).
+  const int r0 = ty.lo.front(), r1 = ty.lo.back() + ty.step.back();
+  int c0 = small.cols, c1 = -1;
+  for (int r = r0; r <= r1; ++r) {
+    const float* row = small.ptr<float>(r);
+    int x = 0;
+    while (x < small.cols && row[x] == 0.0f) ++x;
+    if (x == small.cols) continue;
+    int last = small.cols - 1;
+    while (row[last] == 0.0f) --last;
+    c0 = std::min(c0, x), c1 = std::max(c1, last);
+  }
+  if (c1 < 0) return {};
+  // Full columns whose taps read a small column in [c0, c1].
+  const Taps tx = axis_taps(small.cols, full.width, region.x, region.width);
+  int x0 = 0, x1 = region.width - 1;
+  while (x0 < region.width && tx.lo[x0] + tx.step[x0] < c0) ++x0;
+  while (x1 >= x0 && tx.lo[x1] > c1) --x1;
+  if (x0 > x1) return {};
+  return {region.x + x0, region.y, x1 - x0 + 1, region.height};
+}
+
 cv::Mat blend_upsampled(const cv::Mat& in_region, const cv::Rect& region, cv::Size full, const cv::Mat& output_small,
                         const cv::Mat& mask_small, cv::Mat& alpha) {
   CV_Assert(in_region.size() == region.size());

@@ -78,6 +78,42 @@ TEST(WorkingScale, RegionsBlendExactlyAsTheirPartOfTheWhole) {
 
 // The mask weights the blend: 0 keeps the input exactly, 1 takes the upsampled output, and
 // the seam of a half-covered image lies where the small mask's edge projects.
+// upsampled_reach: outside the part of a region it names (same rows, a run of its columns), the
+// upsampled weights are exactly 0, and with no weight above 0 it is empty. (It may be wider
+// than the non-zero pixels: a tap with weight 0 still counts.) Random sparse weights, none
+// included, odd sizes and scales, many regions.
+TEST(WorkingScale, UpsampledReachHoldsEveryNonZeroWeight) {
+  cv::RNG rng(31);
+  for (int trial = 0; trial < 40; ++trial) {
+    const cv::Size small(rng.uniform(3, 60), rng.uniform(3, 40));
+    const cv::Size full(small.width * rng.uniform(1, 5) + rng.uniform(0, 7), small.height * rng.uniform(1, 5) + rng.uniform(0, 7));
+    cv::Mat weight(small, CV_32F, cv::Scalar(0));
+    for (int k = rng.uniform(0, 4); k > 0; --k)
+      weight.at<float>(rng.uniform(0, small.height), rng.uniform(0, small.width)) = rng.uniform(0.01f, 1.0f);
+    const cv::Mat whole = upsample_region(weight, full, cv::Rect(cv::Point(), full));
+    for (int r = 0; r < 6; ++r) {
+      const int y = rng.uniform(0, full.height), x = rng.uniform(0, full.width);
+      const cv::Rect region(x, y, rng.uniform(1, full.width - x + 1), rng.uniform(1, full.height - y + 1));
+      SCOPED_TRACE(::testing::Message() << "trial " << trial << " small " << small << " full " << full << " region " << region);
+      const cv::Rect reach = upsampled_reach(weight, full, region);
+      const cv::Mat part = whole(region);
+      cv::Mat outside = part.clone();
+      if (!reach.empty()) {
+        ASSERT_EQ((reach & region), reach);
+        ASSERT_EQ(reach.y, region.y);
+        ASSERT_EQ(reach.height, region.height);
+        outside(reach - region.tl()).setTo(0);
+      } else {
+        EXPECT_EQ(cv::countNonZero(part), 0);
+      }
+      if (cv::countNonZero(weight) == 0) {
+        EXPECT_TRUE(reach.empty());
+      }
+      EXPECT_EQ(cv::countNonZero(outside), 0) << "a weight above 0 outside the reach";
+    }
+  }
+}
+
 TEST(WorkingScale, MaskWeightsTheBlend) {
   const cv::Size full(400, 100), small(100, 25);
   const cv::Mat out_small(small, CV_32FC3, cv::Scalar::all(1.0f));

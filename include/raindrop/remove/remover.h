@@ -123,6 +123,8 @@ class Remover {
                           const std::function<Models&()>& reconstruction = {}, double growth = 0);
   // The models for the coarse pass's large drops (made on first use), or models_.
   Models& large_drop_models();
+  // Threads for the full-size composite: the session threads (0: one per core), on the CPU.
+  int composite_workers() const;
   // The pipeline on `small` (the image area-averaged down to the working scale), brought back
   // to the image's size.
   RemoveResult run_scaled(const cv::Mat& image, const cv::Mat& small, const RemoveOptions& options, double scale);

@@ -42,6 +42,12 @@ cv::Size scaled_size(cv::Size size, double scale);
 // full-size image; exactly that part of the whole.
 cv::Mat upsample_region(const cv::Mat& small, cv::Size full, const cv::Rect& region);
 
+// The part of `region` (full-size pixels) that the non-zero samples of `small` (CV_32F, one
+// channel) reach when upsampled as above: outside it the upsampled image is exactly 0 there
+// (every pixel interpolates zeros). Empty when none reaches `region`. Where drops are few, most
+// of a photograph needs no interpolation at all.
+cv::Rect upsampled_reach(const cv::Mat& small, cv::Size full, const cv::Rect& region);
+
 // `region` of the full-size float RGB result: the input's own pixels there, `in_region`
 // (CV_32FC3, in [0, 1]), blended with the upsampled networks' output `output_small`
 // (CV_32FC3) by the upsampled mask `mask_small` (CV_32F in [0, 1]). `full` is the image's
