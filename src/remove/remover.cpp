@@ -213,16 +213,7 @@ RemoveResult Remover::run(const cv::Mat& image, const RemoveOptions& opt) {
   return res;
 }
 
-namespace {
-
-// A result computed on a small copy, brought back over `base` at full size (working_scale.h):
-// out = (1 - a) base + a up(rgb_small), a = up(weight_small) bilinear, where the base is the
-// input or a finer pass's output (`base_rgb`: its float RGB, or empty to convert `base`).
-// Where a == 0 the base's own pixels, bit for bit (no round trip through float). `mask`
-// (CV_8U 0/255) marks a >= 0.5; `rgb` (keep_float) holds the blended float rows.
-struct Upsampled {
-  cv::Mat image, mask, rgb;
-};
+namespace detail {
 
 Upsampled composite_upsampled(const cv::Mat& base, const cv::Mat& base_rgb, const cv::Mat& rgb_small,
                               const cv::Mat& weight_small, bool keep_float, int workers) {
@@ -255,9 +246,9 @@ Upsampled composite_upsampled(const cv::Mat& base, const cv::Mat& base_rgb, cons
   // photograph is the base's own bytes, copied (float work there was half of the full-size
   // cost: docs/RESULTS.md 3.6; scattered small drops made one span of nearly every band).
   constexpr int kBand = 16, kGap = 16;
-  const auto composite_bands = [&](int first, int last) {
+  const auto composite_bands = [&](int first, int stride) {
     std::vector<unsigned char> drop_column;
-    for (int y0 = first * kBand; y0 < std::min(last * kBand, full.height); y0 += kBand) {
+    for (int y0 = first * kBand; y0 < full.height; y0 += stride * kBand) {
       const int rows = std::min(kBand, full.height - y0);
       const cv::Rect band(0, y0, full.width, rows);
       base(band).copyTo(up.image(band));
@@ -290,18 +281,20 @@ Upsampled composite_upsampled(const cv::Mat& base, const cv::Mat& base_rgb, cons
       }
     }
   };
-  // Bands are independent (each writes its own rows): split among `workers` threads, which
-  // the networks have left idle by now (a 12-megapixel photograph spent 0.16 s here on one).
+  // Bands are independent (each writes its own rows): every n-th band to each of `workers`
+  // threads, interleaved so that drops bunched in one part of the photograph (a windshield's
+  // lower half) still share out evenly. The working pass's networks are done by now (the coarse
+  // pass beside it may still run). An 11-megapixel photograph spent 0.16 s here on one thread.
   const int bands = (full.height + kBand - 1) / kBand;
   const int n = std::clamp(workers, 1, std::max(1, bands));
   std::vector<std::function<void()>> jobs;
-  for (int i = 0; i < n; ++i) jobs.push_back([&, i] { composite_bands(bands * i / n, bands * (i + 1) / n); });
+  for (int i = 0; i < n; ++i) jobs.push_back([&, i] { composite_bands(i, n); });
   run_side_by_side(jobs);
   copy_alpha(base, up.image);
   return up;
 }
 
-}  // namespace
+}  // namespace detail
 
 RemoveResult Remover::run_scaled(const cv::Mat& image, const cv::Mat& small, const RemoveOptions& opt, double scale) {
   RemoveOptions sub = opt;
@@ -314,7 +307,7 @@ RemoveResult Remover::run_scaled(const cv::Mat& image, const cv::Mat& small, con
   auto clock = Clock::now();
   cv::Mat mask_small;
   res.mask.convertTo(mask_small, CV_32F, 1.0 / 255.0);
-  Upsampled up = composite_upsampled(image, cv::Mat(), res.rgb, mask_small, opt.keep_float, composite_workers());
+  detail::Upsampled up = detail::composite_upsampled(image, cv::Mat(), res.rgb, mask_small, opt.keep_float, composite_workers());
   res.image = up.image;
   res.mask = up.mask;
   res.rgb = up.rgb;
@@ -382,7 +375,7 @@ void Remover::composite_large_drops(const CoarsePass& cp, const RemoveOptions& o
   cv::Mat smoothed;
   cv::GaussianBlur(cp.result.rgb, smoothed, cv::Size(0, 0), kLargeDropSmoothing, kLargeDropSmoothing,
                    cv::BORDER_REPLICATE);
-  Upsampled up = composite_upsampled(res.image, opt.keep_float ? res.rgb : cv::Mat(), smoothed, weight, opt.keep_float,
+  detail::Upsampled up = detail::composite_upsampled(res.image, opt.keep_float ? res.rgb : cv::Mat(), smoothed, weight, opt.keep_float,
                                      composite_workers());
   res.image = up.image;
   res.mask = res.mask | up.mask;

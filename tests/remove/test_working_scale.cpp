@@ -1,6 +1,7 @@
 // The working scale (raindrop/remove/working_scale.h): which scale an image is processed at,
 // how the result comes back to full size, and that pixels outside the mask stay the input's.
 #include <cmath>
+#include <cstring>
 
 #include <opencv2/imgproc.hpp>
 
@@ -76,40 +77,147 @@ TEST(WorkingScale, RegionsBlendExactlyAsTheirPartOfTheWhole) {
   }
 }
 
-// The mask weights the blend: 0 keeps the input exactly, 1 takes the upsampled output, and
-// the seam of a half-covered image lies where the small mask's edge projects.
 // upsampled_reach: outside the part of a region it names (same rows, a run of its columns), the
 // upsampled weights are exactly 0, and with no weight above 0 it is empty. (It may be wider
-// than the non-zero pixels: a tap with weight 0 still counts.) Random sparse weights, none
-// included, odd sizes and scales, many regions.
+// than the pixels above 0: a tap of weight 0 still counts.) Random weights (none, isolated
+// points or blobs), small images down to 1 pixel wide or high, odd scales, random regions
+// and the composite's own regions: full-width bands of 16 rows.
 TEST(WorkingScale, UpsampledReachHoldsEveryNonZeroWeight) {
   cv::RNG rng(31);
-  for (int trial = 0; trial < 40; ++trial) {
-    const cv::Size small(rng.uniform(3, 60), rng.uniform(3, 40));
+  int nonempty = 0;
+  for (int trial = 0; trial < 80; ++trial) {
+    const cv::Size small(trial % 10 == 0 ? 1 : rng.uniform(1, 60), trial % 10 == 1 ? 1 : rng.uniform(1, 40));
     const cv::Size full(small.width * rng.uniform(1, 5) + rng.uniform(0, 7), small.height * rng.uniform(1, 5) + rng.uniform(0, 7));
     cv::Mat weight(small, CV_32F, cv::Scalar(0));
-    for (int k = rng.uniform(0, 4); k > 0; --k)
-      weight.at<float>(rng.uniform(0, small.height), rng.uniform(0, small.width)) = rng.uniform(0.01f, 1.0f);
+    for (int k = rng.uniform(0, 4); k > 0; --k) {
+      const cv::Point at(rng.uniform(0, small.width), rng.uniform(0, small.height));
+      if (trial % 3 == 0) {
+        cv::circle(weight, at, rng.uniform(1, 4), cv::Scalar(rng.uniform(0.01f, 1.0f)), cv::FILLED);
+      } else {
+        weight.at<float>(at) = rng.uniform(0.01f, 1.0f);
+      }
+    }
     const cv::Mat whole = upsample_region(weight, full, cv::Rect(cv::Point(), full));
+    std::vector<cv::Rect> regions;
+    for (int y = 0; y < full.height; y += 16) regions.emplace_back(0, y, full.width, std::min(16, full.height - y));
     for (int r = 0; r < 6; ++r) {
       const int y = rng.uniform(0, full.height), x = rng.uniform(0, full.width);
-      const cv::Rect region(x, y, rng.uniform(1, full.width - x + 1), rng.uniform(1, full.height - y + 1));
+      regions.emplace_back(x, y, rng.uniform(1, full.width - x + 1), rng.uniform(1, full.height - y + 1));
+    }
+    for (const cv::Rect& region : regions) {
       SCOPED_TRACE(::testing::Message() << "trial " << trial << " small " << small << " full " << full << " region " << region);
       const cv::Rect reach = upsampled_reach(weight, full, region);
-      const cv::Mat part = whole(region);
-      cv::Mat outside = part.clone();
+      cv::Mat outside = whole(region).clone();
       if (!reach.empty()) {
+        ++nonempty;
         ASSERT_EQ((reach & region), reach);
         ASSERT_EQ(reach.y, region.y);
         ASSERT_EQ(reach.height, region.height);
         outside(reach - region.tl()).setTo(0);
-      } else {
-        EXPECT_EQ(cv::countNonZero(part), 0);
       }
+      EXPECT_EQ(cv::countNonZero(outside), 0) << "a weight above 0 outside the reach";
       if (cv::countNonZero(weight) == 0) {
         EXPECT_TRUE(reach.empty());
       }
-      EXPECT_EQ(cv::countNonZero(outside), 0) << "a weight above 0 outside the reach";
+    }
+  }
+  EXPECT_GT(nonempty, 200) << "too few regions that a weight reaches: the test checks little";
+  // Tight enough to be worth it: one small pixel reaches a few full columns, not the band.
+  cv::Mat point(cv::Size(100, 20), CV_32F, cv::Scalar(0));
+  point.at<float>(10, 50) = 1.0f;
+  const cv::Rect one = upsampled_reach(point, {400, 80}, cv::Rect(0, 40, 400, 16));
+  EXPECT_GE(one.x, 196);
+  EXPECT_LE(one.x + one.width, 206);
+}
+
+// The composite (Remover::run's way back to full size) against the plain version it replaced:
+// the upsampled weight over whole bands, one blended span from a band's first drop column to
+// its last. Every type the remover takes, with and without the float result, with a float base
+// that is the input's own or another (the large-drop pass), scattered drops with gaps under and
+// over the 16 columns that split a band's work, and 1 to 5 threads: the same bytes and floats.
+detail::Upsampled reference_composite(const cv::Mat& base, const cv::Mat& base_rgb, const cv::Mat& rgb_small,
+                                      const cv::Mat& weight_small, bool keep_float) {
+  const cv::Size full = base.size();
+  detail::Upsampled up;
+  up.image.create(full, base.type());
+  up.mask.create(full, CV_8U);
+  if (keep_float) up.rgb.create(full, CV_32FC3);
+  const size_t pixel_bytes = base.elemSize();
+  for (int y0 = 0; y0 < full.height; y0 += 16) {
+    const int rows = std::min(16, full.height - y0);
+    const cv::Rect band(0, y0, full.width, rows);
+    const cv::Mat alpha = upsample_region(weight_small, full, band);
+    int x0 = full.width, x1 = 0;
+    for (int y = 0; y < rows; ++y) {
+      for (int x = 0; x < full.width; ++x) {
+        const float a = alpha.at<float>(y, x);
+        up.mask.at<unsigned char>(y0 + y, x) = a >= 0.5f ? 255 : 0;
+        if (a > 0.0f) x0 = std::min(x0, x), x1 = std::max(x1, x + 1);
+      }
+    }
+    base(band).copyTo(up.image(band));
+    if (keep_float) (base_rgb.empty() ? to_rgb_float(base, band) : base_rgb(band)).copyTo(up.rgb(band));
+    if (x0 >= x1) continue;
+    const cv::Rect span(x0, y0, x1 - x0, rows);
+    cv::Mat span_alpha;
+    const cv::Mat blended = blend_upsampled(base_rgb.empty() ? to_rgb_float(base, span) : base_rgb(span), span, full,
+                                            rgb_small, weight_small, span_alpha);
+    store_rgb_float(blended, up.image, span.tl());
+    if (keep_float) blended.copyTo(up.rgb(span));
+    for (int y = 0; y < rows; ++y) {
+      for (int x = 0; x < span.width; ++x) {
+        if (span_alpha.at<float>(y, x) <= 0.0f)
+          std::memcpy(up.image.ptr<unsigned char>(y0 + y) + (x0 + x) * pixel_bytes,
+                      base.ptr<unsigned char>(y0 + y) + (x0 + x) * pixel_bytes, pixel_bytes);
+      }
+    }
+  }
+  copy_alpha(base, up.image);
+  return up;
+}
+
+bool same_bytes(const cv::Mat& a, const cv::Mat& b) {
+  if (a.empty() || b.empty()) return a.empty() == b.empty();
+  if (a.size() != b.size() || a.type() != b.type()) return false;
+  for (int y = 0; y < a.rows; ++y) {
+    if (std::memcmp(a.ptr(y), b.ptr(y), a.cols * a.elemSize()) != 0) return false;
+  }
+  return true;
+}
+
+TEST(WorkingScale, CompositeIsTheWholeBandCompositeByteForByte) {
+  cv::RNG rng(77);
+  for (int trial = 0; trial < 60; ++trial) {
+    const int depth = trial % 2 ? CV_16U : CV_8U, channels = 1 + trial % 4;
+    const cv::Size small(rng.uniform(1, 120), rng.uniform(1, 40));
+    const cv::Size full(small.width * rng.uniform(1, 4) + rng.uniform(0, 5), small.height * rng.uniform(1, 4) + rng.uniform(0, 5));
+    cv::Mat base(full, CV_MAKETYPE(depth, channels));
+    rng.fill(base, cv::RNG::UNIFORM, 0, depth == CV_16U ? 65536 : 256);
+    cv::Mat rgb_small(small, CV_32FC3);
+    rng.fill(rgb_small, cv::RNG::UNIFORM, 0.0, 1.0);
+    // An 8-bit mask, as both callers have: none, scattered drops, or most of the image.
+    cv::Mat mask8(small, CV_8U, cv::Scalar(0));
+    const int kind = trial % 3;
+    for (int k = kind == 0 ? 0 : rng.uniform(1, 12); k > 0; --k)
+      cv::circle(mask8, {rng.uniform(0, small.width), rng.uniform(0, small.height)}, rng.uniform(0, 3),
+                 cv::Scalar(kind == 2 ? 255 : rng.uniform(1, 256)), cv::FILLED);
+    if (kind == 2) mask8.rowRange(0, small.height / 2).setTo(255);
+    cv::Mat weight;
+    mask8.convertTo(weight, CV_32F, 1.0 / 255.0);
+    const bool keep_float = trial % 5 < 2;
+    cv::Mat base_rgb;
+    if (trial % 7 == 3) {  // the large-drop pass: a float base of its own
+      base_rgb.create(full, CV_32FC3);
+      rng.fill(base_rgb, cv::RNG::UNIFORM, 0.0, 1.0);
+    }
+    const detail::Upsampled want = reference_composite(base, base_rgb, rgb_small, weight, keep_float);
+    for (int workers = 1; workers <= 5; workers += 2) {
+      SCOPED_TRACE(::testing::Message() << "trial " << trial << " type " << base.type() << " small " << small << " full "
+                                        << full << " keep_float " << keep_float << " workers " << workers);
+      const detail::Upsampled got = detail::composite_upsampled(base, base_rgb, rgb_small, weight, keep_float, workers);
+      EXPECT_TRUE(same_bytes(got.image, want.image));
+      EXPECT_TRUE(same_bytes(got.mask, want.mask));
+      EXPECT_TRUE(same_bytes(got.rgb, want.rgb));
     }
   }
 }

@@ -149,4 +149,21 @@ class Remover {
   std::exception_ptr large_failure_;       // a failed load, rethrown for every later image
 };
 
+namespace detail {
+
+// A result computed on a small copy, brought back over `base` at full size (working_scale.h):
+// out = (1 - a) base + a up(rgb_small), a = up(weight_small) bilinear, where the base is the
+// input or a finer pass's output (`base_rgb`: its float RGB, or empty to convert `base`).
+// Where a == 0 the base's own pixels, bit for bit (no round trip through float). `mask`
+// (CV_8U 0/255) marks a >= 0.5; `rgb` (keep_float) holds the blended float rows. The weights
+// must be finite, in [0, 1] (both callers make them from 8-bit masks). Work is split among
+// `workers` threads. In the header for its tests (Remover::run is how it is used).
+struct Upsampled {
+  cv::Mat image, mask, rgb;
+};
+Upsampled composite_upsampled(const cv::Mat& base, const cv::Mat& base_rgb, const cv::Mat& rgb_small,
+                              const cv::Mat& weight_small, bool keep_float, int workers);
+
+}  // namespace detail
+
 }  // namespace raindrop::removal

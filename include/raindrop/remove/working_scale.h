@@ -43,8 +43,9 @@ cv::Size scaled_size(cv::Size size, double scale);
 cv::Mat upsample_region(const cv::Mat& small, cv::Size full, const cv::Rect& region);
 
 // The part of `region` (full-size pixels) that the non-zero samples of `small` (CV_32F, one
-// channel) reach when upsampled as above: outside it the upsampled image is exactly 0 there
-// (every pixel interpolates zeros). Empty when none reaches `region`. Where drops are few, most
+// channel, finite) reach when upsampled as above: outside it the upsampled image is exactly 0
+// there (every pixel interpolates zeros). Empty when none reaches `region`. It may be wider than
+// the pixels above 0 (a tap of weight 0 still counts). Where drops are few, most
 // of a photograph needs no interpolation at all.
 cv::Rect upsampled_reach(const cv::Mat& small, cv::Size full, const cv::Rect& region);
 
