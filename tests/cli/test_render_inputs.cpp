@@ -477,3 +477,35 @@ TEST(RenderIds, NonAsciiNamesKeepTheirLetters) {
 
 }  // namespace
 }  // namespace clitest
+
+namespace clitest {
+namespace {
+
+// An installed tree (cmake --install) holds raindrop-render, as the cluster examples of the
+// README run it, and its plugin in lib/raindrop: a TIFF in, a data set out, the same bytes as
+// the build tree's program writes.
+TEST(RenderInstall, InstalledProgramRendersFromATiff) {
+  TempDir tmp;
+  const RunResult install = RunResult{testsupport::run_captured(
+      "cmake", {"--install", render_bin().parent_path().string(), "--prefix", (tmp / "inst").string()}, tmp.path())};
+  ASSERT_EQ(install.code, 0) << install.describe();
+  const fs::path installed = tmp / "inst" / "bin" / "raindrop-render";
+  ASSERT_TRUE(fs::exists(installed));
+  write_image(tmp / "in" / "street.tif", make_background(128, 64, 3));
+  const std::vector<std::string> args = {"-i", "in", "--seed", "4", "-j", "1", "-q", "--out"};
+  auto with_out = [&](const std::string& out) {
+    std::vector<std::string> a = args;
+    a.push_back(out);
+    return a;
+  };
+  const RunResult r = RunResult{testsupport::run_captured(installed, with_out("from-install"), tmp.path())};
+  ASSERT_EQ(r.code, 0) << r.describe();
+  ASSERT_EQ(run_render(with_out("from-build"), tmp.path()).code, 0);
+  for (const char* f : {"rainy/street_v00.png", "clean/street_v00.png", "mask/street_v00.png"}) {
+    ASSERT_TRUE(fs::exists(tmp / "from-install" / f)) << f;
+    EXPECT_EQ(read_file(tmp / "from-install" / f), read_file(tmp / "from-build" / f)) << f;
+  }
+}
+
+}  // namespace
+}  // namespace clitest
