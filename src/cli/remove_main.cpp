@@ -27,6 +27,7 @@
 #include <set>
 #include <string>
 #include <system_error>
+#include <chrono>
 #include <thread>
 #include <vector>
 
@@ -165,7 +166,13 @@ void warn_format_loss(const fs::path& file, const std::string& lost) {
 
 // Temporaries an earlier run left beside this run's outputs when it was stopped (its process
 // gone: a run still going, another shard say, keeps its own). Only names this program gives
-// them, for the files this run writes.
+// them, for the files this run writes. A process id names a process only on its own machine
+// and in its own PID namespace: a run on another host or in another container writing into the
+// same shared folder has an id that is free here. So a temporary is also left alone while it is
+// young (kStaleTemporaryAge since its last write): a writer anywhere writes one image's file in
+// seconds, and an abandoned one is removed by a later run.
+constexpr auto kStaleTemporaryAge = std::chrono::minutes(2);
+
 void remove_stale_temporaries(const std::vector<Job>& jobs) {
   std::map<fs::path, std::set<std::string>> stems;  // folder -> stems of the files written there
   for (const auto& j : jobs) {
@@ -179,6 +186,9 @@ void remove_stale_temporaries(const std::vector<Job>& jobs) {
       const auto temporary = parse_temporary_name(it->path().filename().string());
       if (!temporary || !names.count(temporary->stem)) continue;
       if (::kill(static_cast<pid_t>(temporary->pid), 0) == 0 || errno != ESRCH) continue;  // its writer still runs
+      std::error_code age_ec;
+      const auto written = fs::last_write_time(it->path(), age_ec);
+      if (age_ec || fs::file_time_type::clock::now() - written < kStaleTemporaryAge) continue;  // maybe a writer elsewhere
       std::error_code ignored;
       fs::remove(it->path(), ignored);
     }

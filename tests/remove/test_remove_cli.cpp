@@ -712,18 +712,26 @@ TEST_F(RemoveCli, AFolderHoldingTheInputNeverHasAFileReplaced) {
 
 // A run stopped while writing leaves a hidden temporary beside its output; the next run into
 // that folder removes it, and only it: not a temporary whose writer still runs (another shard,
-// here this test's own process) and not a user's file that only looks like one.
+// here this test's own process), not a user's file that only looks like one, and not a young
+// one whose process id is free here (its writer may run on another host or in another
+// container that shares the folder: ids are per machine and PID namespace).
 TEST_F(RemoveCli, ARunRemovesTheTemporariesOfAStoppedOne) {
   write_image(tmp / "in" / "a.png", make_image(40, 30, 1));
+  write_image(tmp / "in" / "b.png", make_image(40, 30, 2));
   fs::create_directories(tmp / "out");
   const std::string live = ".a.png.tmp-" + std::to_string(::getpid()) + "-0";
-  for (const std::string& name : {std::string(".a.png.tmp-4194303-7"), live, std::string(".notes.tmp-keep")})
+  const std::string stale = ".a.png.tmp-4194303-7", young = ".b.png.tmp-4194303-8";
+  for (const std::string& name : {stale, young, live, std::string(".notes.tmp-keep")})
     write_file(tmp / "out" / name, "x");
+  const auto old = fs::file_time_type::clock::now() - std::chrono::minutes(10);
+  for (const std::string& name : {stale, live, std::string(".notes.tmp-keep")}) fs::last_write_time(tmp / "out" / name, old);
   const RunResult r = remove({"in", "out", "-q"});
   ASSERT_EQ(r.code, 0) << r.describe();
-  EXPECT_FALSE(fs::exists(tmp / "out" / ".a.png.tmp-4194303-7"));
+  EXPECT_FALSE(fs::exists(tmp / "out" / stale));
+  EXPECT_TRUE(fs::exists(tmp / "out" / young)) << "a young temporary of a process that is not here was removed";
   EXPECT_TRUE(fs::exists(tmp / "out" / live));
   EXPECT_TRUE(fs::exists(tmp / "out" / ".notes.tmp-keep"));
+  EXPECT_TRUE(fs::exists(tmp / "out" / "b.png"));
 }
 
 // A photograph's colour profile (a wide-gamut phone photograph's, say) is given to its output,
