@@ -240,6 +240,21 @@ std::vector<cv::Mat> process(Remover& remover, const Job& job, const Settings& s
   return {sheet_panel(input), sheet_panel(r.mask), sheet_panel(r.image)};
 }
 
+// The run is over and every file it wrote is in place: exit at once. Destroying the sessions
+// would free ONNX Runtime's memory and stop its threads one by one, about 10 ms of a 1280x720
+// photograph's 0.23 s, which the kernel does anyway when the process ends. With
+// AddressSanitizer it returns `code` instead, so that the run ends normally and the leak check
+// sees everything.
+int exit_without_teardown(int code) {
+  std::cout.flush();
+  std::cerr.flush();
+  std::fflush(nullptr);
+#if !defined(__SANITIZE_ADDRESS__)
+  std::_Exit(code);
+#endif
+  return code;
+}
+
 int run(int argc, char** argv) {
   CLI::App app{"raindrop-remove: removes adherent raindrops from images (Hao et al., ICCV-W 2019:\n"
                "detection, region reconstruction and refinement networks, run with ONNX Runtime).\n"
@@ -613,7 +628,7 @@ int run(int argc, char** argv) {
   if (batch && (!quiet || !errors.empty()))
     std::fprintf(stderr, "raindrop-remove: %zu of %zu images done, %zu failed; output in %s\n",
                  jobs.size() + refused - errors.size(), jobs.size() + refused, errors.size(), output.c_str());
-  return errors.empty() ? 0 : 3;
+  return exit_without_teardown(errors.empty() ? 0 : 3);
 }
 
 }  // namespace
