@@ -91,7 +91,7 @@ struct RemoveBenchOptions {
   bool quick = false;
   std::vector<std::string> size_texts{"512x256", "2048x1024"};
   std::optional<double> scale;
-  std::string process_size = "1280x720";
+  std::vector<std::string> process_sizes{"1280x720"};
 };
 
 int run_remove_bench(RemoveBenchOptions o);
@@ -117,9 +117,10 @@ std::function<int()> add_remove_bench(CLI::App& parent) {
   app->add_option("--scale", o->scale, "Working scale (default: raindrop-remove's, the long side brought to 512; 1: full size)")
       ->check(CLI::Range(0.0, 1.0));
   // Checked by the parser, before the (minutes of) rows above it in the output are measured.
-  app->add_option("--process-size", o->process_size,
+  app->add_option("--process-size", o->process_sizes,
                   "WIDTHxHEIGHT of the image for the process-start-to-file rows (raindrop-remove run as a program; "
-                  "empty: none)")
+                  "repeatable: one row per size and model folder; the first also for the coarse-pass and "
+                  "--mirror-average tables; empty: none)")
       ->capture_default_str()->check(cli::width_height(1, 16384, /*allow_empty=*/true));
   return [o] { return run_remove_bench(*o); };
 }
@@ -135,7 +136,7 @@ void print_option_cost(const std::vector<std::string>& model_dirs, cv::Size size
                        const std::string& on_name, const std::function<void(RemoveOptions&, bool)>& set) {
   const int threads = session.threads;
   std::cout << "\n## raindrop-remove: " << title << "\n\n"
-            << size.width << "x" << size.height << " street image (--process-size), " << threads << " thread" << (threads == 1 ? "" : "s")
+            << size.width << "x" << size.height << " street image (the first --process-size), " << threads << " thread" << (threads == 1 ? "" : "s")
             << ", default working scale; Remover::run " << what << " in alternate runs, median of " << runs
             << " each after " << warmup << " warm-up pair" << (warmup == 1 ? "" : "s")
             << ". \"all one drop\": threshold -1, every pixel a drop, so every network of both passes runs.\n\n"
@@ -193,15 +194,19 @@ int run_remove_bench(RemoveBenchOptions o) {
   int& runs = o.runs;
   const bool quick = o.quick;
   const auto& scale = o.scale;
-  const std::string& process_size = o.process_size;
+
   if (runs == 0) runs = quick ? 3 : 20;
   const int warmup = quick ? 1 : 2;
   if (model_dirs.empty()) model_dirs.push_back(find_models(default_model_search()).string());
 
   std::vector<cv::Size> sizes;
   for (const auto& text : o.size_texts) sizes.push_back(*cli::parse_width_height(text));  // checked by the parser
-  std::optional<cv::Size> process;
-  if (!process_size.empty()) process = cli::parse_width_height(process_size);
+  std::vector<cv::Size> process_sizes;  // checked by the parser; "" (none) left out
+  for (const auto& text : o.process_sizes) {
+    if (!text.empty()) process_sizes.push_back(*cli::parse_width_height(text));
+  }
+  const std::optional<cv::Size> process =
+      process_sizes.empty() ? std::nullopt : std::optional<cv::Size>(process_sizes.front());
   SessionConfig session;
   session.graph_opt = o.graph_opt;
   RemoveOptions options;
@@ -288,32 +293,34 @@ int run_remove_bench(RemoveBenchOptions o) {
                "optimising the three graphs), ms:";
   for (const auto& [what, ms] : load_ms) std::cout << " " << what << " " << fmt(ms) << ";";
   std::cout << "\n";
-  if (process) {
+  if (!process_sizes.empty()) {
     std::error_code ec;
     const fs::path program = fs::read_symlink("/proc/self/exe", ec).parent_path() / "raindrop-remove";
     const fs::path tmp = bench::make_scratch_dir();
-    write_image_atomic(demo_street(process->width, process->height), tmp / "in.png");
     const int threads = thread_counts.back();
     std::cout << "\n## raindrop-remove: process start to file written\n\n"
-              << "`raindrop-remove in.png out.png --models DIR -j " << threads << "` on the built-in street image, "
-              << process_size << " (WxH) PNG, run as a program: process start, model loading, decoding, removal at the "
+              << "`raindrop-remove in.png out.png --models DIR -j " << threads << "` on the built-in street image "
+              << "(PNG, each --process-size), run as a program: process start, model loading, decoding, removal at the "
                  "default working scale, encoding, exit. \"first\": the first process of the bench for that model "
-                 "folder (files possibly not yet in the page cache); \"warm\": median of the next "
-              << runs << ".\n\n| models | first (ms) | warm median (ms) | warm min (ms) |\n|---|---|---|---|\n";
-    for (const auto& dir : model_dirs) {
-      std::vector<double> warm;
-      const double first = time_process(program, dir, tmp / "in.png", tmp / "out.png", threads);
-      for (int i = 0; i < runs; ++i) warm.push_back(time_process(program, dir, tmp / "in.png", tmp / "out.png", threads));
-      const bool ok = first >= 0 && std::all_of(warm.begin(), warm.end(), [](double v) { return v >= 0; });
-      std::cout << "| " << fs::path(dir).filename().string() << " | "
-                << (ok ? fmt(first) + " | " + fmt(bench::median(warm)) + " | " +
-                             fmt(*std::min_element(warm.begin(), warm.end())) + " |"
-                       : std::string("failed (") + program.string() + ") | | |")
-                << "\n";
+                 "folder and size (files possibly not yet in the page cache); \"warm\": median of the next "
+              << runs << ".\n\n| models | size (WxH) | first (ms) | warm median (ms) | warm min (ms) |\n|---|---|---|---|---|\n";
+    for (const cv::Size& size : process_sizes) {
+      write_image_atomic(demo_street(size.width, size.height), tmp / "in.png");
+      for (const auto& dir : model_dirs) {
+        std::vector<double> warm;
+        const double first = time_process(program, dir, tmp / "in.png", tmp / "out.png", threads);
+        for (int i = 0; i < runs; ++i) warm.push_back(time_process(program, dir, tmp / "in.png", tmp / "out.png", threads));
+        const bool ok = first >= 0 && std::all_of(warm.begin(), warm.end(), [](double v) { return v >= 0; });
+        std::cout << "| " << fs::path(dir).filename().string() << " | " << size.width << "x" << size.height << " | "
+                  << (ok ? fmt(first) + " | " + fmt(bench::median(warm)) + " | " +
+                               fmt(*std::min_element(warm.begin(), warm.end())) + " |"
+                         : std::string("failed (") + program.string() + ") | | |")
+                  << "\n";
+      }
     }
     fs::remove_all(tmp, ec);
   }
-  if (process) {  // the --process-size image, the last --threads value, the same graph optimisation
+  if (process) {  // the first --process-size image, the last --threads value, the same graph optimisation
     session.threads = thread_counts.back();
     // The coarse pass for large drops (large_drops.h): off is --no-large-drops.
     print_option_cost(model_dirs, *process, session, runs, warmup, "what the coarse pass for large drops costs",
