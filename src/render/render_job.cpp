@@ -433,14 +433,16 @@ RenderSummary render_dataset(const std::vector<InputImage>& inputs, const Render
       if (!e.empty()) throw Error(e);
     }
   }
+  // The folders a sample's images go to (alpha/: the aperture's coverage, with a lens only).
+  std::vector<std::string> image_dirs{"rainy", "clean", "mask"};
+  if (o.scene.lens.enabled) image_dirs.push_back("alpha");
   // The files a resumed run writes over (an incomplete sample's images, the manifest it
   // rewrites): one made read-only is kept, and the run stops here, before any write (image_io.h).
   if (existed) {
     if (fs::exists(manifest_path, ec)) check_replaceable(manifest_path);
     for (const auto& t : tasks) {
       for (int v : t.variants) {
-        for (const char* sub : {"rainy", "clean", "mask", "alpha"})
-          check_replaceable(o.out_dir / sub / (variant_id(t.input->id, v) + ".png"));
+        for (const auto& dir : image_dirs) check_replaceable(o.out_dir / dir / (variant_id(t.input->id, v) + ".png"));
       }
     }
   }
@@ -451,8 +453,8 @@ RenderSummary render_dataset(const std::vector<InputImage>& inputs, const Render
         (!sharded && !find_manifest_parts(o.out_dir).empty()))
       throw Error("output folder '" + o.out_dir.string() + "' was created by another run while this one started; run again");
   }
-  std::vector<std::string> subs{"", "rainy", "clean", "mask"};
-  if (o.scene.lens.enabled) subs.push_back("alpha");
+  std::vector<std::string> subs{""};
+  subs.insert(subs.end(), image_dirs.begin(), image_dirs.end());
   for (const auto& sub : subs) {
     ensure_writable_dir(o.out_dir / sub);
     remove_stale_temporaries(o.out_dir / sub, sharded ? &own_files : nullptr);

@@ -14,12 +14,11 @@ sys.path.insert(0, _TOOLS)
 os.environ["PYTHONPATH"] = os.pathsep.join(p for p in (_TOOLS, os.environ.get("PYTHONPATH")) if p)
 
 os.environ.setdefault("OMP_NUM_THREADS", "1")
-# Some test modules import onnxruntime before raindrop_tools, which turns its telemetry off
-# (raindrop_tools/__init__.py): turned off here first, for this process and its children.
-if not os.environ.get("ORT_DISABLE_TELEMETRY"):
-    os.environ["ORT_DISABLE_TELEMETRY"] = "1"
 os.environ.setdefault("MKL_NUM_THREADS", "1")
 
+# Some test modules import onnxruntime before raindrop_tools: the package first, which turns
+# ONNX Runtime's telemetry off (its __init__.py) for this process and its children.
+import raindrop_tools  # noqa: E402,F401
 import pytest  # noqa: E402
 
 from helpers import write_dataset  # noqa: E402
