@@ -16,6 +16,8 @@ from pathlib import Path
 
 import torch
 
+from .read_only import refuse_read_only
+
 CHECKPOINT_DIR = "checkpoints"
 _NAME = re.compile(r"^stage([12])_step(\d{8})\.pt$")
 _TMP_PREFIX = ".tmp-"
@@ -52,6 +54,7 @@ def latest_checkpoint(run_dir: Path, stage: int | None = None) -> CheckpointRef 
 
 def save_atomic(obj: dict, path: Path) -> None:
     path = Path(path)
+    refuse_read_only(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     tmp = path.with_name(f"{_TMP_PREFIX}{path.name}.{os.getpid()}")
     try:

@@ -34,6 +34,7 @@ import cv2
 import numpy as np
 
 from .manifest import MANIFEST, manifest_lines
+from .read_only import ReadOnlyFileError, refuse_read_only
 
 INDEX = "datapack.json"
 LOSSLESS_WEBP = [cv2.IMWRITE_WEBP_QUALITY, 101]  # above 100: lossless
@@ -58,6 +59,7 @@ def _digest(img: np.ndarray) -> str:
 
 
 def _write(path: Path, img: np.ndarray, params: list[int] | None = None) -> None:
+    refuse_read_only(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     if not cv2.imwrite(str(path), img, params or []):
         raise PackError(f"{path}: cannot write image")
@@ -150,6 +152,7 @@ def pack(srcs: list[Path], out: Path, splits: list[str] | None, frames: int | No
             _write(out / cleans[d], img, LOSSLESS_WEBP)
         p["clean"] = cleans[d]
         samples.append(p)
+    refuse_read_only(out / INDEX)
     (out / INDEX).write_text(json.dumps({"sets": names, "samples": samples}))
     return {"samples": {n: len(s) for n, s in zip(names, sets)}, "cleans": len(cleans),
             "bytes": sum(f.stat().st_size for f in out.rglob("*") if f.is_file())}
@@ -200,6 +203,7 @@ def unpack(pack_dir: Path, dst: Path, threads: int) -> int:
     for name in index["sets"]:
         lines = [json.dumps(s["entry"]) + "\n" for s in index["samples"] if s["set"] == name]
         (dst / name).mkdir(parents=True, exist_ok=True)
+        refuse_read_only(dst / name / MANIFEST)
         tmp = dst / name / (MANIFEST + ".tmp")
         tmp.write_text("".join(lines))
         os.replace(tmp, dst / name / MANIFEST)  # the manifest last: a broken unpack leaves no data set
@@ -243,7 +247,7 @@ def main(argv: list[str] | None = None) -> int:
             counts = unpack(Path(args.pack), Path(args.dst), args.threads)
             sets = ", ".join(f"{n} in {args.dst}/{k}" for k, n in counts.items())
             print(f"{sets}: every pixel as packed")
-    except PackError as e:
+    except (PackError, ReadOnlyFileError) as e:
         print(f"error: {e}", file=sys.stderr)
         return 1
     return 0

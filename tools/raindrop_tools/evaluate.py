@@ -38,6 +38,7 @@ from . import realpairs as RP
 from .cli_args import at_least, unit_interval
 from .data import DatasetError, check_files, read_manifest
 from .imageio import ImageError, read_mask_strict, read_rgb_strict, to_uint8, write_rgb
+from .read_only import read_only_problem, refuse_read_only
 from .reference import ModelError, RaindropRemover
 
 QUALITY = ("psnr_y", "ssim_y", "psnr_rgb", "ssim_rgb")
@@ -144,6 +145,7 @@ def evaluate(
         },
     }
     out.mkdir(parents=True, exist_ok=True)
+    refuse_read_only(out / "results.json", out / "results.md", out / "per_image.csv")
     (out / "results.json").write_text(json.dumps(result, indent=2, allow_nan=True) + "\n")
     (out / "results.md").write_text(markdown_table(result))
     with open(out / "per_image.csv", "w", newline="") as f:
@@ -341,6 +343,7 @@ def evaluate_real_pairs(
     for sid, png in made_sheets.items():
         (out / "sheets" / f"{sid}.png").write_bytes(png)
     result["sheets"] = sorted(made_sheets)
+    refuse_read_only(out / "results.json", out / "results.md", out / "per_image.csv")
     (out / "results.json").write_text(json.dumps(result, indent=2, allow_nan=True) + "\n")
     (out / "results.md").write_text(real_pairs_markdown(result))
     with open(out / "per_image.csv", "w", newline="") as f:
@@ -437,6 +440,10 @@ def main(argv: list[str] | None = None) -> int:
     if Path(args.out).exists() and not Path(args.out).is_dir():  # found before the work, not after it
         print(f"error: --out {args.out} is a file, not a folder", file=sys.stderr)
         return 2
+    for table in ("results.json", "results.md", "per_image.csv"):  # a read-only result is kept (read_only.py)
+        if read_only_problem(Path(args.out) / table):
+            print(f"error: {read_only_problem(Path(args.out) / table)}", file=sys.stderr)
+            return 2
     if args.real_pairs:
         if args.split and len(args.split) > 1:
             ap.error("--real-pairs takes one --split (train, test or all)")

@@ -23,6 +23,7 @@ from PIL import Image, ImageFilter, ImageOps
 
 from .cli_args import width_x_height
 from .imageio import IMAGE_SUFFIXES
+from .read_only import refuse_read_only
 
 
 def flatten(image: Image.Image, size: tuple[int, int] = (512, 256), median: int = 7, colours: int = 12) -> Image.Image:
@@ -109,6 +110,7 @@ def main(argv: list[str] | None = None) -> int:
                 raise ValueError(f"{p}: cannot read the image ({e})") from e
             # Written beside its final name and renamed: an interrupted run leaves no half file.
             final = args.output / (p.stem + ".png")
+            refuse_read_only(final)
             tmp = final.with_name(f".{final.name}.tmp-{os.getpid()}")
             flatten(image, (w, h), args.median, args.colours).save(tmp, format="PNG")
             os.replace(tmp, final)

@@ -15,6 +15,8 @@ from pathlib import Path
 import cv2
 import numpy as np
 
+from .read_only import read_only_problem
+
 _PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
 
 
@@ -98,6 +100,8 @@ def check_writable(path: str | os.PathLike) -> None:
 
 
 def _imwrite(path: str | os.PathLike, image: np.ndarray) -> None:
+    if read_only_problem(path):  # root may write any file; a read-only one is kept (read_only.py)
+        raise ImageError(read_only_problem(path))
     # OpenCV raises cv2.error for an extension it has no writer for, returns False otherwise.
     try:
         ok = cv2.imwrite(str(path), image)

@@ -17,6 +17,7 @@ import sys
 from pathlib import Path
 
 from .manifest import manifest_lines
+from .read_only import refuse_read_only
 
 IMAGE_KEYS = ("rainy", "clean", "mask", "alpha")
 
@@ -50,6 +51,7 @@ def merge(out: Path, sources: list[Path]) -> int:
     """Links the sources' images into ``out`` and writes its manifest. Everything is checked
     before the first link: a rendered or prepared data set in ``out`` (its manifest was replaced
     by the merged one), a source that is ``out``, and clashing ids or links."""
+    refuse_read_only(out / "manifest.jsonl")  # before the first link
     resolved = out.resolve()
     for src in sources:
         if src.resolve() == resolved:
@@ -88,6 +90,7 @@ def merge(out: Path, sources: list[Path]) -> int:
             os.symlink(target, dst)
     records.sort(key=lambda r: r["id"])
     out.mkdir(parents=True, exist_ok=True)
+    refuse_read_only(out / "manifest.jsonl")
     tmp = out / f".manifest.jsonl.tmp-{os.getpid()}"
     tmp.write_text("".join(json.dumps(r) + "\n" for r in records))
     os.replace(tmp, out / "manifest.jsonl")

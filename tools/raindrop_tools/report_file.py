@@ -8,6 +8,8 @@ import json
 import os
 from pathlib import Path
 
+from .read_only import read_only_problem
+
 
 def report_path_problem(path: Path) -> str | None:
     """Why ``path`` may not take a report, in a few words; None when it may."""
@@ -16,6 +18,8 @@ def report_path_problem(path: Path) -> str | None:
         return f"--json {path}: name the report .json (it would replace a file of another kind)"
     if path.is_symlink() or (path.exists() and not path.is_file()):
         return f"--json {path}: not a plain file"
+    if read_only_problem(path):
+        return f"--json {read_only_problem(path)}"
     if path.exists():
         try:
             if not isinstance(json.loads(path.read_text()), dict):

@@ -19,6 +19,7 @@ import shutil
 from pathlib import Path
 
 from . import contract as C
+from .read_only import refuse_read_only
 
 
 def remove_stale_stages(out_dir: Path, tag: str) -> None:
@@ -41,6 +42,8 @@ def staged_model_files(out_dir: Path, tag: str):
     them). When the block ends normally the three graphs and export.json staged there replace
     those in ``out_dir`` (export.json last); in every case the staging folder is removed."""
     out_dir = Path(out_dir)
+    # Before any work: a graph or export.json made read-only is kept (read_only.py).
+    refuse_read_only(*(out_dir / name for name in [*(C.FILES[n] for n in C.NETWORKS), C.EXPORT_INFO]))
     remove_stale_stages(out_dir, tag)
     stage = out_dir.parent / f".{out_dir.name}.{tag}-{os.getpid()}"
     shutil.rmtree(stage, ignore_errors=True)

@@ -20,6 +20,8 @@ import sys
 from dataclasses import dataclass
 from pathlib import Path
 
+from .read_only import read_only_problem, refuse_read_only
+
 
 @dataclass
 class Variant:
@@ -147,6 +149,10 @@ def main(argv: list[str] | None = None) -> int:
     if args.runs < 1:
         print(f"tradeoffs: error: --runs must be at least 1, got {args.runs}", file=sys.stderr)
         return 2
+    for table in (out / "tradeoffs.json", out / "tradeoffs.md"):  # before minutes of timing, not after
+        if read_only_problem(table):
+            print(f"tradeoffs: error: {read_only_problem(table)}", file=sys.stderr)
+            return 2
     if args.plot_only:
         if not (out / "tradeoffs.json").is_file():
             print(f"tradeoffs: error: no {out / 'tradeoffs.json'} to plot (run without --plot-only first)", file=sys.stderr)
@@ -182,6 +188,7 @@ def main(argv: list[str] | None = None) -> int:
     if not rows:
         print("tradeoffs: error: none of the model folders exist here (run from the repository root)", file=sys.stderr)
         return 2
+    refuse_read_only(out / "tradeoffs.json", out / "tradeoffs.md")
     out.mkdir(parents=True, exist_ok=True)
     (out / "tradeoffs.json").write_text(json.dumps(rows, indent=2) + "\n")
 

@@ -55,6 +55,7 @@ from .config import (
 from .data import DatasetError, MultiSourceDataset, RaindropDataset, StepBatchSampler, WeightedStepBatchSampler, epochs
 from .morphology import Dilation
 from .networks import build_networks
+from .read_only import refuse_read_only
 from .schedule import lr_factor
 
 CONFIG_FILE = "config.yaml"
@@ -93,6 +94,7 @@ def default_run_dir(name: str) -> Path:
 
 
 def _write_text_atomic(path: Path, text: str) -> None:
+    refuse_read_only(path)
     tmp = path.with_name(path.name + ".tmp")
     tmp.write_text(text)
     os.replace(tmp, path)
