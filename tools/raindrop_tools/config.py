@@ -103,6 +103,12 @@ class SourceConfig:
     # large drops runs the networks at a third of the working scale: real lens-cover drops
     # 50-200 px across become the 15-70 px the networks handle there (docs/RESULTS.md 4.6-4.7).
     scale: float = 1.0
+    # Photometric jitter, the same on the rainy and the clean image of a crop (one scene seen
+    # with another exposure, white balance and tone curve): per crop an exposure gain
+    # exp(U(-p, p)), per-channel gains exp(U(-p/4, p/4)) and a gamma exp(U(-p/2, p/2)), in that
+    # order, clipped to [0, 1]. 0: off. Meant for real pairs: 50 photographs of a few scenes,
+    # each seen about a hundred times in a run, whose colours the networks otherwise learn.
+    photometric: float = 0.0
 
 
 @dataclass(frozen=True)
@@ -305,6 +311,8 @@ def validate_config(cfg: RunConfig) -> None:
             problems.append(f"data.sources[{i}].sensor_noise_levels must be in [0, 64], got {src.sensor_noise_levels}")
         if not (0.0 < src.scale <= 1.0):
             problems.append(f"data.sources[{i}].scale must be in (0, 1], got {src.scale}")
+        if not (0.0 <= src.photometric <= 1.0):
+            problems.append(f"data.sources[{i}].photometric must be in [0, 1], got {src.photometric}")
         if not (0.0 <= src.detection_weight <= 100.0):
             problems.append(f"data.sources[{i}].detection_weight must be in [0, 100], got {src.detection_weight}")
     t = cfg.train

@@ -258,6 +258,21 @@ def sensor_noise(shape: tuple[int, ...], max_levels: float, key) -> np.ndarray:
     return rng.normal(0.0, sigma, shape).astype(np.float32)
 
 
+def photometric_jitter(strength: float, key):
+    """The function that applies one crop's photometric jitter (``SourceConfig.photometric``) to
+    a float32 HxWx3 image in [0, 1]; the same draw for every image it is given (rainy and clean
+    alike). Deterministic in ``key`` (the crop's key), so a resumed run sees the same crops."""
+    rng = np.random.default_rng([int(x) for x in key] + [0xC010])
+    exposure = np.exp(rng.uniform(-strength, strength))
+    gains = (exposure * np.exp(rng.uniform(-strength / 4, strength / 4, 3))).astype(np.float32)
+    gamma = np.float32(np.exp(rng.uniform(-strength / 2, strength / 2)))
+
+    def apply(image: np.ndarray) -> np.ndarray:
+        return np.power(np.clip(image * gains, 0.0, 1.0), gamma).astype(np.float32)
+
+    return apply
+
+
 def with_noise(image: np.ndarray, noise: np.ndarray) -> np.ndarray:
     """``image`` (float32 in [0, 1]) plus ``noise``, clipped and rounded to 8-bit steps."""
     return np.round(np.clip(image + noise, 0.0, 1.0) * 255.0).astype(np.float32) / 255.0
@@ -290,6 +305,7 @@ class RaindropDataset:
         sensor_noise_levels: float = 0.0,
         detection_weight: float = 1.0,
         scale: float = 1.0,
+        photometric: float = 0.0,
     ):
         self.root = Path(root)
         self.detection_weight = np.float32(detection_weight)
@@ -299,6 +315,9 @@ class RaindropDataset:
         self.crop = int(crop)
         self.visible_levels = float(visible_levels)
         self.sensor_noise_levels = float(sensor_noise_levels)
+        if not photometric >= 0.0:
+            raise ValueError(f"photometric must be at least 0, got {photometric}")
+        self.photometric = float(photometric)
         self.flip = bool(flip)
         left_out: Counter = Counter()
         self.samples = read_manifest(self.root, splits, left_out)
@@ -372,6 +391,11 @@ class RaindropDataset:
         c = self.crop
         rainy_f = to_float(rainy)
         g = to_float(clean[y0 : y0 + c, x0 : x0 + c])
+        if self.photometric > 0:
+            # Before the noise (a camera's noise comes after its light) and the edge map (of
+            # the image the network sees).
+            jitter = photometric_jitter(self.photometric, key)
+            rainy_f, g = jitter(rainy_f), jitter(g)
         if self.sensor_noise_levels > 0:
             # One field on both images: the whole rainy frame (its edge map is of the full
             # frame), the clean one only where the crop needs it.

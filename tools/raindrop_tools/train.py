@@ -278,6 +278,7 @@ class Trainer:
                         sensor_noise_levels=src.sensor_noise_levels,
                         detection_weight=src.detection_weight,
                         scale=src.scale,
+                        photometric=src.photometric,
                     )
                 )
             self._dataset = MultiSourceDataset(parts) if d.sources else parts[0]

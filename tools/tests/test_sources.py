@@ -5,7 +5,10 @@ import pytest
 
 from helpers import CONFIGS
 from raindrop_tools.config import ConfigError, config_from_dict, data_sources, dump_config, load_config
-from raindrop_tools.data import DatasetError, MultiSourceDataset, RaindropDataset, WeightedStepBatchSampler, source_counts
+from raindrop_tools.data import (DatasetError, MultiSourceDataset, RaindropDataset, WeightedStepBatchSampler, photometric_jitter,
+                                 source_counts)
+from raindrop_tools.edge import edge_map_numpy
+from raindrop_tools.imageio import to_float
 
 
 def test_multi_source_config_parsing(tmp_path):
@@ -135,6 +138,42 @@ def test_sensor_noise_is_one_field_on_rainy_and_clean(tiny_dataset):
 def test_sensor_noise_levels_are_checked():
     with pytest.raises(ConfigError, match="sensor_noise_levels"):
         config_from_dict({"data": {"sources": [{"path": "x", "sensor_noise_levels": 100}]}})
+
+
+def test_photometric_jitter_is_one_light_change_on_rainy_and_clean(tiny_dataset):
+    plain = RaindropDataset(tiny_dataset, crop=32, cache=False)
+    jittered = RaindropDataset(tiny_dataset, crop=32, cache=False, photometric=0.3)
+    means = []
+    for i in range(len(plain)):
+        key = (i, 5, 9, bool(i % 2))
+        p, j = plain[key], jittered[key]
+        again = jittered[key]
+        assert all(np.array_equal(j[k], again[k]) for k in ("rainy", "clean", "edge"))  # same key, same draw
+        assert np.array_equal(j["mask"], p["mask"])
+        # One change of light on both: where rainy == clean before, they are equal after, and
+        # the change is the closed form exp-gain then gamma, pixel by pixel.
+        same = np.all(p["rainy"] == p["clean"], axis=0)
+        assert same.any() and np.array_equal(j["rainy"][:, same], j["clean"][:, same])
+        apply = photometric_jitter(0.3, key)
+        expected = apply(p["clean"].transpose(1, 2, 0)).transpose(2, 0, 1)
+        np.testing.assert_allclose(j["clean"], expected, atol=1e-6)
+        # the edge map is of the jittered full frame (the image the network sees)
+        rainy_full = to_float(jittered.load(i)[0])
+        full_edge = edge_map_numpy(apply(rainy_full))
+        e = full_edge[5:37, 9:41]
+        np.testing.assert_array_equal(j["edge"][0], e[:, ::-1] if key[3] else e)
+        means.append(float(j["clean"].mean() - p["clean"].mean()))
+    assert max(means) > 0.01 and min(means) < -0.01  # brighter and darker crops both occur
+
+
+def test_photometric_zero_is_the_identity_and_strength_is_checked(tiny_dataset):
+    a = RaindropDataset(tiny_dataset, crop=32)[(1, 2, 3, False)]
+    b = RaindropDataset(tiny_dataset, crop=32, photometric=0.0)[(1, 2, 3, False)]
+    assert all(np.array_equal(a[k], b[k]) for k in ("rainy", "clean", "mask", "edge"))
+    with pytest.raises(ConfigError, match="photometric"):
+        config_from_dict({"data": {"sources": [{"path": "x", "photometric": 2}]}})
+    with pytest.raises(ValueError, match="photometric"):
+        RaindropDataset(tiny_dataset, crop=32, photometric=float("nan"))
 
 
 def test_detection_weight_is_per_source_and_checked(tiny_dataset):
