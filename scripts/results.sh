@@ -5,7 +5,7 @@
 # scripts/results.sh data render stats eval remove tradeoffs sheets photoreal scale flatroad largedrops coarsetrain
 # largedropmodels sensor mirroraverage highlights multiscale veil papermodels outline trails photos windshield
 # windshield-followup longer growth sharpness coalesce surround largewidth largedrops-all windshield2
-# errorsplit withoutvnni graphrewrites
+# errorsplit withoutvnni graphrewrites jitter windshieldscale
 #
 # Nothing here is committed automatically: images derived from Cityscapes, CamVid or the
 # real raindrop photographs stay under out/ (their licences forbid redistribution).
@@ -19,7 +19,8 @@ sections=("$@")
 ((${#sections[@]})) || sections=(data render stats eval remove tradeoffs sheets photoreal scale flatroad largedrops coarsetrain
                                   largedropmodels sensor mirroraverage highlights multiscale veil papermodels outline trails
                                   photos windshield windshield-followup longer growth sharpness coalesce
-                                  surround largewidth largedrops-all windshield2 errorsplit withoutvnni graphrewrites)
+                                  surround largewidth largedrops-all windshield2 errorsplit withoutvnni graphrewrites
+                                  jitter windshieldscale)
 want() { [[ " ${sections[*]} " == *" $1 "* ]]; }
 # link_set SRC DST SPLIT [LIMIT]: the first LIMIT (default 100; 0: all) samples of data set SRC
 # (of manifest split SPLIT; "-" = all) linked into DST/rainy and DST/clean (and DST/mask, where
@@ -1284,4 +1285,52 @@ PY
     done
   done >"$gr/times.txt"
   median_times "$gr/times.txt" | tee "$gr/times-summary.txt"
+fi
+
+if want jitter; then
+  # RESULTS 4.31: the default's large-drop networks trained with the real pairs' crops
+  # photometrically jittered (tools/configs/paper-real-coarse-jitter.yaml; needs data/train,
+  # data/train-mix from photoreal and data/real-pairs), scored as the default's large-drop models
+  # beside the default, validation sets first (the criteria are in the config), then the test sets.
+  real_pairs_data
+  link_cv100
+  paper_sparse_scene
+  [[ -f data/val-sparse/manifest.jsonl ]] || build/raindrop-render -i "$out/cv100" -o data/val-sparse \
+    --scene "$out/paper-sparse.json" --size 512x256 --seed 11 --variants 2 -q
+  [[ -f data/val-windshield-sharp/manifest.jsonl ]] || build/raindrop-render -i "$out/cv100" \
+    -o data/val-windshield-sharp --scene windshield-sharp --size 512x256 --seed 11 -q
+  size_sets train val-size
+  size_sets val test-size
+  [[ -f tools/runs/paper-real-coarse-jitter/checkpoints/stage2_step00000400.pt ]] ||
+    $py -m raindrop_tools.train --config tools/configs/paper-real-coarse-jitter.yaml \
+      --out tools/runs/paper-real-coarse-jitter --init-from models/paper --no-progress
+  [[ -f out/models/paper-real-coarse-jitter/rrn.onnx ]] ||
+    $py -m raindrop_tools.export --run tools/runs/paper-real-coarse-jitter --out out/models/paper-real-coarse-jitter
+  jd="$out/jitter"
+  mkdir -p "$jd"
+  for m in default jitter; do
+    flags="-j 2"
+    [[ $m == default ]] || flags="$flags --large-drop-models out/models/paper-real-coarse-jitter"
+    score_sets "$jd" "$m" "$flags" real-pairs:train:0 val-sparse:-:0 val-windshield-sharp:-:0 val-size-512x288:-:0 \
+      val-size-1280x720:-:0
+    score_sets "$jd" "$m" "$flags" real-pairs:test:0 test-sparse:-:0 test-size-512x288:-:0 test-size-1280x720:-:0
+  done | tee "$jd/scores.txt"
+fi
+
+if want windshieldscale; then
+  # RESULTS 4.32: compact-windshield at larger working scales on windshield-sharp drops rendered
+  # at 1280x720 over the 100 CamVid val frames, and with the surround fill's limit as it was
+  # before it followed the scale (150 at scale 0.6 = 67 at the reference scale 0.4).
+  link_cv100
+  [[ -f data/val-ws-1280x720/manifest.jsonl ]] || build/raindrop-render -i "$out/cv100" -o data/val-ws-1280x720 \
+    --scene windshield-sharp --size 1280x720 --seed 11 -q
+  wsd="$out/windshieldscale"
+  mkdir -p "$wsd"
+  for s in default 0.6 0.8; do
+    flags="--model-config compact-windshield -j 2"
+    [[ $s == default ]] || flags="$flags --scale $s"
+    score_sets "$wsd" "scale-$s" "$flags" val-ws-1280x720:-:0
+  done | tee "$wsd/scores.txt"
+  score_sets "$wsd" "scale-0.6-fill-as-before" "--model-config compact-windshield -j 2 --scale 0.6 --surround-fill-area 67" \
+    val-ws-1280x720:-:0 | tee -a "$wsd/scores.txt"
 fi

@@ -326,7 +326,8 @@ int run(int argc, char** argv) {
       ->excludes(growth_opt)
       ->excludes(sharpness_opt);
   app.add_option("--surround-fill-area", surround_fill_area,
-                 "Fill parts of the mask of at most this many pixels at the working scale from their surroundings "
+                 "Fill parts of the mask of at most this many pixels (at the scale that brings the long side to 512; "
+                 "scaled with --scale) from their surroundings "
                  "(push-pull interpolation) instead of by the 3RN, where those surroundings are smooth "
                  "(--surround-fill-mad): the 3RN leaves faint rims of small sharp drops on sky, walls and roads; "
                  "0: the 3RN everywhere")

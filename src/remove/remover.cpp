@@ -184,6 +184,8 @@ RemoveResult Remover::run(const cv::Mat& image, const RemoveOptions& opt) {
   if (!(opt.surround_fill_mad >= 0)) throw Error("--surround-fill-mad must be a number >= 0");
   const double scale = opt.scale.value_or(auto_working_scale(image.size(), info().working_size));
   const cv::Size small = scaled_size(image.size(), scale);
+  RemoveOptions scaled_opt = opt;
+  scaled_opt.surround_fill_area = surround_fill_area_at_scale(opt.surround_fill_area, image.size(), scale);
   // The image as the working-scale pass sees it; the coarse pass measures its sharpness there.
   cv::Mat working = image;
   double t_down = 0;
@@ -195,7 +197,7 @@ RemoveResult Remover::run(const cv::Mat& image, const RemoveOptions& opt) {
   }
   RemoveResult res;
   const auto working_pass = [&] {
-    res = small == image.size() ? run_native(image, opt) : run_scaled(image, working, opt, scale);
+    res = small == image.size() ? run_native(image, scaled_opt) : run_scaled(image, working, scaled_opt, scale);
   };
   CoarsePass coarse;
   const auto large_drop_pass = [&] { coarse = coarse_pass(image, working, opt, scale); };

@@ -2,10 +2,12 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 
 #include <opencv2/imgproc.hpp>
 
 #include "raindrop/remove/pixels.h"
+#include "raindrop/remove/working_scale.h"
 
 namespace raindrop::removal {
 namespace {
@@ -240,6 +242,13 @@ int fill_small_drops_from_surround(const float* rgb, const cv::Mat& mask, int ma
     }
   }
   return static_cast<int>(chosen.ids.size());
+}
+
+int surround_fill_area_at_scale(int area, cv::Size image_size, double scale) {
+  const double reference = auto_working_scale(image_size, kDefaultWorkingSize);
+  if (area <= 0 || scale == reference) return area;
+  const double r = scale / reference;
+  return static_cast<int>(std::min(std::lround(area * r * r), static_cast<long>(std::numeric_limits<int>::max())));
 }
 
 }  // namespace raindrop::removal

@@ -180,6 +180,55 @@ TEST(Remover, SmallPartsOverSmoothSurroundingsAreFilledBeforeTheRfn) {
   EXPECT_GT(max_float_diff(on.rgb, without.rgb), 1e-4f) << "the fill must make a difference";
 }
 
+// The fill's area limit is given with the long side at 512 (surround_fill.h): an image of long
+// side 768 processed at scale 1 sees its drops 1.5 times as wide, so the limit is 2.25 times the
+// option. Chosen here so that the largest part of the mask is above the option and within 2.25x.
+TEST(Remover, TheFillLimitFollowsTheScale) {
+  EXPECT_EQ(surround_fill_area_at_scale(150, {1280, 720}, 0.4), 150);  // the default scale: as given
+  EXPECT_NEAR(surround_fill_area_at_scale(150, {1280, 720}, 0.6), 337.5, 0.5);  // (0.6 / 0.4)^2 = 2.25
+  EXPECT_EQ(surround_fill_area_at_scale(150, {720, 480}, 1.0), 297);   // (720 / 512)^2 = 1.98
+  EXPECT_EQ(surround_fill_area_at_scale(150, {256, 256}, 1.0), 150);   // never enlarged: scale 1 is 512's
+  EXPECT_EQ(surround_fill_area_at_scale(150, {256, 256}, 0.5), 38);
+  EXPECT_EQ(surround_fill_area_at_scale(0, {1280, 720}, 1.0), 0);      // off stays off
+
+  const int h = 64, w = 768;
+  cv::Mat img(h, w, CV_8UC3);
+  for (int y = 0; y < h; ++y)
+    for (int x = 0; x < w; ++x)
+      img.at<cv::Vec3b>(y, x) = cv::Vec3b(static_cast<unsigned char>(90 + x / 8), static_cast<unsigned char>(120 + y / 2),
+                                          static_cast<unsigned char>(160 - x / 16));
+  for (int i = 0; i < 8; ++i) cv::circle(img, {40 + 90 * i, 20 + 3 * i}, 2 + i, cv::Scalar(30, 30, 30), cv::FILLED);
+  Models models(smoke_models(), two_threads());
+  const std::vector<float> r = planes(img);
+  std::vector<float> p(static_cast<size_t>(h) * w);
+  models.rdn().run({r.data()}, h, w, p.data());
+  std::vector<float> sorted = p;  // a threshold that keeps the 3% most probable pixels: small parts
+  std::nth_element(sorted.begin(), sorted.begin() + sorted.size() * 97 / 100, sorted.end());
+  RemoveOptions o;
+  o.scale = 1.0;
+  o.large_drops = false;
+  o.threshold = sorted[sorted.size() * 97 / 100];
+  o.surround_fill_mad = 255.0;  // every surround counts as smooth: the limit is what is checked
+  o.surround_fill_area = 0;
+  const RemoveResult off = smoke().run(img, o);
+  cv::Mat labels, stats, centroids;
+  const int n = cv::connectedComponentsWithStats(off.mask, labels, stats, centroids, 8) - 1;
+  ASSERT_GE(n, 2) << "the detector must find parts of several sizes";
+  int largest = 0;
+  for (int i = 1; i <= n; ++i) largest = std::max(largest, stats.at<int>(i, cv::CC_STAT_AREA));
+  o.surround_fill_area = (largest * 4 + 8) / 9;  // 2.25 o >= largest > o
+  ASSERT_GT(largest, o.surround_fill_area);
+  const RemoveResult on = smoke().run(img, o);
+  EXPECT_EQ(cv::countNonZero(on.mask != off.mask), 0);
+  int at_option = 0, at_scale = 0;
+  surround_fill_mask(on.mask, r.data(), o.surround_fill_area, o.surround_fill_mad, &at_option);
+  surround_fill_mask(on.mask, r.data(), surround_fill_area_at_scale(o.surround_fill_area, img.size(), 1.0),
+                     o.surround_fill_mad, &at_scale);
+  EXPECT_EQ(at_scale, n);
+  EXPECT_LT(at_option, at_scale);
+  EXPECT_EQ(on.surround_filled, at_scale);
+}
+
 TEST(Remover, DilationGrowsTheMask) {
   const cv::Mat img = make_image(80, 60, 2);
   RemoveOptions o;

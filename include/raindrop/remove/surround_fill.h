@@ -31,6 +31,13 @@ namespace raindrop::removal {
 // docs/RESULTS.md 4.24): a disk about 14 px across at the working scale, and 4 levels.
 inline constexpr int kSurroundFillArea = 150;
 inline constexpr double kSurroundFillMad = 4.0;
+// The area limit at the scale an image is processed at. The limit is given at the scale that
+// brings the image's long side to kDefaultWorkingSize (512, the committed models' working size,
+// where the limit was chosen), never enlarging: a drop covers (scale / that scale)^2 times as many
+// pixels at another scale (--scale, or models with another working size), so the same drops
+// stay below the limit. At that scale, and 0 (off), the limit is returned as given.
+int surround_fill_area_at_scale(int area, cv::Size image_size, double scale);
+
 // How far beyond a part's bounding box its surround reaches, in pixels.
 inline constexpr int kSurroundRing = 4;
 // The fill of a part interpolates within its bounding box grown on every side by this many
