@@ -221,6 +221,7 @@ def plot_pr_curve(precision: np.ndarray, recall: np.ndarray, ap: float, path: Pa
             ax.set_ylim(0.0, 1.02)
             ax.set_title(f"{title}\nAP = {ap:.4f}" if title else f"AP = {ap:.4f}")
     fig.tight_layout()
+    refuse_read_only(path)
     fig.savefig(path, dpi=110)
     plt.close(fig)
 
@@ -336,6 +337,9 @@ def evaluate_real_pairs(
     # the sheets an earlier run's results.json names are removed (they are this tool's).
     out.mkdir(parents=True, exist_ok=True)
     earlier = _earlier_sheet_ids(out)
+    # Nothing removed or written while one of them is read-only (read_only.py).
+    refuse_read_only(*(out / "sheets" / f"{sid}.png" for sid in sorted(earlier | set(made_sheets))),
+                     out / "results.json", out / "results.md", out / "per_image.csv")
     for sid in earlier - set(made_sheets):
         (out / "sheets" / f"{sid}.png").unlink(missing_ok=True)
     if made_sheets:
@@ -440,7 +444,7 @@ def main(argv: list[str] | None = None) -> int:
     if Path(args.out).exists() and not Path(args.out).is_dir():  # found before the work, not after it
         print(f"error: --out {args.out} is a file, not a folder", file=sys.stderr)
         return 2
-    for table in ("results.json", "results.md", "per_image.csv"):  # a read-only result is kept (read_only.py)
+    for table in ("results.json", "results.md", "per_image.csv", "pr_curve.png"):  # read-only ones are kept (read_only.py)
         if read_only_problem(Path(args.out) / table):
             print(f"error: {read_only_problem(Path(args.out) / table)}", file=sys.stderr)
             return 2

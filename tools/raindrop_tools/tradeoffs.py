@@ -133,6 +133,7 @@ def plot_pareto(rows: list[dict], path: Path) -> None:
     ax.grid(True, which="both", alpha=0.3)
     ax.legend(loc="lower right")
     fig.tight_layout()
+    refuse_read_only(path)
     fig.savefig(path, dpi=130)
     plt.close(fig)
 
@@ -149,7 +150,7 @@ def main(argv: list[str] | None = None) -> int:
     if args.runs < 1:
         print(f"tradeoffs: error: --runs must be at least 1, got {args.runs}", file=sys.stderr)
         return 2
-    for table in (out / "tradeoffs.json", out / "tradeoffs.md"):  # before minutes of timing, not after
+    for table in (out / "tradeoffs.json", out / "tradeoffs.md", out / "pareto.png"):  # before minutes of timing
         if read_only_problem(table):
             print(f"tradeoffs: error: {read_only_problem(table)}", file=sys.stderr)
             return 2

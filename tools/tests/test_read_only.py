@@ -103,6 +103,11 @@ def test_evaluate_refuses_a_read_only_result_before_evaluating(tiny_dataset, tmp
     assert len(err) == 1 and "read-only" in err[0], err
     _kept(out / "results.json", before)
     assert sorted(p.name for p in out.iterdir()) == ["results.json"], "nothing evaluated or written"
+    (out / "results.json").chmod(0o644)
+    (out / "pr_curve.png").write_bytes(b"an earlier curve")
+    before = _protect(out / "pr_curve.png")
+    assert evaluate.main(argv) == 2 and "pr_curve.png: read-only" in capsys.readouterr().err
+    _kept(out / "pr_curve.png", before)
 
 
 def test_merge_keeps_a_read_only_manifest(tiny_dataset, tmp_path, capsys):
@@ -153,3 +158,23 @@ def test_every_write_site_in_the_tools_is_guarded():
     # realpairs.py renames a fresh folder over an empty one it checked; export.py, graph_rewrite.py
     # and quantize.py write into staging folders that staging.py guards.
     assert unguarded == []
+
+
+def test_evaluate_keeps_a_read_only_sheet_it_would_have_removed(tmp_path, capsys):
+    """A rerun removes the sheets an earlier run recorded and this one does not make; a read-only
+    one is refused, with every other file of the folder as it was."""
+    from realpairs_helpers import write_pairs
+
+    pairs_dir = write_pairs(tmp_path / "pairs", groups=4, per_group=2, h=40, w=56)
+    out = tmp_path / "out"
+    args = ["--real-pairs", str(pairs_dir), "--models", str(FIXTURE_MODELS), "--out", str(out), "--threads", "1",
+            "--no-progress", "--split", "all"]
+    assert evaluate.main(args) == 0
+    sheets = sorted((out / "sheets").iterdir())
+    before = _protect(sheets[-1])
+    results = (out / "results.json").read_bytes()
+    assert evaluate.main([*args, "--no-sheets"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "read-only" in err[0], err
+    _kept(sheets[-1], before)
+    assert sorted((out / "sheets").iterdir()) == sheets and (out / "results.json").read_bytes() == results
