@@ -5,7 +5,7 @@
 # scripts/results.sh data render stats eval remove tradeoffs sheets photoreal scale flatroad largedrops coarsetrain
 # largedropmodels sensor mirroraverage highlights multiscale veil papermodels outline trails photos windshield
 # windshield-followup longer growth sharpness coalesce surround largewidth largedrops-all windshield2
-# errorsplit withoutvnni graphrewrites jitter windshieldscale
+# errorsplit withoutvnni graphrewrites jitter windshieldscale router
 #
 # Nothing here is committed automatically: images derived from Cityscapes, CamVid or the
 # real raindrop photographs stay under out/ (their licences forbid redistribution).
@@ -20,7 +20,7 @@ sections=("$@")
                                   largedropmodels sensor mirroraverage highlights multiscale veil papermodels outline trails
                                   photos windshield windshield-followup longer growth sharpness coalesce
                                   surround largewidth largedrops-all windshield2 errorsplit withoutvnni graphrewrites
-                                  jitter windshieldscale)
+                                  jitter windshieldscale router)
 want() { [[ " ${sections[*]} " == *" $1 "* ]]; }
 # link_set SRC DST SPLIT [LIMIT]: the first LIMIT (default 100; 0: all) samples of data set SRC
 # (of manifest split SPLIT; "-" = all) linked into DST/rainy and DST/clean (and DST/mask, where
@@ -1333,4 +1333,94 @@ if want windshieldscale; then
   done | tee "$wsd/scores.txt"
   score_sets "$wsd" "scale-0.6-fill-as-before" "--model-config compact-windshield -j 2 --scale 0.6 --surround-fill-area 67" \
     val-ws-1280x720:-:0 | tee -a "$wsd/scores.txt"
+fi
+
+if want router; then
+  # RESULTS 4.33: per image, the better of the default's and compact-windshield's outputs on the
+  # validation sets; a small-blob density; and a logistic router on the default detector's
+  # probabilities (5-fold and leave-one-set-out), applied to the 44 photographs.
+  link_cv100
+  paper_sparse_scene
+  real_pairs_data
+  [[ -f data/val-sparse/manifest.jsonl ]] || build/raindrop-render -i "$out/cv100" -o data/val-sparse \
+    --scene "$out/paper-sparse.json" --size 512x256 --seed 11 --variants 2 -q
+  [[ -f data/val-windshield-sharp/manifest.jsonl ]] || build/raindrop-render -i "$out/cv100" \
+    -o data/val-windshield-sharp --scene windshield-sharp --size 512x256 --seed 11 -q
+  size_sets train val-size
+  rd="$out/router"
+  mkdir -p "$rd"
+  for m in default ws; do
+    flags="-j 2"
+    [[ $m == default ]] || flags="$flags --model-config compact-windshield"
+    score_sets "$rd" "$m" "$flags" real-pairs:train:0 val-sparse:-:0 val-windshield-sharp:-:0 val-size-512x288:-:0 \
+      val-size-1280x720:-:0
+  done | tee "$rd/scores.txt"
+  RD="$rd" SHARED="$shared" $py - <<'PY' | tee "$rd/router.txt"
+import glob, os, sys
+import cv2, numpy as np
+sys.path.insert(0, "tools")
+from raindrop_tools.reference import RaindropRemover
+rd = os.environ["RD"]
+sets = ["real-pairs-train", "val-sparse--", "val-windshield-sharp--", "val-size-512x288--", "val-size-1280x720--"]
+def y(img): return 16 + (65.481 * img[..., 2] + 128.553 * img[..., 1] + 24.966 * img[..., 0]) / 255.0
+def psnr(a, b):
+    d = y(a.astype(np.float64)) - y(b.astype(np.float64)); return 10 * np.log10(255**2 / (d * d).mean())
+def first(pattern): return glob.glob(pattern)[0]
+res, paths = {}, {}
+for s in sets:
+    d0, d1 = f"{rd}/default-{s}", f"{rd}/ws-{s}"
+    rows, ps = [], []
+    for n in sorted(os.listdir(f"{d0}/out")):
+        stem = os.path.splitext(n)[0]
+        clean, rainy = cv2.imread(first(f"{d0}/set/clean/{stem}.*")), first(f"{d0}/set/rainy/{stem}.*")
+        rows.append((psnr(cv2.imread(rainy), clean), psnr(cv2.imread(f"{d0}/out/{n}"), clean),
+                     psnr(cv2.imread(f"{d1}/out/{n}"), clean)))
+        ps.append(rainy)
+    r = res[s] = np.array(rows); paths[s] = ps
+    print(f"{s:24s} n={len(r):3d} default {np.mean(r[:, 1] - r[:, 0]):+.2f} windshield {np.mean(r[:, 2] - r[:, 0]):+.2f} "
+          f"per-image best {np.mean(np.maximum(r[:, 1], r[:, 2]) - r[:, 0]):+.2f} windshield better on {np.mean(r[:, 2] > r[:, 1]):.0%}")
+def working(img, size=512):
+    h, w = img.shape[:2]; s = min(1.0, size / max(h, w))
+    return cv2.resize(img, (round(w * s), round(h * s)), interpolation=cv2.INTER_AREA) if s < 1 else img
+def blobs(path):
+    g = cv2.cvtColor(working(cv2.imread(path)), cv2.COLOR_BGR2GRAY).astype(np.float32)
+    a = np.abs(cv2.GaussianBlur(g, (0, 0), 1.0) - cv2.GaussianBlur(g, (0, 0), 2.5))
+    return ((a == cv2.dilate(a, np.ones((5, 5), np.uint8))) & (a > 6)).sum() / g.size * 1e5
+photos = sorted(glob.glob(os.path.join(os.environ["SHARED"], "real-raindrop", "*")))
+for k, ps in [*paths.items(), ("photographs", photos)]:
+    v = np.array([blobs(p) for p in ps])
+    print(f"small-blob density {k:24s} p10 {np.percentile(v, 10):6.0f} median {np.median(v):6.0f} p90 {np.percentile(v, 90):6.0f}")
+rem = RaindropRemover("models/compact-multiscale", threads=2)
+def feats(path):
+    bgr = working(cv2.imread(path)); h, w = bgr.shape[:2]
+    R, _, _ = rem.prepare(cv2.cvtColor(bgr, cv2.COLOR_BGR2RGB))
+    P = rem.detect(R)[0, 0][:h, :w]
+    f = [(P > 0.3).mean(), ((P > 0.05) & (P <= 0.3)).mean(), P.mean(), (P > 0.02).mean()]
+    for t in (0.05, 0.15, 0.3):
+        _, _, st, _ = cv2.connectedComponentsWithStats((P > t).astype(np.uint8), 8)
+        a = st[1:, cv2.CC_STAT_AREA]
+        f += [np.sum(a <= 30) / (h * w) * 1e4, np.median(a) if len(a) else 0.0]
+    return np.log1p(np.array(f, np.float64) * 100)
+X = np.array([feats(p) for s in sets for p in paths[s]])
+G = np.array([s for s in sets for _ in paths[s]])
+R = np.vstack([res[s] for s in sets]); Y = (R[:, 2] > R[:, 1]).astype(float); D = R[:, 2] - R[:, 1]
+def fit(X, y, w, l2=1e-2, iters=3000, lr=0.5):  # weighted logistic regression, by gradient descent
+    mu, sd = X.mean(0), X.std(0) + 1e-9
+    Xs = np.hstack([(X - mu) / sd, np.ones((len(X), 1))]); b = np.zeros(Xs.shape[1]); w = w / w.mean()
+    for _ in range(iters):
+        p = 1 / (1 + np.exp(-Xs @ b)); b -= lr * (Xs.T @ (w * (p - y)) / len(y) + l2 * np.r_[b[:-1], 0])
+    return lambda Xn: (np.hstack([(Xn - mu) / sd, np.ones((len(Xn), 1))]) @ b) > 0
+for scheme in ("5-fold", "leave-one-set-out"):
+    folds = np.random.default_rng(0).integers(0, 5, len(X)) if scheme == "5-fold" else np.unique(G, return_inverse=True)[1]
+    pred = np.zeros(len(X), bool)
+    for k in np.unique(folds):
+        pred[folds == k] = fit(X[folds != k], Y[folds != k], np.abs(D[folds != k]) + 0.05)(X[folds == k])
+    for s in sets:
+        r, sel = res[s], G == s
+        print(f"router {scheme:17s} {s:24s} routed {np.mean(np.where(pred[sel], r[:, 2], r[:, 1]) - r[:, 0]):+.2f} "
+              f"(to windshield {pred[sel].mean():.0%})")
+pick = fit(X, Y, np.abs(D) + 0.05)(np.array([feats(p) for p in photos]))
+print(f"photographs to the windshield detector: {pick.sum()} of {len(photos)}; to the default:",
+      " ".join(os.path.basename(p) for p, k in zip(photos, pick) if not k))
+PY
 fi
