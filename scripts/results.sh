@@ -103,6 +103,19 @@ paper_sparse_scene() {
   sed 's/"name": "paper"/"name": "paper-sparse"/; s/"drop_count": \[50, 70\]/"drop_count": [5, 7]/' scenes/paper.json \
     > "$out/paper-sparse.json"
 }
+# validation_sets: the validation sets of 4.18-4.33, unless already there: the real pairs (their
+# train split), sparse paper drops and windshield-sharp drops over 100 CamVid val frames, and the
+# paper preset over the Cityscapes train frames at 512x288 and 1280x720.
+validation_sets() {
+  real_pairs_data
+  link_cv100
+  paper_sparse_scene
+  [[ -f data/val-sparse/manifest.jsonl ]] || build/raindrop-render -i "$out/cv100" -o data/val-sparse \
+    --scene "$out/paper-sparse.json" --size 512x256 --seed 11 --variants 2 -q
+  [[ -f data/val-windshield-sharp/manifest.jsonl ]] || build/raindrop-render -i "$out/cv100" \
+    -o data/val-windshield-sharp --scene windshield-sharp --size 512x256 --seed 11 -q
+  size_sets train val-size
+}
 # data/train-hi: the paper preset over the training frames rendered at 1280x640, which
 # compact-multiscale and compact-windshield average down to 512x256 on loading.
 render_train_hi() {
@@ -1292,14 +1305,7 @@ if want jitter; then
   # photometrically jittered (tools/configs/paper-real-coarse-jitter.yaml; needs data/train,
   # data/train-mix from photoreal and data/real-pairs), scored as the default's large-drop models
   # beside the default, validation sets first (the criteria are in the config), then the test sets.
-  real_pairs_data
-  link_cv100
-  paper_sparse_scene
-  [[ -f data/val-sparse/manifest.jsonl ]] || build/raindrop-render -i "$out/cv100" -o data/val-sparse \
-    --scene "$out/paper-sparse.json" --size 512x256 --seed 11 --variants 2 -q
-  [[ -f data/val-windshield-sharp/manifest.jsonl ]] || build/raindrop-render -i "$out/cv100" \
-    -o data/val-windshield-sharp --scene windshield-sharp --size 512x256 --seed 11 -q
-  size_sets train val-size
+  validation_sets
   size_sets val test-size
   [[ -f tools/runs/paper-real-coarse-jitter/checkpoints/stage2_step00000400.pt ]] ||
     $py -m raindrop_tools.train --config tools/configs/paper-real-coarse-jitter.yaml \
@@ -1339,14 +1345,7 @@ if want router; then
   # RESULTS 4.33: per image, the better of the default's and compact-windshield's outputs on the
   # validation sets; a small-blob density; and a logistic router on the default detector's
   # probabilities (5-fold and leave-one-set-out), applied to the 44 photographs.
-  link_cv100
-  paper_sparse_scene
-  real_pairs_data
-  [[ -f data/val-sparse/manifest.jsonl ]] || build/raindrop-render -i "$out/cv100" -o data/val-sparse \
-    --scene "$out/paper-sparse.json" --size 512x256 --seed 11 --variants 2 -q
-  [[ -f data/val-windshield-sharp/manifest.jsonl ]] || build/raindrop-render -i "$out/cv100" \
-    -o data/val-windshield-sharp --scene windshield-sharp --size 512x256 --seed 11 -q
-  size_sets train val-size
+  validation_sets
   rd="$out/router"
   mkdir -p "$rd"
   for m in default ws; do
