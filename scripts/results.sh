@@ -1402,6 +1402,13 @@ def feats(path):
     return np.log1p(np.array(f, np.float64) * 100)
 X = np.array([feats(p) for s in sets for p in paths[s]])
 G = np.array([s for s in sets for _ in paths[s]])
+# Folds by background frame (the renders' variants of one frame, _vNN, in every rendered set: val-sparse
+# and windshield-sharp share the CamVid frames) or scene (a real pair's group, _tNN): never one
+# background on each side of a fold.
+import re
+frames = np.array([("real/" if s.startswith("real") else "") + re.sub(r"_[vt]\d+$", "", os.path.splitext(os.path.basename(p))[0])
+                   for s in sets for p in paths[s]])
+fold_of = {f: k % 5 for k, f in enumerate(np.random.default_rng(0).permutation(np.unique(frames)))}
 R = np.vstack([res[s] for s in sets]); Y = (R[:, 2] > R[:, 1]).astype(float); D = R[:, 2] - R[:, 1]
 def fit(X, y, w, l2=1e-2, iters=3000, lr=0.5):  # weighted logistic regression, by gradient descent
     mu, sd = X.mean(0), X.std(0) + 1e-9
@@ -1409,8 +1416,9 @@ def fit(X, y, w, l2=1e-2, iters=3000, lr=0.5):  # weighted logistic regression, 
     for _ in range(iters):
         p = 1 / (1 + np.exp(-Xs @ b)); b -= lr * (Xs.T @ (w * (p - y)) / len(y) + l2 * np.r_[b[:-1], 0])
     return lambda Xn: (np.hstack([(Xn - mu) / sd, np.ones((len(Xn), 1))]) @ b) > 0
+print(f"{len(np.unique(frames))} frames or scenes in 5 folds")
 for scheme in ("5-fold", "leave-one-set-out"):
-    folds = np.random.default_rng(0).integers(0, 5, len(X)) if scheme == "5-fold" else np.unique(G, return_inverse=True)[1]
+    folds = np.array([fold_of[f] for f in frames]) if scheme == "5-fold" else np.unique(G, return_inverse=True)[1]
     pred = np.zeros(len(X), bool)
     for k in np.unique(folds):
         pred[folds == k] = fit(X[folds != k], Y[folds != k], np.abs(D[folds != k]) + 0.05)(X[folds == k])

@@ -248,7 +248,11 @@ int surround_fill_area_at_scale(int area, cv::Size image_size, double scale) {
   const double reference = auto_working_scale(image_size, kDefaultWorkingSize);
   if (area <= 0 || scale == reference) return area;
   const double r = scale / reference;
-  return static_cast<int>(std::min(std::lround(area * r * r), static_cast<long>(std::numeric_limits<int>::max())));
+  // Halves round up as round() does; the 1e-9 keeps a half that floating point lands a hair
+  // below (0.6 / 0.4 is 1.4999999999999998) from rounding down. Clamped before the conversion.
+  const double limit = std::floor(area * r * r + 0.5 + 1e-9);
+  return limit >= static_cast<double>(std::numeric_limits<int>::max()) ? std::numeric_limits<int>::max()
+                                                                        : static_cast<int>(limit);
 }
 
 }  // namespace raindrop::removal

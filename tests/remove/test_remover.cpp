@@ -185,7 +185,8 @@ TEST(Remover, SmallPartsOverSmoothSurroundingsAreFilledBeforeTheRfn) {
 // option. Chosen here so that the largest part of the mask is above the option and within 2.25x.
 TEST(Remover, TheFillLimitFollowsTheScale) {
   EXPECT_EQ(surround_fill_area_at_scale(150, {1280, 720}, 0.4), 150);  // the default scale: as given
-  EXPECT_NEAR(surround_fill_area_at_scale(150, {1280, 720}, 0.6), 337.5, 0.5);  // (0.6 / 0.4)^2 = 2.25
+  EXPECT_EQ(surround_fill_area_at_scale(150, {1280, 720}, 0.6), 338);  // (0.6 / 0.4)^2 = 2.25: 337.5 rounds up
+  EXPECT_EQ(surround_fill_area_at_scale(1 << 30, {8192, 8192}, 1.0), std::numeric_limits<int>::max());  // clamped
   EXPECT_EQ(surround_fill_area_at_scale(150, {720, 480}, 1.0), 297);   // (720 / 512)^2 = 1.98
   EXPECT_EQ(surround_fill_area_at_scale(150, {256, 256}, 1.0), 150);   // never enlarged: scale 1 is 512's
   EXPECT_EQ(surround_fill_area_at_scale(150, {256, 256}, 0.5), 38);

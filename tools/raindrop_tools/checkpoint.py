@@ -16,7 +16,7 @@ from pathlib import Path
 
 import torch
 
-from .read_only import refuse_read_only
+from .read_only import read_only_problem, refuse_read_only
 
 CHECKPOINT_DIR = "checkpoints"
 _NAME = re.compile(r"^stage([12])_step(\d{8})\.pt$")
@@ -54,7 +54,7 @@ def latest_checkpoint(run_dir: Path, stage: int | None = None) -> CheckpointRef 
 
 def save_atomic(obj: dict, path: Path) -> None:
     path = Path(path)
-    refuse_read_only(path)
+    refuse_read_only(path, follow_links=False)
     path.parent.mkdir(parents=True, exist_ok=True)
     tmp = path.with_name(f"{_TMP_PREFIX}{path.name}.{os.getpid()}")
     try:
@@ -104,5 +104,6 @@ def prune(run_dir: Path, stage: int, keep: int, protect: set[Path] = frozenset()
     """Delete all but the newest ``keep`` checkpoints of ``stage`` (never those in ``protect``)."""
     refs = list_checkpoints(run_dir, stage)
     for ref in refs[: max(0, len(refs) - keep)]:
-        if ref.path not in protect:
+        # A checkpoint made read-only is someone's to keep (read_only.py): not removed.
+        if ref.path not in protect and not read_only_problem(ref.path, follow_links=False):
             ref.path.unlink()

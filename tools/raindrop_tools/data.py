@@ -315,8 +315,8 @@ class RaindropDataset:
         self.crop = int(crop)
         self.visible_levels = float(visible_levels)
         self.sensor_noise_levels = float(sensor_noise_levels)
-        if not photometric >= 0.0:
-            raise ValueError(f"photometric must be at least 0, got {photometric}")
+        if not 0.0 <= photometric <= 1.0:  # NaN and inf fail too (as data.sources[].photometric's check)
+            raise ValueError(f"photometric must be in [0, 1], got {photometric}")
         self.photometric = float(photometric)
         self.flip = bool(flip)
         left_out: Counter = Counter()

@@ -145,7 +145,7 @@ def evaluate(
         },
     }
     out.mkdir(parents=True, exist_ok=True)
-    refuse_read_only(out / "results.json", out / "results.md", out / "per_image.csv")
+    refuse_read_only(out / "results.json", out / "results.md", out / "per_image.csv", out / "pr_curve.png")
     (out / "results.json").write_text(json.dumps(result, indent=2, allow_nan=True) + "\n")
     (out / "results.md").write_text(markdown_table(result))
     with open(out / "per_image.csv", "w", newline="") as f:
@@ -286,6 +286,10 @@ def evaluate_real_pairs(
         pairs = pairs[:limit]
     if not pairs:
         raise RP.PairsError(f"{folder}: no pairs in split {split!r}")
+    # Every sheet this run would write or remove, before the work (read_only.py; checked again
+    # before the writes).
+    refuse_read_only(*(Path(out) / "sheets" / f"{sid}.png"
+                       for sid in sorted(_earlier_sheet_ids(Path(out)) | ({p.id for p in pairs} if sheets else set()))))
     remover = RaindropRemover(models, threads=threads)
     thr = remover.threshold if threshold is None else float(threshold)
     k = remover.dilation if dilation is None else int(dilation)
@@ -444,7 +448,8 @@ def main(argv: list[str] | None = None) -> int:
     if Path(args.out).exists() and not Path(args.out).is_dir():  # found before the work, not after it
         print(f"error: --out {args.out} is a file, not a folder", file=sys.stderr)
         return 2
-    for table in ("results.json", "results.md", "per_image.csv", "pr_curve.png"):  # read-only ones are kept (read_only.py)
+    tables = ("results.json", "results.md", "per_image.csv") + (() if args.real_pairs else ("pr_curve.png",))
+    for table in tables:  # read-only ones are kept (read_only.py)
         if read_only_problem(Path(args.out) / table):
             print(f"error: {read_only_problem(Path(args.out) / table)}", file=sys.stderr)
             return 2

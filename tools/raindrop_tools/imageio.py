@@ -97,6 +97,8 @@ def check_writable(path: str | os.PathLike) -> None:
         raise ImageError(f"{path}: is a folder, not an image file")
     if not cv2.haveImageWriter(str(path)):
         raise ImageError(f"{path}: cannot write this format (no writer for '{Path(path).suffix}')")
+    if read_only_problem(path):  # a read-only destination is kept (read_only.py)
+        raise ImageError(read_only_problem(path))
 
 
 def _imwrite(path: str | os.PathLike, image: np.ndarray) -> None:

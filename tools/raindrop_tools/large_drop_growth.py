@@ -37,7 +37,7 @@ class GrowthError(ValueError):
 
 
 def _replace(path: Path, data: bytes) -> None:
-    refuse_read_only(path)
+    refuse_read_only(path, follow_links=False)
     tmp = path.with_name(f".{path.name}.tmp")
     tmp.write_bytes(data)
     os.replace(tmp, path)
@@ -75,7 +75,7 @@ def set_large_drop_growth(folder: Path, growth: float) -> dict:
         for name in ("rrn", "rfn"):
             if not (folder / C.FILES[name]).is_file():
                 raise GrowthError(f"{folder / C.FILES[name]}: no such file (export.json lists every graph)")
-    refuse_read_only(rdn, info_path)  # both kept, not the graph replaced and export.json refused
+    refuse_read_only(rdn, info_path, follow_links=False)  # both kept, not the graph replaced and export.json refused
     _replace(rdn, data)
     if not info_path.is_file():
         return {}

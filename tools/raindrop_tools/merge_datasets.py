@@ -51,7 +51,7 @@ def merge(out: Path, sources: list[Path]) -> int:
     """Links the sources' images into ``out`` and writes its manifest. Everything is checked
     before the first link: a rendered or prepared data set in ``out`` (its manifest was replaced
     by the merged one), a source that is ``out``, and clashing ids or links."""
-    refuse_read_only(out / "manifest.jsonl")  # before the first link
+    refuse_read_only(out / "manifest.jsonl", follow_links=False)  # before the first link
     resolved = out.resolve()
     for src in sources:
         if src.resolve() == resolved:
@@ -90,7 +90,7 @@ def merge(out: Path, sources: list[Path]) -> int:
             os.symlink(target, dst)
     records.sort(key=lambda r: r["id"])
     out.mkdir(parents=True, exist_ok=True)
-    refuse_read_only(out / "manifest.jsonl")
+    refuse_read_only(out / "manifest.jsonl", follow_links=False)
     tmp = out / f".manifest.jsonl.tmp-{os.getpid()}"
     tmp.write_text("".join(json.dumps(r) + "\n" for r in records))
     os.replace(tmp, out / "manifest.jsonl")

@@ -20,21 +20,23 @@ class ReadOnlyFileError(PermissionError):
     ``except OSError`` reports it on one line and exits non-zero."""
 
 
-def read_only_problem(path: str | os.PathLike) -> str | None:
+def read_only_problem(path: str | os.PathLike, follow_links: bool = True) -> str | None:
     """Why ``path`` may not be replaced, in the C++ programs' words; None when it may (it does not
-    exist, is not a regular file, or someone may write it)."""
+    exist, is not a regular file, or someone may write it). ``follow_links``: the file a link
+    names is what a write through the link changes; where a file is renamed over the name
+    instead, only the link itself goes and its target is kept, so such sites pass False."""
     try:
-        mode = os.stat(path).st_mode
+        mode = (os.stat if follow_links else os.lstat)(path).st_mode
     except OSError:
         return None  # absent (or unreadable metadata): nothing there to lose
     if stat.S_ISREG(mode) and not mode & (stat.S_IWUSR | stat.S_IWGRP | stat.S_IWOTH):
-        return f"{Path(path)}: read-only (no write permission for anyone); make it writable, or remove it"
+        return f"'{Path(path)}': read-only (no write permission for anyone); make it writable, or remove it"
     return None
 
 
-def refuse_read_only(*paths: str | os.PathLike) -> None:
+def refuse_read_only(*paths: str | os.PathLike, follow_links: bool = True) -> None:
     """Raises ReadOnlyFileError for the first of ``paths`` that is a read-only file."""
     for path in paths:
-        problem = read_only_problem(path)
+        problem = read_only_problem(path, follow_links)
         if problem:
             raise ReadOnlyFileError(problem)

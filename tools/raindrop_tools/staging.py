@@ -43,13 +43,15 @@ def staged_model_files(out_dir: Path, tag: str):
     those in ``out_dir`` (export.json last); in every case the staging folder is removed."""
     out_dir = Path(out_dir)
     # Before any work: a graph or export.json made read-only is kept (read_only.py).
-    refuse_read_only(*(out_dir / name for name in [*(C.FILES[n] for n in C.NETWORKS), C.EXPORT_INFO]))
+    targets = [out_dir / name for name in [*(C.FILES[n] for n in C.NETWORKS), C.EXPORT_INFO]]
+    refuse_read_only(*targets, follow_links=False)  # renamed over: a link is replaced, its target kept
     remove_stale_stages(out_dir, tag)
     stage = out_dir.parent / f".{out_dir.name}.{tag}-{os.getpid()}"
     shutil.rmtree(stage, ignore_errors=True)
     stage.mkdir()
     try:
         yield stage
+        refuse_read_only(*targets, follow_links=False)  # again: the work may have taken minutes
         for name in [*(C.FILES[n] for n in C.NETWORKS), C.EXPORT_INFO]:
             if (stage / name).exists():
                 os.replace(stage / name, out_dir / name)

@@ -189,7 +189,11 @@ def main(argv: list[str] | None = None) -> int:
     if not rows:
         print("tradeoffs: error: none of the model folders exist here (run from the repository root)", file=sys.stderr)
         return 2
-    refuse_read_only(out / "tradeoffs.json", out / "tradeoffs.md")
+    # Again before the first write (the timing took minutes): all three, or none is written.
+    problem = next(filter(None, (read_only_problem(out / n) for n in ("tradeoffs.json", "tradeoffs.md", "pareto.png"))), None)
+    if problem:
+        print(f"tradeoffs: error: {problem}", file=sys.stderr)
+        return 2
     out.mkdir(parents=True, exist_ok=True)
     (out / "tradeoffs.json").write_text(json.dumps(rows, indent=2) + "\n")
 

@@ -55,7 +55,7 @@ from .config import (
 from .data import DatasetError, MultiSourceDataset, RaindropDataset, StepBatchSampler, WeightedStepBatchSampler, epochs
 from .morphology import Dilation
 from .networks import build_networks
-from .read_only import refuse_read_only
+from .read_only import ReadOnlyFileError, refuse_read_only
 from .schedule import lr_factor
 
 CONFIG_FILE = "config.yaml"
@@ -72,7 +72,7 @@ class NonFiniteLossError(TrainingError):
 
 
 # Errors reported as a one-line message (exit status 2); anything else is a bug.
-REPORTED = (ConfigError, DatasetError, TrainingError, distributed.WorldError, ckpt.CheckpointError)
+REPORTED = (ConfigError, DatasetError, TrainingError, distributed.WorldError, ckpt.CheckpointError, ReadOnlyFileError)
 
 
 def choose_device(name: str = "auto") -> torch.device:
@@ -94,7 +94,7 @@ def default_run_dir(name: str) -> Path:
 
 
 def _write_text_atomic(path: Path, text: str) -> None:
-    refuse_read_only(path)
+    refuse_read_only(path, follow_links=False)
     tmp = path.with_name(path.name + ".tmp")
     tmp.write_text(text)
     os.replace(tmp, path)
@@ -132,6 +132,8 @@ def prepare_run_dir(run_dir: Path, cfg: RunConfig | None) -> RunConfig:
     cfg_file = run_dir / CONFIG_FILE
     if run_dir.exists() and not run_dir.is_dir():
         raise TrainingError(f"--out {run_dir} is a file, not a run folder")
+    # The files a run rewrites or appends to, refused before any work when made read-only.
+    refuse_read_only(run_dir / RUN_FILE, run_dir / LOG_FILE)
     if cfg is None and not cfg_file.is_file():
         raise TrainingError(f"{run_dir}: no {CONFIG_FILE} there; give --config to start a run")
     run_dir.mkdir(parents=True, exist_ok=True)

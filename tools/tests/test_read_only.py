@@ -40,7 +40,11 @@ def test_the_rule_is_the_mode_not_who_asks(tmp_path):
         f.chmod(mode)
         assert read_only_problem(f) is None
     f.chmod(0o444)
-    assert read_only_problem(f) == f"{f}: read-only (no write permission for anyone); make it writable, or remove it"
+    assert read_only_problem(f) == f"'{f}': read-only (no write permission for anyone); make it writable, or remove it"
+    link = tmp_path / "link.json"
+    link.symlink_to(f)
+    assert read_only_problem(link) is not None  # written through, the target would change
+    assert read_only_problem(link, follow_links=False) is None  # renamed over, only the link goes
     with pytest.raises(ReadOnlyFileError) as e:
         refuse_read_only(tmp_path / "absent", f)
     assert isinstance(e.value, OSError)  # every tool's `except OSError` reports it on one line
@@ -106,7 +110,7 @@ def test_evaluate_refuses_a_read_only_result_before_evaluating(tiny_dataset, tmp
     (out / "results.json").chmod(0o644)
     (out / "pr_curve.png").write_bytes(b"an earlier curve")
     before = _protect(out / "pr_curve.png")
-    assert evaluate.main(argv) == 2 and "pr_curve.png: read-only" in capsys.readouterr().err
+    assert evaluate.main(argv) == 2 and "pr_curve.png': read-only" in capsys.readouterr().err
     _kept(out / "pr_curve.png", before)
 
 
@@ -151,12 +155,14 @@ def test_every_write_site_in_the_tools_is_guarded():
     unguarded = []
     for py in sorted(tools.glob("*.py")):
         text = py.read_text()
-        writes = "os.replace(" in text or "cv2.imwrite(" in text or "torch.save(" in text
-        if writes and "read_only" not in text and py.name not in ("read_only.py", "realpairs.py", "export.py",
-                                                                 "graph_rewrite.py", "quantize.py"):
+        writes = any(w in text for w in ("os.replace(", "cv2.imwrite(", "torch.save(", ".unlink(", "savefig(",
+                                          "write_text(", "write_bytes("))
+        if writes and "read_only" not in text and py.name not in (
+                "read_only.py", "realpairs.py", "export.py", "graph_rewrite.py", "quantize.py", "staging.py"):
             unguarded.append(py.name)
     # realpairs.py renames a fresh folder over an empty one it checked; export.py, graph_rewrite.py
-    # and quantize.py write into staging folders that staging.py guards.
+    # and quantize.py write into staging folders that staging.py guards (staging.py itself removes
+    # only its own stale staging folders, and is guarded).
     assert unguarded == []
 
 
@@ -178,3 +184,42 @@ def test_evaluate_keeps_a_read_only_sheet_it_would_have_removed(tmp_path, capsys
     assert len(err) == 1 and "read-only" in err[0], err
     _kept(sheets[-1], before)
     assert sorted((out / "sheets").iterdir()) == sheets and (out / "results.json").read_bytes() == results
+
+
+def test_pruning_keeps_a_read_only_checkpoint(tmp_path):
+    from raindrop_tools import checkpoint as ckpt
+
+    run = tmp_path / "run"
+    for step in (100, 200, 300, 400):
+        ckpt.save_atomic({"step": step}, ckpt.checkpoint_path(run, 1, step))
+    old = ckpt.checkpoint_path(run, 1, 100)
+    before = _protect(old)
+    ckpt.prune(run, 1, keep=1)
+    _kept(old, before)
+    assert [r.path.name for r in ckpt.list_checkpoints(run, 1)] == [old.name, ckpt.checkpoint_path(run, 1, 400).name]
+
+
+def test_train_reports_a_read_only_run_file_on_one_line_before_any_work(tmp_path, capsys):
+    run = tmp_path / "run"
+    run.mkdir()
+    (run / train.RUN_FILE).write_text("{}\n")
+    before = _protect(run / train.RUN_FILE)
+    with pytest.raises(ReadOnlyFileError):
+        train.prepare_run_dir(run, None)
+    _kept(run / train.RUN_FILE, before)
+    assert ReadOnlyFileError in train.REPORTED  # main() prints REPORTED errors on one line, exit 2
+
+
+def test_reference_keeps_a_read_only_mask_and_writes_no_output(tiny_dataset, tmp_path, capsys):
+    from raindrop_tools import reference
+    from raindrop_tools.data import read_manifest
+
+    image = str(read_manifest(tiny_dataset)[0].rainy)
+    mask = tmp_path / "mask.png"
+    write_rgb(mask, np.zeros((4, 4, 3), np.uint8))
+    before = _protect(mask)
+    out = tmp_path / "out.png"
+    assert reference.main([image, str(out), "--models", str(FIXTURE_MODELS), "--mask", str(mask)]) == 2
+    assert "read-only" in capsys.readouterr().err
+    _kept(mask, before)
+    assert not out.exists(), "every destination is checked before the first is written"

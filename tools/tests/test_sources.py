@@ -174,6 +174,8 @@ def test_photometric_zero_is_the_identity_and_strength_is_checked(tiny_dataset):
         config_from_dict({"data": {"sources": [{"path": "x", "photometric": 2}]}})
     with pytest.raises(ValueError, match="photometric"):
         RaindropDataset(tiny_dataset, crop=32, photometric=float("nan"))
+    with pytest.raises(ValueError, match="photometric"):
+        RaindropDataset(tiny_dataset, crop=32, photometric=float("inf"))
 
 
 def test_detection_weight_is_per_source_and_checked(tiny_dataset):

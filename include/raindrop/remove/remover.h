@@ -62,9 +62,10 @@ struct RemoveOptions {
   // hide. The coarse pass always does (kLargeDropMirrorAverage); this turns it on for the
   // working-scale pass too (raindrop-remove --mirror-average).
   bool mirror_average = false;
-  // In the working-scale pass, parts of the mask at most this many pixels whose surround is at
-  // most surround_fill_mad levels rough (median absolute deviation of its luma) are filled from
-  // that surround instead of by the 3RN (surround_fill.h); 0: the 3RN everywhere.
+  // In the working-scale pass, parts of the mask at most this many pixels (given with the long
+  // side at 512; run() scales it to the pass's scale, surround_fill_area_at_scale) whose surround
+  // is at most surround_fill_mad levels rough (median absolute deviation of its luma) are filled
+  // from that surround instead of by the 3RN (surround_fill.h); 0: the 3RN everywhere.
   int surround_fill_area = kSurroundFillArea;
   double surround_fill_mad = kSurroundFillMad;
 };
