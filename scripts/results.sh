@@ -1354,6 +1354,16 @@ if want router; then
     score_sets "$rd" "$m" "$flags" real-pairs:train:0 val-sparse:-:0 val-windshield-sharp:-:0 val-size-512x288:-:0 \
       val-size-1280x720:-:0
   done | tee "$rd/scores.txt"
+  # The held-out check, once: the test sets, and windshield-sharp drops over the CamVid test frames.
+  size_sets val test-size
+  [[ -f data/test-windshield-sharp/manifest.jsonl ]] || build/raindrop-render -i "$shared/camvid/test" \
+    -o data/test-windshield-sharp --scene windshield-sharp --size 512x256 --seed 2 -q
+  for m in default ws; do
+    flags="-j 2"
+    [[ $m == default ]] || flags="$flags --model-config compact-windshield"
+    score_sets "$rd" "$m" "$flags" real-pairs:test:0 test-sparse:-:0 test-windshield-sharp:-:0 test-size-512x288:-:0 \
+      test-size-1280x720:-:0
+  done | tee "$rd/test-scores.txt"
   RD="$rd" SHARED="$shared" $py - <<'PY' | tee "$rd/router.txt"
 import glob, os, sys
 import cv2, numpy as np
@@ -1429,5 +1439,31 @@ for scheme in ("5-fold", "leave-one-set-out"):
 pick = fit(X, Y, np.abs(D) + 0.05)(np.array([feats(p) for p in photos]))
 print(f"photographs to the windshield detector: {pick.sum()} of {len(photos)}; to the default:",
       " ".join(os.path.basename(p) for p, k in zip(photos, pick) if not k))
+# Held out, once: the router trained on every validation image, applied to the test sets.
+router = fit(X, Y, np.abs(D) + 0.05)
+for s in ["real-pairs-test", "test-sparse--", "test-windshield-sharp--", "test-size-512x288--", "test-size-1280x720--"]:
+    d0, d1 = f"{rd}/default-{s}", f"{rd}/ws-{s}"
+    rows, ps = [], []
+    for n in sorted(os.listdir(f"{d0}/out")):
+        stem = os.path.splitext(n)[0]
+        clean, rainy = cv2.imread(first(f"{d0}/set/clean/{stem}.*")), first(f"{d0}/set/rainy/{stem}.*")
+        rows.append((psnr(cv2.imread(rainy), clean), psnr(cv2.imread(f"{d0}/out/{n}"), clean),
+                     psnr(cv2.imread(f"{d1}/out/{n}"), clean)))
+        ps.append(rainy)
+    r = np.array(rows); pick = router(np.array([feats(p) for p in ps]))
+    routed = np.where(pick, r[:, 2], r[:, 1])
+    # The routed outputs as a folder, for score_outputs' own protocol below.
+    names = sorted(os.listdir(f"{d0}/out"))
+    os.makedirs(f"{rd}/routed-{s}/out", exist_ok=True)
+    for n, k in zip(names, pick):
+        dst = f"{rd}/routed-{s}/out/{n}"
+        if os.path.lexists(dst):
+            os.remove(dst)
+        os.symlink(os.path.abspath(f"{d1 if k else d0}/out/{n}"), dst)
+    print(f"test {s:24s} n={len(r):3d} gain default {np.mean(r[:, 1] - r[:, 0]):+.2f} windshield "
+          f"{np.mean(r[:, 2] - r[:, 0]):+.2f} routed {np.mean(routed - r[:, 0]):+.2f} (to windshield {pick.mean():.0%})")
 PY
+  for set in real-pairs-test test-sparse-- test-windshield-sharp-- test-size-512x288-- test-size-1280x720--; do
+    $py -m raindrop_tools.score_outputs --data "$rd/default-$set/set" --outputs "$rd/routed-$set/out" --label "routed $set"
+  done | tee -a "$rd/router.txt"
 fi
