@@ -1375,17 +1375,21 @@ def y(img): return 16 + (65.481 * img[..., 2] + 128.553 * img[..., 1] + 24.966 *
 def psnr(a, b):
     d = y(a.astype(np.float64)) - y(b.astype(np.float64)); return 10 * np.log10(255**2 / (d * d).mean())
 def first(pattern): return glob.glob(pattern)[0]
-res, paths = {}, {}
-for s in sets:
+def per_image(s):
+    """Set s's output names, rainy images and per-image PSNR-Y rows (input, default, windshield)."""
     d0, d1 = f"{rd}/default-{s}", f"{rd}/ws-{s}"
-    rows, ps = [], []
-    for n in sorted(os.listdir(f"{d0}/out")):
+    names, rows, ps = sorted(os.listdir(f"{d0}/out")), [], []
+    for n in names:
         stem = os.path.splitext(n)[0]
         clean, rainy = cv2.imread(first(f"{d0}/set/clean/{stem}.*")), first(f"{d0}/set/rainy/{stem}.*")
         rows.append((psnr(cv2.imread(rainy), clean), psnr(cv2.imread(f"{d0}/out/{n}"), clean),
                      psnr(cv2.imread(f"{d1}/out/{n}"), clean)))
         ps.append(rainy)
-    r = res[s] = np.array(rows); paths[s] = ps
+    return names, ps, np.array(rows)
+res, paths = {}, {}
+for s in sets:
+    _, paths[s], r = per_image(s)
+    res[s] = r
     print(f"{s:24s} n={len(r):3d} default {np.mean(r[:, 1] - r[:, 0]):+.2f} windshield {np.mean(r[:, 2] - r[:, 0]):+.2f} "
           f"per-image best {np.mean(np.maximum(r[:, 1], r[:, 2]) - r[:, 0]):+.2f} windshield better on {np.mean(r[:, 2] > r[:, 1]):.0%}")
 def working(img, size=512):
@@ -1436,24 +1440,17 @@ for scheme in ("5-fold", "leave-one-set-out"):
         r, sel = res[s], G == s
         print(f"router {scheme:17s} {s:24s} routed {np.mean(np.where(pred[sel], r[:, 2], r[:, 1]) - r[:, 0]):+.2f} "
               f"(to windshield {pred[sel].mean():.0%})")
-pick = fit(X, Y, np.abs(D) + 0.05)(np.array([feats(p) for p in photos]))
+router = fit(X, Y, np.abs(D) + 0.05)  # trained on every validation image
+pick = router(np.array([feats(p) for p in photos]))
 print(f"photographs to the windshield detector: {pick.sum()} of {len(photos)}; to the default:",
       " ".join(os.path.basename(p) for p, k in zip(photos, pick) if not k))
-# Held out, once: the router trained on every validation image, applied to the test sets.
-router = fit(X, Y, np.abs(D) + 0.05)
+# Held out, once: the same router applied to the test sets.
 for s in ["real-pairs-test", "test-sparse--", "test-windshield-sharp--", "test-size-512x288--", "test-size-1280x720--"]:
-    d0, d1 = f"{rd}/default-{s}", f"{rd}/ws-{s}"
-    rows, ps = [], []
-    for n in sorted(os.listdir(f"{d0}/out")):
-        stem = os.path.splitext(n)[0]
-        clean, rainy = cv2.imread(first(f"{d0}/set/clean/{stem}.*")), first(f"{d0}/set/rainy/{stem}.*")
-        rows.append((psnr(cv2.imread(rainy), clean), psnr(cv2.imread(f"{d0}/out/{n}"), clean),
-                     psnr(cv2.imread(f"{d1}/out/{n}"), clean)))
-        ps.append(rainy)
-    r = np.array(rows); pick = router(np.array([feats(p) for p in ps]))
+    names, ps, r = per_image(s)
+    pick = router(np.array([feats(p) for p in ps]))
     routed = np.where(pick, r[:, 2], r[:, 1])
     # The routed outputs as a folder, for score_outputs' own protocol below.
-    names = sorted(os.listdir(f"{d0}/out"))
+    d0, d1 = f"{rd}/default-{s}", f"{rd}/ws-{s}"
     os.makedirs(f"{rd}/routed-{s}/out", exist_ok=True)
     for n, k in zip(names, pick):
         dst = f"{rd}/routed-{s}/out/{n}"

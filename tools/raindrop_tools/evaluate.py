@@ -38,7 +38,7 @@ from . import realpairs as RP
 from .cli_args import at_least, unit_interval
 from .data import DatasetError, check_files, read_manifest
 from .imageio import ImageError, read_mask_strict, read_rgb_strict, to_uint8, write_rgb
-from .read_only import read_only_problem, refuse_read_only
+from .read_only import first_read_only_problem, refuse_read_only
 from .reference import ModelError, RaindropRemover
 
 QUALITY = ("psnr_y", "ssim_y", "psnr_rgb", "ssim_rgb")
@@ -449,10 +449,10 @@ def main(argv: list[str] | None = None) -> int:
         print(f"error: --out {args.out} is a file, not a folder", file=sys.stderr)
         return 2
     tables = ("results.json", "results.md", "per_image.csv") + (() if args.real_pairs else ("pr_curve.png",))
-    for table in tables:  # read-only ones are kept (read_only.py)
-        if read_only_problem(Path(args.out) / table):
-            print(f"error: {read_only_problem(Path(args.out) / table)}", file=sys.stderr)
-            return 2
+    problem = first_read_only_problem(*(Path(args.out) / table for table in tables))  # kept (read_only.py)
+    if problem:
+        print(f"error: {problem}", file=sys.stderr)
+        return 2
     if args.real_pairs:
         if args.split and len(args.split) > 1:
             ap.error("--real-pairs takes one --split (train, test or all)")

@@ -23,7 +23,7 @@ from PIL import Image, ImageFilter, ImageOps
 
 from .cli_args import width_x_height
 from .imageio import IMAGE_SUFFIXES
-from .read_only import read_only_problem, refuse_read_only
+from .read_only import first_read_only_problem, refuse_read_only
 
 
 def flatten(image: Image.Image, size: tuple[int, int] = (512, 256), median: int = 7, colours: int = 12) -> Image.Image:
@@ -98,11 +98,11 @@ def main(argv: list[str] | None = None) -> int:
                       f"{'holds' if out_dir in in_dir.parents else 'lies inside'} the input folder, and would be "
                       "replaced; choose an output folder apart from the input", file=sys.stderr)
                 return 2
-    for p in frames:  # a read-only output is kept (read_only.py): refused before the first frame
-        problem = read_only_problem(args.output / (p.stem + ".png"), follow_links=False)
-        if problem:
-            print(f"flatten: error: {problem}", file=sys.stderr)
-            return 2
+    # A read-only output is kept (read_only.py): refused before the first frame.
+    problem = first_read_only_problem(*(args.output / (p.stem + ".png") for p in frames), follow_links=False)
+    if problem:
+        print(f"flatten: error: {problem}", file=sys.stderr)
+        return 2
     args.output.mkdir(parents=True, exist_ok=True)
     try:
         for p in frames:

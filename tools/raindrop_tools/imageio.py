@@ -97,13 +97,18 @@ def check_writable(path: str | os.PathLike) -> None:
         raise ImageError(f"{path}: is a folder, not an image file")
     if not cv2.haveImageWriter(str(path)):
         raise ImageError(f"{path}: cannot write this format (no writer for '{Path(path).suffix}')")
-    if read_only_problem(path):  # a read-only destination is kept (read_only.py)
-        raise ImageError(read_only_problem(path))
+    _keep_read_only(path)
+
+
+def _keep_read_only(path: str | os.PathLike) -> None:
+    """Root may write any file; a read-only one is kept (read_only.py), as an ImageError."""
+    problem = read_only_problem(path)
+    if problem:
+        raise ImageError(problem)
 
 
 def _imwrite(path: str | os.PathLike, image: np.ndarray) -> None:
-    if read_only_problem(path):  # root may write any file; a read-only one is kept (read_only.py)
-        raise ImageError(read_only_problem(path))
+    _keep_read_only(path)
     # OpenCV raises cv2.error for an extension it has no writer for, returns False otherwise.
     try:
         ok = cv2.imwrite(str(path), image)

@@ -34,9 +34,13 @@ def read_only_problem(path: str | os.PathLike, follow_links: bool = True) -> str
     return None
 
 
+def first_read_only_problem(*paths: str | os.PathLike, follow_links: bool = True) -> str | None:
+    """read_only_problem of the first of ``paths`` that is a read-only file; None when none is."""
+    return next(filter(None, (read_only_problem(path, follow_links) for path in paths)), None)
+
+
 def refuse_read_only(*paths: str | os.PathLike, follow_links: bool = True) -> None:
     """Raises ReadOnlyFileError for the first of ``paths`` that is a read-only file."""
-    for path in paths:
-        problem = read_only_problem(path, follow_links)
-        if problem:
-            raise ReadOnlyFileError(problem)
+    problem = first_read_only_problem(*paths, follow_links=follow_links)
+    if problem:
+        raise ReadOnlyFileError(problem)

@@ -18,8 +18,9 @@ def report_path_problem(path: Path) -> str | None:
         return f"--json {path}: name the report .json (it would replace a file of another kind)"
     if path.is_symlink() or (path.exists() and not path.is_file()):
         return f"--json {path}: not a plain file"
-    if read_only_problem(path, follow_links=False):  # renamed over: a link is replaced, its target kept
-        return f"--json {read_only_problem(path, follow_links=False)}"
+    problem = read_only_problem(path, follow_links=False)  # renamed over: a link is replaced, its target kept
+    if problem:
+        return f"--json {problem}"
     if path.exists():
         try:
             if not isinstance(json.loads(path.read_text()), dict):

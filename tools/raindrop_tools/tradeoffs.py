@@ -20,7 +20,10 @@ import sys
 from dataclasses import dataclass
 from pathlib import Path
 
-from .read_only import read_only_problem, refuse_read_only
+from .read_only import first_read_only_problem, refuse_read_only
+
+# What a run writes into --out (each refused when read-only, read_only.py).
+OUTPUTS = ("tradeoffs.json", "tradeoffs.md", "pareto.png")
 
 
 @dataclass
@@ -150,10 +153,10 @@ def main(argv: list[str] | None = None) -> int:
     if args.runs < 1:
         print(f"tradeoffs: error: --runs must be at least 1, got {args.runs}", file=sys.stderr)
         return 2
-    for table in (out / "tradeoffs.json", out / "tradeoffs.md", out / "pareto.png"):  # before minutes of timing
-        if read_only_problem(table):
-            print(f"tradeoffs: error: {read_only_problem(table)}", file=sys.stderr)
-            return 2
+    problem = first_read_only_problem(*(out / name for name in OUTPUTS))  # before minutes of timing
+    if problem:
+        print(f"tradeoffs: error: {problem}", file=sys.stderr)
+        return 2
     if args.plot_only:
         if not (out / "tradeoffs.json").is_file():
             print(f"tradeoffs: error: no {out / 'tradeoffs.json'} to plot (run without --plot-only first)", file=sys.stderr)
@@ -190,7 +193,7 @@ def main(argv: list[str] | None = None) -> int:
         print("tradeoffs: error: none of the model folders exist here (run from the repository root)", file=sys.stderr)
         return 2
     # Again before the first write (the timing took minutes): all three, or none is written.
-    problem = next(filter(None, (read_only_problem(out / n) for n in ("tradeoffs.json", "tradeoffs.md", "pareto.png"))), None)
+    problem = first_read_only_problem(*(out / name for name in OUTPUTS))
     if problem:
         print(f"tradeoffs: error: {problem}", file=sys.stderr)
         return 2
