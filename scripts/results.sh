@@ -1339,6 +1339,39 @@ if want windshieldscale; then
   done | tee "$wsd/scores.txt"
   score_sets "$wsd" "scale-0.6-fill-as-before" "--model-config compact-windshield -j 2 --scale 0.6 --surround-fill-area 67" \
     val-ws-1280x720:-:0 | tee -a "$wsd/scores.txt"
+  # Drop sizes measured alike: compact-windshield's masks at full resolution (long side at most
+  # 1280) on the 44 photographs and on windshield-sharp renders at 1280x720 (30 CamVid val frames),
+  # beside those renders' true masks.
+  mkdir -p "$wsd/photos" "$wsd/cv30" "$wsd/ws-1280-masks"
+  for f in "$shared"/real-raindrop/*; do
+    s=$($py -c "import cv2, sys; h, w = cv2.imread(sys.argv[1]).shape[:2]; print(min(1.0, 1280 / max(w, h)))" "$f")
+    b=$(basename "${f%.*}")
+    build/raindrop-remove "$f" "$wsd/photos/$b.png" --model-config compact-windshield --scale "$s" \
+      --mask "$wsd/photos/$b-mask.png" -q -j 2
+  done
+  ls "$out/cv100" | head -30 | while read -r f; do ln -sf "$(realpath "$out/cv100/$f")" "$wsd/cv30/$f"; done
+  rm -rf "$wsd/ws-1280" && build/raindrop-render -i "$wsd/cv30" -o "$wsd/ws-1280" --scene windshield-sharp \
+    --size 1280x720 --seed 11 -q
+  build/raindrop-remove "$wsd/ws-1280/rainy" "$wsd/ws-1280-out" --model-config compact-windshield --scale 1.0 \
+    --mask-dir "$wsd/ws-1280-masks" -q -j 2
+  WSD="$wsd" $py - <<'PY' | tee "$wsd/drop-sizes.txt"
+import glob, os
+import cv2, numpy as np
+def table(label, files):
+    rows = []
+    for f in files:
+        m = cv2.imread(f, cv2.IMREAD_GRAYSCALE) > 127
+        _, _, st, _ = cv2.connectedComponentsWithStats(m.astype(np.uint8), 8)
+        a = st[1:, cv2.CC_STAT_AREA]
+        d = np.sqrt(4 * a[a >= 4] / np.pi) / max(m.shape) * 512  # equivalent diameter at a long side of 512
+        rows.append((m.mean(), *(np.percentile(d, q) if len(d) else np.nan for q in (25, 50, 75))))
+    c, p25, p50, p75 = np.nanmedian(np.array(rows), axis=0)
+    print(f"{label}: n={len(rows)} coverage {c:.3f}, part diameter p25 / median / p75 at 512: {p25:.1f} / {p50:.1f} / {p75:.1f} px")
+wsd = os.environ["WSD"]
+table("the photographs, detected", sorted(glob.glob(f"{wsd}/photos/*-mask.png")))
+table("windshield-sharp renders, detected", sorted(glob.glob(f"{wsd}/ws-1280-masks/*.png")))
+table("windshield-sharp renders, true masks", sorted(glob.glob(f"{wsd}/ws-1280/mask/*.png")))
+PY
 fi
 
 if want router; then
