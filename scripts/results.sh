@@ -5,7 +5,7 @@
 # scripts/results.sh data render stats eval remove tradeoffs sheets photoreal scale flatroad largedrops coarsetrain
 # largedropmodels sensor mirroraverage highlights multiscale veil papermodels outline trails photos windshield
 # windshield-followup longer growth sharpness coalesce surround largewidth largedrops-all windshield2
-# errorsplit withoutvnni graphrewrites jitter windshieldscale router
+# errorsplit withoutvnni graphrewrites jitter windshieldscale router routed
 #
 # Nothing here is committed automatically: images derived from Cityscapes, CamVid or the
 # real raindrop photographs stay under out/ (their licences forbid redistribution).
@@ -20,7 +20,7 @@ sections=("$@")
                                   largedropmodels sensor mirroraverage highlights multiscale veil papermodels outline trails
                                   photos windshield windshield-followup longer growth sharpness coalesce
                                   surround largewidth largedrops-all windshield2 errorsplit withoutvnni graphrewrites
-                                  jitter windshieldscale router)
+                                  jitter windshieldscale router routed)
 want() { [[ " ${sections[*]} " == *" $1 "* ]]; }
 # link_set SRC DST SPLIT [LIMIT]: the first LIMIT (default 100; 0: all) samples of data set SRC
 # (of manifest split SPLIT; "-" = all) linked into DST/rainy and DST/clean (and DST/mask, where
@@ -1382,7 +1382,7 @@ if want router; then
   rd="$out/router"
   mkdir -p "$rd"
   for m in default ws; do
-    flags="-j 2"
+    flags="-j 2 --no-router"  # the default's own detector: what the router chooses from
     [[ $m == default ]] || flags="$flags --model-config compact-windshield"
     score_sets "$rd" "$m" "$flags" real-pairs:train:0 val-sparse:-:0 val-windshield-sharp:-:0 val-size-512x288:-:0 \
       val-size-1280x720:-:0
@@ -1392,7 +1392,7 @@ if want router; then
   [[ -f data/test-windshield-sharp/manifest.jsonl ]] || build/raindrop-render -i "$shared/camvid/test" \
     -o data/test-windshield-sharp --scene windshield-sharp --size 512x256 --seed 2 -q
   for m in default ws; do
-    flags="-j 2"
+    flags="-j 2 --no-router"  # the default's own detector: what the router chooses from
     [[ $m == default ]] || flags="$flags --model-config compact-windshield"
     score_sets "$rd" "$m" "$flags" real-pairs:test:0 test-sparse:-:0 test-windshield-sharp:-:0 test-size-512x288:-:0 \
       test-size-1280x720:-:0
@@ -1436,17 +1436,12 @@ photos = sorted(glob.glob(os.path.join(os.environ["SHARED"], "real-raindrop", "*
 for k, ps in [*paths.items(), ("photographs", photos)]:
     v = np.array([blobs(p) for p in ps])
     print(f"small-blob density {k:24s} p10 {np.percentile(v, 10):6.0f} median {np.median(v):6.0f} p90 {np.percentile(v, 90):6.0f}")
+# The features and the fit are the shipped router's (tools/raindrop_tools/detector_router.py).
+from raindrop_tools import detector_router as DR
+from raindrop_tools.imageio import read_rgb
 rem = RaindropRemover("models/compact-multiscale", threads=2)
 def feats(path):
-    bgr = working(cv2.imread(path)); h, w = bgr.shape[:2]
-    R, _, _ = rem.prepare(cv2.cvtColor(bgr, cv2.COLOR_BGR2RGB))
-    P = rem.detect(R)[0, 0][:h, :w]
-    f = [(P > 0.3).mean(), ((P > 0.05) & (P <= 0.3)).mean(), P.mean(), (P > 0.02).mean()]
-    for t in (0.05, 0.15, 0.3):
-        _, _, st, _ = cv2.connectedComponentsWithStats((P > t).astype(np.uint8), 8)
-        a = st[1:, cv2.CC_STAT_AREA]
-        f += [np.sum(a <= 30) / (h * w) * 1e4, np.median(a) if len(a) else 0.0]
-    return np.log1p(np.array(f, np.float64) * 100)
+    return DR.image_features(rem, read_rgb(path))
 X = np.array([feats(p) for s in sets for p in paths[s]])
 G = np.array([s for s in sets for _ in paths[s]])
 # Folds by background frame (the renders' variants of one frame, _vNN, in every rendered set: val-sparse
@@ -1457,12 +1452,8 @@ frames = np.array([("real/" if s.startswith("real") else "") + re.sub(r"_[vt]\d+
                    for s in sets for p in paths[s]])
 fold_of = {f: k % 5 for k, f in enumerate(np.random.default_rng(0).permutation(np.unique(frames)))}
 R = np.vstack([res[s] for s in sets]); Y = (R[:, 2] > R[:, 1]).astype(float); D = R[:, 2] - R[:, 1]
-def fit(X, y, w, l2=1e-2, iters=3000, lr=0.5):  # weighted logistic regression, by gradient descent
-    mu, sd = X.mean(0), X.std(0) + 1e-9
-    Xs = np.hstack([(X - mu) / sd, np.ones((len(X), 1))]); b = np.zeros(Xs.shape[1]); w = w / w.mean()
-    for _ in range(iters):
-        p = 1 / (1 + np.exp(-Xs @ b)); b -= lr * (Xs.T @ (w * (p - y)) / len(y) + l2 * np.r_[b[:-1], 0])
-    return lambda Xn: (np.hstack([(Xn - mu) / sd, np.ones((len(Xn), 1))]) @ b) > 0
+def fit(X, y, w):  # the router's predictor: weighted logistic regression (DR.fit)
+    return DR.fit(X, y, w, "compact-windshield").prefers_alternative
 print(f"{len(np.unique(frames))} frames or scenes in 5 folds")
 for scheme in ("5-fold", "leave-one-set-out"):
     folds = np.array([fold_of[f] for f in frames]) if scheme == "5-fold" else np.unique(G, return_inverse=True)[1]
@@ -1496,4 +1487,38 @@ PY
   for set in real-pairs-test test-sparse-- test-windshield-sharp-- test-size-512x288-- test-size-1280x720--; do
     $py -m raindrop_tools.score_outputs --data "$rd/default-$set/set" --outputs "$rd/routed-$set/out" --label "routed $set"
   done | tee -a "$rd/router.txt"
+fi
+
+if want routed; then
+  # RESULTS 4.34: the router built into raindrop-remove (models/compact-multiscale/ROUTER). The
+  # file refitted from the router section's outputs with the fitting tool (the same bytes as the
+  # committed one), the default scored on the test sets as users run it, the 44 photographs
+  # (outputs, masks and which detector each got), and what routing costs a process: windshield_2.jpg
+  # (routed) and attgan-fork_test_5.png (kept), 1280x720 and 720x480, alternated.
+  rd="$out/router" ro="$out/routed"
+  mkdir -p "$ro"
+  fit_sets=()
+  for s in real-pairs-train val-sparse-- val-windshield-sharp-- val-size-512x288-- val-size-1280x720--; do
+    fit_sets+=(--set "$rd/default-$s/set" "$rd/default-$s/out" "$rd/ws-$s/out")
+  done
+  $py -m raindrop_tools.detector_router fit --models models/compact-multiscale --alternative compact-windshield \
+    "${fit_sets[@]}" --out "$ro/ROUTER" | tee "$ro/fit.txt"
+  cmp "$ro/ROUTER" models/compact-multiscale/ROUTER && echo "refitted ROUTER: identical to the committed one" | tee -a "$ro/fit.txt"
+  size_sets val test-size
+  score_sets "$ro" cpp "-j 2" real-pairs:test:0 test-sparse:-:0 test-windshield-sharp:-:0 test-size-512x288:-:0 \
+    test-size-1280x720:-:0 | tee "$ro/test-scores.txt"
+  rm -rf "$ro/photos" && mkdir -p "$ro/photos" && build/raindrop-remove "$shared/real-raindrop" "$ro/photos/removed" --mask-dir "$ro/photos/masks" \
+    -q -j 2 --time --contact-sheet "$ro/photos-sheet.png" 2>"$ro/photos/time.txt"
+  grep -c "detector 'compact-windshield'" "$ro/photos/time.txt" | sed 's/$/ of 44 photographs to the windshield detector/' |
+    tee "$ro/photos.txt"
+  for i in $(seq 15); do
+    for photo in windshield_2.jpg attgan-fork_test_5.png; do
+      for m in "" "--no-router" "--model-config compact-windshield"; do
+        s=$(date +%s%N)
+        build/raindrop-remove "$shared/real-raindrop/$photo" "$ro/photo.png" -j 2 -q $m
+        echo "$photo ${m:-routed} $(( ($(date +%s%N) - s) / 1000000 ))"
+      done
+    done
+  done >"$ro/times.txt"
+  median_times "$ro/times.txt" | tee "$ro/times-summary.txt"
 fi

@@ -232,8 +232,14 @@ std::vector<cv::Mat> process(Remover& remover, const Job& job, const Settings& s
     if (s.options.surround_fill_area > 0)
       std::snprintf(filled, sizeof filled, ", %d small drop%s filled from the surround", r.surround_filled,
                     r.surround_filled == 1 ? "" : "s");
-    std::fprintf(stderr, "raindrop-remove: %s: %dx%d at scale %.3g%s%s, %d tile%s, mask %.2f%%: %s\n",
-                 job.input.string().c_str(), input.cols, input.rows, r.scale, filled, coarse, r.tiles_x * r.tiles_y,
+    // Which detector decided the mask, where the models have a router (--no-router: none).
+    char routed[160] = "";
+    if (r.router_score)
+      std::snprintf(routed, sizeof routed, ", detector %s (router z %+.2f)",
+                    r.alternative_detector ? ("'" + remover.router()->alternative + "'").c_str() : "the models' own",
+                    *r.router_score);
+    std::fprintf(stderr, "raindrop-remove: %s: %dx%d at scale %.3g%s%s%s, %d tile%s, mask %.2f%%: %s\n",
+                 job.input.string().c_str(), input.cols, input.rows, r.scale, routed, filled, coarse, r.tiles_x * r.tiles_y,
                  r.tiles_x * r.tiles_y == 1 ? "" : "s", coverage, r.times.describe().c_str());
   }
   if (!want_panels) return {};
@@ -283,6 +289,7 @@ int run(int argc, char** argv) {
   double surround_fill_mad = kSurroundFillMad;
   int threads = 0, tile = kDefaultTile, overlap = kDefaultOverlap;
   bool time = false, quiet = false, keep_going = false, no_large_drops = false, mirror_average = false;
+  bool no_router = false;
   Shard shard;
   app.add_option("input", input, "Input image, or folder of images")->required();
   app.add_option("output", output, "Output image (format from the extension), or folder")->required();
@@ -325,6 +332,10 @@ int run(int argc, char** argv) {
       ->excludes(large_opt)
       ->excludes(growth_opt)
       ->excludes(sharpness_opt);
+  app.add_flag("--no-router", no_router,
+               "Always use the models' own detector: ignore the ROUTER file in their folder, which sends each image "
+               "(at the automatic working scale) to the detector it suits, e.g. sharp windshield drops to "
+               "compact-windshield's");
   app.add_option("--surround-fill-area", surround_fill_area,
                  "Fill parts of the mask of at most this many pixels (at the scale that brings the long side to 512; "
                  "scaled with --scale) from their surroundings "
@@ -544,7 +555,7 @@ int run(int argc, char** argv) {
   std::optional<fs::path> large_dir;
   if (no_large_drops) large_dir = model_dir;
   if (!large_drop_models.empty()) large_dir = fs::path(large_drop_models);
-  Remover remover(model_dir, session, large_dir);
+  Remover remover(model_dir, session, large_dir, !no_router);
 
   Settings s;
   s.options.threshold = threshold;
@@ -558,6 +569,7 @@ int run(int argc, char** argv) {
   s.options.mirror_average = mirror_average;
   s.options.surround_fill_area = surround_fill_area;
   s.options.surround_fill_mad = surround_fill_mad;
+  s.options.route = !no_router;
   s.time = time;
   if (time) {
     const ModelInfo& mi = remover.info();
@@ -568,12 +580,14 @@ int run(int argc, char** argv) {
     const std::string large = no_large_drops                           ? "no coarse pass"
                               : remover.large_drop_model_dir().empty() ? "large drops by the same models"
                                                                        : "large drops by '" + remover.large_drop_model_dir().string() + "'";
+    const std::string routing = remover.router() ? "; router to the detector of '" + remover.alternative_detector_dir().string() + "'"
+                                                 : "";
     std::fprintf(stderr,
-                 "raindrop-remove: models '%s' (config %s, threshold %g, dilation %d, large-drop growth %g%s; %s), %s, "
+                 "raindrop-remove: models '%s' (config %s, threshold %g, dilation %d, large-drop growth %g%s; %s%s), %s, "
                  "%s, %s\n",
                  remover.model_dir().string().c_str(), mi.config.c_str(), threshold.value_or(mi.threshold),
                  dilation.value_or(mi.dilation), no_large_drops ? 0.0 : large_drop_growth.value_or(mi.large_drop_growth),
-                 sharpness_text, large.c_str(), ort_description().c_str(), to_string(device),
+                 sharpness_text, large.c_str(), routing.c_str(), ort_description().c_str(), to_string(device),
                  thread_text.c_str());
   }
 

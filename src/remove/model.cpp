@@ -174,24 +174,31 @@ Models::Models(const fs::path& dir, const SessionConfig& config, Graphs graphs) 
   // graph loads on a second thread beside the others (on two cores, a process that removes
   // drops from a 32x32 image took a median 68 ms instead of 75: docs/RESULTS.md 3.6). An error
   // from either is thrown here.
-  const bool detector = graphs == Graphs::all;
+  const bool detector = graphs != Graphs::reconstruction;
   auto load = [&dir](const char* name, const SessionConfig& c) {
     return std::make_unique<Network>(dir / (std::string(name) + ".onnx"), name, c);
   };
   // The environment first, on this thread: creating it sets the process environment
   // (turn_off_onnxruntime_telemetry), which must not race the loading thread's getenv calls.
   ort_env();
-  std::future<std::unique_ptr<Network>> first = std::async(std::launch::async, load, detector ? "rdn" : "rrn", branch);
-  try {
-    if (detector) rrn_ = load("rrn", branch);
-    rfn_ = load("rfn", config);
-  } catch (...) {
-    first.wait();  // it reads `dir` and `branch`: done before they go
-    throw;
+  if (graphs == Graphs::detection) {
+    // One graph, on all the threads: a router's alternative detector runs after the first
+    // detector and the 3RN beside it, when both cores are free (remover.cpp).
+    rdn_ = load("rdn", config);
+  } else {
+    std::future<std::unique_ptr<Network>> first = std::async(std::launch::async, load, detector ? "rdn" : "rrn", branch);
+    try {
+      if (detector) rrn_ = load("rrn", branch);
+      rfn_ = load("rfn", config);
+    } catch (...) {
+      first.wait();  // it reads `dir` and `branch`: done before they go
+      throw;
+    }
+    (detector ? rdn_ : rrn_) = first.get();
   }
-  (detector ? rdn_ : rrn_) = first.get();
-  std::vector<Network*> loaded{rrn_.get(), rfn_.get()};
-  if (rdn_) loaded.insert(loaded.begin(), rdn_.get());
+  std::vector<Network*> loaded;
+  for (Network* n : {rdn_.get(), rrn_.get(), rfn_.get()})
+    if (n) loaded.push_back(n);
   const std::string cfg = loaded.front()->metadata().at("raindrop.config");
   for (Network* n : loaded) {
     if (n->metadata().at("raindrop.config") != cfg)
@@ -247,10 +254,20 @@ Network& Models::rdn_beside() {
   return *rdn_;
 }
 
+Network& Models::rrn_beside() {
+  if (!rrn_) throw Error("model folder " + quoted(dir_) + " was loaded for detection only (no 3RN)");
+  return *rrn_;
+}
+
+Network& Models::rfn() {
+  if (!rfn_) throw Error("model folder " + quoted(dir_) + " was loaded for detection only (no RFN)");
+  return *rfn_;
+}
+
 void Models::make_all_thread_sessions() {
   std::call_once(all_threads_once_, [this] {
     if (rdn_) rdn_all_ = std::make_unique<Network>(rdn_->file(), "rdn", config_);
-    rrn_all_ = std::make_unique<Network>(rrn_->file(), "rrn", config_);
+    if (rrn_) rrn_all_ = std::make_unique<Network>(rrn_->file(), "rrn", config_);
   });
 }
 
@@ -262,7 +279,8 @@ Network& Models::rdn() {
 }
 
 Network& Models::rrn() {
-  if (branches_ == 1) return *rrn_;
+  if (branches_ == 1) return rrn_beside();
+  rrn_beside();  // throws without a 3RN
   make_all_thread_sessions();
   return *rrn_all_;
 }

@@ -45,13 +45,17 @@ std::optional<std::string> read_default_config(const fs::path& models_root) { re
 std::optional<fs::path> large_drop_companion(const fs::path& model_dir) {
   const auto name = read_first_line(model_dir / "LARGE_DROPS");
   if (!name) return std::nullopt;
-  check_config_name(*name);
+  return sibling_model_folder(model_dir, *name);
+}
+
+fs::path sibling_model_folder(const fs::path& model_dir, const std::string& name) {
+  check_config_name(name);
   // A sibling of the folder itself, however it was written ("models/compact/", ".").
   std::error_code ec;
   fs::path dir = fs::weakly_canonical(fs::absolute(model_dir, ec), ec);
   if (ec) dir = fs::absolute(model_dir).lexically_normal();
   if (!dir.has_filename()) dir = dir.parent_path();
-  return dir.parent_path() / *name;
+  return dir.parent_path() / name;
 }
 
 void check_model_files(const fs::path& dir, bool detector) {

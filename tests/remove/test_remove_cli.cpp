@@ -308,6 +308,17 @@ TEST_F(RemoveCli, InstalledProgramReadsAndWritesOtherFormats) {
   const auto out = read_image(tmp / "out.tif");
   ASSERT_TRUE(out);
   EXPECT_EQ(out->pixels.size(), cv::Size(61, 43));
+  // The installed default routes as the source tree's does: its ROUTER and the detector it
+  // names are installed with it.
+  const fs::path source_default = source_dir() / "models" / "compact-multiscale";
+  if (fs::exists(source_default / "ROUTER")) {
+    EXPECT_TRUE(fs::exists(tmp / "inst" / "share" / "raindrop" / "models" / "compact-multiscale" / "ROUTER"));
+    const RunResult routed = run_command(tmp / "inst" / "bin" / "raindrop-remove",
+                                         {"in.tif", "routed.png", "--model-config", "compact-multiscale", "--time"}, tmp.path());
+    ASSERT_EQ(routed.code, 0) << routed.describe();
+    EXPECT_NE(routed.err.find("share/raindrop/models/compact-windshield"), std::string::npos) << routed.describe();
+    EXPECT_NE(routed.err.find("router z "), std::string::npos) << routed.describe();
+  }
 }
 
 // --large-drop-sharpness reaches the coarse pass: on a finely textured (sharp) image that is one

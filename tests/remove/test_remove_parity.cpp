@@ -94,10 +94,11 @@ void check_parity(const TempDir& tmp, const fs::path& models, const std::vector<
   ASSERT_EQ(pr.code, 0) << pr.describe();
 
   // The reference is the contract's single pass; the coarse pass for large drops is ours alone
-  // (large_drops.h) and is tested on its own (test_large_drops.cpp). The fill of small drops
-  // from their surround is off in the reference unless asked for (Parity.SurroundFill asks).
+  // (large_drops.h) and is tested on its own (test_large_drops.cpp), as is the detector router
+  // (test_detector_router.cpp). The fill of small drops from their surround is off in the
+  // reference unless asked for (Parity.SurroundFill asks).
   std::vector<std::string> args = {in.string(), cpp.string(), "--models", models.string(), "--mask",
-                                   cpp_mask.string(), "-q", "--threads", "2", "--no-large-drops"};
+                                   cpp_mask.string(), "-q", "--threads", "2", "--no-large-drops", "--no-router"};
   if (std::find(extra.begin(), extra.end(), "--surround-fill-area") == extra.end()) {
     args.push_back("--surround-fill-area");
     args.push_back("0");

@@ -83,20 +83,22 @@ class Network {
 // networks on 2048x1024), from RDN and 3RN sessions made on the first tiled image.
 class Models {
  public:
-  // Which graphs to load: all three, or the 3RN and RFN only (models that reconstruct what
-  // another model's detector found: the large drops of large_drops.h). Without a detector,
-  // info() holds the config name and pad multiple only, and rdn()/rdn_beside() throw.
-  enum class Graphs { all, reconstruction };
+  // Which graphs to load: all three; the 3RN and RFN only (models that reconstruct what
+  // another model's detector found: the large drops of large_drops.h); or the RDN only (a
+  // detector that decides another model's mask: detector_router.h). Without a detector,
+  // info() holds the config name and pad multiple only, and rdn()/rdn_beside() throw; without
+  // the reconstruction, rrn()/rrn_beside()/rfn() throw.
+  enum class Graphs { all, reconstruction, detection };
   Models(const std::filesystem::path& dir, const SessionConfig& config, Graphs graphs = Graphs::all);
   // 2 when RDN and 3RN run side by side (CPU, two or more threads), else 1.
   int branches() const { return branches_; }
   // Sessions on branches() == 2's half of the threads (all of them when branches() == 1).
   Network& rdn_beside();
-  Network& rrn_beside() { return *rrn_; }
+  Network& rrn_beside();
   // Sessions on all the threads (thread-safe; made on first use when branches() == 2).
   Network& rdn();
   Network& rrn();
-  Network& rfn() { return *rfn_; }
+  Network& rfn();
   const ModelInfo& info() const { return info_; }
   const std::filesystem::path& dir() const { return dir_; }
 

@@ -40,6 +40,11 @@ std::optional<std::string> read_default_config(const std::filesystem::path& mode
 // not a plain folder name.
 std::optional<std::filesystem::path> large_drop_companion(const std::filesystem::path& model_dir);
 
+// The configuration `name` beside `model_dir` (however that folder was written: "models/compact/",
+// "."): how LARGE_DROPS and ROUTER (detector_router.h) name another folder. raindrop::Error for
+// a name that is not a plain folder name.
+std::filesystem::path sibling_model_folder(const std::filesystem::path& model_dir, const std::string& name);
+
 // Throws a one-line raindrop::Error unless `dir` holds rdn.onnx (unless !detector), rrn.onnx
 // and rfn.onnx (files only: their contract is checked when they load).
 void check_model_files(const std::filesystem::path& dir, bool detector = true);

@@ -29,6 +29,7 @@
 
 #include <opencv2/core.hpp>
 
+#include "raindrop/remove/detector_router.h"
 #include "raindrop/remove/large_drops.h"
 #include "raindrop/remove/model.h"
 #include "raindrop/remove/session.h"
@@ -68,6 +69,11 @@ struct RemoveOptions {
   // from that surround instead of by the 3RN (surround_fill.h); 0: the 3RN everywhere.
   int surround_fill_area = kSurroundFillArea;
   double surround_fill_mad = kSurroundFillMad;
+  // Where the models have a detector router (detector_router.h) and the networks see the image
+  // at the automatic working scale (no `scale`, or the one auto_working_scale gives: the scale
+  // the router was fitted at), it chooses which detector decides the mask, for both passes.
+  // Off: the models' own detector always. --threshold and --dilation apply to either detector.
+  bool route = true;
 };
 
 struct RemoveResult {
@@ -76,15 +82,21 @@ struct RemoveResult {
   cv::Mat rgb;    // CV_32FC3 in [0, 1], keep_float only: clamp(RFN(B)) cropped, RGB
   StageTimes times;
   int tiles_x = 1, tiles_y = 1;
-  double network_pixels = 0;  // pixels the detector ran on (sum of the tiles' padded areas)
-  // Pixels the 3RN and RFN ran on: network_pixels, less a coarse pass that found no large
-  // drop (it stops after its detector); a mirror-averaged pass counts twice (it runs them twice).
+  // Pixels the detectors ran on (sum of the tiles' padded areas; twice where the router sent
+  // the image to its alternative detector, which runs after the first).
+  double network_pixels = 0;
+  // Pixels the 3RN and RFN ran on: each pass's padded canvas, less a coarse pass that found no
+  // large drop (it stops after its detector); a mirror-averaged pass counts twice (it runs them twice).
   double reconstructed_pixels = 0;
   double scale = 1.0;         // the scale the networks saw the image at
   double coarse_scale = 0;    // the coarse pass's scale (large_drops.h); 0 when it did not run
   int large_drops = 0;        // drops the coarse pass found large and replaced
   int surround_filled = 0;    // parts of the mask filled from their surround (surround_fill.h)
   int sharp_large_drops = 0;  // regions it found large but left alone: too sharp (large_drops.h)
+  // The router's z for this image (detector_router.h); empty when it did not run.
+  std::optional<double> router_score;
+  // Whether the router's alternative detector decided the mask (z > 0).
+  bool alternative_detector = false;
 };
 
 class Remover {
@@ -95,8 +107,13 @@ class Remover {
   // LARGE_DROPS file names (model_paths.h), else of `model_dir` itself. Those models (their
   // rrn.onnx and rfn.onnx only) are loaded on the first large drop (a photograph without one
   // never pays for them); here their folder is only checked for the two files.
+  //
+  // With `use_router`, a ROUTER file in `model_dir` is read (a damaged one, or one naming a
+  // folder without rdn.onnx, is a raindrop::Error here) and its alternative detector is
+  // loaded on the first image the router sends to it; without, the file is not read at all.
   explicit Remover(const std::filesystem::path& model_dir, const SessionConfig& config = {},
-                   const std::optional<std::filesystem::path>& large_drop_dir = std::nullopt);
+                   const std::optional<std::filesystem::path>& large_drop_dir = std::nullopt,
+                   bool use_router = true);
 
   // image: CV_8U, CV_16U or CV_32F with 1-4 channels (see pixels.h), any size >= 1x1.
   // At a scale below 1 the networks run on a downscaled copy and the correction comes back
@@ -108,11 +125,22 @@ class Remover {
   const std::filesystem::path& model_dir() const { return models_.dir(); }
   // The folder whose 3RN and RFN reconstruct large drops; empty when it is model_dir().
   const std::filesystem::path& large_drop_model_dir() const { return large_drop_dir_; }
+  // The router read from the models' ROUTER file, and its alternative's folder (empty without).
+  const std::optional<DetectorRouter>& router() const { return router_; }
+  const std::filesystem::path& alternative_detector_dir() const { return alternative_dir_; }
 
  private:
   // Decides after detection whether reconstruction is worth running, from the dilated mask
   // (CV_8U 0/1, the image's size).
   using MaskGate = std::function<bool(const cv::Mat& mask)>;
+  // Which detector decides a pass's mask: `models` (nullptr: the main models), or, with `route`,
+  // the models it returns when given the main detector's probability map (CV_32F, the image's
+  // size): the main models (their map is thresholded as it is) or others (their detector runs
+  // on the same inputs). Threshold, dilation and growth are the deciding detector's.
+  struct Detection {
+    Models* models = nullptr;
+    std::function<Models*(const cv::Mat& prob)> route;
+  };
   // The pipeline at the image's own size (the networks see every pixel). With a `gate` that
   // returns false, it stops after detection: the result then holds the mask and the times
   // only (image empty), and the 3RN does not run beside the RDN (it might be wasted): a single
@@ -120,18 +148,23 @@ class Remover {
   // `reconstruction` names the models whose 3RN and RFN run after the detector (default: the
   // main ones); the detector is always the main models'. `growth`: the mask's dilation grows
   // with each drop (mask.h: dilate_mask_by_size), the coarse pass's only.
-  RemoveResult run_native(const cv::Mat& image, const RemoveOptions& options, const MaskGate& gate = {},
-                          const std::function<Models&()>& reconstruction = {}, double growth = 0);
+  RemoveResult run_native(const cv::Mat& image, const RemoveOptions& options, const MaskGate& gate,
+                          const std::function<Models&()>& reconstruction, double growth, const Detection& detection);
   // The models for the coarse pass's large drops (made on first use), or models_.
   Models& large_drop_models();
+  // The router's alternative detector (made on first use).
+  Models& alternative_detector();
   // Threads for the full-size composite: the session threads (0: one per core), on the CPU.
   int composite_workers() const;
   // The pipeline on `small` (the image area-averaged down to the working scale), brought back
   // to the image's size.
-  RemoveResult run_scaled(const cv::Mat& image, const cv::Mat& small, const RemoveOptions& options, double scale);
+  RemoveResult run_scaled(const cv::Mat& image, const cv::Mat& small, const RemoveOptions& options, double scale,
+                          const Detection& detection);
   // The coarse pass for large drops (large_drops.h) at a third of `scale`, on its own: it reads
   // only the image and `working` (the image as the working-scale pass sees it), so it can run
   // beside that pass. Its result goes over the working-scale result in composite_large_drops.
+  // `detector` gives the models whose detector decides its mask (it may wait for the working
+  // pass's router); empty: the main models.
   struct CoarsePass {
     double coarse_scale = 0;  // 0: the coarse copy was too small to run (coarse_pass_fits)
     RemoveResult result;      // rgb: the coarse copy's reconstruction (when large drops were found)
@@ -139,15 +172,34 @@ class Remover {
     int large_drops = 0, sharp_large_drops = 0;
     double convert_ms = 0;
   };
-  CoarsePass coarse_pass(const cv::Mat& image, const cv::Mat& working, const RemoveOptions& options, double scale);
+  CoarsePass coarse_pass(const cv::Mat& image, const cv::Mat& working, const RemoveOptions& options, double scale,
+                         const std::function<Models&()>& detector);
   void composite_large_drops(const CoarsePass& coarse, const RemoveOptions& options, RemoveResult& res);
+
+  // Companion models loaded on first use, once; a failed load is kept and rethrown for every
+  // later image (a folder run with --keep-going then reports it per image without loading the
+  // graphs again).
+  class LazyModels {
+   public:
+    LazyModels(Models::Graphs graphs, std::string role) : graphs_(graphs), role_(std::move(role)) {}
+    // The models of `dir`, loaded with `config`; they must accept `main`'s padded canvas.
+    Models& get(const std::filesystem::path& dir, const SessionConfig& config, const Models& main);
+
+   private:
+    Models::Graphs graphs_;
+    std::string role_;  // what they are, for the error message
+    std::unique_ptr<Models> models_;
+    std::mutex mutex_;
+    std::exception_ptr failure_;
+  };
 
   Models models_;
   SessionConfig config_;
   std::filesystem::path large_drop_dir_;  // empty: the main models reconstruct large drops too
-  std::unique_ptr<Models> large_models_;  // reconstruction only (no detector)
-  std::mutex large_mutex_;
-  std::exception_ptr large_failure_;       // a failed load, rethrown for every later image
+  LazyModels large_models_{Models::Graphs::reconstruction, "the large drops' models"};
+  std::optional<DetectorRouter> router_;
+  std::filesystem::path alternative_dir_;
+  LazyModels alternative_{Models::Graphs::detection, "the router's detector models"};
 };
 
 namespace detail {

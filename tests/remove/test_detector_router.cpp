@@ -1,0 +1,267 @@
+// The detector router (detector_router.h): its features against values counted by hand, its
+// file's refusals, and the Remover's routing: an image sent to the alternative comes out exactly
+// as the alternative's own models make it, one kept comes out exactly as without the router.
+#include <cmath>
+#include <fstream>
+
+#include <gtest/gtest.h>
+
+#include "raindrop/common/error.h"
+#include "raindrop/remove/detector_router.h"
+#include "raindrop/remove/remover.h"
+#include "remove_test_util.h"
+
+namespace removetest {
+namespace {
+
+using raindrop::Error;
+using raindrop::removal::DetectorRouter;
+using raindrop::removal::kRouterFeatures;
+using raindrop::removal::read_detector_router;
+using raindrop::removal::RemoveOptions;
+using raindrop::removal::Remover;
+using raindrop::removal::router_features;
+
+double lf(double f) { return std::log1p(100 * f); }
+
+// A 20x10 map: a 3x3 part at 0.9, a lone pixel at exactly 0.3f (not above 0.3, above 0.15), a
+// 5x8 part at 0.2, zeros elsewhere; parts apart.
+TEST(DetectorRouter, FeaturesOfAMapCountedByHand) {
+  cv::Mat p(10, 20, CV_32F, cv::Scalar(0));
+  p(cv::Rect(1, 1, 3, 3)).setTo(0.9f);
+  p.at<float>(8, 1) = 0.3f;
+  p(cv::Rect(10, 1, 8, 5)).setTo(0.2f);
+  const auto f = router_features(p);
+  const double n = 200;
+  const double want[kRouterFeatures] = {
+      lf(9 / n),  lf(41 / n), lf((9 * double(0.9f) + double(0.3f) + 40 * double(0.2f)) / n), lf(50 / n),
+      // t = 0.05: parts of 1, 9 and 40 px: two of at most 30 px per 10^4 px, median 9
+      lf(2 / n * 1e4), lf(9),
+      // t = 0.15: the same parts (0.2 and 0.3 are above 0.15)
+      lf(2 / n * 1e4), lf(9),
+      // t = 0.3: the 3x3 part alone
+      lf(1 / n * 1e4), lf(9)};
+  for (int i = 0; i < kRouterFeatures; ++i) EXPECT_NEAR(f[i], want[i], 1e-12) << "feature " << i;
+}
+
+TEST(DetectorRouter, PartsAreEightConnectedAndAnEvenCountTakesTheMiddleTwo) {
+  cv::Mat p(6, 6, CV_32F, cv::Scalar(0));
+  p.at<float>(0, 0) = p.at<float>(1, 1) = 0.9f;  // diagonal neighbours: one part of 2 px
+  p(cv::Rect(3, 3, 3, 3)).setTo(0.9f);           // 9 px
+  const auto f = router_features(p);
+  EXPECT_NEAR(f[8], lf(2 / 36.0 * 1e4), 1e-12);
+  EXPECT_NEAR(f[9], lf(5.5), 1e-12) << "the median of 2 and 9";
+  // No part at all: count and median 0.
+  const auto none = router_features(cv::Mat(4, 4, CV_32F, cv::Scalar(0)));
+  for (int i = 0; i < kRouterFeatures; ++i) EXPECT_EQ(none[i], 0.0) << i;
+}
+
+TEST(DetectorRouter, ScoreIsTheStandardisedLinearForm) {
+  DetectorRouter r;
+  r.bias = -0.5;
+  for (int i = 0; i < kRouterFeatures; ++i) {
+    r.mean[i] = i;
+    r.std[i] = 2.0;
+    r.weight[i] = i % 2 ? 1.0 : -1.0;
+  }
+  raindrop::removal::RouterFeatures f{};
+  for (int i = 0; i < kRouterFeatures; ++i) f[i] = i + (i == 3 ? 4.0 : 0.0);
+  EXPECT_DOUBLE_EQ(r.score(f), -0.5 + 4.0 / 2.0);
+}
+
+std::string numbers(int n, const std::string& v) {
+  std::string s;
+  for (int i = 0; i < n; ++i) s += " " + v;
+  return s;
+}
+
+std::string router_text(const std::string& alternative = "alt", double bias = 0.0, const std::string& std_value = "1") {
+  return "# a test router\nformat 1\nalternative " + alternative + "\nmean" + numbers(10, "0") + "\nstd" +
+         numbers(10, std_value) + "\nweight" + numbers(10, "0") + "\nbias " + std::to_string(bias) + "\n";
+}
+
+TEST(DetectorRouter, ReadsItsFileAndIsAbsentWithoutOne) {
+  TempDir tmp;
+  EXPECT_FALSE(read_detector_router(tmp.path()).has_value());
+  write_file(tmp / "ROUTER", router_text("compact-windshield", 1.25));
+  const auto r = read_detector_router(tmp.path());
+  ASSERT_TRUE(r.has_value());
+  EXPECT_EQ(r->alternative, "compact-windshield");
+  EXPECT_EQ(r->bias, 1.25);
+  EXPECT_EQ(r->std[9], 1.0);
+}
+
+TEST(DetectorRouter, RefusesADamagedFileNamingIt) {
+  const std::string good = router_text();
+  const std::vector<std::pair<std::string, std::string>> bad = {
+      {"", "format 1"},
+      {"format 2\nalternative alt\n", "format 1"},
+      {good + "bias 1\n", "given twice"},
+      {router_text("../up"), "sibling"},
+      {router_text("a b"), "sibling"},
+      {router_text("alt", 0, "0"), "positive"},
+      {router_text("alt", 0, "nan"), "not a finite number"},
+      {router_text("alt", 0, "1e999"), "not a finite number"},
+      {router_text("alt", 0, "1x"), "not a finite number"},
+      {"format 1\nalternative alt\nmean 0\n", "10 numbers"},
+  };
+  for (const auto& [text, why] : bad) {
+    TempDir tmp;
+    write_file(tmp / "ROUTER", text);
+    try {
+      read_detector_router(tmp.path());
+      ADD_FAILURE() << "accepted:\n" << text;
+    } catch (const Error& e) {
+      const std::string msg = e.what();
+      EXPECT_NE(msg.find(why), std::string::npos) << msg;
+      EXPECT_NE(msg.find((tmp / "ROUTER").string()), std::string::npos) << msg;
+      EXPECT_NE(msg.find("--no-router"), std::string::npos) << msg;
+      EXPECT_EQ(msg.find('\n'), std::string::npos);
+    }
+  }
+}
+
+// Model folders in tmp/models, linked to the committed ones: main (the default's graphs), alt
+// (compact-windshield's), and paper-real-coarse for their large drops.
+struct RoutedModels {
+  fs::path main, alt;
+};
+
+std::optional<RoutedModels> link_models(const TempDir& tmp) {
+  const fs::path src = source_dir() / "models";
+  for (const char* name : {"compact-multiscale", "compact-windshield", "paper-real-coarse"}) {
+    if (!fs::exists(src / name / "rrn.onnx")) return std::nullopt;
+  }
+  const fs::path root = tmp / "models";
+  for (const auto& [from, to] : std::vector<std::pair<std::string, std::string>>{
+           {"compact-multiscale", "main"}, {"compact-windshield", "alt"}, {"paper-real-coarse", "paper-real-coarse"}}) {
+    fs::create_directories(root / to);
+    for (const char* file : {"rdn.onnx", "rrn.onnx", "rfn.onnx", "LARGE_DROPS"}) {
+      if (fs::exists(src / from / file)) fs::create_symlink(src / from / file, root / to / file);
+    }
+  }
+  return RoutedModels{root / "main", root / "alt"};
+}
+
+TEST(DetectorRouter, ARoutedImageIsExactlyTheAlternativesAndAKeptOneExactlyTheMains) {
+  REQUIRE_RENDER();
+  TempDir tmp;
+  const auto m = link_models(tmp);
+  if (!m) GTEST_SKIP() << "the committed models are not in " << source_dir() / "models";
+  raindrop::removal::SessionConfig session;
+  session.threads = 2;
+  // Lens-cover drops on the demo street, scaled to 512x293: compact-windshield's detector finds
+  // a large drop there that the default's does not, so the coarse pass must follow the route too.
+  const RunResult rendered = run_command(RAINDROP_RENDER_BIN, {"--demo", "--size", "700x400", "--seed", "7", "--out", "set",
+                                                               "--scene", "lens-cover", "-q", "-j", "1"}, tmp.path());
+  ASSERT_EQ(rendered.code, 0) << rendered.describe();
+  const auto read = read_image(tmp / "set/rainy/street_v00.png");
+  ASSERT_TRUE(read.has_value());
+  const cv::Mat image = read->pixels;
+  const auto run = [&](const fs::path& dir, bool use_router, const RemoveOptions& opt = {}) {
+    Remover r(dir, session, std::nullopt, use_router);
+    return r.run(image, opt);
+  };
+  const auto alone = run(m->alt, false), main_alone = run(m->main, false);
+  ASSERT_GT(max_abs_diff(alone.image, main_alone.image), 0) << "the two detectors must differ here for the test to mean anything";
+  ASSERT_GT(alone.large_drops, main_alone.large_drops) << "and so must their coarse passes";
+
+  write_file(m->main / "ROUTER", router_text("alt", +1.0));  // z = 1 for every image: the alternative
+  const auto routed = run(m->main, true);
+  ASSERT_TRUE(routed.router_score.has_value());
+  EXPECT_EQ(*routed.router_score, 1.0);
+  EXPECT_TRUE(routed.alternative_detector);
+  EXPECT_EQ(max_abs_diff(routed.image, alone.image), 0);
+  EXPECT_EQ(max_abs_diff(routed.mask, alone.mask), 0);
+  // Both passes' detectors ran twice: on the 512x293 copy, padded to 512x294, and on the coarse
+  // pass's 171x98 copy, padded to 172x98 (it starts with the main detector, not waiting).
+  EXPECT_EQ(routed.network_pixels - main_alone.network_pixels, 512.0 * 294 + 172.0 * 98);
+
+  RemoveOptions off;
+  off.route = false;
+  const auto not_routed = run(m->main, true, off);
+  EXPECT_FALSE(not_routed.router_score.has_value());
+  EXPECT_EQ(max_abs_diff(not_routed.image, main_alone.image), 0);
+  RemoveOptions other_scale;
+  other_scale.scale = 0.5;  // not the automatic 512 / 700: the router was not fitted there
+  EXPECT_FALSE(run(m->main, true, other_scale).router_score.has_value());
+  RemoveOptions auto_scale;
+  auto_scale.scale = 512.0 / 700.0;  // the automatic scale, given: routed
+  EXPECT_TRUE(run(m->main, true, auto_scale).alternative_detector);
+
+  write_file(m->main / "ROUTER", router_text("alt", -1.0));  // z = -1: the main detector
+  const auto kept = run(m->main, true);
+  ASSERT_TRUE(kept.router_score.has_value());
+  EXPECT_FALSE(kept.alternative_detector);
+  EXPECT_EQ(max_abs_diff(kept.image, main_alone.image), 0);
+  EXPECT_EQ(max_abs_diff(kept.mask, main_alone.mask), 0);
+}
+
+TEST(DetectorRouter, AMissingAlternativeIsAnErrorUnlessTheRouterIsOff) {
+  TempDir tmp;
+  const auto m = link_models(tmp);
+  if (!m) GTEST_SKIP() << "the committed models are not in " << source_dir() / "models";
+  write_file(m->main / "ROUTER", router_text("nowhere"));
+  try {
+    Remover r(m->main);
+    ADD_FAILURE() << "a router naming a missing folder was accepted";
+  } catch (const Error& e) {
+    const std::string msg = e.what();
+    EXPECT_NE(msg.find("nowhere"), std::string::npos) << msg;
+    EXPECT_NE(msg.find("--no-router"), std::string::npos) << msg;
+  }
+  EXPECT_NO_THROW(Remover(m->main, {}, std::nullopt, false));
+  // The program says the same on one line, and runs with --no-router.
+  write_image(tmp / "in.png", make_image(64, 48, 1));
+  RunResult r = run_remove({(tmp / "in.png").string(), (tmp / "out.png").string(), "--models", m->main.string()}, tmp.path());
+  EXPECT_NE(r.code, 0);
+  EXPECT_NE(r.err.find("--no-router"), std::string::npos) << r.describe();
+  EXPECT_FALSE(fs::exists(tmp / "out.png"));
+  r = run_remove({(tmp / "in.png").string(), (tmp / "out.png").string(), "--models", m->main.string(), "--no-router"},
+                 tmp.path());
+  EXPECT_EQ(r.code, 0) << r.describe();
+}
+
+// raindrop-remove's router z (its --time line) against the fitting tool's (detector_router.py
+// decide) for the committed ROUTER, on the renderer's demo frames with three kinds of drops: one
+// definition of the features on both sides, so the router fitted in Python routes the same in C++.
+TEST(DetectorRouter, TheProgramScoresAsTheFittingTool) {
+  REQUIRE_RENDER();
+  if (python().empty()) GTEST_SKIP() << "RAINDROP_PYTHON is not set; the router's Python parity is not checked";
+  const fs::path models = source_dir() / "models" / "compact-multiscale";
+  if (!fs::exists(models / "ROUTER")) GTEST_SKIP() << "no " << models / "ROUTER";
+  TempDir tmp;
+  std::vector<std::string> images;
+  for (const std::string scene : {"lens-cover", "windshield-sharp", "paper"}) {
+    const RunResult r = run_command(RAINDROP_RENDER_BIN, {"--demo", "--size", "700x400", "--seed", "7", "--out", scene,
+                                                          "--scene", scene, "-q", "-j", "1"}, tmp.path());
+    ASSERT_EQ(r.code, 0) << r.describe();
+    for (const char* name : {"street_v00.png", "checkerboard_v00.png"}) images.push_back((tmp / scene / "rainy" / name).string());
+  }
+  std::vector<std::string> args = {"-m", "raindrop_tools.detector_router", "decide", "--models", models.string()};
+  args.insert(args.end(), images.begin(), images.end());
+  const RunResult py = run_command(python(), args, tmp.path());
+  ASSERT_EQ(py.code, 0) << py.describe();
+  std::istringstream lines(py.out);
+  int alternative = 0;
+  for (const auto& image : images) {
+    SCOPED_TRACE(image);
+    std::string path, detector;
+    double z_py = 0;
+    ASSERT_TRUE(lines >> path >> z_py >> detector);
+    EXPECT_EQ(path, image);
+    const RunResult cpp = run_remove({image, (tmp / "out.png").string(), "--time", "--threads", "2"}, tmp.path());
+    ASSERT_EQ(cpp.code, 0) << cpp.describe();
+    const auto at = cpp.err.find("router z ");
+    ASSERT_NE(at, std::string::npos) << cpp.describe();
+    const double z_cpp = std::stod(cpp.err.substr(at + 9));
+    EXPECT_NEAR(z_cpp, z_py, 0.011);  // printed to 2 decimals
+    EXPECT_EQ(z_cpp > 0, z_py > 0);
+    alternative += z_py > 0;
+  }
+  EXPECT_GT(alternative, 0) << "some of these frames should go to the alternative detector";
+  EXPECT_LT(alternative, static_cast<int>(images.size())) << "and some stay";
+}
+
+}  // namespace
+}  // namespace removetest
