@@ -49,6 +49,101 @@ for line in open(os.path.join(src, "manifest.jsonl")):
 PY
 }
 
+# router_analysis: RESULTS 4.33's analysis of the router (Python on stdin; RD: the router
+# section's folder, SHARED: the shared data; EXTRA_SETS: more validation sets, <name>-<split>
+# folders in RD beside the five, for a what-if fit that stops after the 5-fold table).
+router_analysis() {
+  $py - <<'PY'
+import glob, os, sys
+import cv2, numpy as np
+sys.path.insert(0, "tools")
+from raindrop_tools.reference import RaindropRemover
+rd = os.environ["RD"]
+sets = ["real-pairs-train", "val-sparse--", "val-windshield-sharp--", "val-size-512x288--", "val-size-1280x720--"]
+sets += os.environ.get("EXTRA_SETS", "").split()  # more validation sets (router_analysis's callers)
+def y(img): return 16 + (65.481 * img[..., 2] + 128.553 * img[..., 1] + 24.966 * img[..., 0]) / 255.0
+def psnr(a, b):
+    d = y(a.astype(np.float64)) - y(b.astype(np.float64)); return 10 * np.log10(255**2 / (d * d).mean())
+def first(pattern): return glob.glob(pattern)[0]
+def per_image(s):
+    """Set s's output names, rainy images and per-image PSNR-Y rows (input, default, windshield)."""
+    d0, d1 = f"{rd}/default-{s}", f"{rd}/ws-{s}"
+    names, rows, ps = sorted(os.listdir(f"{d0}/out")), [], []
+    for n in names:
+        stem = os.path.splitext(n)[0]
+        clean, rainy = cv2.imread(first(f"{d0}/set/clean/{stem}.*")), first(f"{d0}/set/rainy/{stem}.*")
+        rows.append((psnr(cv2.imread(rainy), clean), psnr(cv2.imread(f"{d0}/out/{n}"), clean),
+                     psnr(cv2.imread(f"{d1}/out/{n}"), clean)))
+        ps.append(rainy)
+    return names, ps, np.array(rows)
+res, paths = {}, {}
+for s in sets:
+    _, paths[s], r = per_image(s)
+    res[s] = r
+    print(f"{s:24s} n={len(r):3d} default {np.mean(r[:, 1] - r[:, 0]):+.2f} windshield {np.mean(r[:, 2] - r[:, 0]):+.2f} "
+          f"per-image best {np.mean(np.maximum(r[:, 1], r[:, 2]) - r[:, 0]):+.2f} windshield better on {np.mean(r[:, 2] > r[:, 1]):.0%}")
+def working(img, size=512):
+    h, w = img.shape[:2]; s = min(1.0, size / max(h, w))
+    return cv2.resize(img, (round(w * s), round(h * s)), interpolation=cv2.INTER_AREA) if s < 1 else img
+def blobs(path):
+    g = cv2.cvtColor(working(cv2.imread(path)), cv2.COLOR_BGR2GRAY).astype(np.float32)
+    a = np.abs(cv2.GaussianBlur(g, (0, 0), 1.0) - cv2.GaussianBlur(g, (0, 0), 2.5))
+    return ((a == cv2.dilate(a, np.ones((5, 5), np.uint8))) & (a > 6)).sum() / g.size * 1e5
+photos = sorted(glob.glob(os.path.join(os.environ["SHARED"], "real-raindrop", "*")))
+for k, ps in [*paths.items(), ("photographs", photos)]:
+    v = np.array([blobs(p) for p in ps])
+    print(f"small-blob density {k:24s} p10 {np.percentile(v, 10):6.0f} median {np.median(v):6.0f} p90 {np.percentile(v, 90):6.0f}")
+# The features and the fit are the shipped router's (tools/raindrop_tools/detector_router.py).
+from raindrop_tools import detector_router as DR
+from raindrop_tools.imageio import read_rgb
+rem = RaindropRemover("models/compact-multiscale", threads=2)
+def feats(path):
+    return DR.image_features(rem, read_rgb(path))
+X = np.array([feats(p) for s in sets for p in paths[s]])
+G = np.array([s for s in sets for _ in paths[s]])
+# Folds by background frame (the renders' variants of one frame, _vNN, in every rendered set: val-sparse
+# and windshield-sharp share the CamVid frames) or scene (a real pair's group, _tNN): never one
+# background on each side of a fold.
+import re
+frames = np.array([("real/" if s.startswith("real") else "") + re.sub(r"_[vt]\d+$", "", os.path.splitext(os.path.basename(p))[0])
+                   for s in sets for p in paths[s]])
+fold_of = {f: k % 5 for k, f in enumerate(np.random.default_rng(0).permutation(np.unique(frames)))}
+R = np.vstack([res[s] for s in sets]); Y = (R[:, 2] > R[:, 1]).astype(float); D = R[:, 2] - R[:, 1]
+def fit(X, y, w):  # the router's predictor: weighted logistic regression (DR.fit)
+    return DR.fit(X, y, w, "compact-windshield").prefers_alternative
+print(f"{len(np.unique(frames))} frames or scenes in 5 folds")
+for scheme in ("5-fold", "leave-one-set-out"):
+    folds = np.array([fold_of[f] for f in frames]) if scheme == "5-fold" else np.unique(G, return_inverse=True)[1]
+    pred = np.zeros(len(X), bool)
+    for k in np.unique(folds):
+        pred[folds == k] = fit(X[folds != k], Y[folds != k], np.abs(D[folds != k]) + 0.05)(X[folds == k])
+    for s in sets:
+        r, sel = res[s], G == s
+        print(f"router {scheme:17s} {s:24s} routed {np.mean(np.where(pred[sel], r[:, 2], r[:, 1]) - r[:, 0]):+.2f} "
+              f"(to windshield {pred[sel].mean():.0%})")
+if os.environ.get("EXTRA_SETS"):
+    sys.exit(0)  # a what-if fit: no photographs, no test sets
+router = fit(X, Y, np.abs(D) + 0.05)  # trained on every validation image
+pick = router(np.array([feats(p) for p in photos]))
+print(f"photographs to the windshield detector: {pick.sum()} of {len(photos)}; to the default:",
+      " ".join(os.path.basename(p) for p, k in zip(photos, pick) if not k))
+# Held out, once: the same router applied to the test sets.
+for s in ["real-pairs-test", "test-sparse--", "test-windshield-sharp--", "test-size-512x288--", "test-size-1280x720--"]:
+    names, ps, r = per_image(s)
+    pick = router(np.array([feats(p) for p in ps]))
+    routed = np.where(pick, r[:, 2], r[:, 1])
+    # The routed outputs as a folder, for score_outputs' own protocol below.
+    d0, d1 = f"{rd}/default-{s}", f"{rd}/ws-{s}"
+    os.makedirs(f"{rd}/routed-{s}/out", exist_ok=True)
+    for n, k in zip(names, pick):
+        dst = f"{rd}/routed-{s}/out/{n}"
+        if os.path.lexists(dst):
+            os.remove(dst)
+        os.symlink(os.path.abspath(f"{d1 if k else d0}/out/{n}"), dst)
+    print(f"test {s:24s} n={len(r):3d} gain default {np.mean(r[:, 1] - r[:, 0]):+.2f} windshield "
+          f"{np.mean(r[:, 2] - r[:, 0]):+.2f} routed {np.mean(routed - r[:, 0]):+.2f} (to windshield {pick.mean():.0%})")
+PY
+}
 # median_times FILE: FILE's lines are "KEY... MS" (timed runs); per key, in first-seen order, the
 # median, minimum and maximum of the milliseconds.
 median_times() {
@@ -1397,93 +1492,7 @@ if want router; then
     score_sets "$rd" "$m" "$flags" real-pairs:test:0 test-sparse:-:0 test-windshield-sharp:-:0 test-size-512x288:-:0 \
       test-size-1280x720:-:0
   done | tee "$rd/test-scores.txt"
-  RD="$rd" SHARED="$shared" $py - <<'PY' | tee "$rd/router.txt"
-import glob, os, sys
-import cv2, numpy as np
-sys.path.insert(0, "tools")
-from raindrop_tools.reference import RaindropRemover
-rd = os.environ["RD"]
-sets = ["real-pairs-train", "val-sparse--", "val-windshield-sharp--", "val-size-512x288--", "val-size-1280x720--"]
-def y(img): return 16 + (65.481 * img[..., 2] + 128.553 * img[..., 1] + 24.966 * img[..., 0]) / 255.0
-def psnr(a, b):
-    d = y(a.astype(np.float64)) - y(b.astype(np.float64)); return 10 * np.log10(255**2 / (d * d).mean())
-def first(pattern): return glob.glob(pattern)[0]
-def per_image(s):
-    """Set s's output names, rainy images and per-image PSNR-Y rows (input, default, windshield)."""
-    d0, d1 = f"{rd}/default-{s}", f"{rd}/ws-{s}"
-    names, rows, ps = sorted(os.listdir(f"{d0}/out")), [], []
-    for n in names:
-        stem = os.path.splitext(n)[0]
-        clean, rainy = cv2.imread(first(f"{d0}/set/clean/{stem}.*")), first(f"{d0}/set/rainy/{stem}.*")
-        rows.append((psnr(cv2.imread(rainy), clean), psnr(cv2.imread(f"{d0}/out/{n}"), clean),
-                     psnr(cv2.imread(f"{d1}/out/{n}"), clean)))
-        ps.append(rainy)
-    return names, ps, np.array(rows)
-res, paths = {}, {}
-for s in sets:
-    _, paths[s], r = per_image(s)
-    res[s] = r
-    print(f"{s:24s} n={len(r):3d} default {np.mean(r[:, 1] - r[:, 0]):+.2f} windshield {np.mean(r[:, 2] - r[:, 0]):+.2f} "
-          f"per-image best {np.mean(np.maximum(r[:, 1], r[:, 2]) - r[:, 0]):+.2f} windshield better on {np.mean(r[:, 2] > r[:, 1]):.0%}")
-def working(img, size=512):
-    h, w = img.shape[:2]; s = min(1.0, size / max(h, w))
-    return cv2.resize(img, (round(w * s), round(h * s)), interpolation=cv2.INTER_AREA) if s < 1 else img
-def blobs(path):
-    g = cv2.cvtColor(working(cv2.imread(path)), cv2.COLOR_BGR2GRAY).astype(np.float32)
-    a = np.abs(cv2.GaussianBlur(g, (0, 0), 1.0) - cv2.GaussianBlur(g, (0, 0), 2.5))
-    return ((a == cv2.dilate(a, np.ones((5, 5), np.uint8))) & (a > 6)).sum() / g.size * 1e5
-photos = sorted(glob.glob(os.path.join(os.environ["SHARED"], "real-raindrop", "*")))
-for k, ps in [*paths.items(), ("photographs", photos)]:
-    v = np.array([blobs(p) for p in ps])
-    print(f"small-blob density {k:24s} p10 {np.percentile(v, 10):6.0f} median {np.median(v):6.0f} p90 {np.percentile(v, 90):6.0f}")
-# The features and the fit are the shipped router's (tools/raindrop_tools/detector_router.py).
-from raindrop_tools import detector_router as DR
-from raindrop_tools.imageio import read_rgb
-rem = RaindropRemover("models/compact-multiscale", threads=2)
-def feats(path):
-    return DR.image_features(rem, read_rgb(path))
-X = np.array([feats(p) for s in sets for p in paths[s]])
-G = np.array([s for s in sets for _ in paths[s]])
-# Folds by background frame (the renders' variants of one frame, _vNN, in every rendered set: val-sparse
-# and windshield-sharp share the CamVid frames) or scene (a real pair's group, _tNN): never one
-# background on each side of a fold.
-import re
-frames = np.array([("real/" if s.startswith("real") else "") + re.sub(r"_[vt]\d+$", "", os.path.splitext(os.path.basename(p))[0])
-                   for s in sets for p in paths[s]])
-fold_of = {f: k % 5 for k, f in enumerate(np.random.default_rng(0).permutation(np.unique(frames)))}
-R = np.vstack([res[s] for s in sets]); Y = (R[:, 2] > R[:, 1]).astype(float); D = R[:, 2] - R[:, 1]
-def fit(X, y, w):  # the router's predictor: weighted logistic regression (DR.fit)
-    return DR.fit(X, y, w, "compact-windshield").prefers_alternative
-print(f"{len(np.unique(frames))} frames or scenes in 5 folds")
-for scheme in ("5-fold", "leave-one-set-out"):
-    folds = np.array([fold_of[f] for f in frames]) if scheme == "5-fold" else np.unique(G, return_inverse=True)[1]
-    pred = np.zeros(len(X), bool)
-    for k in np.unique(folds):
-        pred[folds == k] = fit(X[folds != k], Y[folds != k], np.abs(D[folds != k]) + 0.05)(X[folds == k])
-    for s in sets:
-        r, sel = res[s], G == s
-        print(f"router {scheme:17s} {s:24s} routed {np.mean(np.where(pred[sel], r[:, 2], r[:, 1]) - r[:, 0]):+.2f} "
-              f"(to windshield {pred[sel].mean():.0%})")
-router = fit(X, Y, np.abs(D) + 0.05)  # trained on every validation image
-pick = router(np.array([feats(p) for p in photos]))
-print(f"photographs to the windshield detector: {pick.sum()} of {len(photos)}; to the default:",
-      " ".join(os.path.basename(p) for p, k in zip(photos, pick) if not k))
-# Held out, once: the same router applied to the test sets.
-for s in ["real-pairs-test", "test-sparse--", "test-windshield-sharp--", "test-size-512x288--", "test-size-1280x720--"]:
-    names, ps, r = per_image(s)
-    pick = router(np.array([feats(p) for p in ps]))
-    routed = np.where(pick, r[:, 2], r[:, 1])
-    # The routed outputs as a folder, for score_outputs' own protocol below.
-    d0, d1 = f"{rd}/default-{s}", f"{rd}/ws-{s}"
-    os.makedirs(f"{rd}/routed-{s}/out", exist_ok=True)
-    for n, k in zip(names, pick):
-        dst = f"{rd}/routed-{s}/out/{n}"
-        if os.path.lexists(dst):
-            os.remove(dst)
-        os.symlink(os.path.abspath(f"{d1 if k else d0}/out/{n}"), dst)
-    print(f"test {s:24s} n={len(r):3d} gain default {np.mean(r[:, 1] - r[:, 0]):+.2f} windshield "
-          f"{np.mean(r[:, 2] - r[:, 0]):+.2f} routed {np.mean(routed - r[:, 0]):+.2f} (to windshield {pick.mean():.0%})")
-PY
+  RD="$rd" SHARED="$shared" router_analysis | tee "$rd/router.txt"
   for set in real-pairs-test test-sparse-- test-windshield-sharp-- test-size-512x288-- test-size-1280x720--; do
     $py -m raindrop_tools.score_outputs --data "$rd/default-$set/set" --outputs "$rd/routed-$set/out" --label "routed $set"
   done | tee -a "$rd/router.txt"
@@ -1521,4 +1530,23 @@ if want routed; then
     done
   done >"$ro/times.txt"
   median_times "$ro/times.txt" | tee "$ro/times-summary.txt"
+  # Kinds the router was not fitted on: windshield-day and lens-cover renders over the CamVid val
+  # frames, three ways; then the what-if fit with them among the validation sets.
+  link_cv100
+  for p in windshield-day lens-cover; do
+    [[ -f data/val-$p/manifest.jsonl ]] || build/raindrop-render -i "$out/cv100" -o "data/val-$p" --scene "$p" \
+      --size 512x256 --seed 11 -q
+  done
+  for m in default ws routed; do
+    case $m in
+      default) flags="-j 2 --no-router" ;;
+      ws) flags="-j 2 --no-router --model-config compact-windshield" ;;
+      routed) flags="-j 2" ;;
+    esac
+    score_sets "$out/routed-kinds" "$m" "$flags" val-windshield-day:-:0 val-lens-cover:-:0
+  done | tee "$ro/kinds.txt"
+  for m in default ws; do
+    for s in val-windshield-day-- val-lens-cover--; do ln -sfn "../routed-kinds/$m-$s" "$rd/$m-$s"; done
+  done
+  RD="$rd" SHARED="$shared" EXTRA_SETS="val-windshield-day-- val-lens-cover--" router_analysis | tee -a "$ro/kinds.txt"
 fi
