@@ -72,11 +72,22 @@ std::string fmt(double v, const char* f = "%.1f") {
   return buf;
 }
 
+// The raindrop-remove command line for `input` (paths quoted for the shell).
+std::string remove_command(const fs::path& program, const fs::path& model_dir, const fs::path& input,
+                           const fs::path& output, int threads, const std::string& extra = "") {
+  const auto q = [](const fs::path& p) {
+    std::string out = "'";
+    for (const char c : p.string()) out += c == '\'' ? std::string("'\\''") : std::string(1, c);
+    return out + "'";
+  };
+  return q(program) + " " + q(input) + " " + q(output) + " --models " + q(model_dir) + " -j " + std::to_string(threads) +
+         (extra.empty() ? "" : " " + extra);
+}
+
 // One raindrop-remove process on `input`, from fork to exit, in ms; -1 if it failed.
 double time_process(const fs::path& program, const fs::path& model_dir, const fs::path& input, const fs::path& output,
-                    int threads) {
-  const std::string cmd = "'" + program.string() + "' '" + input.string() + "' '" + output.string() + "' --models '" +
-                          model_dir.string() + "' -q -j " + std::to_string(threads);
+                    int threads, const std::string& extra = "") {
+  const std::string cmd = remove_command(program, model_dir, input, output, threads, extra) + " -q";
   const double t0 = bench::now_ms();
   const int rc = std::system(cmd.c_str());
   const double ms = bench::now_ms() - t0;
@@ -92,6 +103,7 @@ struct RemoveBenchOptions {
   std::vector<std::string> size_texts{"512x256", "2048x1024"};
   std::optional<double> scale;
   std::vector<std::string> process_sizes{"1280x720"};
+  std::vector<std::string> process_images;  // photographs for the process table, routed and not
 };
 
 int run_remove_bench(RemoveBenchOptions o);
@@ -122,6 +134,11 @@ std::function<int()> add_remove_bench(CLI::App& parent) {
                   "repeatable: one row per size and model folder; the first also for the coarse-pass and "
                   "--mirror-average tables; empty: none)")
       ->capture_default_str()->check(cli::width_height(1, 16384, /*allow_empty=*/true));
+  app->add_option("--process-image", o->process_images,
+                  "A photograph (any format raindrop-remove reads) for a process-start-to-file table of its own, with "
+                  "the models' detector router and without it (--no-router) in alternate runs, naming the detector the "
+                  "router chose (repeatable)")
+      ->check(CLI::ExistingFile);
   return [o] { return run_remove_bench(*o); };
 }
 
@@ -180,6 +197,68 @@ void print_option_cost(const std::vector<std::string>& model_dirs, cv::Size size
                 << " | " << r_on.large_drops << " |\n";
     }
   }
+}
+
+// The detector raindrop-remove's router chose for `input` (from its --time line): "routed to
+// NAME", "kept", "no router" (the models have none), or "failed".
+std::string router_choice(const fs::path& program, const fs::path& model_dir, const fs::path& input, const fs::path& output,
+                          int threads) {
+  FILE* pipe = popen((remove_command(program, model_dir, input, output, threads, "--time") + " 2>&1").c_str(), "r");
+  if (!pipe) return "failed";
+  std::string text;
+  char buf[4096];
+  while (std::fgets(buf, sizeof buf, pipe)) text += buf;
+  if (pclose(pipe) != 0) return "failed";
+  const auto at = text.find(", detector ");
+  if (at == std::string::npos) return "no router";
+  if (text.compare(at, 26, ", detector the models' own") == 0) return "kept";
+  const auto name = text.find('\'', at), end = text.find('\'', name + 1);
+  return "routed to " + text.substr(name + 1, end - name - 1);
+}
+
+// Process start to file written on the user's photographs, with the router and without it
+// (--no-router), the two alternated run by run so that load changes hit both alike.
+void print_photograph_times(const std::vector<std::string>& model_dirs, const std::vector<std::string>& images,
+                            int threads, int runs) {
+  std::error_code ec;
+  const fs::path program = fs::read_symlink("/proc/self/exe", ec).parent_path() / "raindrop-remove";
+  const fs::path tmp = bench::make_scratch_dir();
+  std::cout << "\n## raindrop-remove: process start to file written, photographs\n\n"
+            << "`raindrop-remove PHOTO out.png --models DIR -j " << threads << "` (each --process-image), with the "
+            << "detector router and with --no-router in alternate runs; \"first\": each's first process, \"warm\": median "
+            << "of the next " << runs << ". \"router\": what the router chose (docs/RESULTS.md 4.34).\n\n"
+            << "| models | photograph | size (WxH) | router | first (ms) | warm median (ms) | --no-router first (ms) | "
+               "--no-router warm median (ms) | routed / --no-router |\n|---|---|---|---|---|---|---|---|---|\n";
+  for (const auto& image : images) {
+    std::string size = "?";
+    try {
+      const ImageHeader header = read_header(image);
+      size = std::to_string(header.width) + "x" + std::to_string(header.height);
+    } catch (const Error&) {
+      // raindrop-remove's own run below says what is wrong with the file
+    }
+    for (const auto& dir : model_dirs) {
+      const fs::path out = tmp / "out.png";
+      const std::string choice = router_choice(program, dir, image, out, threads);
+      std::vector<double> on, off;
+      for (int i = 0; i <= runs; ++i) {
+        on.push_back(time_process(program, dir, image, out, threads));
+        off.push_back(time_process(program, dir, image, out, threads, "--no-router"));
+      }
+      const auto failed = [](const std::vector<double>& v) { return std::any_of(v.begin(), v.end(), [](double t) { return t < 0; }); };
+      std::cout << "| " << fs::path(dir).filename().string() << " | " << fs::path(image).filename().string() << " | " << size
+                << " | " << choice << " | ";
+      if (choice == "failed" || failed(on) || failed(off)) {
+        std::cout << "failed (" << program.string() << ") | | | | |\n";
+        continue;
+      }
+      const double on_warm = bench::median(std::vector<double>(on.begin() + 1, on.end()));
+      const double off_warm = bench::median(std::vector<double>(off.begin() + 1, off.end()));
+      std::cout << fmt(on.front()) << " | " << fmt(on_warm) << " | " << fmt(off.front()) << " | " << fmt(off_warm) << " | "
+                << fmt(on_warm / off_warm, "%.2f") << " |\n";
+    }
+  }
+  fs::remove_all(tmp, ec);
 }
 
 int run_remove_bench(RemoveBenchOptions o) {
@@ -320,6 +399,7 @@ int run_remove_bench(RemoveBenchOptions o) {
     }
     fs::remove_all(tmp, ec);
   }
+  if (!o.process_images.empty()) print_photograph_times(model_dirs, o.process_images, thread_counts.back(), runs);
   if (process) {  // the first --process-size image, the last --threads value, the same graph optimisation
     session.threads = thread_counts.back();
     // The coarse pass for large drops (large_drops.h): off is --no-large-drops.
