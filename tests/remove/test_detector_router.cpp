@@ -222,6 +222,36 @@ TEST(DetectorRouter, AMissingAlternativeIsAnErrorUnlessTheRouterIsOff) {
   EXPECT_EQ(r.code, 0) << r.describe();
 }
 
+// An alternative detector that fails to load fails the image it was chosen for, on one line, and
+// the coarse pass waiting beside for the choice stops too (no hang); every later routed image
+// gets the same error without another load.
+TEST(DetectorRouter, AnAlternativeThatFailsToLoadFailsTheImageNotTheProcess) {
+  TempDir tmp;
+  const auto m = link_models(tmp);
+  if (!m) GTEST_SKIP() << "the committed models are not in " << source_dir() / "models";
+  const fs::path bad = tmp / "models" / "bad";
+  fs::create_directories(bad);
+  write_file(bad / "rdn.onnx", "not a graph");
+  write_file(bad / "rrn.onnx", "");
+  write_file(bad / "rfn.onnx", "");
+  write_file(m->main / "ROUTER", router_text("bad", +1.0));
+  raindrop::removal::SessionConfig session;
+  session.threads = 2;  // the coarse pass runs beside the working pass
+  Remover remover(m->main, session);
+  const cv::Mat image = make_image(700, 400, 2);
+  for (int i = 0; i < 2; ++i) {
+    try {
+      remover.run(image);
+      ADD_FAILURE() << "a routed image ran without its detector";
+    } catch (const Error& e) {
+      EXPECT_NE(std::string(e.what()).find("rdn.onnx"), std::string::npos) << e.what();
+    }
+  }
+  RemoveOptions off;
+  off.route = false;
+  EXPECT_NO_THROW(remover.run(image, off)) << "the main models still work";
+}
+
 // raindrop-remove's router z (its --time line) against the fitting tool's (detector_router.py
 // decide) for the committed ROUTER, on the renderer's demo frames with three kinds of drops: one
 // definition of the features on both sides, so the router fitted in Python routes the same in C++.
