@@ -272,7 +272,8 @@ void Models::make_all_thread_sessions() {
 }
 
 Network& Models::rdn() {
-  if (branches_ == 1) return rdn_beside();
+  // A detector loaded alone already runs on all the threads (the constructor says why).
+  if (branches_ == 1 || !rrn_) return rdn_beside();
   rdn_beside();  // throws without a detector
   make_all_thread_sessions();
   return *rdn_all_;

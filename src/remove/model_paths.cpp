@@ -58,13 +58,17 @@ fs::path sibling_model_folder(const fs::path& model_dir, const std::string& name
   return dir.parent_path() / name;
 }
 
-void check_model_files(const fs::path& dir, bool detector) {
+void check_model_files(const fs::path& dir, bool detector, bool reconstruction) {
   std::error_code ec;
-  for (const char* file : {"rdn.onnx", "rrn.onnx", "rfn.onnx"}) {
-    if (!detector && std::string(file) == "rdn.onnx") continue;
+  std::vector<std::string> needed;
+  if (detector) needed.push_back("rdn.onnx");
+  if (reconstruction) needed.insert(needed.end(), {"rrn.onnx", "rfn.onnx"});
+  std::string list;
+  for (size_t i = 0; i < needed.size(); ++i)
+    list += (i == 0 ? "" : i + 1 == needed.size() ? " and " : ", ") + needed[i];
+  for (const std::string& file : needed) {
     if (!fs::is_regular_file(dir / file, ec))
-      throw Error("model folder '" + dir.string() + "' has no " + file + " (it needs " +
-                  (detector ? "rdn.onnx, " : "") + "rrn.onnx and rfn.onnx)");
+      throw Error("model folder '" + dir.string() + "' has no " + file + " (it needs " + list + ")");
   }
 }
 

@@ -1,5 +1,6 @@
 #include "raindrop/remove/remover.h"
 
+#include <chrono>
 #include <cstring>
 #include <cmath>
 #include <exception>
@@ -124,6 +125,8 @@ class RouteDecision {
     std::call_once(once_, [&] { promise_.set_exception(e); });
   }
   Models& wait() const { return *chosen_.get(); }
+  // Whether the choice (or the failure) is there already: wait() would not block.
+  bool ready() const { return chosen_.wait_for(std::chrono::seconds(0)) == std::future_status::ready; }
 
  private:
   std::promise<Models*> promise_;
@@ -156,7 +159,7 @@ Remover::Remover(const std::filesystem::path& model_dir, const SessionConfig& co
     if (router_) {
       alternative_dir_ = sibling_model_folder(model_dir, router_->alternative);
       try {
-        check_model_files(alternative_dir_, /*detector=*/true);
+        check_model_files(alternative_dir_, /*detector=*/true, /*reconstruction=*/false);
       } catch (const Error& e) {
         throw Error("'" + (model_dir / "ROUTER").string() + "' names the detector of '" + router_->alternative +
                     "', but: " + e.what() + " (run without the router: --no-router)");
@@ -186,7 +189,12 @@ Models& Remover::LazyModels::get(const std::filesystem::path& dir, const Session
   if (failure_) std::rethrow_exception(failure_);
   if (!models_) {
     try {
-      auto loaded = std::make_unique<Models>(dir, config, graphs_);
+      std::unique_ptr<Models> loaded;
+      try {
+        loaded = std::make_unique<Models>(dir, config, graphs_);
+      } catch (const Error& e) {
+        throw Error(role_ + ": " + e.what() + " (" + hint_ + ")");  // which models, and the way round them
+      }
       // They run on a canvas padded for the main models.
       if (main.info().pad_multiple % loaded->info().pad_multiple != 0)
         throw Error(role_ + " '" + dir.string() + "' take sizes padded to a multiple of " +
@@ -259,8 +267,11 @@ RemoveResult Remover::run(const cv::Mat& image, const RemoveOptions& opt) {
     }
   };
   CoarsePass coarse;
-  std::function<Models&()> coarse_detector;
-  if (route) coarse_detector = [&decision]() -> Models& { return decision.wait(); };
+  CoarseDetector coarse_detector;
+  if (route) {
+    coarse_detector.chosen = [&decision]() -> Models& { return decision.wait(); };
+    coarse_detector.known = [&decision] { return decision.ready(); };
+  }
   const auto large_drop_pass = [&] { coarse = coarse_pass(image, working, opt, scale, coarse_detector); };
   if (opt.large_drops && models_.branches() > 1) {
     // Side by side: the coarse pass reads only the input, and its detector alone (what most
@@ -382,7 +393,7 @@ RemoveResult Remover::run_scaled(const cv::Mat& image, const cv::Mat& small, con
 }
 
 Remover::CoarsePass Remover::coarse_pass(const cv::Mat& image, const cv::Mat& working, const RemoveOptions& opt,
-                                         double scale, const std::function<Models&()>& detector) {
+                                         double scale, const CoarseDetector& detector) {
   CoarsePass cp;
   const double coarse_scale = scale / kLargeDropScaleDivisor;
   const cv::Size coarse = scaled_size(image.size(), coarse_scale);
@@ -417,7 +428,7 @@ Remover::CoarsePass Remover::coarse_pass(const cv::Mat& image, const cv::Mat& wo
     // Most photographs have no large drop: the coarse copy's detector decides before its 3RN
     // and RFN run, which are about two thirds of its cost.
     const MaskGate only_with_large_drops = [&](const cv::Mat& mask) {
-      if (speculative && &detector() != &chosen) {
+      if (speculative && &detector.chosen() != &chosen) {
         rerun = true;
         return false;
       }
@@ -433,11 +444,18 @@ Remover::CoarsePass Remover::coarse_pass(const cv::Mat& image, const cv::Mat& wo
     return run_native(coarse_native, sub, only_with_large_drops,
                       [this]() -> Models& { return large_drop_models(); }, growth, detection);
   };
-  cp.result = run_with(models_, static_cast<bool>(detector));
+  if (!detector.chosen) {
+    cp.result = run_with(models_, false);
+  } else if (detector.known()) {
+    // Decided already (one thread: the working pass ran first): no speculation.
+    cp.result = run_with(detector.chosen(), false);
+  } else {
+    cp.result = run_with(models_, true);
+  }
   if (rerun) {
     const StageTimes first = cp.result.times;  // the main detector's run counts too
     const double first_pixels = cp.result.network_pixels;
-    cp.result = run_with(detector(), false);
+    cp.result = run_with(detector.chosen(), false);
     cp.result.times += first;
     cp.result.network_pixels += first_pixels;
   }

@@ -189,6 +189,14 @@ TEST(DetectorRouter, ARoutedImageIsExactlyTheAlternativesAndAKeptOneExactlyTheMa
   auto_scale.scale = 512.0 / 700.0;  // the automatic scale, given: routed
   EXPECT_TRUE(run(m->main, true, auto_scale).alternative_detector);
 
+  // On one thread the working pass decides before the coarse pass starts, which then runs the
+  // chosen detector only.
+  session.threads = 1;
+  const auto alone_1 = run(m->alt, false), routed_1 = run(m->main, true), main_1 = run(m->main, false);
+  EXPECT_EQ(max_abs_diff(routed_1.image, alone_1.image), 0);
+  EXPECT_EQ(routed_1.network_pixels - main_1.network_pixels, 512.0 * 294) << "the coarse pass's detector ran once";
+  session.threads = 2;
+
   write_file(m->main / "ROUTER", router_text("alt", -1.0));  // z = -1: the main detector
   const auto kept = run(m->main, true);
   ASSERT_TRUE(kept.router_score.has_value());
@@ -231,9 +239,7 @@ TEST(DetectorRouter, AnAlternativeThatFailsToLoadFailsTheImageNotTheProcess) {
   if (!m) GTEST_SKIP() << "the committed models are not in " << source_dir() / "models";
   const fs::path bad = tmp / "models" / "bad";
   fs::create_directories(bad);
-  write_file(bad / "rdn.onnx", "not a graph");
-  write_file(bad / "rrn.onnx", "");
-  write_file(bad / "rfn.onnx", "");
+  write_file(bad / "rdn.onnx", "not a graph");  // a detector's folder needs no 3RN or RFN
   write_file(m->main / "ROUTER", router_text("bad", +1.0));
   raindrop::removal::SessionConfig session;
   session.threads = 2;  // the coarse pass runs beside the working pass
@@ -244,7 +250,10 @@ TEST(DetectorRouter, AnAlternativeThatFailsToLoadFailsTheImageNotTheProcess) {
       remover.run(image);
       ADD_FAILURE() << "a routed image ran without its detector";
     } catch (const Error& e) {
-      EXPECT_NE(std::string(e.what()).find("rdn.onnx"), std::string::npos) << e.what();
+      const std::string msg = e.what();
+      EXPECT_NE(msg.find("the router's detector models: "), std::string::npos) << msg;
+      EXPECT_NE(msg.find("rdn.onnx"), std::string::npos) << msg;
+      EXPECT_NE(msg.find("--no-router"), std::string::npos) << msg;
     }
   }
   RemoveOptions off;

@@ -46,8 +46,8 @@ std::optional<std::filesystem::path> large_drop_companion(const std::filesystem:
 std::filesystem::path sibling_model_folder(const std::filesystem::path& model_dir, const std::string& name);
 
 // Throws a one-line raindrop::Error unless `dir` holds rdn.onnx (unless !detector), rrn.onnx
-// and rfn.onnx (files only: their contract is checked when they load).
-void check_model_files(const std::filesystem::path& dir, bool detector = true);
+// and rfn.onnx (unless !reconstruction) (files only: their contract is checked when they load).
+void check_model_files(const std::filesystem::path& dir, bool detector = true, bool reconstruction = true);
 
 // Whether two paths name the same folder (after resolving links and dots).
 bool same_folder(const std::filesystem::path& a, const std::filesystem::path& b);

@@ -165,6 +165,10 @@ class Remover {
   // beside that pass. Its result goes over the working-scale result in composite_large_drops.
   // `detector` gives the models whose detector decides its mask (it may wait for the working
   // pass's router); empty: the main models.
+  struct CoarseDetector {
+    std::function<Models&()> chosen;  // blocks until the router has chosen
+    std::function<bool()> known;      // whether it has (chosen() would not block)
+  };
   struct CoarsePass {
     double coarse_scale = 0;  // 0: the coarse copy was too small to run (coarse_pass_fits)
     RemoveResult result;      // rgb: the coarse copy's reconstruction (when large drops were found)
@@ -173,7 +177,7 @@ class Remover {
     double convert_ms = 0;
   };
   CoarsePass coarse_pass(const cv::Mat& image, const cv::Mat& working, const RemoveOptions& options, double scale,
-                         const std::function<Models&()>& detector);
+                         const CoarseDetector& detector);
   void composite_large_drops(const CoarsePass& coarse, const RemoveOptions& options, RemoveResult& res);
 
   // Companion models loaded on first use, once; a failed load is kept and rethrown for every
@@ -181,13 +185,15 @@ class Remover {
   // graphs again).
   class LazyModels {
    public:
-    LazyModels(Models::Graphs graphs, std::string role) : graphs_(graphs), role_(std::move(role)) {}
+    LazyModels(Models::Graphs graphs, std::string role, std::string hint)
+        : graphs_(graphs), role_(std::move(role)), hint_(std::move(hint)) {}
     // The models of `dir`, loaded with `config`; they must accept `main`'s padded canvas.
     Models& get(const std::filesystem::path& dir, const SessionConfig& config, const Models& main);
 
    private:
     Models::Graphs graphs_;
     std::string role_;  // what they are, for the error message
+    std::string hint_;  // the options that do without them, for the error message
     std::unique_ptr<Models> models_;
     std::mutex mutex_;
     std::exception_ptr failure_;
@@ -196,10 +202,11 @@ class Remover {
   Models models_;
   SessionConfig config_;
   std::filesystem::path large_drop_dir_;  // empty: the main models reconstruct large drops too
-  LazyModels large_models_{Models::Graphs::reconstruction, "the large drops' models"};
+  LazyModels large_models_{Models::Graphs::reconstruction, "the large drops' models",
+                           "choose others with --large-drop-models DIR, or run without the coarse pass: --no-large-drops"};
   std::optional<DetectorRouter> router_;
   std::filesystem::path alternative_dir_;
-  LazyModels alternative_{Models::Graphs::detection, "the router's detector models"};
+  LazyModels alternative_{Models::Graphs::detection, "the router's detector models", "run without the router: --no-router"};
 };
 
 namespace detail {
