@@ -15,6 +15,12 @@ and writes to ``--out``:
 
 No torch needed. The RDN and 3RN outputs are computed once per image and shared by the rows;
 each row's time is the sum of the steps it uses.
+
+This scores the networks as the contract's single pass runs them: at the images' own size, with
+the folder's own detector. What ``raindrop-remove`` adds around them (the working scale, the
+coarse pass for large drops, the fill of small drops, the detector router of a folder's
+``ROUTER`` file) is scored by running the program and ``score_outputs`` on its outputs
+(``scripts/results.sh``'s ``score_sets``).
 """
 
 from __future__ import annotations
