@@ -5,7 +5,7 @@
 # scripts/results.sh data render stats eval remove tradeoffs sheets photoreal scale flatroad largedrops coarsetrain
 # largedropmodels sensor mirroraverage highlights multiscale veil papermodels outline trails photos windshield
 # windshield-followup longer growth sharpness coalesce surround largewidth largedrops-all windshield2
-# errorsplit withoutvnni graphrewrites jitter windshieldscale router routed
+# errorsplit withoutvnni graphrewrites jitter windshieldscale router routed int8router
 #
 # Nothing here is committed automatically: images derived from Cityscapes, CamVid or the
 # real raindrop photographs stay under out/ (their licences forbid redistribution).
@@ -20,7 +20,7 @@ sections=("$@")
                                   largedropmodels sensor mirroraverage highlights multiscale veil papermodels outline trails
                                   photos windshield windshield-followup longer growth sharpness coalesce
                                   surround largewidth largedrops-all windshield2 errorsplit withoutvnni graphrewrites
-                                  jitter windshieldscale router routed)
+                                  jitter windshieldscale router routed int8router)
 want() { [[ " ${sections[*]} " == *" $1 "* ]]; }
 # link_set SRC DST SPLIT [LIMIT]: the first LIMIT (default 100; 0: all) samples of data set SRC
 # (of manifest split SPLIT; "-" = all) linked into DST/rainy and DST/clean (and DST/mask, where
@@ -96,7 +96,7 @@ for k, ps in [*paths.items(), ("photographs", photos)]:
 # The features and the fit are the shipped router's (tools/raindrop_tools/detector_router.py).
 from raindrop_tools import detector_router as DR
 from raindrop_tools.imageio import read_rgb
-rem = RaindropRemover("models/compact-multiscale", threads=2)
+rem = RaindropRemover(os.environ.get("MAIN_MODELS", "models/compact-multiscale"), threads=2)  # whose detector gives the features
 def feats(path):
     return DR.image_features(rem, read_rgb(path))
 X = np.array([feats(p) for s in sets for p in paths[s]])
@@ -1549,4 +1549,45 @@ if want routed; then
     for s in val-windshield-day-- val-lens-cover--; do ln -sfn "../routed-kinds/$m-$s" "$rd/$m-$s"; done
   done
   RD="$rd" SHARED="$shared" EXTRA_SETS="val-windshield-day-- val-lens-cover--" router_analysis | tee -a "$ro/kinds.txt"
+fi
+
+if want int8router; then
+  # RESULTS 4.34: compact-multiscale-int8's own router. Its int8 detector's maps route differently
+  # from the float one's, so it has its own fit: the int8 default's outputs on the validation sets
+  # with its own detector and with compact-windshield's (a ROUTER with bias 1000 sends every image
+  # there), the 5-fold check, the fit (the committed bytes), then the test sets once, with and
+  # without the router.
+  validation_sets
+  size_sets val test-size
+  r8="$out/int8router"
+  mkdir -p "$r8/alwaysws" "$r8/rd"
+  for f in rdn.onnx rrn.onnx rfn.onnx LARGE_DROPS; do ln -sfn "$PWD/models/compact-multiscale-int8/$f" "$r8/alwaysws/$f"; done
+  for m in compact-windshield paper-real-coarse-int8; do ln -sfn "$PWD/models/$m" "$r8/$m"; done
+  sed 's/^bias .*/bias 1000/' models/compact-multiscale/ROUTER >"$r8/alwaysws/ROUTER"
+  val=(real-pairs:train:0 val-sparse:-:0 val-windshield-sharp:-:0 val-size-512x288:-:0 val-size-1280x720:-:0)
+  {
+    score_sets "$r8" i8 "-j 2 --model-config compact-multiscale-int8 --no-router" "${val[@]}"
+    score_sets "$r8" i8ws "-j 2 --models $r8/alwaysws" "${val[@]}"
+  } | tee "$r8/val-scores.txt"
+  fit_sets=()
+  for s in real-pairs-train val-sparse-- val-windshield-sharp-- val-size-512x288-- val-size-1280x720--; do
+    ln -sfn "../i8-$s" "$r8/rd/default-$s"
+    ln -sfn "../i8ws-$s" "$r8/rd/ws-$s"
+    fit_sets+=(--set "$r8/i8-$s/set" "$r8/i8-$s/out" "$r8/i8ws-$s/out")
+  done
+  RD="$r8/rd" SHARED="$shared" MAIN_MODELS=models/compact-multiscale-int8 EXTRA_SETS=" " router_analysis |
+    tee "$r8/router.txt"
+  $py -m raindrop_tools.detector_router fit --models models/compact-multiscale-int8 --alternative compact-windshield \
+    "${fit_sets[@]}" --out "$r8/ROUTER" | tee -a "$r8/router.txt"
+  cmp "$r8/ROUTER" models/compact-multiscale-int8/ROUTER && echo "refitted ROUTER: identical to the committed one" |
+    tee -a "$r8/router.txt"
+  test=(real-pairs:test:0 test-sparse:-:0 test-windshield-sharp:-:0 test-size-512x288:-:0 test-size-1280x720:-:0)
+  {
+    score_sets "$r8" t8 "-j 2 --model-config compact-multiscale-int8 --no-router" "${test[@]}"
+    score_sets "$r8" t8r "-j 2 --model-config compact-multiscale-int8" "${test[@]}"
+  } | tee "$r8/test-scores.txt"
+  build/raindrop-bench remove --threads 2 --size 512x256 --runs 10 --quick --process-size "" \
+    --models models/compact-multiscale --models models/compact-multiscale-int8 \
+    --process-image "$shared/real-raindrop/windshield_2.jpg" --process-image "$shared/real-raindrop/attgan-fork_test_5.png" \
+    >"$r8/bench.md"
 fi
