@@ -94,10 +94,16 @@ def features(prob: np.ndarray) -> np.ndarray:
     return np.log1p(np.array(f, np.float64) * 100)
 
 
+def working_size_of(remover) -> int:
+    """The models' working size: rdn.onnx's optional ``raindrop.working_size``, else 512, as
+    raindrop-remove reads it (include/raindrop/remove/model.h)."""
+    return int(remover.metadata.get("rdn", {}).get("raindrop.working_size", WORKING_SIZE))
+
+
 def image_features(remover, rgb: np.ndarray) -> np.ndarray:
     """The features of an RGB uint8 image, from `remover`'s (reference.RaindropRemover) detector
     on the image's working-scale copy."""
-    small = working_copy(rgb)
+    small = working_copy(rgb, working_size_of(remover))
     h, w = small.shape[:2]
     R, _, _ = remover.prepare(small)
     return features(remover.detect(R)[0, 0][:h, :w])

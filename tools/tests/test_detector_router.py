@@ -91,3 +91,13 @@ def test_every_committed_router_reads_and_names_a_detector_folder():
         router = R.read_router(f)
         assert (MODELS / router.alternative / "rdn.onnx").is_file(), f
         assert np.all(router.std > 0), f
+
+
+def test_the_working_size_is_the_models_own():
+    class FakeRemover:
+        metadata = {"rdn": {"raindrop.working_size": "256"}}
+
+    assert R.working_size_of(FakeRemover()) == 256
+    FakeRemover.metadata = {"rdn": {}}
+    assert R.working_size_of(FakeRemover()) == 512
+
