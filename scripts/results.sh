@@ -1476,22 +1476,20 @@ if want router; then
   validation_sets
   rd="$out/router"
   mkdir -p "$rd"
-  for m in default ws; do
-    flags="-j 2 --no-router"  # the default's own detector: what the router chooses from
-    [[ $m == default ]] || flags="$flags --model-config compact-windshield"
-    score_sets "$rd" "$m" "$flags" real-pairs:train:0 val-sparse:-:0 val-windshield-sharp:-:0 val-size-512x288:-:0 \
-      val-size-1280x720:-:0
-  done | tee "$rd/scores.txt"
+  # both_detectors SET...: the default's outputs with its own detector (what the router chooses
+  # from) and with compact-windshield's, scored.
+  both_detectors() {
+    score_sets "$rd" default "-j 2 --no-router" "$@"
+    score_sets "$rd" ws "-j 2 --no-router --model-config compact-windshield" "$@"
+  }
+  both_detectors real-pairs:train:0 val-sparse:-:0 val-windshield-sharp:-:0 val-size-512x288:-:0 val-size-1280x720:-:0 |
+    tee "$rd/scores.txt"
   # The held-out check, once: the test sets, and windshield-sharp drops over the CamVid test frames.
   size_sets val test-size
   [[ -f data/test-windshield-sharp/manifest.jsonl ]] || build/raindrop-render -i "$shared/camvid/test" \
     -o data/test-windshield-sharp --scene windshield-sharp --size 512x256 --seed 2 -q
-  for m in default ws; do
-    flags="-j 2 --no-router"  # the default's own detector: what the router chooses from
-    [[ $m == default ]] || flags="$flags --model-config compact-windshield"
-    score_sets "$rd" "$m" "$flags" real-pairs:test:0 test-sparse:-:0 test-windshield-sharp:-:0 test-size-512x288:-:0 \
-      test-size-1280x720:-:0
-  done | tee "$rd/test-scores.txt"
+  both_detectors real-pairs:test:0 test-sparse:-:0 test-windshield-sharp:-:0 test-size-512x288:-:0 test-size-1280x720:-:0 |
+    tee "$rd/test-scores.txt"
   RD="$rd" SHARED="$shared" router_analysis | tee "$rd/router.txt"
   for set in real-pairs-test test-sparse-- test-windshield-sharp-- test-size-512x288-- test-size-1280x720--; do
     $py -m raindrop_tools.score_outputs --data "$rd/default-$set/set" --outputs "$rd/routed-$set/out" --label "routed $set"
@@ -1537,14 +1535,12 @@ if want routed; then
     [[ -f data/val-$p/manifest.jsonl ]] || build/raindrop-render -i "$out/cv100" -o "data/val-$p" --scene "$p" \
       --size 512x256 --seed 11 -q
   done
-  for m in default ws routed; do
-    case $m in
-      default) flags="-j 2 --no-router" ;;
-      ws) flags="-j 2 --no-router --model-config compact-windshield" ;;
-      routed) flags="-j 2" ;;
-    esac
-    score_sets "$out/routed-kinds" "$m" "$flags" val-windshield-day:-:0 val-lens-cover:-:0
-  done | tee "$ro/kinds.txt"
+  kinds=(val-windshield-day:-:0 val-lens-cover:-:0)
+  {
+    score_sets "$out/routed-kinds" default "-j 2 --no-router" "${kinds[@]}"
+    score_sets "$out/routed-kinds" ws "-j 2 --no-router --model-config compact-windshield" "${kinds[@]}"
+    score_sets "$out/routed-kinds" routed "-j 2" "${kinds[@]}"
+  } | tee "$ro/kinds.txt"
   for m in default ws; do
     for s in val-windshield-day-- val-lens-cover--; do ln -sfn "../routed-kinds/$m-$s" "$rd/$m-$s"; done
   done

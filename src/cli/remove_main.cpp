@@ -236,7 +236,7 @@ std::vector<cv::Mat> process(Remover& remover, const Job& job, const Settings& s
     char routed[160] = "";
     if (r.router_score)
       std::snprintf(routed, sizeof routed, ", detector %s (router z %+.2f)",
-                    r.alternative_detector ? ("'" + remover.router()->alternative + "'").c_str() : "the models' own",
+                    r.alternative_detector() ? ("'" + remover.router()->alternative + "'").c_str() : "the models' own",
                     *r.router_score);
     std::fprintf(stderr, "raindrop-remove: %s: %dx%d at scale %.3g%s%s%s, %d tile%s, mask %.2f%%: %s\n",
                  job.input.string().c_str(), input.cols, input.rows, r.scale, routed, filled, coarse, r.tiles_x * r.tiles_y,

@@ -114,9 +114,11 @@ void detect(Network& rdn, const TileInputs& in, const cv::Rect& owned, double th
   t.mask += lap_ms(clock);
 }
 
+}  // namespace
+
 // The detector an image's passes share: the working-scale pass's router decides it, and the
 // coarse pass, running beside, waits for that (or for the failure that stopped it deciding).
-class RouteDecision {
+class Remover::RouteDecision {
  public:
   void decide(Models* chosen) {
     std::call_once(once_, [&] { promise_.set_value(chosen); });
@@ -133,6 +135,8 @@ class RouteDecision {
   std::shared_future<Models*> chosen_ = promise_.get_future().share();
   std::once_flag once_;
 };
+
+namespace {
 
 // 3RN on one tile's inputs, clamped to [0, 1]; with `mirror`, averaged with its run on the
 // mirror image (large_drops.h: kLargeDropMirrorAverage).
@@ -267,12 +271,7 @@ RemoveResult Remover::run(const cv::Mat& image, const RemoveOptions& opt) {
     }
   };
   CoarsePass coarse;
-  CoarseDetector coarse_detector;
-  if (route) {
-    coarse_detector.chosen = [&decision]() -> Models& { return decision.wait(); };
-    coarse_detector.known = [&decision] { return decision.ready(); };
-  }
-  const auto large_drop_pass = [&] { coarse = coarse_pass(image, working, opt, scale, coarse_detector); };
+  const auto large_drop_pass = [&] { coarse = coarse_pass(image, working, opt, scale, route ? &decision : nullptr); };
   if (opt.large_drops && models_.branches() > 1) {
     // Side by side: the coarse pass reads only the input, and its detector alone (what most
     // photographs need of it) left one core idle while it ran on the other (a fifth of a
@@ -284,7 +283,6 @@ RemoveResult Remover::run(const cv::Mat& image, const RemoveOptions& opt) {
   }
   res.times.convert += t_down;
   res.router_score = router_score;
-  res.alternative_detector = router_score && *router_score > 0;
   if (opt.large_drops) composite_large_drops(coarse, opt, res);
   return res;
 }
@@ -393,7 +391,7 @@ RemoveResult Remover::run_scaled(const cv::Mat& image, const cv::Mat& small, con
 }
 
 Remover::CoarsePass Remover::coarse_pass(const cv::Mat& image, const cv::Mat& working, const RemoveOptions& opt,
-                                         double scale, const CoarseDetector& detector) {
+                                         double scale, const RouteDecision* route) {
   CoarsePass cp;
   const double coarse_scale = scale / kLargeDropScaleDivisor;
   const cv::Size coarse = scaled_size(image.size(), coarse_scale);
@@ -428,7 +426,7 @@ Remover::CoarsePass Remover::coarse_pass(const cv::Mat& image, const cv::Mat& wo
     // Most photographs have no large drop: the coarse copy's detector decides before its 3RN
     // and RFN run, which are about two thirds of its cost.
     const MaskGate only_with_large_drops = [&](const cv::Mat& mask) {
-      if (speculative && &detector.chosen() != &chosen) {
+      if (speculative && &route->wait() != &chosen) {
         rerun = true;
         return false;
       }
@@ -444,18 +442,13 @@ Remover::CoarsePass Remover::coarse_pass(const cv::Mat& image, const cv::Mat& wo
     return run_native(coarse_native, sub, only_with_large_drops,
                       [this]() -> Models& { return large_drop_models(); }, growth, detection);
   };
-  if (!detector.chosen) {
-    cp.result = run_with(models_, false);
-  } else if (detector.known()) {
-    // Decided already (one thread: the working pass ran first): no speculation.
-    cp.result = run_with(detector.chosen(), false);
-  } else {
-    cp.result = run_with(models_, true);
-  }
+  // Decided already (one thread: the working pass ran first): no speculation.
+  const bool speculative = route && !route->ready();
+  cp.result = run_with(route && !speculative ? route->wait() : models_, speculative);
   if (rerun) {
     const StageTimes first = cp.result.times;  // the main detector's run counts too
     const double first_pixels = cp.result.network_pixels;
-    cp.result = run_with(detector.chosen(), false);
+    cp.result = run_with(route->wait(), false);
     cp.result.times += first;
     cp.result.network_pixels += first_pixels;
   }

@@ -170,7 +170,7 @@ TEST(DetectorRouter, ARoutedImageIsExactlyTheAlternativesAndAKeptOneExactlyTheMa
   const auto routed = run(m->main, true);
   ASSERT_TRUE(routed.router_score.has_value());
   EXPECT_EQ(*routed.router_score, 1.0);
-  EXPECT_TRUE(routed.alternative_detector);
+  EXPECT_TRUE(routed.alternative_detector());
   EXPECT_EQ(max_abs_diff(routed.image, alone.image), 0);
   EXPECT_EQ(max_abs_diff(routed.mask, alone.mask), 0);
   // Both passes' detectors ran twice: on the 512x293 copy, padded to 512x294, and on the coarse
@@ -187,7 +187,7 @@ TEST(DetectorRouter, ARoutedImageIsExactlyTheAlternativesAndAKeptOneExactlyTheMa
   EXPECT_FALSE(run(m->main, true, other_scale).router_score.has_value());
   RemoveOptions auto_scale;
   auto_scale.scale = 512.0 / 700.0;  // the automatic scale, given: routed
-  EXPECT_TRUE(run(m->main, true, auto_scale).alternative_detector);
+  EXPECT_TRUE(run(m->main, true, auto_scale).alternative_detector());
 
   // On one thread the working pass decides before the coarse pass starts, which then runs the
   // chosen detector only.
@@ -200,7 +200,7 @@ TEST(DetectorRouter, ARoutedImageIsExactlyTheAlternativesAndAKeptOneExactlyTheMa
   write_file(m->main / "ROUTER", router_text("alt", -1.0));  // z = -1: the main detector
   const auto kept = run(m->main, true);
   ASSERT_TRUE(kept.router_score.has_value());
-  EXPECT_FALSE(kept.alternative_detector);
+  EXPECT_FALSE(kept.alternative_detector());
   EXPECT_EQ(max_abs_diff(kept.image, main_alone.image), 0);
   EXPECT_EQ(max_abs_diff(kept.mask, main_alone.mask), 0);
 }

@@ -96,7 +96,7 @@ struct RemoveResult {
   // The router's z for this image (detector_router.h); empty when it did not run.
   std::optional<double> router_score;
   // Whether the router's alternative detector decided the mask (z > 0).
-  bool alternative_detector = false;
+  bool alternative_detector() const { return router_score && *router_score > 0; }
 };
 
 class Remover {
@@ -146,7 +146,7 @@ class Remover {
   // only (image empty), and the 3RN does not run beside the RDN (it might be wasted): a single
   // tile then runs both, one after the other, on the half-thread sessions.
   // `reconstruction` names the models whose 3RN and RFN run after the detector (default: the
-  // main ones); the detector is always the main models'. `growth`: the mask's dilation grows
+  // main ones); `detection` which detector decides the mask. `growth`: the mask's dilation grows
   // with each drop (mask.h: dilate_mask_by_size), the coarse pass's only.
   RemoveResult run_native(const cv::Mat& image, const RemoveOptions& options, const MaskGate& gate,
                           const std::function<Models&()>& reconstruction, double growth, const Detection& detection);
@@ -163,12 +163,9 @@ class Remover {
   // The coarse pass for large drops (large_drops.h) at a third of `scale`, on its own: it reads
   // only the image and `working` (the image as the working-scale pass sees it), so it can run
   // beside that pass. Its result goes over the working-scale result in composite_large_drops.
-  // `detector` gives the models whose detector decides its mask (it may wait for the working
-  // pass's router); empty: the main models.
-  struct CoarseDetector {
-    std::function<Models&()> chosen;  // blocks until the router has chosen
-    std::function<bool()> known;      // whether it has (chosen() would not block)
-  };
+  // `route`: the working pass's router's choice of detector, which it may have to wait for;
+  // nullptr: the main models' detector.
+  class RouteDecision;
   struct CoarsePass {
     double coarse_scale = 0;  // 0: the coarse copy was too small to run (coarse_pass_fits)
     RemoveResult result;      // rgb: the coarse copy's reconstruction (when large drops were found)
@@ -177,7 +174,7 @@ class Remover {
     double convert_ms = 0;
   };
   CoarsePass coarse_pass(const cv::Mat& image, const cv::Mat& working, const RemoveOptions& options, double scale,
-                         const CoarseDetector& detector);
+                         const RouteDecision* route);
   void composite_large_drops(const CoarsePass& coarse, const RemoveOptions& options, RemoveResult& res);
 
   // Companion models loaded on first use, once; a failed load is kept and rethrown for every
