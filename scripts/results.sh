@@ -51,7 +51,8 @@ PY
 
 # router_analysis: RESULTS 4.33's analysis of the router (Python on stdin; RD: the router
 # section's folder, SHARED: the shared data; EXTRA_SETS: more validation sets, <name>-<split>
-# folders in RD beside the five, for a what-if fit that stops after the 5-fold table).
+# folders in RD beside the five, for a what-if fit that stops after the 5-fold table; VARIANTS=1:
+# the routers of RESULTS 4.34 that were not kept, on the same folds, and stop).
 router_analysis() {
   $py - <<'PY'
 import glob, os, sys
@@ -121,7 +122,32 @@ for scheme in ("5-fold", "leave-one-set-out"):
         r, sel = res[s], G == s
         print(f"router {scheme:17s} {s:24s} routed {np.mean(np.where(pred[sel], r[:, 2], r[:, 1]) - r[:, 0]):+.2f} "
               f"(to windshield {pred[sel].mean():.0%})")
-if os.environ.get("EXTRA_SETS"):
+if os.environ.get("VARIANTS"):
+    # RESULTS 4.34's routers not kept, on the same folds: features of the default detector's map
+    # of a copy at a third (the coarse pass's) and at half the working scale, and the other way
+    # round (compact-windshield's detector first, the router choosing the default's).
+    import math
+    def scaled_feats(path, divisor, models=rem):
+        rgb = read_rgb(path); h, w = rgb.shape[:2]
+        s = min(1.0, 512 / max(h, w)) / divisor
+        size = (max(1, math.floor(w * s + 0.5)), max(1, math.floor(h * s + 0.5)))
+        R_, _, _ = models.prepare(cv2.resize(rgb, size, interpolation=cv2.INTER_AREA) if divisor > 1 else rgb)
+        return DR.features(models.detect(R_)[0, 0][:size[1], :size[0]])
+    rem_ws = RaindropRemover("models/compact-windshield", threads=2)
+    folds = np.array([fold_of[f] for f in frames])
+    for name, fn, flip in (("coarse 1/3", lambda p: scaled_feats(p, 3), False), ("half", lambda p: scaled_feats(p, 2), False),
+                           ("windshield first", lambda p: DR.image_features(rem_ws, read_rgb(p)), True)):
+        Xv = np.array([fn(p) for s_ in sets for p in paths[s_]])
+        Yv, Dv = (1 - Y, -D) if flip else (Y, D)
+        pred = np.zeros(len(Xv), bool)
+        for k in np.unique(folds):
+            pred[folds == k] = fit(Xv[folds != k], Yv[folds != k], np.abs(Dv[folds != k]) + 0.05)(Xv[folds == k])
+        for s_ in sets:
+            r, sel = res[s_], G == s_
+            other = pred[sel] != flip  # True: compact-windshield's output
+            print(f"variant {name:16s} 5-fold {s_:24s} routed {np.mean(np.where(other, r[:, 2], r[:, 1]) - r[:, 0]):+.2f} "
+                  f"(to windshield {other.mean():.0%})")
+if os.environ.get("EXTRA_SETS") or os.environ.get("VARIANTS"):
     sys.exit(0)  # a what-if fit: no photographs, no test sets
 router = fit(X, Y, np.abs(D) + 0.05)  # trained on every validation image
 pick = router(np.array([feats(p) for p in photos]))
@@ -1545,6 +1571,7 @@ if want routed; then
     for s in val-windshield-day-- val-lens-cover--; do ln -sfn "../routed-kinds/$m-$s" "$rd/$m-$s"; done
   done
   RD="$rd" SHARED="$shared" EXTRA_SETS="val-windshield-day-- val-lens-cover--" router_analysis | tee -a "$ro/kinds.txt"
+  RD="$rd" SHARED="$shared" VARIANTS=1 router_analysis | grep "^variant" | tee "$ro/variants.txt"
 fi
 
 if want int8router; then
@@ -1560,6 +1587,28 @@ if want int8router; then
   for f in rdn.onnx rrn.onnx rfn.onnx LARGE_DROPS; do ln -sfn "$PWD/models/compact-multiscale-int8/$f" "$r8/alwaysws/$f"; done
   for m in compact-windshield paper-real-coarse-int8; do ln -sfn "$PWD/models/$m" "$r8/$m"; done
   sed 's/^bias .*/bias 1000/' models/compact-multiscale/ROUTER >"$r8/alwaysws/ROUTER"
+  # Why its own fit: the float router's choice from the int8 detector's map against the float one's,
+  # on the router section's validation and test sets and the photographs.
+  $py - "$out/router" "$shared/real-raindrop" <<'PY' | tee "$r8/agreement.txt"
+import glob, sys
+import numpy as np
+sys.path.insert(0, "tools")
+from raindrop_tools import detector_router as DR
+from raindrop_tools.imageio import read_rgb
+from raindrop_tools.reference import RaindropRemover
+rd, photos = sys.argv[1], sorted(glob.glob(sys.argv[2] + "/*"))
+router = DR.read_router("models/compact-multiscale/ROUTER")
+f32 = RaindropRemover("models/compact-multiscale", threads=2)
+i8 = RaindropRemover("models/compact-multiscale-int8", threads=2)
+for s in ["real-pairs-train", "val-sparse--", "val-windshield-sharp--", "val-size-512x288--", "val-size-1280x720--",
+          "real-pairs-test", "test-sparse--", "test-windshield-sharp--", "test-size-512x288--", "test-size-1280x720--",
+          "photographs"]:
+    ps = photos if s == "photographs" else sorted(glob.glob(f"{rd}/default-{s}/set/rainy/*"))
+    a = np.array([router.score(DR.image_features(f32, read_rgb(p)))[0] for p in ps])
+    b = np.array([router.score(DR.image_features(i8, read_rgb(p)))[0] for p in ps])
+    print(f"{s:24s} n={len(ps):3d} float to windshield {np.mean(a > 0):.0%}, int8 {np.mean(b > 0):.0%}, "
+          f"agree {np.mean((a > 0) == (b > 0)):.1%}")
+PY
   val=(real-pairs:train:0 val-sparse:-:0 val-windshield-sharp:-:0 val-size-512x288:-:0 val-size-1280x720:-:0)
   {
     score_sets "$r8" i8 "-j 2 --model-config compact-multiscale-int8 --no-router" "${val[@]}"
