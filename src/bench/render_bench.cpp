@@ -401,6 +401,40 @@ void effects_table(const Input& input, int frames, int repeats) {
                 median(wall[1]) / median(wall[0]));
     std::fflush(stdout);
   }
+  // Focus on the glass (background_defocus.h): glass-droplets as it is against the same samples
+  // focused on the background, in turn. The difference is the street's own blur (its stage
+  // time is the first column of the second row) and the drops now sharp instead of spread.
+  std::cout << "\n*focus* (glass-droplets, the frame above; render_frame wall time, 2 threads, median of " << repeats
+            << " x " << frames << " frames, in turn):\n\n"
+               "| focus | street's circle px (median) | street blur ms | render ms | ratio |\n|---|---|---|---|---|\n";
+  {
+    SceneConfig configs[2] = {scene_preset("glass-droplets"), scene_preset("glass-droplets")};
+    configs[0].lens.focus = SceneConfig::Focus::Background;
+    const std::vector<SceneSample> focused = scenes_for(configs[1], frame.camera, frames);
+    std::vector<double> wall[2], blur_ms, circles;
+    with_threads(2, [&] {
+      for (int k = 0; k < 2; ++k) render_frame(frame.clean, frame.camera, configs[k], focused[0]);  // warm-up
+      for (int r = 0; r < repeats; ++r) {
+        for (const SceneSample& scene : focused) {
+          for (int k = 0; k < 2; ++k) {
+            SceneSample s = scene;
+            if (k == 0) s.focus_distance_cm = 0;  // the same drops and lens, focused on the street
+            const double t0 = bench::now_ms();
+            const RenderedFrame f = render_frame(frame.clean, frame.camera, configs[k], s);
+            wall[k].push_back(bench::now_ms() - t0);
+            if (k == 1) {
+              blur_ms.push_back(f.timings.background_ms);
+              circles.push_back(s.background_coc_px(frame.camera.fx));
+            }
+          }
+        }
+      }
+    });
+    std::printf("| background | 0 | 0 | %.1f | 1.00x |\n", median(wall[0]));
+    std::printf("| glass | %.1f | %.1f | %.1f | %.2fx |\n", median(circles), median(blur_ms), median(wall[1]),
+                median(wall[1]) / median(wall[0]));
+    std::fflush(stdout);
+  }
 }
 
 // Errors of `test` against `ref` over pixels in either mask.

@@ -254,7 +254,9 @@ json sample_record(const std::string& id, const InputImage& input, int variant, 
     record["lens"] = {{"f_number", scene.f_number},
                       {"focal_length_mm", scene.focal_length_mm},
                       {"aperture_cm", scene.aperture_cm()},
-                      {"focus_distance_cm", scene.background_distance_cm},
+                      {"focus_distance_cm", scene.focus_cm()},
+                      {"background_coc_px", scene.background_coc_px(frame.camera.fx)},
+                      {"background_defocused", !rendered.clean.empty()},
                       {"defocus", rendered.defocused ? to_string(config.lens.method) : "skipped"},
                       {"why", rendered.defocused ? "some drop's circle of confusion is at least 0.5 px"
                                                  : "every drop's circle of confusion is under 0.5 px"},
@@ -485,8 +487,9 @@ RenderSummary render_dataset(const std::vector<InputImage>& inputs, const Render
             try {
               const cv::Mat rgb = read_rgb8(task.input->path, o.convert);
               const Frame frame = make_frame(rgb, task.input->calibration, o.size);
-              // Every variant of an input has the same clean image: encoded once, then copied
-              // (encoding is most of a frame's time; a copy of the bytes is a fraction of it).
+              // Every variant of an input focused on its background has the same clean image:
+              // encoded once, then copied (encoding is most of a frame's time; a copy of the
+              // bytes is a fraction of it). A defocused street is each variant's own.
               std::optional<fs::path> clean_written;
               for (int v : task.variants) {
                 if (stop) return;
@@ -510,12 +513,12 @@ RenderSummary render_dataset(const std::vector<InputImage>& inputs, const Render
                   write_image_atomic(alpha16(rendered), o.out_dir / "alpha" / (id + ".png"), o.png_level);
                 write_image_atomic(rainy, o.out_dir / "rainy" / (id + ".png"), o.png_level);
                 const fs::path clean_path = o.out_dir / "clean" / (id + ".png");
-                if (clean_written) {
+                if (clean_written && rendered.clean.empty()) {
                   copy_file_atomic(*clean_written, clean_path);
                 } else {
-                  write_image_atomic(frame.clean, clean_path, o.png_level);
+                  write_image_atomic(rendered.clean_or(frame.clean), clean_path, o.png_level);
                 }
-                clean_written = clean_path;
+                if (rendered.clean.empty()) clean_written = clean_path;
                 write_image_atomic(rendered.mask, o.out_dir / "mask" / (id + ".png"), o.png_level);
                 // A source path that is not UTF-8 (file names are bytes) cannot be JSON: such
                 // bytes are written as U+FFFD instead of stopping the run after the images.
@@ -530,7 +533,7 @@ RenderSummary render_dataset(const std::vector<InputImage>& inputs, const Render
                   summary.drops_sum += std::count_if(scene.drops.begin(), scene.drops.end(),
                                                      [](const DropShape& d) { return d.trail_of < 0; });
                   if (o.contact_sheet_rows > 0) {
-                    summary.samples.push_back({id, frame.clean, rainy, rendered.mask});
+                    summary.samples.push_back({id, rendered.clean_or(frame.clean), rainy, rendered.mask});
                     std::sort(summary.samples.begin(), summary.samples.end(),
                               [](const SampleView& a, const SampleView& b) { return a.id < b.id; });
                     if (static_cast<int>(summary.samples.size()) > o.contact_sheet_rows) summary.samples.pop_back();

@@ -8,6 +8,7 @@
 #include <tbb/parallel_for.h>
 
 #include "raindrop/common/stopwatch.h"
+#include "raindrop/render/background_defocus.h"
 #include "raindrop/render/blur.h"
 #include "raindrop/render/defocus.h"
 #include "raindrop/render/drop_accel.h"
@@ -90,10 +91,19 @@ double RenderedFrame::coverage() const {
   return mask.empty() ? 0.0 : static_cast<double>(stats.drop_pixels) / (mask.total());
 }
 
-RenderedFrame render_frame(const cv::Mat& clean, const Camera& camera, const SceneConfig& config,
+RenderedFrame render_frame(const cv::Mat& input, const Camera& camera, const SceneConfig& config,
                            const SceneSample& scene) {
   RenderedFrame frame;
   auto t0 = Clock::now();
+  // Focus off the background: the street is defocused (background_defocus.h), and the drops are
+  // traced and composited against it. Otherwise the input is the background as it is.
+  const double background_coc = config.lens.enabled ? scene.background_coc_px(camera.fx) : 0.0;
+  if (background_coc >= kMinVisibleCocPx)
+    frame.clean = defocus_background(input, background_coc, config.border,
+                                     config.highlights.enabled ? scene.highlights : HighlightLift{});
+  frame.timings.background_ms = ms_since(t0);
+  const cv::Mat& clean = frame.clean.empty() ? input : frame.clean;
+  t0 = Clock::now();
   // Skip the lens when no drop's circle of confusion reaches half a pixel: the pinhole
   // render is then what the lens would give, to rounding.
   double largest = 0;

@@ -144,6 +144,11 @@ SceneSample sample_scene(const SceneConfig& config, const Camera& camera, Rng& r
   // Trails after everything else, so that turning them on changes no other draw; a drop that
   // slid only shrinks by the water it left behind (trails.h).
   if (config.trails.enabled) add_trails(&s.drops, config.trails, s.glass.tilt, rng);
+  // The plane of focus last of all, for the same reason: a scene focused on its background
+  // draws nothing here. On the glass: where the optical axis meets it (depth N).
+  if (config.lens.enabled && config.lens.focus == SceneConfig::Focus::Glass) s.focus_distance_cm = s.glass.distance;
+  if (config.lens.enabled && config.lens.focus == SceneConfig::Focus::Distance)
+    s.focus_distance_cm = draw(config.lens.focus_distance_cm, rng);
   return s;
 }
 

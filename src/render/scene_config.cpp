@@ -38,6 +38,8 @@ class Reader {
     return j_.contains(key);
   }
 
+  bool holds_string(const std::string& key) const { return j_.contains(key) && j_.at(key).is_string(); }
+
   // Whether `key` holds the string "auto" (an effect left to the scene's physics, the same
   // as {"auto": true}).
   bool is_auto(const std::string& key) const {
@@ -277,6 +279,19 @@ SceneConfig parse_scene_json(const std::string& text, const std::string& origin)
     if (side * side != samples) l.fail("'aperture_samples' must be a square number (1, 4, 16, 64, 256)");
     c.lens.aperture_samples = static_cast<int>(samples);
     l.number("mask_threshold", &c.lens.mask_threshold, 1e-3, 1);
+    // "background" (the default), "glass", or a distance in cm ([lo, hi] drawn per sample).
+    if (l.holds_string("focus_distance_cm")) {
+      const std::string focus = l.string("focus_distance_cm", "background");
+      if (focus == "background") c.lens.focus = SceneConfig::Focus::Background;
+      else if (focus == "glass") c.lens.focus = SceneConfig::Focus::Glass;
+      else l.fail("'focus_distance_cm' must be \"background\", \"glass\", a distance in cm or [lo, hi]");
+    } else if (l.has("focus_distance_cm")) {
+      l.range("focus_distance_cm", &c.lens.focus_distance_cm, 1, 1e7);
+      c.lens.focus = SceneConfig::Focus::Distance;
+    }
+    if (c.lens.focus != SceneConfig::Focus::Background && c.lens.method == DefocusMethod::Aperture)
+      l.fail("the aperture reference ('defocus': \"aperture\") is focused on the background: 'focus_distance_cm' "
+             "elsewhere needs \"layered\" or \"layered-exact\"");
     l.reject_unknown();
   }
 
@@ -440,6 +455,10 @@ std::string scene_to_json(const SceneConfig& c) {
                    {"defocus", to_string(c.lens.method)},
                    {"aperture_samples", c.lens.aperture_samples},
                    {"mask_threshold", c.lens.mask_threshold}};
+  if (c.lens.enabled)
+    j["camera"]["focus_distance_cm"] = c.lens.focus == SceneConfig::Focus::Background ? json("background")
+                                       : c.lens.focus == SceneConfig::Focus::Glass   ? json("glass")
+                                                                                     : range(c.lens.focus_distance_cm);
   j["refractive_index"] = c.refractive_index;
   j["allow_overlap"] = c.allow_overlap;
   j["min_gap_cm"] = c.min_gap_cm;

@@ -14,21 +14,27 @@
 namespace raindrop {
 
 struct FrameTimings {
-  double accel_ms = 0;  // building the Embree scene
+  double background_ms = 0;  // the street defocused, where focus is off it (background_defocus.h)
+  double accel_ms = 0;       // building the Embree scene
   double trace_ms = 0;
   double blur_ms = 0;
   double compose_ms = 0;  // 8-bit rainy image and mask
-  double core_ms() const { return accel_ms + trace_ms + blur_ms + compose_ms; }
+  double core_ms() const { return background_ms + accel_ms + trace_ms + blur_ms + compose_ms; }
 };
 
 struct RenderedFrame {
-  cv::Mat rainy;  // CV_8UC3 RGB; equal to `clean` wherever mask == 0
+  cv::Mat rainy;  // CV_8UC3 RGB; equal to clean_or(input) wherever mask == 0
   cv::Mat mask;   // CV_8UC1, 0 or 255
   // With a thin-lens camera: the fraction of the aperture that sees a drop (CV_32F), the
   // mask being coverage >= the scene's mask_threshold; and each drop's circle of confusion
   // in pixels (0 where it is too small to see). Empty for a pinhole camera.
   cv::Mat alpha;
   std::vector<double> coc_px;
+  // The camera's view without drops where it differs from the input: the background out of
+  // focus (background_defocus.h). Empty where the input is that view (focus on the background,
+  // or its circle under half a pixel). The clean image to write is clean_or(input).
+  cv::Mat clean;
+  const cv::Mat& clean_or(const cv::Mat& input) const { return clean.empty() ? input : clean; }
   bool defocused = false;  // the lens path ran (false: pinhole, or every circle < 0.5 px)
   // The highlights' lift ran (false: off, not defocused, or no pixel reached its threshold).
   bool highlights_lifted = false;

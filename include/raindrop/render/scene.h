@@ -17,15 +17,21 @@ struct SceneSample {
   GlassPlane glass;
   double background_distance_cm = 1000;  // T: the background plane is z = T
   double blur_diameter_px = 0;           // at the output resolution; 0 = no blur
-  // Thin-lens camera (SceneConfig::lens): f-number and physical focal length; focus is on
-  // the background plane. f_number 0 = pinhole.
+  // Thin-lens camera (SceneConfig::lens): f-number and physical focal length; focus on the
+  // plane z = focus_cm() (the background plane unless the scene moves it). f_number 0 = pinhole.
   double f_number = 0;
   double focal_length_mm = 0;
+  double focus_distance_cm = 0;  // 0: focus on the background (T)
   double aperture_cm() const { return f_number > 0 ? 0.1 * focal_length_mm / f_number : 0.0; }
+  double focus_cm() const { return focus_distance_cm > 0 ? focus_distance_cm : background_distance_cm; }
   // Diameter in pixels of the circle of confusion of a point at depth z (cm) for a camera
-  // with focal length fx pixels: aperture * fx * |1/z - 1/T| (thin lens, focus at T).
+  // with focal length fx pixels: aperture * fx * |1/z - 1/F| (thin lens, focus at F).
   double coc_px(double z, double fx) const {
-    return aperture_cm() * fx * std::abs(1.0 / z - 1.0 / background_distance_cm);
+    return aperture_cm() * fx * std::abs(1.0 / z - 1.0 / focus_cm());
+  }
+  // The background plane's own circle of confusion: 0 when focus is on it.
+  double background_coc_px(double fx) const {
+    return focus_distance_cm > 0 ? coc_px(background_distance_cm, fx) : 0.0;
   }
   // The circle of confusion of a drop, from the depth of its footprint's centre; infinite
   // for a centre at or behind the lens (only a degenerate scene puts one there).

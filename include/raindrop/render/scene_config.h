@@ -137,9 +137,15 @@ struct SceneConfig {
   // the street sees them: each drop spreads over its circle of confusion and becomes
   // semi-transparent where it is smaller than that circle. The lens' aperture in cm is
   // focal_length / f_number; the circle of confusion of a point at depth z, with focus on
-  // the background at S, is aperture * fx_px * |1/z - 1/S| pixels.
+  // the background at S, is aperture * fx_px * |1/z - 1/S| pixels. `focus` may move the plane
+  // of focus off the background: onto the glass (a phone held to a rained-on window, which
+  // focuses on the drops), or to a drawn distance; the street is then defocused too
+  // (background_defocus.h).
+  enum class Focus { Background, Glass, Distance };
   struct Lens {
     bool enabled = false;
+    Focus focus = Focus::Background;
+    Range focus_distance_cm{0, 0};  // with Focus::Distance: drawn per sample, after every other draw
     Range f_number{2, 8};
     Range focal_length_mm{5, 5};  // physical focal length (Cityscapes: fx 2262 px x 2.2 um ~ 5 mm)
     DefocusMethod method = DefocusMethod::Layered;

@@ -1,0 +1,208 @@
+// A thin lens focused off the background (camera.focus_distance_cm): the street defocused by
+// its own circle of confusion, drops at the plane of focus sharp, against closed-form thin-lens
+// optics; focus on the background unchanged; the scene file's forms and refusals.
+#include <cmath>
+
+#include <gtest/gtest.h>
+
+#include <cstdio>
+
+#include "raindrop/common/demo.h"
+#include "raindrop/common/rng.h"
+#include "raindrop/render/background_defocus.h"
+#include "raindrop/render/renderer.h"
+#include "raindrop/render/scene.h"
+#include "raindrop/render/scene_config.h"
+#include "raindrop/render/srgb.h"
+#include "support.h"
+
+using namespace raindrop;
+using namespace raindrop::test;
+
+namespace {
+
+constexpr double kT = 1000;  // background plane, cm
+
+SceneConfig lens_config(SceneConfig::Focus focus) {
+  SceneConfig c;
+  c.blur.enabled = false;
+  c.lens.enabled = true;
+  c.lens.focus = focus;
+  return c;
+}
+
+SceneSample sample(double glass_cm, double focus_cm, double f_number, double focal_mm) {
+  SceneSample s;
+  s.glass = upright_glass(glass_cm);
+  s.background_distance_cm = kT;
+  s.focus_distance_cm = focus_cm;
+  s.f_number = f_number;
+  s.focal_length_mm = focal_mm;
+  return s;
+}
+
+// A dark frame with one white pixel at its centre: a point of the street.
+cv::Mat point_frame(const Camera& cam) {
+  cv::Mat m(cam.height, cam.width, CV_8UC3, cv::Scalar::all(0));
+  m.at<cv::Vec3b>((cam.height - 1) / 2, (cam.width - 1) / 2) = cv::Vec3b(255, 255, 255);
+  return m;
+}
+
+int lit_run(const cv::Mat& rgb, int y) {
+  int n = 0;
+  for (int x = 0; x < rgb.cols; ++x) n += rgb.at<cv::Vec3b>(y, x)[0] > 0;
+  return n;
+}
+
+}  // namespace
+
+// A camera focused at F sees a point of the background plane T as its circle of confusion,
+// aperture * fx * |1/T - 1/F| pixels across (computed here, not by the program). The clean image
+// is the camera's view: the point spread into that disk, in both the clean and the rainy image.
+// Convolved exactly, the lit run is the circle; on the renderer's grid (circles of 8 px and
+// more) the disk's edge is smoothed over a grid step, so there the run at half the disk's
+// brightness is the circle, within that step.
+TEST(Focus, APointOfTheStreetSpreadsOverTheThinLensCircle) {
+  const Camera cam = camera(161, 161, 300);
+  for (double focus : {8.0, 15.0, 25.0}) {
+    const double f_number = 1, focal_mm = 5;
+    const double coc = focal_mm / 10 / f_number * cam.fx * std::abs(1 / kT - 1 / focus);
+    ASSERT_GT(coc, 5);
+    const cv::Mat exact = defocus_background(point_frame(cam), coc, BorderMode::Mirror, {}, BackgroundGrid::Exact);
+    const int row = (cam.height - 1) / 2;
+    EXPECT_NEAR(lit_run(exact, row), coc, 2.0) << "focus " << focus << " cm";
+    EXPECT_NEAR(lit_run(exact.t(), row), coc, 2.0) << "focus " << focus << " cm, column";
+
+    SceneSample s = sample(focus, focus, f_number, focal_mm);  // no drops
+    const RenderedFrame f = render_frame(point_frame(cam), cam, lens_config(SceneConfig::Focus::Distance), s);
+    ASSERT_FALSE(f.clean.empty()) << focus;
+    EXPECT_TRUE(equal_bits(f.rainy, f.clean));
+    const int centre = f.clean.at<cv::Vec3b>(row, row)[0];
+    int half = 0;
+    for (int x = 0; x < f.clean.cols; ++x) half += 2 * f.clean.at<cv::Vec3b>(row, x)[0] >= centre;
+    EXPECT_NEAR(half, coc, 2.0 + background_grid_step(coc)) << "focus " << focus << " cm, grid";
+    // The light is spread, not lost: the disk's linear-light sum is the point's.
+    for (const cv::Mat& m : {exact, f.clean}) {
+      double sum = 0;
+      for (int y = 0; y < m.rows; ++y)
+        for (int x = 0; x < m.cols; ++x) sum += srgb_to_linear(m.at<cv::Vec3b>(y, x)[1] / 255.0);
+      EXPECT_NEAR(sum, 1.0, 0.05) << focus;
+    }
+  }
+}
+
+// The grid against the exact convolution on street frames (the demo street and Cityscapes-like
+// noise of every scale): what the grid smooths is within half a level RMS and 4 levels at most.
+TEST(Focus, TheGridStaysWithinHalfALevelOfTheExactBlur) {
+  const Camera cam = camera(512, 256, 500);
+  for (const cv::Mat& frame : {demo_street(cam.width, cam.height), random_frame(cam)}) {
+    for (double coc : {8.0, 12.5, 20.0, 34.0, 60.0}) {
+      const cv::Mat grid = defocus_background(frame, coc, BorderMode::Mirror);
+      const cv::Mat exact = defocus_background(frame, coc, BorderMode::Mirror, {}, BackgroundGrid::Exact);
+      cv::Mat diff;
+      cv::absdiff(grid, exact, diff);
+      const double rmse = std::sqrt(cv::mean(diff.mul(diff))[0] / 1.0);
+      double worst = 0;
+      cv::minMaxLoc(diff.reshape(1), nullptr, &worst);
+      std::printf("grid step %d, circle %.1f px: RMSE %.3f, max %.0f levels\n", background_grid_step(coc), coc, rmse, worst);
+      EXPECT_LE(rmse, 0.5) << coc;
+      EXPECT_LE(worst, 4) << coc;
+    }
+  }
+}
+
+// Focus on the background (the default, or a distance equal to it) leaves the street as it is:
+// no clean image of its own, the rainy image byte for byte the background-focused one.
+TEST(Focus, FocusOnTheBackgroundIsTheDefaultRender) {
+  const Camera cam = camera(160, 96, 150);
+  const cv::Mat clean = random_frame(cam);
+  SceneSample s = sample(5, 0, 2, 5);
+  s.drops = {cap(0, 0, 0.3, 40), cap(0.8, 0.2, 0.15, 60)};
+  const RenderedFrame by_default = render_frame(clean, cam, lens_config(SceneConfig::Focus::Background), s);
+  ASSERT_TRUE(by_default.defocused);
+  EXPECT_TRUE(by_default.clean.empty());
+  s.focus_distance_cm = kT;
+  const RenderedFrame at_t = render_frame(clean, cam, lens_config(SceneConfig::Focus::Distance), s);
+  EXPECT_TRUE(at_t.clean.empty());
+  EXPECT_TRUE(equal_bits(at_t.rainy, by_default.rainy));
+  EXPECT_TRUE(equal_bits(at_t.alpha, by_default.alpha));
+}
+
+// Focused on the glass, a drop there is sharp (its circle under half a pixel: the pinhole's
+// outline, 2 fx a / z wide) while the street behind it is spread; outside the drop the rainy
+// image is the defocused street.
+TEST(Focus, ADropOnTheFocusedGlassIsSharpAndTheStreetIsNot) {
+  const Camera cam = camera(201, 121, 250);
+  const double z = 10, a = 0.3;
+  SceneSample s = sample(z, z, 2, 5);
+  s.drops = {cap(0, 0, a, 45)};
+  const cv::Mat input = random_frame(cam);
+  const RenderedFrame f = render_frame(input, cam, lens_config(SceneConfig::Focus::Glass), s);
+  EXPECT_FALSE(f.defocused);  // the drop's circle is 0
+  ASSERT_FALSE(f.clean.empty());
+  EXPECT_FALSE(equal_bits(f.clean, input));
+  const int row = (cam.height - 1) / 2;
+  int run = 0;
+  for (int x = 0; x < cam.width; ++x) run += f.mask.at<std::uint8_t>(row, x) != 0;
+  EXPECT_NEAR(run, 2 * cam.fx * a / z, 1.5);
+  cv::Mat outside_rainy, outside_clean;
+  f.rainy.copyTo(outside_rainy, f.mask == 0);
+  f.clean.copyTo(outside_clean, f.mask == 0);
+  EXPECT_TRUE(equal_bits(outside_rainy, outside_clean));
+  // The same drop a little off the plane of focus is defocused by its own circle.
+  s.glass = upright_glass(6);
+  const RenderedFrame off = render_frame(input, cam, lens_config(SceneConfig::Focus::Distance), s);
+  EXPECT_TRUE(off.defocused);
+  ASSERT_EQ(off.coc_px.size(), 1u);
+  EXPECT_NEAR(off.coc_px[0], 5.0 / 10 / 2 * cam.fx * (1.0 / 6 - 1.0 / z), 1e-9);  // aperture 5 mm / 2
+}
+
+// The background blur keeps a uniform frame uniform (weights sum to one, borders continued) and
+// leaves a frame alone under half a pixel.
+TEST(Focus, BackgroundBlurKeepsFlatFramesAndSkipsTinyCircles) {
+  const cv::Mat flat(40, 60, CV_8UC3, cv::Scalar(17, 130, 240));
+  for (double coc : {1.0, 7.5, 33.0, 500.0}) EXPECT_TRUE(equal_bits(defocus_background(flat, coc, BorderMode::Mirror), flat)) << coc;
+  const Camera cam = camera(60, 40, 50);
+  const cv::Mat frame = random_frame(cam);
+  EXPECT_TRUE(equal_bits(defocus_background(frame, 0.4, BorderMode::Clamp), frame));
+}
+
+TEST(Focus, SceneFileForms) {
+  const std::string head = R"({"name": "t", "camera": {"f_number": 2, "focus_distance_cm": )";
+  EXPECT_EQ(parse_scene_json(head + R"("glass"}})", "t").lens.focus, SceneConfig::Focus::Glass);
+  EXPECT_EQ(parse_scene_json(head + R"("background"}})", "t").lens.focus, SceneConfig::Focus::Background);
+  const SceneConfig ranged = parse_scene_json(head + "[20, 40]}}", "t");
+  EXPECT_EQ(ranged.lens.focus, SceneConfig::Focus::Distance);
+  // Printed and parsed back: the same config.
+  for (const char* form : {R"("glass")", "[20, 40]", R"("background")"}) {
+    const SceneConfig c = parse_scene_json(head + form + "}}", "t");
+    EXPECT_EQ(scene_to_json(parse_scene_json(scene_to_json(c), "again")), scene_to_json(c)) << form;
+  }
+  expect_scene_refused(head + R"("street"}})", "focus_distance_cm");
+  expect_scene_refused(head + "[0.1, 5]}}", "focus_distance_cm");
+  expect_scene_refused(head + R"("glass", "defocus": "aperture"}})", "aperture");
+  // glass-droplets is focused on its glass.
+  EXPECT_EQ(scene_preset("glass-droplets").lens.focus, SceneConfig::Focus::Glass);
+}
+
+// The plane of focus is drawn after everything else: the same seed places the same drops with
+// and without it, and a drawn distance lies in its range; on the glass it is the glass's N.
+TEST(Focus, FocusIsDrawnLast) {
+  const Camera cam = camera(256, 128, 280);
+  SceneConfig base = scene_preset("windshield-sharp");
+  SceneConfig ranged = base, glass = base;
+  ranged.lens.focus = SceneConfig::Focus::Distance;
+  ranged.lens.focus_distance_cm = {20, 40};
+  glass.lens.focus = SceneConfig::Focus::Glass;
+  for (std::uint64_t seed = 1; seed <= 20; ++seed) {
+    Rng r0(seed), r1(seed), r2(seed);
+    const SceneSample a = sample_scene(base, cam, r0), b = sample_scene(ranged, cam, r1), c = sample_scene(glass, cam, r2);
+    ASSERT_EQ(a.drops.size(), b.drops.size());
+    for (size_t i = 0; i < a.drops.size(); ++i) EXPECT_EQ(a.drops[i].center, b.drops[i].center);
+    EXPECT_EQ(a.f_number, b.f_number);
+    EXPECT_EQ(a.focus_distance_cm, 0.0);
+    EXPECT_GE(b.focus_distance_cm, 20);
+    EXPECT_LE(b.focus_distance_cm, 40);
+    EXPECT_EQ(c.focus_distance_cm, c.glass.distance);
+  }
+}
