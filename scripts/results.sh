@@ -1640,9 +1640,10 @@ fi
 if want droplets; then
   # RESULTS 4.35: focus on the glass. glass-droplets renders over CamVid (a window densely beaded
   # by small sharp drops, the street out of focus), and compact-windshield's detector trained on
-  # with them as the router's alternative: compact-droplets (their mix, not kept) and
-  # compact-droplets-2 (with lens-cover renders too), scored on the validation sets against the
-  # routed default, and their masks on the 44 photographs.
+  # with them as the router's alternative: compact-droplets (their mix, not kept),
+  # compact-droplets-2 (with lens-cover renders too) and compact-droplets-3 (half of them over a
+  # sharp street), scored on the validation sets against the routed default, and their masks on
+  # the 44 photographs.
   validation_sets
   dd="$out/droplets"
   mkdir -p "$dd"
@@ -1655,10 +1656,17 @@ if want droplets; then
   [[ -f data/train-lens-cover/manifest.jsonl ]] || build/raindrop-render -i "$shared/camvid/train" \
     -o data/train-lens-cover --scene lens-cover --size 512x256 --variants 4 --seed 7 -q
   [[ -f data/train-hi/manifest.jsonl ]] || render_train_hi
+  # The same drops over a sharp street (compact-droplets-3): focused on the background at f/11-22.
+  sed 's/"f_number": \[1.6, 2.8\]/"f_number": [11, 22]/; s/"focus_distance_cm": "glass"/"focus_distance_cm": "background"/;
+       s/"name": "glass-droplets"/"name": "glass-droplets-sharp-street"/' scenes/glass-droplets.json \
+    >"$out/glass-droplets-sharp-street.json"
+  [[ -f data/train-glass-droplets-sharp-street/manifest.jsonl ]] || build/raindrop-render -i "$shared/camvid/train" \
+    -o data/train-glass-droplets-sharp-street --scene "$out/glass-droplets-sharp-street.json" --size 512x256 \
+    --variants 4 --seed 7 -q
   sets=(real-pairs:train:0 val-glass-droplets:-:0 val-windshield-sharp:-:0 val-sparse:-:0)
   score_sets "$dd" routed "-j 2" "${sets[@]}" | tee "$dd/scores.txt"
   ln -sfn "$PWD/models/paper-real-coarse" out/models/paper-real-coarse
-  for run in compact-droplets compact-droplets-2; do
+  for run in compact-droplets compact-droplets-2 compact-droplets-3; do
     [[ -f "tools/runs/$run/checkpoints/stage1_step00000800.pt" ]] ||
       $py -m raindrop_tools.train --config "tools/configs/$run.yaml" --out "tools/runs/$run" \
         --init-from models/compact-windshield --stage 1
