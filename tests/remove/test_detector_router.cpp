@@ -296,6 +296,9 @@ TEST(DetectorRouter, TheProgramScoresAsTheFittingTool) {
     const double z_cpp = std::stod(cpp.err.substr(at + 9));
     EXPECT_NEAR(z_cpp, z_py, 0.011);  // printed to 2 decimals
     EXPECT_EQ(z_cpp > 0, z_py > 0);
+    // The router's own time is named apart from the mask stage's (its features, the
+    // alternative's loading, the coarse pass waiting for the choice).
+    EXPECT_NE(cpp.err.find(", router "), std::string::npos) << cpp.describe();
     alternative += z_py > 0;
   }
   EXPECT_GT(alternative, 0) << "some of these frames should go to the alternative detector";
