@@ -1685,4 +1685,32 @@ if want droplets; then
   done
   rm -rf "$dd/photos-default" && build/raindrop-remove "$shared/real-raindrop" "$dd/photos-default/out" \
     --mask-dir "$dd/photos-default/masks" -q -j 2
+  # The classifier (4.17's, realism --real-photos) against all 44 photographs and against the 16
+  # beaded ones (clarity_*), three seeds: windshield-sharp, glass-droplets, both without drops
+  # (each rainy image replaced by its clean one: the street alone), and glass-droplets variants.
+  rm -rf "$dd/clarity" && mkdir -p "$dd/clarity"
+  for f in "$shared"/real-raindrop/clarity_*; do ln -s "$(realpath "$f")" "$dd/clarity/"; done
+  no_drops() {
+    rm -rf "$2" && mkdir -p "$2" && cp "$1/manifest.jsonl" "$2/" && cp -r "$1/clean" "$1/mask" "$2/" && cp -r "$1/clean" "$2/rainy"
+  }
+  no_drops data/val-windshield-sharp "$dd/no-drops-sharp-street"
+  no_drops data/val-glass-droplets "$dd/no-drops-blurred-street"
+  variant() {  # variant NAME SED: glass-droplets edited by SED, over the same 100 frames
+    sed "$2" scenes/glass-droplets.json >"$dd/variant-$1.json"
+    rm -rf "$dd/val-$1" && build/raindrop-render -i "$out/cv100" -o "$dd/val-$1" --scene "$dd/variant-$1.json" \
+      --size 512x256 --seed 11 -q
+  }
+  ca='s/"contact_angle_deg": \[40, 90\]/"contact_angle_deg": [20, 50]/'
+  small='s/"footprint_radius_cm": \[0.015, 0.12\]/"footprint_radius_cm": [0.01, 0.07]/'
+  variant angles20-50 "$ca"
+  variant angles-small-f4-8 "$ca; $small; "'s/"f_number": \[1.6, 2.8\]/"f_number": [4, 8]/'
+  variant angles-small-f8-16 "$ca; $small; "'s/"f_number": \[1.6, 2.8\]/"f_number": [8, 16]/'
+  for photos in "$shared/real-raindrop" "$dd/clarity"; do
+    for seed in 0 1 2; do
+      $py -m raindrop_tools.realism --real-photos "$photos" --rendered data/val-windshield-sharp \
+        --rendered data/val-glass-droplets --rendered "$dd/no-drops-sharp-street" --rendered "$dd/no-drops-blurred-street" \
+        --rendered "$dd/val-angles20-50" --rendered "$dd/val-angles-small-f4-8" --rendered "$dd/val-angles-small-f8-16" \
+        --limit 100 --seed "$seed" | grep "^| rendered" | sed "s|^|$(basename "$photos") seed $seed |"
+    done
+  done | tee "$dd/realism.txt"
 fi
