@@ -354,8 +354,8 @@ int run_remove_bench(RemoveBenchOptions o) {
             << int8_kernels_description() << "), graph optimisation "
             << to_string(o.graph_opt) << "; tile " << (o.tile ? std::to_string(o.tile) : std::string("off")) << " (overlap " << o.overlap
             << "). Mean of " << runs << " runs after " << warmup << " warm-up run" << (warmup == 1 ? "" : "s")
-            << ", in ms; input: the built-in street image (8-bit RGB). \"other\": input conversion, tile blending and "
-               "quantisation; \"total\": wall time of Remover::run. The working-scale pass alone (raindrop-remove "
+            << ", in ms; input: the built-in street image (8-bit RGB). \"other\": input conversion, tile blending, "
+               "quantisation and the detector router's features (where the models have one); \"total\": wall time of Remover::run. The working-scale pass alone (raindrop-remove "
                "--no-large-drops); what the coarse pass for large drops adds: its own table below.\n\n";
   std::cout << "| models | size (WxH) | scale | threads | tiles | edge | RDN | threshold+dilation | 3RN | blend | RFN | "
                "other | total | median total | first run |\n|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n";
@@ -363,7 +363,7 @@ int run_remove_bench(RemoveBenchOptions o) {
     std::cout << "| " << r.models << " | " << r.size << " | " << fmt(r.scale, "%.3g") << " | " << r.threads << " | "
               << r.tiles << " | " << fmt(r.mean.edge)
               << " | " << fmt(r.mean.rdn) << " | " << fmt(r.mean.mask) << " | " << fmt(r.mean.rrn) << " | "
-              << fmt(r.mean.blend) << " | " << fmt(r.mean.rfn) << " | " << fmt(r.mean.convert + r.mean.output) << " | "
+              << fmt(r.mean.blend) << " | " << fmt(r.mean.rfn) << " | " << fmt(r.mean.convert + r.mean.output + r.mean.router) << " | "
               << fmt(r.wall_mean) << " | " << fmt(r.wall_median) << " | " << fmt(r.first) << " |\n";
   }
   std::cout << "\n\"first run\": the first Remover::run on that size with a fresh session (not in the mean): ONNX "

@@ -268,7 +268,7 @@ json sample_record(const std::string& id, const InputImage& input, int variant, 
                             {"on", rendered.highlights_lifted},
                             {"why", rendered.highlights_lifted    ? "some pixel is at or above the threshold"
                                     : !scene.highlights.active() ? "the gain is 1 (nothing to lift)"
-                                    : rendered.defocused         ? "no pixel reaches the threshold"
+                                    : rendered.defocused || !rendered.clean.empty() ? "no pixel reaches the threshold"
                                                                  : "the lens was skipped (nothing is spread)"}};
   if (config.veil.enabled) {
     const HighlightLift lift = lift_that_ran(rendered, scene);

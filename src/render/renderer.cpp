@@ -97,10 +97,17 @@ RenderedFrame render_frame(const cv::Mat& input, const Camera& camera, const Sce
   auto t0 = Clock::now();
   // Focus off the background: the street is defocused (background_defocus.h), and the drops are
   // traced and composited against it. Otherwise the input is the background as it is.
+  // Highlights run where the scene names them (the config decides, whatever the sample was drawn
+  // with) and some pixel of the input reaches the threshold; the street's blur and the drops'
+  // spread then both lift. Otherwise a copy of the sample with the lift off renders the frame
+  // exactly as without the effect, at its cost.
+  const bool lift = config.lens.enabled && config.highlights.enabled && scene.highlights.active() &&
+                    highlights_present(input, config, scene.highlights);
   const double background_coc = config.lens.enabled ? scene.background_coc_px(camera.fx) : 0.0;
-  if (background_coc >= kMinVisibleCocPx)
-    frame.clean = defocus_background(input, background_coc, config.border,
-                                     config.highlights.enabled ? scene.highlights : HighlightLift{});
+  if (background_coc >= kMinVisibleCocPx) {
+    frame.clean = defocus_background(input, background_coc, config.border, lift ? scene.highlights : HighlightLift{});
+    frame.highlights_lifted = lift;
+  }
   frame.timings.background_ms = ms_since(t0);
   const cv::Mat& clean = frame.clean.empty() ? input : frame.clean;
   t0 = Clock::now();
@@ -125,12 +132,8 @@ RenderedFrame render_frame(const cv::Mat& input, const Camera& camera, const Sce
   frame.timings.accel_ms = ms_since(t0);
 
   if (defocus) {
-    // Highlights run where the scene names them (the config decides, whatever the sample was
-    // drawn with) and some pixel reaches the threshold; otherwise a copy of the sample with the
-    // lift off renders the frame exactly as without the effect, at its cost.
-    frame.highlights_lifted =
-        config.highlights.enabled && scene.highlights.active() && highlights_present(clean, config, scene.highlights);
-    if (frame.highlights_lifted || !scene.highlights.active())
+    frame.highlights_lifted = lift;
+    if (lift || !scene.highlights.active())
       return render_defocused(clean, camera, config, scene, accel, drops, largest, frame);
     SceneSample unlifted = scene;
     unlifted.highlights = HighlightLift{};

@@ -455,10 +455,11 @@ std::string scene_to_json(const SceneConfig& c) {
                    {"defocus", to_string(c.lens.method)},
                    {"aperture_samples", c.lens.aperture_samples},
                    {"mask_threshold", c.lens.mask_threshold}};
-  if (c.lens.enabled)
-    j["camera"]["focus_distance_cm"] = c.lens.focus == SceneConfig::Focus::Background ? json("background")
-                                       : c.lens.focus == SceneConfig::Focus::Glass   ? json("glass")
-                                                                                     : range(c.lens.focus_distance_cm);
+  // Only where the focus is off the background, so that a scene focused on it prints (and
+  // fingerprints its jobs) as it always did.
+  if (c.lens.enabled && c.lens.focus != SceneConfig::Focus::Background)
+    j["camera"]["focus_distance_cm"] =
+        c.lens.focus == SceneConfig::Focus::Glass ? json("glass") : range(c.lens.focus_distance_cm);
   j["refractive_index"] = c.refractive_index;
   j["allow_overlap"] = c.allow_overlap;
   j["min_gap_cm"] = c.min_gap_cm;

@@ -59,7 +59,7 @@ int lit_run(const cv::Mat& rgb, int y) {
 // A camera focused at F sees a point of the background plane T as its circle of confusion,
 // aperture * fx * |1/T - 1/F| pixels across (computed here, not by the program). The clean image
 // is the camera's view: the point spread into that disk, in both the clean and the rainy image.
-// Convolved exactly, the lit run is the circle; on the renderer's grid (circles of 8 px and
+// Convolved exactly, the lit run is the circle; on the renderer's grid (circles of 48 px and
 // more) the disk's edge is smoothed over a grid step, so there the run at half the disk's
 // brightness is the circle, within that step.
 TEST(Focus, APointOfTheStreetSpreadsOverTheThinLensCircle) {
@@ -94,9 +94,10 @@ TEST(Focus, APointOfTheStreetSpreadsOverTheThinLensCircle) {
 // The grid against the exact convolution on street frames (the demo street and Cityscapes-like
 // noise of every scale): what the grid smooths is within half a level RMS and 4 levels at most.
 TEST(Focus, TheGridStaysWithinHalfALevelOfTheExactBlur) {
-  const Camera cam = camera(512, 256, 500);
+  // Sizes that are not multiples of the grid steps: the borders are where a grid goes wrong.
+  const Camera cam = camera(517, 263, 500);
   for (const cv::Mat& frame : {demo_street(cam.width, cam.height), random_frame(cam)}) {
-    for (double coc : {8.0, 12.5, 20.0, 34.0, 60.0}) {
+    for (double coc : {8.0, 34.0, 60.0, 72.0, 120.0, 168.0}) {
       const cv::Mat grid = defocus_background(frame, coc, BorderMode::Mirror);
       const cv::Mat exact = defocus_background(frame, coc, BorderMode::Mirror, {}, BackgroundGrid::Exact);
       cv::Mat diff;
@@ -178,6 +179,11 @@ TEST(Focus, SceneFileForms) {
     const SceneConfig c = parse_scene_json(head + form + "}}", "t");
     EXPECT_EQ(scene_to_json(parse_scene_json(scene_to_json(c), "again")), scene_to_json(c)) << form;
   }
+  // Focused on the background, a scene prints (and fingerprints its jobs: a resumed job compares
+  // them) as before the key existed.
+  for (const std::string& name : scene_preset_names())
+    if (scene_preset(name).lens.focus == SceneConfig::Focus::Background)
+      EXPECT_EQ(scene_to_json(scene_preset(name)).find("focus_distance_cm"), std::string::npos) << name;
   expect_scene_refused(head + R"("street"}})", "focus_distance_cm");
   expect_scene_refused(head + "[0.1, 5]}}", "focus_distance_cm");
   expect_scene_refused(head + R"("glass", "defocus": "aperture"}})", "aperture");
@@ -205,4 +211,32 @@ TEST(Focus, FocusIsDrawnLast) {
     EXPECT_LE(b.focus_distance_cm, 40);
     EXPECT_EQ(c.focus_distance_cm, c.glass.distance);
   }
+}
+
+// A clipped lamp in a street out of focus blooms through the highlights' lift as it does behind
+// a defocused drop (highlights.h), and the frame says the lift ran, which the manifest and the
+// veil read, also where no drop is spread (focus on the glass keeps them sharp).
+TEST(Focus, AClippedLampInTheDefocusedStreetIsLifted) {
+  const Camera cam = camera(121, 121, 300);
+  cv::Mat lamp(cam.height, cam.width, CV_8UC3, cv::Scalar::all(20));
+  lamp(cv::Rect(57, 57, 7, 7)).setTo(cv::Scalar::all(255));
+  SceneConfig with = lens_config(SceneConfig::Focus::Glass), without = with;
+  with.highlights.enabled = true;
+  SceneSample s = sample(10, 10, 1.4, 5);
+  s.highlights.threshold = static_cast<float>(srgb_to_linear(with.highlights.threshold));
+  s.highlights.gain = 8;
+  const RenderedFrame lifted = render_frame(lamp, cam, with, s);
+  const RenderedFrame plain = render_frame(lamp, cam, without, s);
+  ASSERT_FALSE(lifted.clean.empty());
+  EXPECT_TRUE(lifted.highlights_lifted);
+  EXPECT_FALSE(plain.highlights_lifted);
+  // The lamp's light, 8 times what is stored, spreads brighter over its circle (10.6 px).
+  const cv::Rect around(50, 50, 21, 21);
+  std::printf("around the lamp: %.1f lifted, %.1f plain\n", cv::mean(lifted.clean(around))[0], cv::mean(plain.clean(around))[0]);
+  EXPECT_GT(cv::mean(lifted.clean(around))[0], cv::mean(plain.clean(around))[0] + 20);
+  // Dimmed below the threshold, nothing is lifted and the frames are the same.
+  cv::Mat dim = lamp * (200.0 / 255.0);
+  const RenderedFrame dim_lifted = render_frame(dim, cam, with, s);
+  EXPECT_FALSE(dim_lifted.highlights_lifted);
+  EXPECT_TRUE(equal_bits(dim_lifted.clean, render_frame(dim, cam, without, s).clean));
 }

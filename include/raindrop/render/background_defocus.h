@@ -20,8 +20,8 @@ namespace raindrop {
 // Circles of 2 x kBackgroundGridDiameter pixels and more are convolved on a grid of s x s pixel
 // blocks, s = diameter / kBackgroundGridDiameter rounded down (area-averaged, the disk of
 // diameter / s, bilinear back); narrower ones exactly. What the grid smooths away is the disk's
-// own edge: against the exact convolution at most 0.35 levels RMS and 2 levels on street frames
-// with circles up to 60 px (tests/render/test_focus.cpp). A grid of diameter / 8 or / 16 was
+// own edge: against the exact convolution at most 0.36 levels RMS and 3 levels on street frames
+// with circles of 60-168 px (tests/render/test_focus.cpp). A grid of diameter / 8 or / 16 was
 // tried: up to 1.15 levels RMS and 11 at most on a 34-60 px circle, over the tolerance.
 inline constexpr double kBackgroundGridDiameter = 24;
 enum class BackgroundGrid { Auto, Exact };
