@@ -1690,6 +1690,24 @@ if want droplets; then
   # (each rainy image replaced by its clean one: the street alone), and glass-droplets variants.
   rm -rf "$dd/clarity" && mkdir -p "$dd/clarity"
   for f in "$shared"/real-raindrop/clarity_*; do ln -s "$(realpath "$f")" "$dd/clarity/"; done
+  # Looked at (not committed): beaded photographs at the working scale beside glass-droplets renders,
+  # centre crops 256x128 doubled, photograph | render per row.
+  $py - "$dd/clarity" data/val-glass-droplets "$dd/sheet.png" <<'PY'
+import os, sys
+import cv2
+import numpy as np
+photos, renders, out = sys.argv[1:]
+ps = sorted(os.listdir(photos))[:6]
+rs = sorted(os.listdir(os.path.join(renders, "rainy")))[:6]
+def crop(im):
+    h, w = im.shape[:2]
+    im = cv2.resize(im, (512, round(h * 512 / w)), interpolation=cv2.INTER_AREA)
+    h = im.shape[0]
+    return cv2.resize(im[h // 2 - 64:h // 2 + 64, 128:384], None, fx=2, fy=2, interpolation=cv2.INTER_NEAREST)
+rows = [np.hstack([crop(cv2.imread(os.path.join(photos, p))), crop(cv2.imread(os.path.join(renders, "rainy", r)))])
+        for p, r in zip(ps, rs)]
+cv2.imwrite(out, np.vstack(rows))
+PY
   no_drops() {
     rm -rf "$2" && mkdir -p "$2" && cp "$1/manifest.jsonl" "$2/" && cp -r "$1/clean" "$1/mask" "$2/" && cp -r "$1/clean" "$2/rainy"
   }
