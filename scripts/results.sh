@@ -1731,4 +1731,44 @@ PY
         --limit 100 --seed "$seed" | grep "^| rendered" | sed "s|^|$(basename "$photos") seed $seed |"
     done
   done | tee "$dd/realism.txt"
+  # A second router, fitted the same way on the routed default's outputs and compact-droplets-3's
+  # (the four validation sets above): its in-sample choice per set, and where it sends the 44
+  # photographs.
+  fit3=()
+  for s in real-pairs-train val-glass-droplets-- val-windshield-sharp-- val-sparse--; do
+    fit3+=(--set "$dd/routed-$s/set" "$dd/routed-$s/out" "$dd/compact-droplets-3-$s/out")
+  done
+  rm -rf "$dd/second-router" && cp -r models/compact-multiscale "$dd/second-router"
+  $py -m raindrop_tools.detector_router fit --models models/compact-multiscale --alternative compact-droplets-3 \
+    "${fit3[@]}" --out "$dd/second-router/ROUTER" | tee "$dd/second-router.txt"
+  $py - "$dd" "$shared/real-raindrop" <<'PY' | tee -a "$dd/second-router.txt"
+import math, os, subprocess, sys
+import cv2
+import numpy as np
+dd, photos = sys.argv[1:]
+def psnr_y(a, b):  # score_outputs' protocol: 8-bit Y, cropped to a multiple of 4
+    h, w = min(a.shape[0], b.shape[0]) // 4 * 4, min(a.shape[1], b.shape[1]) // 4 * 4
+    ya, yb = (cv2.cvtColor(x[:h, :w], cv2.COLOR_BGR2YCrCb)[:, :, 0].astype(np.float64) for x in (a, b))
+    m = ((ya - yb) ** 2).mean()
+    return 100.0 if m == 0 else 10 * math.log10(255 ** 2 / m)
+def decide(paths):
+    out = subprocess.run([sys.executable, "-m", "raindrop_tools.detector_router", "decide", "--models",
+                          os.path.join(dd, "second-router")] + paths, capture_output=True, text=True, check=True).stdout
+    return {os.path.basename(l.split()[0]): float(l.split()[1]) for l in out.splitlines() if l.strip()}
+for s in ["real-pairs-train", "val-glass-droplets--", "val-windshield-sharp--", "val-sparse--"]:
+    setd = f"{dd}/routed-{s}/set"
+    names = sorted(os.listdir(f"{setd}/rainy"))
+    z = decide([f"{setd}/rainy/{n}" for n in names])
+    g = []
+    for n in names:
+        clean, rainy = cv2.imread(f"{setd}/clean/{n}"), cv2.imread(f"{setd}/rainy/{n}")
+        a, b = (psnr_y(cv2.imread(f"{dd}/{m}-{s}/out/{n}"), clean) - psnr_y(rainy, clean) for m in ("routed", "compact-droplets-3"))
+        g.append((a, b, b if z[n] > 0 else a, z[n] > 0))
+    g = np.array(g)
+    print(f"{s}: routed default {g[:, 0].mean():+.2f}, compact-droplets-3 {g[:, 1].mean():+.2f}, "
+          f"three-way (in-sample) {g[:, 2].mean():+.2f}, {100 * g[:, 3].mean():.0f}% to compact-droplets-3")
+z = decide(sorted(os.path.join(photos, f) for f in os.listdir(photos)))
+print(f"photographs to compact-droplets-3: {sum(v > 0 for v in z.values())} of {len(z)}:",
+      " ".join(sorted(n for n, v in z.items() if v <= 0)), "kept")
+PY
 fi
