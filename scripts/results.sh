@@ -1665,7 +1665,7 @@ if want droplets; then
     --variants 4 --seed 7 -q
   sets=(real-pairs:train:0 val-glass-droplets:-:0 val-windshield-sharp:-:0 val-sparse:-:0)
   score_sets "$dd" routed "-j 2" "${sets[@]}" | tee "$dd/scores.txt"
-  ln -sfn "$PWD/models/paper-real-coarse" out/models/paper-real-coarse
+  mkdir -p out/models && ln -sfn "$PWD/models/paper-real-coarse" out/models/paper-real-coarse
   for run in compact-droplets compact-droplets-2 compact-droplets-3; do
     [[ -f "tools/runs/$run/checkpoints/stage1_step00000800.pt" ]] ||
       $py -m raindrop_tools.train --config "tools/configs/$run.yaml" --out "tools/runs/$run" \
