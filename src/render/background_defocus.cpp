@@ -8,6 +8,7 @@
 
 #include "raindrop/render/defocus.h"
 #include "raindrop/render/disk_kernel.h"
+#include "raindrop/render/linear_frame.h"
 #include "raindrop/render/srgb.h"
 
 namespace raindrop {
@@ -31,9 +32,8 @@ cv::Mat disk_convolve(const cv::Mat& linear, double diameter, int border) {
   return out;
 }
 
-}  // namespace
-
-cv::Mat defocus_background_linear(const cv::Mat& linear, double coc_px, BorderMode border, BackgroundGrid grid) {
+// Linear RGB (CV_32FC3) convolved with the disk, on the grid where it is wide enough.
+cv::Mat defocus_linear(const cv::Mat& linear, double coc_px, BorderMode border, BackgroundGrid grid) {
   const int mode = border == BorderMode::Clamp ? cv::BORDER_REPLICATE : cv::BORDER_REFLECT;
   const double diameter = std::min(coc_px, 2.0 * std::max(linear.cols, linear.rows));
   const int s = grid == BackgroundGrid::Exact ? 1 : background_grid_step(diameter);
@@ -54,6 +54,8 @@ cv::Mat defocus_background_linear(const cv::Mat& linear, double coc_px, BorderMo
   return up(cv::Rect(margin, margin, linear.cols, linear.rows)).clone();
 }
 
+}  // namespace
+
 int background_grid_step(double diameter) {
   return std::max(1, static_cast<int>(diameter / kBackgroundGridDiameter));
 }
@@ -63,19 +65,7 @@ cv::Mat defocus_background(const cv::Mat& clean, double coc_px, BorderMode borde
   CV_Assert(clean.type() == CV_8UC3);
   if (!(coc_px >= kMinVisibleCocPx)) return clean.clone();
   const SrgbTables& srgb = SrgbTables::get();
-  const auto& decode = srgb8_to_linear_table();
-  cv::Mat linear(clean.size(), CV_32FC3);
-  tbb::parallel_for(tbb::blocked_range<int>(0, clean.rows, 16), [&](const tbb::blocked_range<int>& ys) {
-    for (int y = ys.begin(); y < ys.end(); ++y) {
-      const auto* in = clean.ptr<cv::Vec3b>(y);
-      auto* out = linear.ptr<cv::Vec3f>(y);
-      for (int x = 0; x < clean.cols; ++x) {
-        for (int c = 0; c < 3; ++c) out[x][c] = decode[in[x][c]];
-        lift.apply(&out[x][0]);
-      }
-    }
-  });
-  cv::Mat blurred = defocus_background_linear(linear, coc_px, border, grid);
+  cv::Mat blurred = defocus_linear(lifted_linear(clean, lift), coc_px, border, grid);
   cv::Mat result(clean.size(), CV_8UC3);
   tbb::parallel_for(tbb::blocked_range<int>(0, clean.rows, 16), [&](const tbb::blocked_range<int>& ys) {
     for (int y = ys.begin(); y < ys.end(); ++y) {

@@ -94,31 +94,31 @@ double RenderedFrame::coverage() const {
 RenderedFrame render_frame(const cv::Mat& input, const Camera& camera, const SceneConfig& config,
                            const SceneSample& scene) {
   RenderedFrame frame;
-  auto t0 = Clock::now();
-  // Focus off the background: the street is defocused (background_defocus.h), and the drops are
-  // traced and composited against it. Otherwise the input is the background as it is.
-  // Highlights run where the scene names them (the config decides, whatever the sample was drawn
-  // with) and some pixel of the input reaches the threshold; the street's blur and the drops'
-  // spread then both lift. Otherwise a copy of the sample with the lift off renders the frame
-  // exactly as without the effect, at its cost.
-  const bool lift = config.lens.enabled && config.highlights.enabled && scene.highlights.active() &&
-                    highlights_present(input, config, scene.highlights);
-  const double background_coc = config.lens.enabled ? scene.background_coc_px(camera.fx) : 0.0;
-  if (background_coc >= kMinVisibleCocPx) {
-    frame.clean = defocus_background(input, background_coc, config.border, lift ? scene.highlights : HighlightLift{});
-    frame.highlights_lifted = lift;
-  }
-  frame.timings.background_ms = ms_since(t0);
-  const cv::Mat& clean = frame.clean.empty() ? input : frame.clean;
-  t0 = Clock::now();
-  // Skip the lens when no drop's circle of confusion reaches half a pixel: the pinhole
-  // render is then what the lens would give, to rounding.
+  // What the lens spreads, from the sample alone: the drops, where some drop's circle of
+  // confusion reaches half a pixel (else the pinhole render is what the lens would give, to
+  // rounding), and the street, where focus is off it and its own circle reaches half a pixel.
   double largest = 0;
   const bool lens = config.lens.enabled && scene.aperture_cm() > 0;
   if (lens) {
     for (const DropShape& d : scene.drops) largest = std::max(largest, scene.drop_coc_px(d, camera.fx));
   }
   const bool defocus = lens && largest >= kMinVisibleCocPx;
+  const double background_coc = lens ? scene.background_coc_px(camera.fx) : 0.0;
+  const bool street_defocused = background_coc >= kMinVisibleCocPx;
+  // Highlights run where the lens spreads something, the scene names them (the config decides,
+  // whatever the sample was drawn with) and some pixel of the input reaches the threshold.
+  const bool lift = (defocus || street_defocused) && config.highlights.enabled && scene.highlights.active() &&
+                    highlights_present(input, config, scene.highlights);
+  frame.highlights_lifted = lift;
+
+  // Focus off the background: the street is defocused (background_defocus.h), and the drops are
+  // traced and composited against it. Otherwise the input is the background as it is.
+  auto t0 = Clock::now();
+  if (street_defocused)
+    frame.clean = defocus_background(input, background_coc, config.border, lift ? scene.highlights : HighlightLift{});
+  frame.timings.background_ms = ms_since(t0);
+  const cv::Mat& clean = frame.clean.empty() ? input : frame.clean;
+  t0 = Clock::now();
   // The effects the scene leaves to its physics ("auto"), per drop; gravity is undone on the
   // drops where it does not show.
   frame.effects = plan_effects(config, scene, camera, defocus);
@@ -132,7 +132,8 @@ RenderedFrame render_frame(const cv::Mat& input, const Camera& camera, const Sce
   frame.timings.accel_ms = ms_since(t0);
 
   if (defocus) {
-    frame.highlights_lifted = lift;
+    // Without the lift, a copy of the sample with it off renders the frame exactly as without
+    // the effect, at its cost.
     if (lift || !scene.highlights.active())
       return render_defocused(clean, camera, config, scene, accel, drops, largest, frame);
     SceneSample unlifted = scene;

@@ -7,6 +7,7 @@
 #include <opencv2/imgproc.hpp>
 
 #include "raindrop/common/rng.h"
+#include "raindrop/render/linear_frame.h"
 #include "raindrop/render/srgb.h"
 
 namespace raindrop {
@@ -107,18 +108,7 @@ cv::Mat veil_blur(const cv::Mat& linear, double sigma_px, VeilMethod method) {
 void apply_veil(cv::Mat& rgb, const VeilSample& veil, const HighlightLift& lift, VeilMethod method) {
   CV_Assert(rgb.type() == CV_8UC3);
   if (!veil.visible(lift) || rgb.empty()) return;
-  const auto& decode = srgb8_to_linear_table();
-  cv::Mat linear(rgb.size(), CV_32FC3);
-  for (int y = 0; y < rgb.rows; ++y) {
-    const auto* p = rgb.ptr<unsigned char>(y);
-    auto* q = linear.ptr<float>(y);
-    for (int x = 0; x < rgb.cols; ++x, p += 3, q += 3) {
-      q[0] = decode[p[0]];
-      q[1] = decode[p[1]];
-      q[2] = decode[p[2]];
-      lift.apply(q);
-    }
-  }
+  const cv::Mat linear = lifted_linear(rgb, lift);
   const cv::Mat spread = veil_blur(linear, veil.sigma_px, method);
   const float s = static_cast<float>(veil.scattered());
   const SrgbTables& tables = SrgbTables::get();

@@ -31,6 +31,27 @@ inline DropShape cap(double u, double v, double footprint, double tau_deg) {
   return s;
 }
 
+// A scene with the thin-lens camera on (focused on the background unless the test moves it)
+// and the paper's disk blur off, which a lens replaces.
+inline SceneConfig lens_scene(DefocusMethod method = DefocusMethod::Layered) {
+  SceneConfig c;
+  c.blur.enabled = false;
+  c.lens.enabled = true;
+  c.lens.method = method;
+  return c;
+}
+
+// A thin-lens sample without drops: upright glass at glass_cm, the background at background_cm,
+// an f/f_number lens of focal_mm.
+inline SceneSample lens_sample(double glass_cm, double f_number, double focal_mm, double background_cm) {
+  SceneSample s;
+  s.glass = upright_glass(glass_cm);
+  s.background_distance_cm = background_cm;
+  s.f_number = f_number;
+  s.focal_length_mm = focal_mm;
+  return s;
+}
+
 inline Camera camera(int w, int h, double f) {
   Camera c;
   c.fx = c.fy = f;

@@ -23,20 +23,13 @@ namespace {
 constexpr double kT = 1000;  // background plane (and focus), cm
 
 SceneConfig lens_config(DefocusMethod method, int samples = 256) {
-  SceneConfig c;
-  c.blur.enabled = false;
-  c.lens.enabled = true;
-  c.lens.method = method;
+  SceneConfig c = lens_scene(method);
   c.lens.aperture_samples = samples;
   return c;
 }
 
 SceneSample one_drop(double glass_cm, double footprint_cm, double f_number, double focal_mm) {
-  SceneSample s;
-  s.glass = upright_glass(glass_cm);
-  s.background_distance_cm = kT;
-  s.f_number = f_number;
-  s.focal_length_mm = focal_mm;
+  SceneSample s = lens_sample(glass_cm, f_number, focal_mm, kT);
   s.drops = {cap(0, 0, footprint_cm, 40)};
   return s;
 }

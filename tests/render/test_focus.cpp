@@ -24,20 +24,14 @@ namespace {
 constexpr double kT = 1000;  // background plane, cm
 
 SceneConfig lens_config(SceneConfig::Focus focus) {
-  SceneConfig c;
-  c.blur.enabled = false;
-  c.lens.enabled = true;
+  SceneConfig c = lens_scene();
   c.lens.focus = focus;
   return c;
 }
 
 SceneSample sample(double glass_cm, double focus_cm, double f_number, double focal_mm) {
-  SceneSample s;
-  s.glass = upright_glass(glass_cm);
-  s.background_distance_cm = kT;
+  SceneSample s = lens_sample(glass_cm, f_number, focal_mm, kT);
   s.focus_distance_cm = focus_cm;
-  s.f_number = f_number;
-  s.focal_length_mm = focal_mm;
   return s;
 }
 
@@ -181,9 +175,10 @@ TEST(Focus, SceneFileForms) {
   }
   // Focused on the background, a scene prints (and fingerprints its jobs: a resumed job compares
   // them) as before the key existed.
-  for (const std::string& name : scene_preset_names())
+  for (const std::string& name : scene_preset_names()) {
     if (scene_preset(name).lens.focus == SceneConfig::Focus::Background)
       EXPECT_EQ(scene_to_json(scene_preset(name)).find("focus_distance_cm"), std::string::npos) << name;
+  }
   expect_scene_refused(head + R"("street"}})", "focus_distance_cm");
   expect_scene_refused(head + "[0.1, 5]}}", "focus_distance_cm");
   expect_scene_refused(head + R"("glass", "defocus": "aperture"}})", "aperture");

@@ -35,11 +35,7 @@ HighlightLift lift(double threshold_srgb, double gain) {
 // One drop 5 cm in front of an f/1, 5 mm lens focused at 10 m: a circle of confusion of
 // 0.5 cm x 200 px x (1/5 - 1/1000) = 19.9 px at fx 200, over a 16 px outline.
 SceneSample one_drop_scene() {
-  SceneSample s;
-  s.glass = upright_glass(5);
-  s.background_distance_cm = 1000;
-  s.f_number = 1;
-  s.focal_length_mm = 5;
+  SceneSample s = lens_sample(5, 1, 5, 1000);
   s.drops = {cap(0, 0, 0.2, 40)};
   return s;
 }

@@ -33,8 +33,5 @@ int background_grid_step(double diameter);
 // full resolution whatever the circle (the reference the grid is measured against).
 cv::Mat defocus_background(const cv::Mat& clean, double coc_px, BorderMode border, const HighlightLift& lift = {},
                            BackgroundGrid grid = BackgroundGrid::Auto);
-// The same on linear RGB (CV_32FC3), no lift.
-cv::Mat defocus_background_linear(const cv::Mat& linear, double coc_px, BorderMode border,
-                                  BackgroundGrid grid = BackgroundGrid::Auto);
 
 }  // namespace raindrop
