@@ -176,8 +176,9 @@ TEST(Focus, SceneFileForms) {
   // Focused on the background, a scene prints (and fingerprints its jobs: a resumed job compares
   // them) as before the key existed.
   for (const std::string& name : scene_preset_names()) {
-    if (scene_preset(name).lens.focus == SceneConfig::Focus::Background)
+    if (scene_preset(name).lens.focus == SceneConfig::Focus::Background) {
       EXPECT_EQ(scene_to_json(scene_preset(name)).find("focus_distance_cm"), std::string::npos) << name;
+    }
   }
   expect_scene_refused(head + R"("street"}})", "focus_distance_cm");
   expect_scene_refused(head + "[0.1, 5]}}", "focus_distance_cm");
