@@ -218,6 +218,11 @@ link_cv100() {
   mkdir -p "$out/cv100"
   ls "$shared/camvid/val" | head -100 | while read -r f; do ln -sf "$(realpath "$shared/camvid/val/$f")" "$out/cv100/$f"; done
 }
+# no_drops SRC DST: data set SRC with every rainy image replaced by its clean one (what the
+# scenes alone tell apart, for the realism classifier), into DST, emptied first.
+no_drops() {
+  rm -rf "$2" && mkdir -p "$2" && cp "$1/manifest.jsonl" "$2/" && cp -r "$1/clean" "$1/mask" "$2/" && cp -r "$1/clean" "$2/rainy"
+}
 # The paper preset with the drop density of the authors' released renderer (5-7 drops, about 1%
 # of the frame; docs/DESIGN.md section 1.1), everything else as it is: $out/paper-sparse.json.
 paper_sparse_scene() {
@@ -898,10 +903,7 @@ if want photos; then
       --size 512x256 --seed 11 -q
     sets+=(--rendered "$pd/val-$preset")
   done
-  rm -rf "$pd/val-no-drops" && mkdir -p "$pd/val-no-drops"
-  cp "$pd/val-paper/manifest.jsonl" "$pd/val-no-drops/"
-  for sub in clean mask; do cp -r "$pd/val-paper/$sub" "$pd/val-no-drops/$sub"; done
-  cp -r "$pd/val-paper/clean" "$pd/val-no-drops/rainy"
+  no_drops "$pd/val-paper" "$pd/val-no-drops"
   for seed in 0 1 2; do
     $py -m raindrop_tools.realism --real-photos "$shared/real-raindrop" --rendered "$pd/val-no-drops" "${sets[@]}" \
       --limit 100 --seed "$seed" --json "$pd/realism-photos-s$seed.json" | tee "$pd/realism-photos-s$seed.md"
@@ -1708,9 +1710,6 @@ rows = [np.hstack([crop(cv2.imread(os.path.join(photos, p))), crop(cv2.imread(os
         for p, r in zip(ps, rs)]
 cv2.imwrite(out, np.vstack(rows))
 PY
-  no_drops() {
-    rm -rf "$2" && mkdir -p "$2" && cp "$1/manifest.jsonl" "$2/" && cp -r "$1/clean" "$1/mask" "$2/" && cp -r "$1/clean" "$2/rainy"
-  }
   no_drops data/val-windshield-sharp "$dd/no-drops-sharp-street"
   no_drops data/val-glass-droplets "$dd/no-drops-blurred-street"
   variant() {  # variant NAME SED: glass-droplets edited by SED, over the same 100 frames
