@@ -109,7 +109,11 @@ DefocusedFrame composite_layers_exact(const cv::Mat& clean, const TraceResult& t
 
 DefocusedFrame encode_aperture(const cv::Mat& clean, const ApertureResult& reference, const HighlightLift& lift) {
   DefocusedFrame out;
-  out.rainy = encode(clean, reference.linear, reference.coverage, lift);
+  if (!reference.clean_linear.empty()) {
+    const cv::Mat everywhere(clean.size(), CV_32F, cv::Scalar(1));
+    out.clean = encode(clean, reference.clean_linear, everywhere, lift);
+  }
+  out.rainy = encode(out.clean.empty() ? clean : out.clean, reference.linear, reference.coverage, lift);
   out.coverage = reference.coverage.clone();
   return out;
 }

@@ -29,6 +29,7 @@
 #include "raindrop/common/progress.h"
 #include "raindrop/common/rng.h"
 #include "raindrop/common/version.h"
+#include "raindrop/render/defocus.h"
 #include "raindrop/render/framing.h"
 #include "raindrop/render/manifest.h"
 #include "raindrop/render/sensor.h"
@@ -194,6 +195,11 @@ json effects_auto_record(const SceneConfig& config, const RenderedFrame& rendere
   return out;
 }
 
+// Whether the lens spread some drop (else only the street: the aperture reference, focus off it).
+bool some_drop_spread(const RenderedFrame& rendered) {
+  return std::any_of(rendered.coc_px.begin(), rendered.coc_px.end(), [](double c) { return c >= kMinVisibleCocPx; });
+}
+
 // The highlights' lift the frame's light went through, which the veil then scatters (veil.h):
 // the sample's, where it ran on this frame; none otherwise.
 HighlightLift lift_that_ran(const RenderedFrame& rendered, const SceneSample& scene) {
@@ -258,8 +264,10 @@ json sample_record(const std::string& id, const InputImage& input, int variant, 
                       {"background_coc_px", scene.background_coc_px(frame.camera.fx)},
                       {"background_defocused", !rendered.clean.empty()},
                       {"defocus", rendered.defocused ? to_string(config.lens.method) : "skipped"},
-                      {"why", rendered.defocused ? "some drop's circle of confusion is at least 0.5 px"
-                                                 : "every drop's circle of confusion is under 0.5 px"},
+                      {"why", !rendered.defocused ? "every drop's circle of confusion is under 0.5 px"
+                              : some_drop_spread(rendered) ? "some drop's circle of confusion is at least 0.5 px"
+                                                           : "the street's circle of confusion is at least 0.5 px "
+                                                             "(the aperture reference traces it)"},
                       {"mask_threshold", config.lens.mask_threshold}};
   }
   if (config.highlights.enabled)

@@ -28,10 +28,14 @@ void finish_mask(const SceneConfig& config, RenderedFrame& frame) {
 // A drop just outside the frame still spreads light into it, so both run on the frame
 // widened by the largest circle's radius (the clean frame mirrored into the margin, as the
 // border mode continues it) and are cropped back.
+// The reference traces the street too where focus is off it (tracer.h): `clean` is then the
+// sharp input, the margin as wide as the street's circle too, and the clean image its own.
 RenderedFrame render_defocused(const cv::Mat& clean, const Camera& camera, const SceneConfig& config,
                                const SceneSample& scene, const DropAccel& accel, const std::vector<Drop>& drops,
                                double largest_coc_px, RenderedFrame frame) {
   frame.defocused = true;
+  if (config.lens.method == DefocusMethod::Aperture)
+    largest_coc_px = std::max(largest_coc_px, scene.background_coc_px(camera.fx));
   const int pad = static_cast<int>(std::ceil(std::min(0.5 * largest_coc_px, 0.5 * std::max(clean.cols, clean.rows)))) + 1;
   cv::Mat wide;
   cv::copyMakeBorder(clean, wide, pad, pad, pad, pad,
@@ -58,6 +62,7 @@ RenderedFrame render_defocused(const cv::Mat& clean, const Camera& camera, const
   }
   t0 = Clock::now();
   frame.rainy = out.rainy(inner).clone();
+  if (!out.clean.empty()) frame.clean = out.clean(inner).clone();
   frame.alpha = out.coverage(inner).clone();
   frame.coc_px = std::move(out.coc_px);
   finish_mask(config, frame);
@@ -112,9 +117,11 @@ RenderedFrame render_frame(const cv::Mat& input, const Camera& camera, const Sce
   frame.highlights_lifted = lift;
 
   // Focus off the background: the street is defocused (background_defocus.h), and the drops are
-  // traced and composited against it. Otherwise the input is the background as it is.
+  // traced and composited against it; the aperture reference traces the street's defocus
+  // instead, from the input. Otherwise the input is the background as it is.
+  const bool street_traced = street_defocused && config.lens.method == DefocusMethod::Aperture;
   auto t0 = Clock::now();
-  if (street_defocused)
+  if (street_defocused && !street_traced)
     frame.clean = defocus_background(input, background_coc, config.border, lift ? scene.highlights : HighlightLift{});
   frame.timings.background_ms = ms_since(t0);
   const cv::Mat& clean = frame.clean.empty() ? input : frame.clean;
@@ -131,7 +138,7 @@ RenderedFrame render_frame(const cv::Mat& input, const Camera& camera, const Sce
   accel.set_disjoint(!config.allow_overlap && !config.trails.enabled);
   frame.timings.accel_ms = ms_since(t0);
 
-  if (defocus) {
+  if (defocus || street_traced) {
     // Without the lift, a copy of the sample with it off renders the frame exactly as without
     // the effect, at its cost.
     if (lift || !scene.highlights.active())

@@ -289,9 +289,6 @@ SceneConfig parse_scene_json(const std::string& text, const std::string& origin)
       l.range("focus_distance_cm", &c.lens.focus_distance_cm, 1, 1e7);
       c.lens.focus = SceneConfig::Focus::Distance;
     }
-    if (c.lens.focus != SceneConfig::Focus::Background && c.lens.method == DefocusMethod::Aperture)
-      l.fail("the aperture reference ('defocus': \"aperture\") is focused on the background: 'focus_distance_cm' "
-             "elsewhere needs \"layered\" or \"layered-exact\"");
     l.reject_unknown();
   }
 

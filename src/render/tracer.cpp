@@ -15,6 +15,8 @@
 #include "raindrop/render/background.h"
 #include "raindrop/render/background_range.h"
 #include "raindrop/render/cap_exit.h"
+#include "raindrop/render/defocus.h"
+#include "raindrop/render/linear_frame.h"
 #include "raindrop/render/optics.h"
 #include "raindrop/render/scratch_pool.h"
 #include "raindrop/render/sky.h"
@@ -779,13 +781,17 @@ TraceResult run(const cv::Mat& clean, const Camera& camera, const SceneConfig& c
 }
 
 // The aperture reference: every pixel near a drop averages rays from a stratified grid of
-// points on the lens disk, each aimed at the pixel's point on the plane of focus (the
-// background, z = T) and traced through the drops. A ray that meets no drop lands exactly on
-// that point, so it sees the pixel's own clean colour.
+// points on the lens disk, each aimed at the pixel's point on the plane of focus (z = F) and
+// traced through the drops. Focused on the background (F = T), a ray that meets no drop lands
+// exactly on the pixel's own point, so it sees the pixel's own clean colour. Focused elsewhere
+// (`street`: the background's circle reaches half a pixel), it lands wherever its line meets
+// z = T, and every pixel of the frame, near a drop or not, averages what its rays see there:
+// the street's defocus follows from the rays, and the average of the rays alone is the clean
+// image (ApertureResult::clean_linear).
 template <bool kFresnel, bool kDispersion>
 ApertureResult run_aperture(const cv::Mat& clean, const Camera& camera, const SceneConfig& config,
                             const SceneSample& scene, const DropAccel& accel, int samples, const EffectPlan* plan,
-                            const TraceStrategy& strategy) {
+                            const TraceStrategy& strategy, bool street) {
   const Kernel<kFresnel, kDispersion> kernel(clean, camera, config, scene, accel, plan, strategy.lockstep);
   ApertureResult out;
   out.linear = cv::Mat(camera.height, camera.width, CV_32FC3, cv::Scalar::all(0));
@@ -833,6 +839,32 @@ ApertureResult run_aperture(const cv::Mat& clean, const Camera& camera, const Sc
   }
   for (auto& r : rows) merge_spans(r);
   const double T = scene.background_distance_cm;
+  const double F = street ? scene.focus_cm() : T;
+  // The street a ray from lens point o through `focus` (z = F) meets on the plane z = T: the
+  // frame in linear light (lifted), bilinear, continued past its edges as the border mode says
+  // (the fast path's defocus pads the frame the same way).
+  cv::Mat street_linear;
+  if (street) {
+    street_linear = lifted_linear(clean, lift);
+    out.clean_linear = cv::Mat(camera.height, camera.width, CV_32FC3, cv::Scalar::all(0));
+  }
+  const BackgroundSampler& bg = kernel.background();
+  auto street_seen = [&](const glm::dvec3& o, const glm::dvec3& focus) {
+    const glm::dvec2 xy = camera.project(o + (T / F) * (focus - o));
+    const double u = bg.fold(xy.x, camera.width), v = bg.fold(xy.y, camera.height);
+    const int x0 = std::min(static_cast<int>(u), camera.width - 1), y0 = std::min(static_cast<int>(v), camera.height - 1);
+    const int x1 = std::min(x0 + 1, camera.width - 1), y1 = std::min(y0 + 1, camera.height - 1);
+    const double fu = u - x0, fv = v - y0;
+    const auto* ra = street_linear.ptr<cv::Vec3f>(y0);
+    const auto* rb = street_linear.ptr<cv::Vec3f>(y1);
+    glm::dvec3 c;
+    for (int i = 0; i < 3; ++i) {
+      const double top = ra[x0][i] + fu * (ra[x1][i] - ra[x0][i]);
+      const double bottom = rb[x0][i] + fu * (rb[x1][i] - rb[x0][i]);
+      c[i] = top + fv * (bottom - top);
+    }
+    return c;
+  };
   std::atomic<std::int64_t> lockstep{0};
   tbb::parallel_for(tbb::blocked_range<int>(0, camera.height, 4), [&](const tbb::blocked_range<int>& r) {
     std::int64_t n_lock = 0;
@@ -840,9 +872,27 @@ ApertureResult run_aperture(const cv::Mat& clean, const Camera& camera, const Sc
       auto* out_rgb = out.linear.ptr<cv::Vec3f>(y);
       auto* out_cov = out.coverage.ptr<float>(y);
       const auto* src = clean.ptr<cv::Vec3b>(y);
+      // Off the background's focus, the pixels no drop's cone reaches see the street alone.
+      if (street) {
+        auto* out_clean = out.clean_linear.ptr<cv::Vec3f>(y);
+        std::size_t span = 0;
+        for (int x = 0; x < camera.width; ++x) {
+          while (span < rows[y].size() && rows[y][span].second < x) ++span;
+          const bool near_drop = span < rows[y].size() && rows[y][span].first <= x;
+          const glm::dvec3 focus = F * camera.ray_direction(x, y);
+          glm::dvec3 sum(0.0);
+          for (int sample = 0; sample < k * k; ++sample) {
+            const glm::dvec2 p = lens_point(x, y, sample % k, sample / k);
+            sum += street_seen(glm::dvec3(p.x, p.y, 0.0), focus);
+          }
+          sum /= static_cast<double>(k * k);
+          out_clean[x] = cv::Vec3f(static_cast<float>(sum.x), static_cast<float>(sum.y), static_cast<float>(sum.z));
+          if (!near_drop) out_rgb[x] = out_clean[x];
+        }
+      }
       for (const auto& [x0, x1] : rows[y]) {
         for (int x = x0; x <= x1; ++x) {
-          const glm::dvec3 focus = T * camera.ray_direction(x, y);
+          const glm::dvec3 focus = F * camera.ray_direction(x, y);
           float own_rgb[3] = {lin[src[x][0]], lin[src[x][1]], lin[src[x][2]]};
           lift.apply(own_rgb);  // what the pixel's clipped bytes stood for (highlights.h)
           const glm::dvec3 own(own_rgb[0], own_rgb[1], own_rgb[2]);
@@ -873,7 +923,12 @@ ApertureResult run_aperture(const cv::Mat& clean, const Camera& camera, const Sc
               s = kernel.sample_ray(origin, focus - origin);
             }
             if (!s.hit) {
-              sum += own;
+              if (street) {
+                const glm::dvec2 p = lens_point(x, y, sample % k, sample / k);
+                sum += street_seen(glm::dvec3(p.x, p.y, 0.0), focus);
+              } else {
+                sum += own;
+              }
               continue;
             }
             ++hits;
@@ -882,7 +937,10 @@ ApertureResult run_aperture(const cv::Mat& clean, const Camera& camera, const Sc
             lift.apply(rgb);
             for (int c = 0; c < 3; ++c) sum[c] += rgb[c];
           }
-          if (hits == 0) continue;
+          if (hits == 0) {
+            if (street) out_rgb[x] = out.clean_linear.at<cv::Vec3f>(y, x);
+            continue;
+          }
           sum /= static_cast<double>(k * k);
           out_rgb[x] = cv::Vec3f(static_cast<float>(sum.x), static_cast<float>(sum.y), static_cast<float>(sum.z));
           out_cov[x] = static_cast<float>(hits) / static_cast<float>(k * k);
@@ -903,10 +961,12 @@ ApertureResult trace_aperture(const cv::Mat& clean, const Camera& camera, const 
   CV_Assert(clean.type() == CV_8UC3 && clean.cols == camera.width && clean.rows == camera.height);
   const bool fresnel = config.fresnel.enabled;
   const bool dispersion = plan ? plan->dispersion_anywhere(config) : config.dispersion.enabled;
-  if (fresnel && dispersion) return run_aperture<true, true>(clean, camera, config, scene, accel, samples, plan, strategy);
-  if (fresnel) return run_aperture<true, false>(clean, camera, config, scene, accel, samples, plan, strategy);
-  if (dispersion) return run_aperture<false, true>(clean, camera, config, scene, accel, samples, plan, strategy);
-  return run_aperture<false, false>(clean, camera, config, scene, accel, samples, plan, strategy);
+  const bool street = scene.background_coc_px(camera.fx) >= kMinVisibleCocPx;
+  if (fresnel && dispersion)
+    return run_aperture<true, true>(clean, camera, config, scene, accel, samples, plan, strategy, street);
+  if (fresnel) return run_aperture<true, false>(clean, camera, config, scene, accel, samples, plan, strategy, street);
+  if (dispersion) return run_aperture<false, true>(clean, camera, config, scene, accel, samples, plan, strategy, street);
+  return run_aperture<false, false>(clean, camera, config, scene, accel, samples, plan, strategy, street);
 }
 
 TraceResult trace_drops(const cv::Mat& clean, const Camera& camera, const SceneConfig& config,

@@ -55,5 +55,44 @@ TEST(RenderFocus, FocusOnTheGlassDefocusesTheCleanImageOfEachVariant) {
   EXPECT_NE(cleans[0], cleans[1]);
 }
 
+// The aperture reference focused on the glass traces the street's defocus itself: the manifest
+// says so, its clean image is the layered path's street within sampling noise, and wherever no ray
+// met a drop (alpha 0) the rainy image is that clean image.
+TEST(RenderFocus, TheApertureReferenceTracesTheStreetOutOfFocus) {
+  TempDir tmp;
+  const cv::Mat street = make_background(160, 96, 5);
+  write_image(tmp / "street.png", street);
+  auto render = [&](const std::string& name, const std::string& method) {
+    write_file(tmp / (name + ".json"),
+               R"({"name": ")" + name + R"(", "glass_distance_cm": 10, "drop_count": 12,
+                   "footprint_radius_cm": [0.05, 0.15], "tilt_deg": 80, "camera": {"f_number": 2,
+                   "focal_length_mm": 5, "focus_distance_cm": "glass", "defocus": ")" + method + R"(",
+                   "aperture_samples": 64}})");
+    const auto r = run_render({"-i", "street.png", "--out", name, "--scene", name + ".json", "--seed", "4", "-j", "2", "-q"},
+                              tmp.path());
+    EXPECT_EQ(r.code, 0) << r.describe();
+    return read_manifest(tmp / name);
+  };
+  const auto reference = render("reference", "aperture"), layered = render("layered", "layered");
+  ASSERT_EQ(reference.size(), 1u);
+  const json& lens = reference[0].at("lens");
+  EXPECT_EQ(lens.at("defocus"), "aperture");
+  EXPECT_TRUE(lens.at("background_defocused").get<bool>());
+  EXPECT_GT(lens.at("background_coc_px").get<double>(), 3.0);
+  const std::string id = reference[0].at("id");
+  const auto clean = read_image(tmp / "reference/clean" / (id + ".png"));
+  const auto fast_clean = read_image(tmp / "layered/clean" / (id + ".png"));
+  const auto rainy = read_image(tmp / "reference/rainy" / (id + ".png"));
+  const auto alpha = read_image(tmp / "reference/alpha" / (id + ".png"));
+  ASSERT_TRUE(clean && fast_clean && rainy && alpha);
+  EXPECT_GT(cv::norm(clean->pixels, street, cv::NORM_L1) / street.total(), 1.0);
+  EXPECT_LT(cv::norm(clean->pixels, fast_clean->pixels, cv::NORM_L1) / street.total() / 3, 1.0);
+  cv::Mat outside_rainy, outside_clean;
+  rainy->pixels.copyTo(outside_rainy, alpha->pixels == 0);
+  clean->pixels.copyTo(outside_clean, alpha->pixels == 0);
+  EXPECT_EQ(cv::norm(outside_rainy, outside_clean, cv::NORM_INF), 0);
+  EXPECT_GT(cv::countNonZero(alpha->pixels), 0);
+}
+
 }  // namespace
 }  // namespace clitest

@@ -152,6 +152,95 @@ TEST(Focus, ADropOnTheFocusedGlassIsSharpAndTheStreetIsNot) {
   EXPECT_NEAR(off.coc_px[0], 5.0 / 10 / 2 * cam.fx * (1.0 / 6 - 1.0 / z), 1e-9);  // aperture 5 mm / 2
 }
 
+// The aperture reference with focus off the background traces the street's defocus itself: a
+// point of the street spreads, in linear light, over a disk whose diameter is the thin-lens circle
+// computed here (a uniform disk of diameter D has mean squared radius D^2 / 8), nothing reaches
+// past it, and its light is conserved; with no drop the rainy image is the clean one.
+TEST(Focus, TheReferenceSpreadsAPointOfTheStreetOverTheThinLensCircle) {
+  const Camera cam = camera(81, 81, 300);
+  for (double focus : {8.0, 15.0, 25.0}) {
+    const double coc = 5.0 / 10 / 1 * cam.fx * std::abs(1 / kT - 1 / focus);
+    SceneConfig c = lens_config(SceneConfig::Focus::Distance);
+    c.lens.method = DefocusMethod::Aperture;
+    c.lens.aperture_samples = 256;
+    const RenderedFrame f = render_frame(point_frame(cam), cam, c, sample(focus, focus, 1, 5));
+    ASSERT_FALSE(f.clean.empty()) << focus;
+    EXPECT_TRUE(equal_bits(f.rainy, f.clean));
+    const double centre = 0.5 * (cam.width - 1);
+    double sum = 0, r2 = 0, beyond = 0;
+    for (int y = 0; y < f.clean.rows; ++y) {
+      for (int x = 0; x < f.clean.cols; ++x) {
+        const double light = srgb_to_linear(f.clean.at<cv::Vec3b>(y, x)[1] / 255.0);
+        const double r = std::hypot(x - centre, y - centre);
+        sum += light;
+        r2 += light * r * r;
+        if (r > 0.5 * coc + 1.5) beyond += light;
+      }
+    }
+    const double diameter = std::sqrt(8 * r2 / sum);
+    std::printf("focus %.0f cm: circle %.2f px, traced %.2f px, light %.3f\n", focus, coc, diameter, sum);
+    EXPECT_NEAR(diameter, coc, 0.05 * coc + 0.5) << focus;
+    EXPECT_NEAR(sum, 1.0, 0.05) << focus;
+    EXPECT_EQ(beyond, 0.0) << focus;
+  }
+}
+
+// The reference's street against the fast path's convolution (defocus_background, exact): the
+// same disk, one sampled by 256 rays per pixel, the other summed over every pixel.
+TEST(Focus, TheReferencesStreetIsTheFastPathsWithinSamplingNoise) {
+  const Camera cam = camera(160, 96, 150);
+  const cv::Mat street = demo_street(cam.width, cam.height);
+  for (double focus : {6.0, 12.0}) {
+    SceneConfig c = lens_config(SceneConfig::Focus::Distance);
+    c.lens.method = DefocusMethod::Aperture;
+    c.lens.aperture_samples = 256;
+    const SceneSample s = sample(focus, focus, 1, 5);
+    const double coc = s.background_coc_px(cam.fx);
+    const RenderedFrame f = render_frame(street, cam, c, s);
+    ASSERT_FALSE(f.clean.empty());
+    const cv::Mat fast = defocus_background(street, coc, BorderMode::Mirror, {}, BackgroundGrid::Exact);
+    cv::Mat diff;
+    cv::absdiff(f.clean, fast, diff);
+    diff.convertTo(diff, CV_64F);
+    const cv::Mat sq = diff.mul(diff);
+    const double rmse = std::sqrt(cv::mean(sq.reshape(1))[0]);
+    double worst = 0;
+    cv::minMaxLoc(diff.reshape(1), nullptr, &worst);
+    std::printf("circle %.1f px: reference against the fast path's street RMSE %.2f, max %.0f levels\n", coc, rmse, worst);
+    EXPECT_LE(rmse, 1.0) << coc;
+    EXPECT_LE(worst, 8) << coc;
+  }
+}
+
+// Focused on the glass, the reference keeps a drop there sharp (its coverage a step, as wide as
+// the pinhole's outline) over its own traced street, which the rainy image is wherever no ray
+// met the drop.
+TEST(Focus, TheReferenceKeepsADropOnTheFocusedGlassSharp) {
+  const Camera cam = camera(121, 81, 250);
+  const double z = 10, a = 0.3;
+  SceneSample s = sample(z, z, 2, 5);
+  s.drops = {cap(0, 0, a, 45)};
+  SceneConfig c = lens_config(SceneConfig::Focus::Glass);
+  c.lens.method = DefocusMethod::Aperture;
+  c.lens.aperture_samples = 64;
+  const RenderedFrame f = render_frame(random_frame(cam), cam, c, s);
+  ASSERT_TRUE(f.defocused);
+  ASSERT_FALSE(f.clean.empty());
+  const int row = (cam.height - 1) / 2;
+  int run = 0, partial = 0;
+  for (int x = 0; x < cam.width; ++x) {
+    const float alpha = f.alpha.at<float>(row, x);
+    run += alpha >= 0.5f;
+    partial += alpha > 0.01f && alpha < 0.99f;
+  }
+  EXPECT_NEAR(run, 2 * cam.fx * a / z, 1.5);
+  EXPECT_LE(partial, 4);  // the outline's two edge pixels on each side at most
+  cv::Mat outside_rainy, outside_clean;
+  f.rainy.copyTo(outside_rainy, f.alpha == 0);
+  f.clean.copyTo(outside_clean, f.alpha == 0);
+  EXPECT_TRUE(equal_bits(outside_rainy, outside_clean));
+}
+
 // The background blur keeps a uniform frame uniform (weights sum to one, borders continued) and
 // leaves a frame alone under half a pixel.
 TEST(Focus, BackgroundBlurKeepsFlatFramesAndSkipsTinyCircles) {
@@ -182,7 +271,8 @@ TEST(Focus, SceneFileForms) {
   }
   expect_scene_refused(head + R"("street"}})", "focus_distance_cm");
   expect_scene_refused(head + "[0.1, 5]}}", "focus_distance_cm");
-  expect_scene_refused(head + R"("glass", "defocus": "aperture"}})", "aperture");
+  // The aperture reference traces any focus.
+  EXPECT_EQ(parse_scene_json(head + R"("glass", "defocus": "aperture"}})", "t").lens.method, DefocusMethod::Aperture);
   // glass-droplets is focused on its glass.
   EXPECT_EQ(scene_preset("glass-droplets").lens.focus, SceneConfig::Focus::Glass);
 }

@@ -31,6 +31,7 @@ namespace raindrop {
 
 struct DefocusedFrame {
   cv::Mat rainy;              // CV_8UC3: equal to the clean bytes wherever coverage is 0
+  cv::Mat clean;              // CV_8UC3: the street as the lens sees it, where the reference traced it; else empty
   cv::Mat coverage;           // CV_32F in [0, 1]: the fraction of the aperture that sees a drop
   std::vector<double> coc_px; // per drop: circle-of-confusion diameter used (0: not blurred)
 };
@@ -57,6 +58,7 @@ DefocusedFrame composite_layers_exact(const cv::Mat& clean, const TraceResult& t
 
 // The reference's result in the same form: linear radiance where coverage > 0 (stored through
 // `lift`'s inverse where it lifted the light it traced; highlights.h), the clean bytes elsewhere.
+// With the street traced (clean_linear), the clean bytes are its encoding, returned as `clean`.
 DefocusedFrame encode_aperture(const cv::Mat& clean, const ApertureResult& reference, const HighlightLift& lift = {});
 
 }  // namespace raindrop

@@ -90,10 +90,13 @@ TraceResult trace_drops(const cv::Mat& clean, const Camera& camera, const SceneC
                         const TraceStrategy& strategy = {});
 
 // The thin-lens reference (SceneConfig::lens, method Aperture): `samples` rays per pixel
-// from points spread over the aperture disk, focused on the background plane.
+// from points spread over the aperture disk, focused on the scene's plane of focus. Where the
+// background's own circle of confusion reaches half a pixel (focus off it), every pixel is
+// traced, and the rays' view without drops is returned as the clean image.
 struct ApertureResult {
-  cv::Mat linear;    // CV_32FC3 linear RGB, where coverage > 0 (zero elsewhere)
-  cv::Mat coverage;  // CV_32F: the fraction of the aperture's rays that met a drop
+  cv::Mat linear;        // CV_32FC3 linear RGB, where coverage > 0 (zero elsewhere; everywhere with clean_linear)
+  cv::Mat coverage;      // CV_32F: the fraction of the aperture's rays that met a drop
+  cv::Mat clean_linear;  // CV_32FC3 linear RGB of the street alone, focus off it; else empty
   std::int64_t lockstep_rays = 0;  // rays traced side by side (TraceStrategy::lockstep)
 };
 ApertureResult trace_aperture(const cv::Mat& clean, const Camera& camera, const SceneConfig& config,
