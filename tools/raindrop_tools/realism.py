@@ -54,7 +54,11 @@ over all drops).
   L2-regularised logistic regression (numpy) on ``crop_features`` of 64x64 crops of the rainy
   images, real against rendered; 0.5 = indistinguishable. The crops are taken at native
   resolution, and scene content (city, camera, time of day) differs between sets too, so the
-  classifier also separates scenes: read it as an upper bound of the drop realism gap.
+  classifier also separates scenes: read it as an upper bound of the drop realism gap;
+* ``street alone``: the same classifier against the rendered set's *clean* crops at the same
+  places (the street without drops), and ``drops' effect``, the rainy accuracy minus that: the
+  drops' own share with the scenes held fixed (below 0, the drops bring the renders closer to
+  the real rainy images; above 0, they give the renders away).
 
 (d) **Against real photographs without clean images** (``--real-photos DIR``, e.g. windshield
 photographs, which the real pairs, all lens covers, do not represent): only the classifier,
@@ -191,6 +195,8 @@ class SetStats:
     per_drop: dict[str, list[float]] = field(default_factory=lambda: {k: [] for k in DROP_STATS})
     crops: list[np.ndarray] = field(default_factory=list)
     crop_groups: list[str] = field(default_factory=list)
+    # The clean image's crops at the same places: the street alone, the classifier's control.
+    clean_crops: list[np.ndarray] = field(default_factory=list)
 
     def add(self, rainy, clean, mask, group: str, rng: np.random.Generator, crops_per_image: int) -> None:
         st = image_stats(rainy, clean, mask)
@@ -199,8 +205,9 @@ class SetStats:
             self.per_image[k].append(st[k])
         for k in DROP_STATS:
             self.per_drop[k].extend(st[k])
-        for c in random_crops(rainy, crops_per_image, rng):
-            self.crops.append(c)
+        for y, x in crop_places(rainy, crops_per_image, rng):
+            self.crops.append(rainy[y : y + CROP, x : x + CROP])
+            self.clean_crops.append(clean[y : y + CROP, x : x + CROP])
             self.crop_groups.append(f"{self.kind}:{group}")
 
     def values(self, stat: str) -> np.ndarray:
@@ -225,12 +232,16 @@ class SetStats:
         return out
 
 
-def random_crops(rgb: np.ndarray, n: int, rng: np.random.Generator, size: int = CROP) -> list[np.ndarray]:
+def crop_places(rgb: np.ndarray, n: int, rng: np.random.Generator, size: int = CROP) -> list[tuple[int, int]]:
+    """Top-left corners (y, x) of n random size x size crops of rgb."""
     h, w = rgb.shape[:2]
     if h < size or w < size or n <= 0:
         return []
-    return [rgb[y : y + size, x : x + size] for y, x in
-            zip(rng.integers(0, h - size + 1, n), rng.integers(0, w - size + 1, n))]
+    return list(zip(rng.integers(0, h - size + 1, n), rng.integers(0, w - size + 1, n)))
+
+
+def random_crops(rgb: np.ndarray, n: int, rng: np.random.Generator, size: int = CROP) -> list[np.ndarray]:
+    return [rgb[y : y + size, x : x + size] for y, x in crop_places(rgb, n, rng, size)]
 
 
 def crop_features(rgb: np.ndarray) -> np.ndarray:
@@ -415,14 +426,31 @@ def stats_table(st: SetStats) -> str:
     return "\n".join(lines) + "\n"
 
 
+def drops_effect(classifier: dict, street: dict) -> float:
+    """What the drops add to the classifier's accuracy: rainy crops' minus the same places' clean
+    crops' (the street alone). The sets' streets differ from the real photographs' (other cities,
+    cameras, hours) and the classifier uses that too; the difference leaves the drops' share. Below
+    0: the drops bring the renders closer to the real rainy images; above 0: further away."""
+    return classifier["accuracy"] - street["accuracy"]
+
+
 def score_table(scores: list[dict]) -> str:
-    head = ["set", *DISTANCE_STATS, "mean distance", "classifier accuracy"]
+    head = ["set", *DISTANCE_STATS, "mean distance", "classifier accuracy", "street alone", "drops' effect"]
     lines = ["| " + " | ".join(head) + " |", "| --- |" + " ---: |" * (len(head) - 1)]
     for sc in scores:
         d = sc["distance"]
         lines.append("| " + " | ".join([sc["name"], *(_f(d[k], 2) for k in DISTANCE_STATS), _f(d["mean"], 2),
-                                        _f(sc["classifier"]["accuracy"], 3)]) + " |")
+                                        _f(sc["classifier"]["accuracy"], 3), _f(sc["street"]["accuracy"], 3),
+                                        _f(sc["drops_effect"], 3)]) + " |")
     return "\n".join(lines) + "\n"
+
+
+def classifier_scores(real_crops, real_groups, st: SetStats, folds: int, seed: int) -> dict:
+    """The classifier against a rendered set's rainy crops, against its clean crops at the same
+    places (the street alone, the control), and the difference (drops_effect)."""
+    rainy = classifier_accuracy(real_crops, st.crops, real_groups, st.crop_groups, folds, seed)
+    street = classifier_accuracy(real_crops, st.clean_crops, real_groups, st.crop_groups, folds, seed)
+    return {"classifier": rainy, "street": street, "drops_effect": drops_effect(rainy, street)}
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -483,24 +511,30 @@ def main(argv: list[str] | None = None) -> int:
     scores = [{
         "name": st.name,
         "distance": distances(real, st),
-        "classifier": classifier_accuracy(real.crops, st.crops, real.crop_groups, st.crop_groups, args.folds, args.seed),
+        **classifier_scores(real.crops, real.crop_groups, st, args.folds, args.seed),
     } for st in rendered_sets] if real else []
     photo_scores = [{
         "name": st.name,
-        "classifier": classifier_accuracy(photos[0], st.crops, photos[1], st.crop_groups, args.folds, args.seed),
+        **classifier_scores(photos[0], photos[1], st, args.folds, args.seed),
     } for st in rendered_sets] if photos else []
     text = "\n".join(stats_table(st) for st in sets)
     if photo_scores:
         text += (f"\n### Classifier against real photographs ({Path(args.real_photos).name}: {photos[2]} photographs, "
                  f"{len(photos[0])} crops)\n\nBalanced {args.folds}-fold grouped cross-validated accuracy telling "
                  f"real from rendered rainy {CROP}x{CROP} crops, the photographs at {PHOTO_WIDTH} px wide "
-                 "(0.5 = indistinguishable).\n\n| set | classifier accuracy |\n| --- | ---: |\n" +
-                 "".join(f"| {sc['name']} | {_f(sc['classifier']['accuracy'], 3)} |\n" for sc in photo_scores))
+                 "(0.5 = indistinguishable); *street alone*: the same against the rendered clean images' crops "
+                 "at the same places; *drops' effect*: the first minus the second (below 0: the drops bring the "
+                 "renders closer to the photographs).\n\n"
+                 "| set | classifier accuracy | street alone | drops' effect |\n| --- | ---: | ---: | ---: |\n" +
+                 "".join(f"| {sc['name']} | {_f(sc['classifier']['accuracy'], 3)} | "
+                         f"{_f(sc['street']['accuracy'], 3)} | {_f(sc['drops_effect'], 3)} |\n"
+                         for sc in photo_scores))
     if scores:
         text += ("\n### Realism score against the real set\n\nDistances: 1-D Wasserstein distance to the real "
                  "distribution in units of its standard deviation (0 = same); classifier: balanced "
                  f"{args.folds}-fold grouped cross-validated accuracy telling real from rendered rainy "
-                 f"{CROP}x{CROP} crops (0.5 = indistinguishable).\n\n" + score_table(scores))
+                 f"{CROP}x{CROP} crops (0.5 = indistinguishable); street alone and drops' effect: as above, "
+                 "against the rendered clean images' crops at the same places.\n\n" + score_table(scores))
     print(text)
     if args.json:
         write_report(Path(args.json), {

@@ -239,3 +239,34 @@ def test_counts_below_their_minimum_are_usage_errors(tmp_path, argv, capsys):
         RM.main(["--real-pairs", str(tmp_path), *argv])
     assert e.value.code == 2
     assert argv[0] in capsys.readouterr().err
+
+
+def test_the_street_alone_control_tells_the_drops_share(tmp_path):
+    """Photographs that are the rendered set's own rainy images: its rainy crops cannot be told
+    from them, its clean crops (the same streets without drops) can, so the drops' effect is
+    negative (they bring the renders closer). Photographs that are its clean images: the other
+    way round, the drops give the renders away (effect positive)."""
+    from raindrop_tools.imageio import write_rgb
+
+    rendered = write_dataset(tmp_path / "rendered", n=24, h=128, w=512, seed=3)
+    # Drops every crop sees: a dense grid of small dark beads over each clean image.
+    for s in RM.read_manifest(rendered):
+        rainy = RM.read_rgb_strict(s.clean).copy()
+        for y in range(2, rainy.shape[0] - 3, 9):
+            for x in range(2, rainy.shape[1] - 3, 9):
+                rainy[y : y + 3, x : x + 3] //= 4
+        write_rgb(s.rainy, rainy)
+    effect = {}
+    for kind in ("rainy", "clean"):
+        photos = tmp_path / kind
+        photos.mkdir()
+        for s in RM.read_manifest(rendered):
+            write_rgb(photos / f"{s.id}.png", RM.read_rgb_strict(getattr(s, kind)))
+        out = tmp_path / f"{kind}.json"
+        assert RM.main(["--real-photos", str(photos), "--rendered", str(rendered), "--photo-crops", "8",
+                        "--crops-per-image", "8", "--json", str(out)]) == 0
+        sc = json.loads(out.read_text())["photo_scores"][0]
+        assert sc["drops_effect"] == pytest.approx(sc["classifier"]["accuracy"] - sc["street"]["accuracy"])
+        effect[kind] = sc["drops_effect"]
+    assert effect["rainy"] < -0.1
+    assert effect["clean"] > 0.1
