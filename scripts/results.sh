@@ -5,7 +5,7 @@
 # scripts/results.sh data render stats eval remove tradeoffs sheets photoreal scale flatroad largedrops coarsetrain
 # largedropmodels sensor mirroraverage highlights multiscale veil papermodels outline trails photos windshield
 # windshield-followup longer growth sharpness coalesce surround largewidth largedrops-all windshield2
-# errorsplit withoutvnni graphrewrites jitter windshieldscale router routed int8router
+# errorsplit withoutvnni graphrewrites jitter windshieldscale router routed int8router droplets realismcontrol
 #
 # Nothing here is committed automatically: images derived from Cityscapes, CamVid or the
 # real raindrop photographs stay under out/ (their licences forbid redistribution).
@@ -20,7 +20,7 @@ sections=("$@")
                                   largedropmodels sensor mirroraverage highlights multiscale veil papermodels outline trails
                                   photos windshield windshield-followup longer growth sharpness coalesce
                                   surround largewidth largedrops-all windshield2 errorsplit withoutvnni graphrewrites
-                                  jitter windshieldscale router routed int8router droplets)
+                                  jitter windshieldscale router routed int8router droplets realismcontrol)
 want() { [[ " ${sections[*]} " == *" $1 "* ]]; }
 # link_set SRC DST SPLIT [LIMIT]: the first LIMIT (default 100; 0: all) samples of data set SRC
 # (of manifest split SPLIT; "-" = all) linked into DST/rainy and DST/clean (and DST/mask, where
@@ -211,6 +211,14 @@ size_sets() {
 # real_pairs_data: the real pairs with their train/test split in data/real-pairs, unless already there.
 real_pairs_data() {
   [[ -f data/real-pairs/manifest.jsonl ]] || $py -m raindrop_tools.realpairs prepare "$shared/real-pairs" --out data/real-pairs
+}
+
+# glass_droplets_435: scenes/glass-droplets.json with the ranges RESULTS 4.35 rendered it with
+# (glass 5-25 cm, footprint radius 0.015-0.12 cm, contact angles 40-90), on stdout.
+glass_droplets_435() {
+  sed 's/"glass_distance_cm": \[12, 60\]/"glass_distance_cm": [5, 25]/;
+       s/"footprint_radius_cm": \[0.025, 0.175\]/"footprint_radius_cm": [0.015, 0.12]/;
+       s/"contact_angle_deg": \[20, 50\]/"contact_angle_deg": [40, 90]/' scenes/glass-droplets.json
 }
 
 # link_cv100: the first 100 CamVid val frames of 4.2, linked into out/results/cv100.
@@ -1649,18 +1657,20 @@ if want droplets; then
   validation_sets
   dd="$out/droplets"
   mkdir -p "$dd"
+  # glass-droplets as it was then (4.38 moved its glass, drop sizes and contact angles).
+  glass_droplets_435 >"$out/glass-droplets-4.35.json"
   [[ -f data/val-glass-droplets/manifest.jsonl ]] || build/raindrop-render -i "$out/cv100" -o data/val-glass-droplets \
-    --scene glass-droplets --size 512x256 --seed 11 -q
+    --scene "$out/glass-droplets-4.35.json" --size 512x256 --seed 11 -q
   [[ -f data/train-windshield-sharp/manifest.jsonl ]] || build/raindrop-render -i "$shared/camvid/train" \
     -o data/train-windshield-sharp --scene windshield-sharp --size 512x256 --variants 4 --seed 7 -q
   [[ -f data/train-glass-droplets/manifest.jsonl ]] || build/raindrop-render -i "$shared/camvid/train" \
-    -o data/train-glass-droplets --scene glass-droplets --size 512x256 --variants 4 --seed 7 -q
+    -o data/train-glass-droplets --scene "$out/glass-droplets-4.35.json" --size 512x256 --variants 4 --seed 7 -q
   [[ -f data/train-lens-cover/manifest.jsonl ]] || build/raindrop-render -i "$shared/camvid/train" \
     -o data/train-lens-cover --scene lens-cover --size 512x256 --variants 4 --seed 7 -q
   [[ -f data/train-hi/manifest.jsonl ]] || render_train_hi
   # The same drops over a sharp street (compact-droplets-3): focused on the background at f/11-22.
   sed 's/"f_number": \[1.6, 2.8\]/"f_number": [11, 22]/; s/"focus_distance_cm": "glass"/"focus_distance_cm": "background"/;
-       s/"name": "glass-droplets"/"name": "glass-droplets-sharp-street"/' scenes/glass-droplets.json \
+       s/"name": "glass-droplets"/"name": "glass-droplets-sharp-street"/' "$out/glass-droplets-4.35.json" \
     >"$out/glass-droplets-sharp-street.json"
   [[ -f data/train-glass-droplets-sharp-street/manifest.jsonl ]] || build/raindrop-render -i "$shared/camvid/train" \
     -o data/train-glass-droplets-sharp-street --scene "$out/glass-droplets-sharp-street.json" --size 512x256 \
@@ -1713,7 +1723,7 @@ PY
   no_drops data/val-windshield-sharp "$dd/no-drops-sharp-street"
   no_drops data/val-glass-droplets "$dd/no-drops-blurred-street"
   variant() {  # variant NAME SED: glass-droplets edited by SED, over the same 100 frames
-    sed "$2" scenes/glass-droplets.json >"$dd/variant-$1.json"
+    sed "$2" "$out/glass-droplets-4.35.json" >"$dd/variant-$1.json"
     rm -rf "$dd/val-$1" && build/raindrop-render -i "$out/cv100" -o "$dd/val-$1" --scene "$dd/variant-$1.json" \
       --size 512x256 --seed 11 -q
   }
@@ -1769,5 +1779,53 @@ for s in ["real-pairs-train", "val-glass-droplets--", "val-windshield-sharp--", 
 z = decide(sorted(os.path.join(photos, f) for f in os.listdir(photos)))
 print(f"photographs to compact-droplets-3: {sum(v > 0 for v in z.values())} of {len(z)}:",
       " ".join(sorted(n for n, v in z.items() if v <= 0)), "kept")
+PY
+fi
+
+if want realismcontrol; then
+  # RESULTS 4.38: the realism classifier with its control (the street alone) for every preset and
+  # for glass-droplets' ranges, against the 44 photographs and the 16 beaded ones (clarity_*),
+  # three seeds each; every set over the same 100 CamVid frames at 512x256, seed 11.
+  link_cv100
+  rc="$out/realism-control"
+  rm -rf "$rc" && mkdir -p "$rc/clarity"
+  for f in "$shared"/real-raindrop/clarity_*; do ln -s "$(realpath "$f")" "$rc/clarity/"; done
+  glass_droplets_435 >"$rc/glass-droplets-4.35.json"
+  small='s/"footprint_radius_cm": \[0.015, 0.12\]/"footprint_radius_cm": [0.01, 0.07]/; s/"contact_angle_deg": \[40, 90\]/"contact_angle_deg": [20, 50]/'
+  sed "$small; "'s/"f_number": \[1.6, 2.8\]/"f_number": [4, 8]/' "$rc/glass-droplets-4.35.json" >"$rc/small-f4-8.json"
+  sed 's/"contact_angle_deg": \[20, 50\]/"contact_angle_deg": [40, 90]/' scenes/glass-droplets.json >"$rc/far-angles-40-90.json"
+  sed 's/"glass_distance_cm": \[12, 60\]/"glass_distance_cm": [10, 40]/; s/"footprint_radius_cm": \[0.025, 0.175\]/"footprint_radius_cm": [0.02, 0.15]/;
+       s/"drop_count": \[400, 1000\]/"drop_count": [600, 1000]/' scenes/glass-droplets.json >"$rc/glass-10-40.json"
+  sets=()
+  for scene in paper real-photo lens-cover lens-cover-heavy lens-cover-merged windshield-day windshield-night \
+               windshield-sharp glass-droplets "$rc/glass-droplets-4.35.json" "$rc/small-f4-8.json" \
+               "$rc/far-angles-40-90.json" "$rc/glass-10-40.json"; do
+    name=$(basename "$scene" .json)
+    build/raindrop-render -i "$out/cv100" -o "$rc/val-$name" --scene "$scene" --size 512x256 --seed 11 -q
+    sets+=(--rendered "$rc/val-$name")
+  done
+  for photos in "$shared/real-raindrop" "$rc/clarity"; do
+    for seed in 0 1 2; do
+      $py -m raindrop_tools.realism --real-photos "$photos" "${sets[@]}" --limit 100 --seed "$seed" \
+        --json "$rc/$(basename "$photos")-s$seed.json" >/dev/null
+    done
+  done
+  # The same sets against the real lens-cover pairs (their train split), with the drop statistics.
+  $py -m raindrop_tools.realism --real-pairs "$shared/real-pairs" "${sets[@]}" --limit 100 --json "$rc/pairs.json" \
+    >"$rc/pairs.md"
+  $py - "$rc" <<'PY' | tee "$rc/table.md"
+import json, sys
+import numpy as np
+rc = sys.argv[1]
+for photos in ("real-raindrop", "clarity"):
+    rows = {}
+    for seed in range(3):
+        for sc in json.load(open(f"{rc}/{photos}-s{seed}.json"))["photo_scores"]:
+            name = sc["name"].split("(")[1].split(",")[0]
+            rows.setdefault(name, []).append((sc["classifier"]["accuracy"], sc["street"]["accuracy"], sc["drops_effect"]))
+    print(f"\n{photos}, mean of 3 seeds\n\n| set | classifier | street alone | drops' effect (min to max) |\n| --- | ---: | ---: | ---: |")
+    for name, v in rows.items():
+        v = np.array(v)
+        print(f"| {name} | {v[:, 0].mean():.3f} | {v[:, 1].mean():.3f} | {v[:, 2].mean():+.3f} ({v[:, 2].min():+.3f} to {v[:, 2].max():+.3f}) |")
 PY
 fi
