@@ -1810,6 +1810,25 @@ if want realismcontrol; then
         --json "$rc/$(basename "$photos")-s$seed.json" >/dev/null
     done
   done
+  # Looked at (not committed): centre crops of five beaded photographs at the working scale beside
+  # glass-droplets with its 4.35 ranges and as it is now, doubled; photograph | 4.35 | now per row.
+  $py - "$rc" <<'PY'
+import os, sys
+import cv2
+import numpy as np
+rc = sys.argv[1]
+photos = sorted(os.listdir(f"{rc}/clarity"))[1::3][:5]
+renders = sorted(os.listdir(f"{rc}/val-glass-droplets/rainy"))[::17][:5]
+def crop(im):
+    h, w = im.shape[:2]
+    im = cv2.resize(im, (512, round(h * 512 / w)), interpolation=cv2.INTER_AREA)
+    h = im.shape[0]
+    return cv2.resize(im[h // 2 - 64:h // 2 + 64, 128:384], None, fx=2, fy=2, interpolation=cv2.INTER_NEAREST)
+rows = [np.hstack([crop(cv2.imread(f"{rc}/clarity/{p}"))] +
+                  [crop(cv2.imread(f"{rc}/{s}/rainy/{r}")) for s in ("val-glass-droplets-4.35", "val-glass-droplets")])
+        for p, r in zip(photos, renders)]
+cv2.imwrite(f"{rc}/sheet.png", np.vstack(rows))
+PY
   # The same sets against the real lens-cover pairs (their train split), with the drop statistics.
   $py -m raindrop_tools.realism --real-pairs "$shared/real-pairs" "${sets[@]}" --limit 100 --json "$rc/pairs.json" \
     >"$rc/pairs.md"
