@@ -6,6 +6,7 @@
 # largedropmodels sensor mirroraverage highlights multiscale veil papermodels outline trails photos windshield
 # windshield-followup longer growth sharpness coalesce surround largewidth largedrops-all windshield2
 # errorsplit withoutvnni graphrewrites jitter windshieldscale router routed int8router droplets realismcontrol
+# droplets2
 #
 # Nothing here is committed automatically: images derived from Cityscapes, CamVid or the
 # real raindrop photographs stay under out/ (their licences forbid redistribution).
@@ -20,7 +21,7 @@ sections=("$@")
                                   largedropmodels sensor mirroraverage highlights multiscale veil papermodels outline trails
                                   photos windshield windshield-followup longer growth sharpness coalesce
                                   surround largewidth largedrops-all windshield2 errorsplit withoutvnni graphrewrites
-                                  jitter windshieldscale router routed int8router droplets realismcontrol)
+                                  jitter windshieldscale router routed int8router droplets realismcontrol droplets2)
 want() { [[ " ${sections[*]} " == *" $1 "* ]]; }
 # link_set SRC DST SPLIT [LIMIT]: the first LIMIT (default 100; 0: all) samples of data set SRC
 # (of manifest split SPLIT; "-" = all) linked into DST/rainy and DST/clean (and DST/mask, where
@@ -216,9 +217,21 @@ real_pairs_data() {
 # glass_droplets_435: scenes/glass-droplets.json with the ranges RESULTS 4.35 rendered it with
 # (glass 5-25 cm, footprint radius 0.015-0.12 cm, contact angles 40-90), on stdout.
 glass_droplets_435() {
-  sed 's/"glass_distance_cm": \[12, 60\]/"glass_distance_cm": [5, 25]/;
-       s/"footprint_radius_cm": \[0.025, 0.175\]/"footprint_radius_cm": [0.015, 0.12]/;
-       s/"contact_angle_deg": \[20, 50\]/"contact_angle_deg": [40, 90]/' scenes/glass-droplets.json
+  edited_scene 's/"glass_distance_cm": \[12, 60\]/"glass_distance_cm": [5, 25]/;
+                s/"footprint_radius_cm": \[0.025, 0.175\]/"footprint_radius_cm": [0.015, 0.12]/;
+                s/"contact_angle_deg": \[20, 50\]/"contact_angle_deg": [40, 90]/' scenes/glass-droplets.json 3
+}
+# edited_scene SED FILE [N]: FILE edited by SED on stdout; fails (and prints nothing) unless N
+# lines (default 1) changed, so that a scene file edited since cannot silently render unchanged.
+edited_scene() {
+  local text changed
+  text=$(sed "$1" "$2")
+  changed=$(diff <(printf '%s\n' "$text") "$2" | grep -c '^<' || true)
+  if [[ $changed != "${3:-1}" ]]; then
+    echo "results.sh: editing $2 changed $changed lines, not ${3:-1}: the scene file changed since" >&2
+    return 1
+  fi
+  printf '%s\n' "$text"
 }
 
 # link_cv100: the first 100 CamVid val frames of 4.2, linked into out/results/cv100.
@@ -1792,10 +1805,10 @@ if want realismcontrol; then
   for f in "$shared"/real-raindrop/clarity_*; do ln -s "$(realpath "$f")" "$rc/clarity/"; done
   glass_droplets_435 >"$rc/glass-droplets-4.35.json"
   small='s/"footprint_radius_cm": \[0.015, 0.12\]/"footprint_radius_cm": [0.01, 0.07]/; s/"contact_angle_deg": \[40, 90\]/"contact_angle_deg": [20, 50]/'
-  sed "$small; "'s/"f_number": \[1.6, 2.8\]/"f_number": [4, 8]/' "$rc/glass-droplets-4.35.json" >"$rc/small-f4-8.json"
-  sed 's/"contact_angle_deg": \[20, 50\]/"contact_angle_deg": [40, 90]/' scenes/glass-droplets.json >"$rc/far-angles-40-90.json"
-  sed 's/"glass_distance_cm": \[12, 60\]/"glass_distance_cm": [10, 40]/; s/"footprint_radius_cm": \[0.025, 0.175\]/"footprint_radius_cm": [0.02, 0.15]/;
-       s/"drop_count": \[400, 1000\]/"drop_count": [600, 1000]/' scenes/glass-droplets.json >"$rc/glass-10-40.json"
+  edited_scene "$small; "'s/"f_number": \[1.6, 2.8\]/"f_number": [4, 8]/' "$rc/glass-droplets-4.35.json" 3 >"$rc/small-f4-8.json"
+  edited_scene 's/"contact_angle_deg": \[20, 50\]/"contact_angle_deg": [40, 90]/' scenes/glass-droplets.json >"$rc/far-angles-40-90.json"
+  edited_scene 's/"glass_distance_cm": \[12, 60\]/"glass_distance_cm": [10, 40]/; s/"footprint_radius_cm": \[0.025, 0.175\]/"footprint_radius_cm": [0.02, 0.15]/;
+       s/"drop_count": \[400, 1000\]/"drop_count": [600, 1000]/' scenes/glass-droplets.json 3 >"$rc/glass-10-40.json"
   sets=()
   for scene in paper real-photo lens-cover lens-cover-heavy lens-cover-merged windshield-day windshield-night \
                windshield-sharp glass-droplets "$rc/glass-droplets-4.35.json" "$rc/small-f4-8.json" \
@@ -1846,5 +1859,53 @@ for photos in ("real-raindrop", "clarity"):
     for name, v in rows.items():
         v = np.array(v)
         print(f"| {name} | {v[:, 0].mean():.3f} | {v[:, 1].mean():.3f} | {v[:, 2].mean():+.3f} ({v[:, 2].min():+.3f} to {v[:, 2].max():+.3f}) |")
+PY
+fi
+
+if want droplets2; then
+  # RESULTS 4.39: compact-droplets-4, compact-droplets' mix with glass-droplets as 4.38 refitted it,
+  # as the routed default's alternative, against the routed default on the validation sets (the
+  # refitted preset's own val set too) and its masks on the 44 photographs.
+  validation_sets
+  d2="$out/droplets2"
+  mkdir -p "$d2"
+  [[ -f data/val-glass-droplets-now/manifest.jsonl ]] || build/raindrop-render -i "$out/cv100" \
+    -o data/val-glass-droplets-now --scene glass-droplets --size 512x256 --seed 11 -q
+  [[ -f data/train-glass-droplets-now/manifest.jsonl ]] || build/raindrop-render -i "$shared/camvid/train" \
+    -o data/train-glass-droplets-now --scene glass-droplets --size 512x256 --variants 4 --seed 7 -q
+  [[ -f data/train-windshield-sharp/manifest.jsonl ]] || build/raindrop-render -i "$shared/camvid/train" \
+    -o data/train-windshield-sharp --scene windshield-sharp --size 512x256 --variants 4 --seed 7 -q
+  [[ -f data/train-hi/manifest.jsonl ]] || render_train_hi
+  sets=(real-pairs:train:0 val-glass-droplets-now:-:0 val-windshield-sharp:-:0 val-sparse:-:0)
+  run=compact-droplets-4
+  [[ -f "tools/runs/$run/checkpoints/stage1_step00000800.pt" ]] ||
+    $py -m raindrop_tools.train --config "tools/configs/$run.yaml" --out "tools/runs/$run" \
+      --init-from models/compact-windshield --stage 1
+  rm -rf "out/models/$run" "out/models/cm-$run"
+  mkdir -p out/models && ln -sfn "$PWD/models/paper-real-coarse" out/models/paper-real-coarse
+  $py -m raindrop_tools.export --run "tools/runs/$run" --reconstruction-from models/compact-multiscale \
+    --name "$run" --out "out/models/$run"
+  $py -m raindrop_tools.large_drop_growth "out/models/$run" 0.35
+  cp models/compact-multiscale/LARGE_DROPS "out/models/$run/"
+  cp -r models/compact-multiscale "out/models/cm-$run"
+  sed -i "s/^alternative compact-windshield\$/alternative $run/" "out/models/cm-$run/ROUTER"
+  {
+    score_sets "$d2" routed "-j 2" "${sets[@]}"
+    score_sets "$d2" "$run" "-j 2 --models out/models/cm-$run" "${sets[@]}"
+  } | tee "$d2/scores.txt"
+  for m in default "$run"; do
+    flags=()
+    [[ $m == default ]] || flags=(--models "out/models/cm-$m")
+    rm -rf "$d2/photos-$m" && build/raindrop-remove "$shared/real-raindrop" "$d2/photos-$m/out" \
+      --mask-dir "$d2/photos-$m/masks" -q -j 2 "${flags[@]}"
+  done
+  $py - "$d2" <<'PY' | tee "$d2/photo-masks.txt"
+import os, sys
+import cv2
+d2 = sys.argv[1]
+names = sorted(os.listdir(f"{d2}/photos-default/masks"))
+for n in names:
+    a, b = ((cv2.imread(f"{d2}/photos-{m}/masks/{n}", 0) > 0).mean() for m in ("default", "compact-droplets-4"))
+    print(f"{n}: default {a:.3f}, compact-droplets-4 {b:.3f}")
 PY
 fi

@@ -601,8 +601,9 @@ void auto_table(const Input& input, int frames, int repeats) {
 }
 
 // The thin-lens camera: aperture sampling at 1-256 rays per pixel and the layered fast path
-// (and its exact per-drop form), against aperture sampling with 256 rays, on the lens-cover
-// and windshield-day presets.
+// (and its exact per-drop form), against aperture sampling with 256 rays, on the lens-cover,
+// windshield-day and glass-droplets presets (the last focused on its glass: the street's own
+// defocus is compared too).
 void lens_table(const Input& input, int frames, int repeats, int threads, const cv::Size& size) {
   const Frame frame = make_frame(read_rgb8(input.png, false), input.calibration, size);
   const double paper_ms =
@@ -663,12 +664,15 @@ void lens_table(const Input& input, int frames, int repeats, int threads, const 
                   ms / paper_ms, layers_text, rmse, rmse > 0 ? 20 * std::log10(255.0 / rmse) : 99.0, worst,
                   n > 0 ? 3 * cov / n : 0.0);
       std::fflush(stdout);
-      // Focus off the street (glass-droplets): the street's own defocus, over the whole frame.
-      if (!reference.empty() && !reference[0].clean.empty() && !is_reference) {
+      // Focus off the street (glass-droplets): the street's own defocus, over the whole frame (a
+      // frame without a clean image of its own shows the input there).
+      const bool street_defocused =
+          std::any_of(reference.begin(), reference.end(), [](const RenderedFrame& f) { return !f.clean.empty(); });
+      if (street_defocused && !is_reference) {
         double csq = 0, cn = 0, cworst = 0;
         for (size_t i = 0; i < reference.size(); ++i) {
-          const cv::Mat all(reference[i].clean.size(), CV_8U, cv::Scalar(255));
-          add_error(out[i].clean_or(reference[i].clean), reference[i].clean, all, &csq, &cn, &cworst);
+          const cv::Mat all(frame.camera.height, frame.camera.width, CV_8U, cv::Scalar(255));
+          add_error(out[i].clean_or(frame.clean), reference[i].clean_or(frame.clean), all, &csq, &cn, &cworst);
         }
         street.push_back(method + ": RMSE " + fixed2(cn > 0 ? std::sqrt(csq / cn) : 0) + ", max " +
                          std::to_string(static_cast<int>(cworst)));

@@ -128,7 +128,7 @@ RenderedFrame render_frame(const cv::Mat& input, const Camera& camera, const Sce
   t0 = Clock::now();
   // The effects the scene leaves to its physics ("auto"), per drop; gravity is undone on the
   // drops where it does not show.
-  frame.effects = plan_effects(config, scene, camera, defocus);
+  frame.effects = plan_effects(config, scene, camera, defocus || street_traced);
   std::vector<Drop> drops;
   drops.reserve(scene.drops.size());
   for (const DropShape& shape : rendered_shapes(scene, frame.effects)) drops.emplace_back(shape, scene.glass);

@@ -839,10 +839,13 @@ ApertureResult run_aperture(const cv::Mat& clean, const Camera& camera, const Sc
   }
   for (auto& r : rows) merge_spans(r);
   const double T = scene.background_distance_cm;
-  const double F = street ? scene.focus_cm() : T;
+  const double F = scene.focus_cm();
   // The street a ray from lens point o through `focus` (z = F) meets on the plane z = T: the
-  // frame in linear light (lifted), bilinear, continued past its edges as the border mode says
-  // (the fast path's defocus pads the frame the same way).
+  // frame in linear light (lifted), each pixel a square of constant light (the nearest pixel: a
+  // bilinear look-up would add a blur of its own, widening a traced circle to about
+  // sqrt(coc^2 + 8/3) px; over the disk, square pixels average to the fast path's antialiased
+  // disk weights), continued past its edges as the border mode says (the fast path's defocus pads
+  // the frame the same way).
   cv::Mat street_linear;
   if (street) {
     street_linear = lifted_linear(clean, lift);
@@ -851,19 +854,10 @@ ApertureResult run_aperture(const cv::Mat& clean, const Camera& camera, const Sc
   const BackgroundSampler& bg = kernel.background();
   auto street_seen = [&](const glm::dvec3& o, const glm::dvec3& focus) {
     const glm::dvec2 xy = camera.project(o + (T / F) * (focus - o));
-    const double u = bg.fold(xy.x, camera.width), v = bg.fold(xy.y, camera.height);
-    const int x0 = std::min(static_cast<int>(u), camera.width - 1), y0 = std::min(static_cast<int>(v), camera.height - 1);
-    const int x1 = std::min(x0 + 1, camera.width - 1), y1 = std::min(y0 + 1, camera.height - 1);
-    const double fu = u - x0, fv = v - y0;
-    const auto* ra = street_linear.ptr<cv::Vec3f>(y0);
-    const auto* rb = street_linear.ptr<cv::Vec3f>(y1);
-    glm::dvec3 c;
-    for (int i = 0; i < 3; ++i) {
-      const double top = ra[x0][i] + fu * (ra[x1][i] - ra[x0][i]);
-      const double bottom = rb[x0][i] + fu * (rb[x1][i] - rb[x0][i]);
-      c[i] = top + fv * (bottom - top);
-    }
-    return c;
+    const int x = std::min(static_cast<int>(bg.fold(xy.x, camera.width) + 0.5), camera.width - 1);
+    const int y = std::min(static_cast<int>(bg.fold(xy.y, camera.height) + 0.5), camera.height - 1);
+    const cv::Vec3f& c = street_linear.at<cv::Vec3f>(y, x);
+    return glm::dvec3(c[0], c[1], c[2]);
   };
   std::atomic<std::int64_t> lockstep{0};
   tbb::parallel_for(tbb::blocked_range<int>(0, camera.height, 4), [&](const tbb::blocked_range<int>& r) {

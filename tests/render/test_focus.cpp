@@ -154,15 +154,18 @@ TEST(Focus, ADropOnTheFocusedGlassIsSharpAndTheStreetIsNot) {
 
 // The aperture reference with focus off the background traces the street's defocus itself: a
 // point of the street spreads, in linear light, over a disk whose diameter is the thin-lens circle
-// computed here (a uniform disk of diameter D has mean squared radius D^2 / 8), nothing reaches
-// past it, and its light is conserved; with no drop the rainy image is the clean one.
+// computed here (a uniform disk of diameter D has mean squared radius D^2 / 8; square pixels add
+// 1/6 px^2, under the tolerance), nothing reaches past it, and its light is conserved; with no
+// drop the rainy image is the clean one.
 TEST(Focus, TheReferenceSpreadsAPointOfTheStreetOverTheThinLensCircle) {
   const Camera cam = camera(81, 81, 300);
   for (double focus : {8.0, 15.0, 25.0}) {
     const double coc = 5.0 / 10 / 1 * cam.fx * std::abs(1 / kT - 1 / focus);
     SceneConfig c = lens_config(SceneConfig::Focus::Distance);
     c.lens.method = DefocusMethod::Aperture;
-    c.lens.aperture_samples = 256;
+    // Each ray sees one pixel of the street (square pixels of constant light), so the white pixel's
+    // light reaches a pixel of the disk in whole rays: 1024 rays keep the sum within a few percent.
+    c.lens.aperture_samples = 1024;
     const RenderedFrame f = render_frame(point_frame(cam), cam, c, sample(focus, focus, 1, 5));
     ASSERT_FALSE(f.clean.empty()) << focus;
     EXPECT_TRUE(equal_bits(f.rainy, f.clean));
@@ -180,7 +183,7 @@ TEST(Focus, TheReferenceSpreadsAPointOfTheStreetOverTheThinLensCircle) {
     const double diameter = std::sqrt(8 * r2 / sum);
     std::printf("focus %.0f cm: circle %.2f px, traced %.2f px, light %.3f\n", focus, coc, diameter, sum);
     EXPECT_NEAR(diameter, coc, 0.05 * coc + 0.5) << focus;
-    EXPECT_NEAR(sum, 1.0, 0.05) << focus;
+    EXPECT_NEAR(sum, 1.0, 0.08) << focus;
     EXPECT_EQ(beyond, 0.0) << focus;
   }
 }
