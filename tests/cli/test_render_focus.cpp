@@ -67,7 +67,7 @@ TEST(RenderFocus, TheApertureReferenceTracesTheStreetOutOfFocus) {
                R"({"name": ")" + name + R"(", "glass_distance_cm": 10, "drop_count": 12,
                    "footprint_radius_cm": [0.05, 0.15], "tilt_deg": 80, "camera": {"f_number": 2,
                    "focal_length_mm": 5, "focus_distance_cm": "glass", "defocus": ")" + method + R"(",
-                   "aperture_samples": 64}})");
+                   "aperture_samples": 256}})");
     const auto r = run_render({"-i", "street.png", "--out", name, "--scene", name + ".json", "--seed", "4", "-j", "2", "-q"},
                               tmp.path());
     EXPECT_EQ(r.code, 0) << r.describe();
