@@ -866,22 +866,24 @@ ApertureResult run_aperture(const cv::Mat& clean, const Camera& camera, const Sc
       auto* out_rgb = out.linear.ptr<cv::Vec3f>(y);
       auto* out_cov = out.coverage.ptr<float>(y);
       const auto* src = clean.ptr<cv::Vec3b>(y);
-      // Off the background's focus, the pixels no drop's cone reaches see the street alone.
+      auto* out_clean = street ? out.clean_linear.ptr<cv::Vec3f>(y) : nullptr;
+      auto to_vec3f = [](const glm::dvec3& v) {
+        return cv::Vec3f(static_cast<float>(v.x), static_cast<float>(v.y), static_cast<float>(v.z));
+      };
+      // Off the background's focus, the pixels no drop's cone reaches see the street alone (the
+      // others, below, average their rays' street beside their traced colour).
       if (street) {
-        auto* out_clean = out.clean_linear.ptr<cv::Vec3f>(y);
         std::size_t span = 0;
         for (int x = 0; x < camera.width; ++x) {
           while (span < rows[y].size() && rows[y][span].second < x) ++span;
-          const bool near_drop = span < rows[y].size() && rows[y][span].first <= x;
+          if (span < rows[y].size() && rows[y][span].first <= x) continue;  // near a drop
           const glm::dvec3 focus = F * camera.ray_direction(x, y);
           glm::dvec3 sum(0.0);
           for (int sample = 0; sample < k * k; ++sample) {
             const glm::dvec2 p = lens_point(x, y, sample % k, sample / k);
             sum += street_seen(glm::dvec3(p.x, p.y, 0.0), focus);
           }
-          sum /= static_cast<double>(k * k);
-          out_clean[x] = cv::Vec3f(static_cast<float>(sum.x), static_cast<float>(sum.y), static_cast<float>(sum.z));
-          if (!near_drop) out_rgb[x] = out_clean[x];
+          out_rgb[x] = out_clean[x] = to_vec3f(sum / static_cast<double>(k * k));
         }
       }
       for (const auto& [x0, x1] : rows[y]) {
@@ -890,7 +892,7 @@ ApertureResult run_aperture(const cv::Mat& clean, const Camera& camera, const Sc
           float own_rgb[3] = {lin[src[x][0]], lin[src[x][1]], lin[src[x][2]]};
           lift.apply(own_rgb);  // what the pixel's clipped bytes stood for (highlights.h)
           const glm::dvec3 own(own_rgb[0], own_rgb[1], own_rgb[2]);
-          glm::dvec3 sum(0.0);
+          glm::dvec3 sum(0.0), street_sum(0.0);
           int hits = 0;
           // With lockstep (no dispersion), the pixel's rays go 8 at a time through
           // trace_packet, which gives each what sample_ray's trace gives it.
@@ -899,6 +901,7 @@ ApertureResult run_aperture(const cv::Mat& clean, const Camera& camera, const Sc
           DropPath paths[8];
           for (int sample = 0; sample < k * k; ++sample) {
             Sample s;
+            glm::dvec3 origin;
             if (kPackets && kernel.lockstep()) {
               const int lane = sample % 8;
               if (lane == 0) {
@@ -911,18 +914,21 @@ ApertureResult run_aperture(const cv::Mat& clean, const Camera& camera, const Sc
                 n_lock += kernel.trace_packet(origins, dirs, n, paths);
               }
               s = kernel.finish(paths[lane], kernel.seen_point(paths[lane]));
+              origin = origins[lane];
             } else {
               const glm::dvec2 p = lens_point(x, y, sample % k, sample / k);
-              const glm::dvec3 origin(p.x, p.y, 0.0);
+              origin = glm::dvec3(p.x, p.y, 0.0);
               s = kernel.sample_ray(origin, focus - origin);
             }
+            // The street this ray would see without drops: the clean image's, and the rainy
+            // image's where the ray meets no drop.
+            glm::dvec3 seen = own;
+            if (street) {
+              seen = street_seen(origin, focus);
+              street_sum += seen;
+            }
             if (!s.hit) {
-              if (street) {
-                const glm::dvec2 p = lens_point(x, y, sample % k, sample / k);
-                sum += street_seen(glm::dvec3(p.x, p.y, 0.0), focus);
-              } else {
-                sum += own;
-              }
+              sum += seen;
               continue;
             }
             ++hits;
@@ -931,8 +937,9 @@ ApertureResult run_aperture(const cv::Mat& clean, const Camera& camera, const Sc
             lift.apply(rgb);
             for (int c = 0; c < 3; ++c) sum[c] += rgb[c];
           }
+          if (street) out_clean[x] = to_vec3f(street_sum / static_cast<double>(k * k));
           if (hits == 0) {
-            if (street) out_rgb[x] = out.clean_linear.at<cv::Vec3f>(y, x);
+            if (street) out_rgb[x] = out_clean[x];
             continue;
           }
           sum /= static_cast<double>(k * k);
