@@ -859,6 +859,9 @@ ApertureResult run_aperture(const cv::Mat& clean, const Camera& camera, const Sc
     const cv::Vec3f& c = street_linear.at<cv::Vec3f>(y, x);
     return glm::dvec3(c[0], c[1], c[2]);
   };
+  auto to_vec3f = [](const glm::dvec3& v) {
+    return cv::Vec3f(static_cast<float>(v.x), static_cast<float>(v.y), static_cast<float>(v.z));
+  };
   std::atomic<std::int64_t> lockstep{0};
   tbb::parallel_for(tbb::blocked_range<int>(0, camera.height, 4), [&](const tbb::blocked_range<int>& r) {
     std::int64_t n_lock = 0;
@@ -867,9 +870,6 @@ ApertureResult run_aperture(const cv::Mat& clean, const Camera& camera, const Sc
       auto* out_cov = out.coverage.ptr<float>(y);
       const auto* src = clean.ptr<cv::Vec3b>(y);
       auto* out_clean = street ? out.clean_linear.ptr<cv::Vec3f>(y) : nullptr;
-      auto to_vec3f = [](const glm::dvec3& v) {
-        return cv::Vec3f(static_cast<float>(v.x), static_cast<float>(v.y), static_cast<float>(v.z));
-      };
       // Off the background's focus, the pixels no drop's cone reaches see the street alone (the
       // others, below, average their rays' street beside their traced colour).
       if (street) {
@@ -942,8 +942,7 @@ ApertureResult run_aperture(const cv::Mat& clean, const Camera& camera, const Sc
             if (street) out_rgb[x] = out_clean[x];
             continue;
           }
-          sum /= static_cast<double>(k * k);
-          out_rgb[x] = cv::Vec3f(static_cast<float>(sum.x), static_cast<float>(sum.y), static_cast<float>(sum.z));
+          out_rgb[x] = to_vec3f(sum / static_cast<double>(k * k));
           out_cov[x] = static_cast<float>(hits) / static_cast<float>(k * k);
         }
       }

@@ -6,20 +6,28 @@
 namespace clitest {
 namespace {
 
+// street.png in `tmp` rendered into the folder `name` with the scene {"name": name, <fields>}
+// (written as name.json) and `flags` beside the usual ones; its manifest.
+std::vector<json> render_scene(const TempDir& tmp, const std::string& name, const std::string& fields,
+                               std::vector<std::string> flags) {
+  write_file(tmp / (name + ".json"), R"({"name": ")" + name + R"(", )" + fields + "}");
+  std::vector<std::string> args = {"-i", "street.png", "--out", name, "--scene", name + ".json", "-j", "2", "-q"};
+  args.insert(args.end(), flags.begin(), flags.end());
+  const auto r = run_render(args, tmp.path());
+  EXPECT_EQ(r.code, 0) << r.describe();
+  return read_manifest(tmp / name);
+}
+
 TEST(RenderFocus, FocusOnTheGlassDefocusesTheCleanImageOfEachVariant) {
   TempDir tmp;
   const cv::Mat street = make_background(256, 128, 2);
   write_image(tmp / "street.png", street);
   auto scene = [&](const std::string& name, const std::string& focus) {
-    write_file(tmp / (name + ".json"),
-               R"({"name": ")" + name + R"(", "glass_distance_cm": [8, 12], "drop_count": 30,
-                   "footprint_radius_cm": [0.05, 0.2], "tilt_deg": 80,
-                   "camera": {"f_number": [1.8, 2.8], "focal_length_mm": 5, "focus_distance_cm": )" + focus + "}}");
-    const auto r = run_render({"-i", "street.png", "--out", name, "--scene", name + ".json", "--variants", "2", "--seed",
-                               "3", "-j", "2", "-q"},
-                              tmp.path());
-    EXPECT_EQ(r.code, 0) << r.describe();
-    return read_manifest(tmp / name);
+    return render_scene(tmp, name,
+                        R"("glass_distance_cm": [8, 12], "drop_count": 30, "footprint_radius_cm": [0.05, 0.2],
+                           "tilt_deg": 80, "camera": {"f_number": [1.8, 2.8], "focal_length_mm": 5,
+                           "focus_distance_cm": )" + focus + "}",
+                        {"--variants", "2", "--seed", "3"});
   };
   const auto glass = scene("glass", R"("glass")"), background = scene("background", R"("background")");
   ASSERT_EQ(glass.size(), 2u);
@@ -63,15 +71,11 @@ TEST(RenderFocus, TheApertureReferenceTracesTheStreetOutOfFocus) {
   const cv::Mat street = make_background(160, 96, 5);
   write_image(tmp / "street.png", street);
   auto render = [&](const std::string& name, const std::string& method) {
-    write_file(tmp / (name + ".json"),
-               R"({"name": ")" + name + R"(", "glass_distance_cm": 10, "drop_count": 12,
-                   "footprint_radius_cm": [0.05, 0.15], "tilt_deg": 80, "camera": {"f_number": 2,
-                   "focal_length_mm": 5, "focus_distance_cm": "glass", "defocus": ")" + method + R"(",
-                   "aperture_samples": 256}})");
-    const auto r = run_render({"-i", "street.png", "--out", name, "--scene", name + ".json", "--seed", "4", "-j", "2", "-q"},
-                              tmp.path());
-    EXPECT_EQ(r.code, 0) << r.describe();
-    return read_manifest(tmp / name);
+    return render_scene(tmp, name,
+                        R"("glass_distance_cm": 10, "drop_count": 12, "footprint_radius_cm": [0.05, 0.15],
+                           "tilt_deg": 80, "camera": {"f_number": 2, "focal_length_mm": 5, "focus_distance_cm": "glass",
+                           "defocus": ")" + method + R"(", "aperture_samples": 256})",
+                        {"--seed", "4"});
   };
   const auto reference = render("reference", "aperture"), layered = render("layered", "layered");
   ASSERT_EQ(reference.size(), 1u);
