@@ -1816,10 +1816,16 @@ if want realismcontrol; then
   edited_scene 's/"contact_angle_deg": \[20, 50\]/"contact_angle_deg": [40, 90]/' scenes/glass-droplets.json >"$rc/far-angles-40-90.json"
   edited_scene 's/"glass_distance_cm": \[12, 60\]/"glass_distance_cm": [10, 40]/; s/"footprint_radius_cm": \[0.025, 0.175\]/"footprint_radius_cm": [0.02, 0.15]/;
        s/"drop_count": \[400, 1000\]/"drop_count": [600, 1000]/' scenes/glass-droplets.json 3 >"$rc/glass-10-40.json"
+  # Traced dark bands instead of black ones, with one and with 4 samples per pixel.
+  trace='s/"dark_band": "black"/"dark_band": "trace"/'
+  edited_scene "$trace" scenes/glass-droplets.json >"$rc/dark-band-trace.json"
+  edited_scene "$trace; "'s/"samples_per_pixel": 1,/"samples_per_pixel": 4,/' scenes/glass-droplets.json 2 \
+    >"$rc/dark-band-trace-4spp.json"
   sets=()
   for scene in paper real-photo lens-cover lens-cover-heavy lens-cover-merged windshield-day windshield-night \
                windshield-sharp glass-droplets "$rc/glass-droplets-4.35.json" "$rc/small-f4-8.json" \
-               "$rc/far-angles-40-90.json" "$rc/glass-10-40.json"; do
+               "$rc/far-angles-40-90.json" "$rc/glass-10-40.json" "$rc/dark-band-trace.json" \
+               "$rc/dark-band-trace-4spp.json"; do
     name=$(basename "$scene" .json)
     build/raindrop-render -i "$out/cv100" -o "$rc/val-$name" --scene "$scene" --size 512x256 --seed 11 -q
     sets+=(--rendered "$rc/val-$name")
