@@ -6,7 +6,7 @@
 # largedropmodels sensor mirroraverage highlights multiscale veil papermodels outline trails photos windshield
 # windshield-followup longer growth sharpness coalesce surround largewidth largedrops-all windshield2
 # errorsplit withoutvnni graphrewrites jitter windshieldscale router routed int8router droplets realismcontrol
-# droplets2
+# droplets2 infocus
 #
 # Nothing here is committed automatically: images derived from Cityscapes, CamVid or the
 # real raindrop photographs stay under out/ (their licences forbid redistribution).
@@ -21,7 +21,7 @@ sections=("$@")
                                   largedropmodels sensor mirroraverage highlights multiscale veil papermodels outline trails
                                   photos windshield windshield-followup longer growth sharpness coalesce
                                   surround largewidth largedrops-all windshield2 errorsplit withoutvnni graphrewrites
-                                  jitter windshieldscale router routed int8router droplets realismcontrol droplets2)
+                                  jitter windshieldscale router routed int8router droplets realismcontrol droplets2 infocus)
 want() { [[ " ${sections[*]} " == *" $1 "* ]]; }
 # link_set SRC DST SPLIT [LIMIT]: the first LIMIT (default 100; 0: all) samples of data set SRC
 # (of manifest split SPLIT; "-" = all) linked into DST/rainy and DST/clean (and DST/mask, where
@@ -232,6 +232,50 @@ edited_scene() {
     return 1
   fi
   printf '%s\n' "$text"
+}
+
+# realism_table DIR: the realism classifier's scores in DIR/{real-raindrop,clarity}-s{0,1,2}.json
+# (one `raindrop_tools.realism` call per photo set and seed), per rendered set, as markdown: the
+# classifier's accuracy, the street alone's and the drops' effect, means of the 3 seeds (RESULTS
+# 4.38, 4.40).
+realism_table() {
+  $py - "$1" <<'PY'
+import json, sys
+import numpy as np
+rc = sys.argv[1]
+for photos in ("real-raindrop", "clarity"):
+    rows = {}
+    for seed in range(3):
+        for sc in json.load(open(f"{rc}/{photos}-s{seed}.json"))["photo_scores"]:
+            name = sc["name"].split("(")[1].split(",")[0]
+            rows.setdefault(name, []).append((sc["classifier"]["accuracy"], sc["street"]["accuracy"], sc["drops_effect"]))
+    print(f"\n{photos}, mean of 3 seeds\n\n| set | classifier | street alone | drops' effect (min to max) |\n| --- | ---: | ---: | ---: |")
+    for name, v in rows.items():
+        v = np.array(v)
+        print(f"| {name} | {v[:, 0].mean():.3f} | {v[:, 1].mean():.3f} | {v[:, 2].mean():+.3f} ({v[:, 2].min():+.3f} to {v[:, 2].max():+.3f}) |")
+PY
+}
+
+# beaded_sheet DIR SET_A SET_B: DIR/sheet.png (looked at, not committed), centre crops of five beaded
+# photographs (DIR/clarity) at the working scale beside renders of DIR/SET_A and DIR/SET_B,
+# doubled; photograph | SET_A | SET_B per row.
+beaded_sheet() {
+  $py - "$@" <<'PY'
+import os, sys
+import cv2
+import numpy as np
+rc, a, b = sys.argv[1:]
+photos = sorted(os.listdir(f"{rc}/clarity"))[1::3][:5]
+renders = sorted(os.listdir(f"{rc}/{b}/rainy"))[::17][:5]
+def crop(im):
+    h, w = im.shape[:2]
+    im = cv2.resize(im, (512, round(h * 512 / w)), interpolation=cv2.INTER_AREA)
+    h = im.shape[0]
+    return cv2.resize(im[h // 2 - 64:h // 2 + 64, 128:384], None, fx=2, fy=2, interpolation=cv2.INTER_NEAREST)
+rows = [np.hstack([crop(cv2.imread(f"{rc}/clarity/{p}"))] + [crop(cv2.imread(f"{rc}/{s}/rainy/{r}")) for s in (a, b)])
+        for p, r in zip(photos, renders)]
+cv2.imwrite(f"{rc}/sheet.png", np.vstack(rows))
+PY
 }
 
 # router_alternative RUN: tools/configs/RUN.yaml trained (800 stage-1 steps from compact-windshield's
@@ -1838,41 +1882,11 @@ if want realismcontrol; then
   done
   # Looked at (not committed): centre crops of five beaded photographs at the working scale beside
   # glass-droplets with its 4.35 ranges and as it is now, doubled; photograph | 4.35 | now per row.
-  $py - "$rc" <<'PY'
-import os, sys
-import cv2
-import numpy as np
-rc = sys.argv[1]
-photos = sorted(os.listdir(f"{rc}/clarity"))[1::3][:5]
-renders = sorted(os.listdir(f"{rc}/val-glass-droplets/rainy"))[::17][:5]
-def crop(im):
-    h, w = im.shape[:2]
-    im = cv2.resize(im, (512, round(h * 512 / w)), interpolation=cv2.INTER_AREA)
-    h = im.shape[0]
-    return cv2.resize(im[h // 2 - 64:h // 2 + 64, 128:384], None, fx=2, fy=2, interpolation=cv2.INTER_NEAREST)
-rows = [np.hstack([crop(cv2.imread(f"{rc}/clarity/{p}"))] +
-                  [crop(cv2.imread(f"{rc}/{s}/rainy/{r}")) for s in ("val-glass-droplets-4.35", "val-glass-droplets")])
-        for p, r in zip(photos, renders)]
-cv2.imwrite(f"{rc}/sheet.png", np.vstack(rows))
-PY
+  beaded_sheet "$rc" val-glass-droplets-4.35 val-glass-droplets
   # The same sets against the real lens-cover pairs (their train split), with the drop statistics.
   $py -m raindrop_tools.realism --real-pairs "$shared/real-pairs" "${sets[@]}" --limit 100 --json "$rc/pairs.json" \
     >"$rc/pairs.md"
-  $py - "$rc" <<'PY' | tee "$rc/table.md"
-import json, sys
-import numpy as np
-rc = sys.argv[1]
-for photos in ("real-raindrop", "clarity"):
-    rows = {}
-    for seed in range(3):
-        for sc in json.load(open(f"{rc}/{photos}-s{seed}.json"))["photo_scores"]:
-            name = sc["name"].split("(")[1].split(",")[0]
-            rows.setdefault(name, []).append((sc["classifier"]["accuracy"], sc["street"]["accuracy"], sc["drops_effect"]))
-    print(f"\n{photos}, mean of 3 seeds\n\n| set | classifier | street alone | drops' effect (min to max) |\n| --- | ---: | ---: | ---: |")
-    for name, v in rows.items():
-        v = np.array(v)
-        print(f"| {name} | {v[:, 0].mean():.3f} | {v[:, 1].mean():.3f} | {v[:, 2].mean():+.3f} ({v[:, 2].min():+.3f} to {v[:, 2].max():+.3f}) |")
-PY
+  realism_table "$rc" | tee "$rc/table.md"
 fi
 
 if want droplets2; then
@@ -1941,4 +1955,32 @@ for n in names:
     a, b = ((cv2.imread(f"{d2}/photos-{m}/masks/{n}", 0) > 0).mean() for m in ("default", "compact-droplets-4"))
     print(f"{n}: default {a:.3f}, compact-droplets-4 {b:.3f}")
 PY
+fi
+
+if want infocus; then
+  # RESULTS 4.40: drops in focus traced through the aperture. glass-droplets as it is (its drops in
+  # focus traced through the aperture) and with "drops_in_focus": "centre" (through the lens' centre,
+  # as before), over the same 100 CamVid frames as realismcontrol (512x256, seed 11), scored by the
+  # realism classifier in one call per photo set and seed; a sheet (beaded photograph | centre |
+  # aperture, not committed); the bench's accuracy/time table for the thin lens.
+  link_cv100
+  io="$out/infocus"
+  rm -rf "$io" && mkdir -p "$io/clarity"
+  for f in "$shared"/real-raindrop/clarity_*; do ln -s "$(realpath "$f")" "$io/clarity/"; done
+  edited_scene 's/"defocus": "layered",/"defocus": "layered", "drops_in_focus": "centre",/' scenes/glass-droplets.json \
+    >"$io/glass-droplets-centre.json"
+  for scene in "$io/glass-droplets-centre.json" glass-droplets; do
+    build/raindrop-render -i "$out/cv100" -o "$io/val-$(basename "$scene" .json)" --scene "$scene" --size 512x256 \
+      --seed 11 -q
+  done
+  for photos in "$shared/real-raindrop" "$io/clarity"; do
+    for seed in 0 1 2; do
+      $py -m raindrop_tools.realism --real-photos "$photos" --rendered "$io/val-glass-droplets-centre" \
+        --rendered "$io/val-glass-droplets" --limit 100 --seed "$seed" --json "$io/$(basename "$photos")-s$seed.json" \
+        >/dev/null
+    done
+  done
+  realism_table "$io" | tee "$io/table.md"
+  beaded_sheet "$io" val-glass-droplets-centre val-glass-droplets
+  build/raindrop-bench render --sections lens | tee "$io/lens-table.md"
 fi

@@ -636,6 +636,7 @@ void lens_table(const Input& input, int frames, int repeats, int threads, const 
     std::cerr << "bench render: lens reference " << preset << "\n";
     std::vector<RenderedFrame> reference;
     const double ref_ms = core_ms(frame, with(DefocusMethod::Aperture, 256), scenes, threads, 1, &reference);
+    // Returns whether the row's renders traced drops in focus through the aperture.
     auto row = [&](const std::string& method, const SceneConfig& c, int row_repeats) {
       std::vector<RenderedFrame> out;
       double layers = 0;
@@ -643,8 +644,7 @@ void lens_table(const Input& input, int frames, int repeats, int threads, const 
       const double ms = is_reference ? ref_ms : core_ms(frame, c, scenes, threads, row_repeats, &out, &layers);
       if (out.empty()) out = reference;
       double sq = 0, n = 0, worst = 0, cov = 0;
-      // A frame whose drops are all in focus (glass-droplets' fast path) is the pinhole render:
-      // its coverage is its binary mask.
+      // A frame the lens was skipped for is the pinhole render: its coverage is its binary mask.
       auto coverage = [](const RenderedFrame& f) {
         if (!f.alpha.empty()) return f.alpha;
         cv::Mat a;
@@ -677,9 +677,21 @@ void lens_table(const Input& input, int frames, int repeats, int threads, const 
         street.push_back(method + ": RMSE " + fixed2(cn > 0 ? std::sqrt(csq / cn) : 0) + ", max " +
                          std::to_string(static_cast<int>(cworst)));
       }
+      return std::any_of(out.begin(), out.end(), [](const RenderedFrame& f) { return f.lens_sampled; });
     };
-    row("layered (fast path)", fast, repeats);
-    row("layered-exact (filter2D per drop)", with(DefocusMethod::LayeredExact, 16), repeats);
+    const bool in_focus = row("layered (fast path)", fast, repeats);
+    row("layered-exact (filter2D per drop)", with(DefocusMethod::LayeredExact, fast.lens.aperture_samples), repeats);
+    // Drops in focus are traced through the aperture with the scene's aperture_samples (16):
+    // what fewer and more rays cost and give.
+    if (in_focus) {
+      SceneConfig centre = fast;
+      centre.lens.trace_in_focus = false;
+      row("layered, drops in focus through the lens' centre", centre, repeats);
+      for (int samples : {4, 64}) {
+        row("layered, drops in focus through " + std::to_string(samples) + " rays", with(DefocusMethod::Layered, samples),
+            repeats);
+      }
+    }
     for (int samples : {1, 4, 16, 64, 256}) {
       row("aperture, " + std::to_string(samples) + " rays", with(DefocusMethod::Aperture, samples), 1);
     }

@@ -6,6 +6,7 @@
 #include <opencv2/imgproc.hpp>
 
 #include "raindrop/render/blur.h"
+#include "raindrop/render/effect_policy.h"
 #include "raindrop/render/layer_mix.h"
 #include "raindrop/render/srgb.h"
 
@@ -37,6 +38,24 @@ double layer_blur_diameter(const SceneSample& scene, const Drop& drop, double fx
   const double coc = scene.drop_coc_px(drop.shape(), fx);
   const double diameter = std::isfinite(coc) ? std::min(coc, 2.0 * std::max(frame.width, frame.height)) : 0.0;
   return diameter >= kMinVisibleCocPx ? diameter : 0.0;
+}
+
+double drop_lens_spread_px(const SceneSample& scene, const Drop& drop, double fx) {
+  const double z = scene.glass.point(drop.shape().center).z;
+  const double coc = scene.drop_coc_px(drop.shape(), fx);
+  if (!(z > 0) || !std::isfinite(coc)) return INFINITY;
+  const double parallax = scene.aperture_cm() / z * (fx * drop.shape().sphere_radius() / z);
+  return coc + parallax;
+}
+
+bool traced_through_aperture(const SceneSample& scene, const Drop& drop, double fx, cv::Size frame) {
+  if (!(scene.aperture_cm() > 0) || layer_blur_diameter(scene, drop, fx, frame) > 0) return false;
+  const double spread = drop_lens_spread_px(scene, drop, fx);
+  if (!std::isfinite(spread)) return false;  // centred behind the lens: left as the pinhole sees it
+  const glm::dvec2 axes = drop.shape().footprint_semi_axes();
+  const double z = scene.glass.point(drop.shape().center).z;
+  const double radius_px = fx * std::max(axes.x, axes.y) / z;
+  return shift_levels(spread, radius_px, 0.0) >= kAutoBudgetLevels;
 }
 
 DefocusedFrame composite_layers_exact(const cv::Mat& clean, const TraceResult& traced, const Camera& camera,
@@ -75,16 +94,18 @@ DefocusedFrame composite_layers_exact(const cv::Mat& clean, const TraceResult& t
     for (int y = box[d].y; y < box[d].y + box[d].height; ++y) {
       const int* label = traced.label.ptr<int>(y);
       const auto* rgb = traced.color.ptr<cv::Vec3f>(y);
+      const float* cov = traced.coverage.empty() ? nullptr : traced.coverage.ptr<float>(y);
       for (int x = box[d].x; x < box[d].x + box[d].width; ++x) {
         if (label[x] != static_cast<int>(d)) continue;
-        a.at<float>(y - region.y, x - region.x) = 1.0f;
+        const float coverage = cov ? cov[x] : 1.0f;
+        a.at<float>(y - region.y, x - region.x) = coverage;
         cv::Vec3f r;
         for (int c = 0; c < 3; ++c) {
           const float v = std::isfinite(rgb[x][c]) ? std::min(std::max(rgb[x][c], 0.0f), 1.0f) : 0.0f;
           r[c] = static_cast<float>(srgb_to_linear(v));
         }
         scene.highlights.apply(r.val);
-        aR.at<cv::Vec3f>(y - region.y, x - region.x) = r;
+        aR.at<cv::Vec3f>(y - region.y, x - region.x) = coverage * r;
       }
     }
     if (blurred) {

@@ -179,12 +179,13 @@ struct Layer {
   cv::Rect reach;  // the pixels of the frame its spread layer can reach
 };
 
-// The drop's pixel (a R, a), decoded from the trace and lifted where it was clipped.
-inline f4 traced_value(const cv::Vec3f& rgb, const SrgbTables& srgb, const HighlightLift& lift) {
+// The drop's pixel (a R, a), decoded from the trace and lifted where it was clipped; `a` is the
+// trace's coverage (1 but where the tracer sampled the lens: TraceResult::coverage).
+inline f4 traced_value(const cv::Vec3f& rgb, const SrgbTables& srgb, const HighlightLift& lift, float a) {
   float r[3];
   for (int c = 0; c < 3; ++c) r[c] = std::isfinite(rgb[c]) ? srgb.decode(rgb[c]) : 0.0f;
   lift.apply(r);
-  return f4{r[0], r[1], r[2], 1.0f};
+  return f4{a * r[0], a * r[1], a * r[2], a};
 }
 
 // Fills the layer from the trace and spreads it where it is coarse; `layer.rows.y0` and
@@ -208,8 +209,9 @@ void build_layer(Layer& layer, int index, const TraceResult& traced, double diam
       const Span e = px.extent[j];
       const int* label = traced.label.ptr<int>(px.y0 + j);
       const auto* rgb = traced.color.ptr<cv::Vec3f>(px.y0 + j);
+      const float* cov = traced.coverage.empty() ? nullptr : traced.coverage.ptr<float>(px.y0 + j);
       for (int x = e.first; x <= e.second; ++x) {
-        if (label[x] == index) px.at(j, x) = traced_value(rgb[x], srgb, lift);
+        if (label[x] == index) px.at(j, x) = traced_value(rgb[x], srgb, lift, cov ? cov[x] : 1.0f);
       }
     }
     px.sum_rows();
@@ -245,8 +247,10 @@ void build_layer(Layer& layer, int index, const TraceResult& traced, double diam
     const int y = px.y0 + j, jc = y / s - v0;
     const int* label = traced.label.ptr<int>(y);
     const auto* rgb = traced.color.ptr<cv::Vec3f>(y);
+    const float* cov = traced.coverage.empty() ? nullptr : traced.coverage.ptr<float>(y);
     for (int x = e.first; x <= e.second; ++x) {
-      if (label[x] == index) cell.at(jc, x / s - layer.cell_x0) += area * traced_value(rgb[x], srgb, lift);
+      if (label[x] == index)
+        cell.at(jc, x / s - layer.cell_x0) += area * traced_value(rgb[x], srgb, lift, cov ? cov[x] : 1.0f);
     }
   }
   cell.sum_rows();

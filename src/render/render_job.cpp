@@ -264,10 +264,15 @@ json sample_record(const std::string& id, const InputImage& input, int variant, 
                       {"background_coc_px", scene.background_coc_px(frame.camera.fx)},
                       {"background_defocused", !rendered.clean.empty()},
                       {"defocus", rendered.defocused ? to_string(config.lens.method) : "skipped"},
-                      {"why", !rendered.defocused ? "every drop's circle of confusion is under 0.5 px"
+                      {"why", !rendered.defocused
+                                  ? "every drop's circle of confusion is under 0.5 px, and no drop's spread through the "
+                                    "aperture moves a pixel by 2 levels"
                               : some_drop_spread(rendered) ? "some drop's circle of confusion is at least 0.5 px"
-                                                           : "the street's circle of confusion is at least 0.5 px "
-                                                             "(the aperture reference traces it)"},
+                              : rendered.lens_sampled ? "some drop's spread through the aperture (circle and parallax) "
+                                                        "moves a pixel by 2 levels or more: traced through it"
+                                                      : "the street's circle of confusion is at least 0.5 px "
+                                                        "(the aperture reference traces it)"},
+                      {"drops_traced_through_aperture", rendered.lens_sampled_drops},
                       {"mask_threshold", config.lens.mask_threshold}};
   }
   if (config.highlights.enabled)

@@ -30,9 +30,12 @@ void finish_mask(const SceneConfig& config, RenderedFrame& frame) {
 // border mode continues it) and are cropped back.
 // The reference traces the street too where focus is off it (tracer.h): `clean` is then the
 // sharp input, the margin as wide as the street's circle too, and the clean image its own.
-RenderedFrame render_defocused(const cv::Mat& clean, const Camera& camera, const SceneConfig& config,
-                               const SceneSample& scene, const DropAccel& accel, const std::vector<Drop>& drops,
-                               double largest_coc_px, RenderedFrame frame) {
+// The layered path's drops in focus (`lens.sampled`) are traced to `sharp`, the input before
+// the street's defocus (the same as `clean` where the street is in focus).
+RenderedFrame render_defocused(const cv::Mat& clean, const cv::Mat& sharp, const Camera& camera,
+                               const SceneConfig& config, const SceneSample& scene, const DropAccel& accel,
+                               const std::vector<Drop>& drops, double largest_coc_px, LensTrace lens,
+                               RenderedFrame frame) {
   frame.defocused = true;
   if (config.lens.method == DefocusMethod::Aperture)
     largest_coc_px = std::max(largest_coc_px, scene.background_coc_px(camera.fx));
@@ -46,12 +49,20 @@ RenderedFrame render_defocused(const cv::Mat& clean, const Camera& camera, const
   DefocusedFrame out;
   if (config.lens.method == DefocusMethod::Aperture) {
     out = encode_aperture(wide,
-                          trace_aperture(wide, wide_camera, config, scene, accel, config.lens.aperture_samples, &frame.effects),
+                          trace_aperture(wide, wide_camera, config, scene, accel, config.lens.aperture_samples,
+                                         &frame.effects, {}, pad),
                           scene.highlights);
     frame.timings.trace_ms = ms_since(t0);
     for (const Drop& d : drops) out.coc_px.push_back(scene.drop_coc_px(d.shape(), camera.fx));
   } else {
-    const TraceResult traced = trace_drops(wide, wide_camera, config, scene, accel, &frame.effects);
+    lens.margin = pad;
+    cv::Mat sharp_wide;
+    if (lens.any_sampled() && sharp.data != clean.data) {
+      cv::copyMakeBorder(sharp, sharp_wide, pad, pad, pad, pad,
+                         config.border == BorderMode::Clamp ? cv::BORDER_REPLICATE : cv::BORDER_REFLECT);
+      lens.sharp = &sharp_wide;
+    }
+    const TraceResult traced = trace_drops(wide, wide_camera, config, scene, accel, &frame.effects, {}, &lens);
     frame.stats = traced.stats;
     frame.timings.trace_ms = ms_since(t0);
     t0 = Clock::now();
@@ -138,14 +149,26 @@ RenderedFrame render_frame(const cv::Mat& input, const Camera& camera, const Sce
   accel.set_disjoint(!config.allow_overlap && !config.trails.enabled);
   frame.timings.accel_ms = ms_since(t0);
 
-  if (defocus || street_traced) {
+  // The layered path's drops in focus: a circle under half a pixel leaves a drop's outline
+  // where the pinhole puts it, but not what it shows inside (defocus.h), so where that shows
+  // their pixels average rays from the aperture (tracer.h, LensTrace).
+  LensTrace sampling;
+  sampling.samples = config.lens.aperture_samples;
+  if (lens && config.lens.method != DefocusMethod::Aperture && config.lens.trace_in_focus) {
+    sampling.sampled.reserve(drops.size());
+    for (const Drop& d : drops) sampling.sampled.push_back(traced_through_aperture(scene, d, camera.fx, input.size()));
+  }
+  for (char d : sampling.sampled) frame.lens_sampled_drops += d != 0;
+  frame.lens_sampled = frame.lens_sampled_drops > 0;
+
+  if (defocus || street_traced || frame.lens_sampled) {
     // Without the lift, a copy of the sample with it off renders the frame exactly as without
     // the effect, at its cost.
     if (lift || !scene.highlights.active())
-      return render_defocused(clean, camera, config, scene, accel, drops, largest, frame);
+      return render_defocused(clean, input, camera, config, scene, accel, drops, largest, sampling, frame);
     SceneSample unlifted = scene;
     unlifted.highlights = HighlightLift{};
-    return render_defocused(clean, camera, config, unlifted, accel, drops, largest, frame);
+    return render_defocused(clean, input, camera, config, unlifted, accel, drops, largest, sampling, frame);
   }
 
   t0 = Clock::now();

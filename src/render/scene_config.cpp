@@ -279,6 +279,12 @@ SceneConfig parse_scene_json(const std::string& text, const std::string& origin)
     if (side * side != samples) l.fail("'aperture_samples' must be a square number (1, 4, 16, 64, 256)");
     c.lens.aperture_samples = static_cast<int>(samples);
     l.number("mask_threshold", &c.lens.mask_threshold, 1e-3, 1);
+    if (l.has("drops_in_focus")) {
+      const std::string in_focus = l.string("drops_in_focus", "aperture");
+      if (in_focus == "aperture") c.lens.trace_in_focus = true;
+      else if (in_focus == "centre") c.lens.trace_in_focus = false;
+      else l.fail("'drops_in_focus' must be \"aperture\" or \"centre\"");
+    }
     // "background" (the default), "glass", or a distance in cm ([lo, hi] drawn per sample).
     if (l.holds_string("focus_distance_cm")) {
       const std::string focus = l.string("focus_distance_cm", "background");
@@ -451,6 +457,7 @@ std::string scene_to_json(const SceneConfig& c) {
                    {"focal_length_mm", range(c.lens.focal_length_mm)},
                    {"defocus", to_string(c.lens.method)},
                    {"aperture_samples", c.lens.aperture_samples},
+                   {"drops_in_focus", c.lens.trace_in_focus ? "aperture" : "centre"},
                    {"mask_threshold", c.lens.mask_threshold}};
   // Only where the focus is off the background, so that a scene focused on it prints (and
   // fingerprints its jobs) as it always did.

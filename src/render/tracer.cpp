@@ -184,8 +184,9 @@ class Kernel {
   // `plan`: with dispersion auto, the drops whose colours are traced apart.
   // `lockstep`: camera rays on the common path traced side by side (trace_through_one_drop;
   // only where drops are disjoint).
+  // `margin`: `clean` is the frame widened by it (LensTrace).
   Kernel(const cv::Mat& clean, const Camera& camera, const SceneConfig& config,
-         const SceneSample& scene, const DropAccel& accel, const EffectPlan* plan, bool lockstep)
+         const SceneSample& scene, const DropAccel& accel, const EffectPlan* plan, bool lockstep, int margin)
       : bg_(clean, config.border),
         camera_(camera),
         scene_(scene),
@@ -197,7 +198,12 @@ class Kernel {
         disperse_(plan && plan->dispersion_auto ? &plan->drops : nullptr),
         lockstep_(lockstep && accel.disjoint()),
         exact_caps_(accel.options().kind == GeometryOptions::Kind::Exact) {
-    if (config.sky.enabled) bg_.set_sky(estimate_sky_rgb(clean, config.sky.gain), config.sky.fade_rows * clean.rows);
+    bg_.set_margin(margin);
+    if (config.sky.enabled) {
+      const cv::Rect frame(margin, margin, clean.cols - 2 * margin, clean.rows - 2 * margin);
+      bg_.set_sky(estimate_sky_rgb(clean(frame & cv::Rect(0, 0, clean.cols, clean.rows)), config.sky.gain),
+                  config.sky.fade_rows * (clean.rows - 2 * margin));
+    }
   }
 
   Sample sample(double px, double py) const { return sample_ray(glm::dvec3(0.0), camera_.ray_direction(px, py)); }
@@ -573,13 +579,36 @@ std::vector<std::vector<std::pair<int, int>>> candidate_spans(const Camera& came
   return rows;
 }
 
+// A point of the lens disk of `radius` for pixel (x, y), stratum (i, j) of a k x k grid: the
+// strata jittered per pixel and stratum by a hash (so a render is the same for any thread
+// count), mapped onto the disk by the concentric map, which keeps the strata's equal areas.
+// Without the jitter, every pixel would use the same k/2 rings of the disk and coverage would
+// come in visible steps.
+glm::dvec2 lens_disk_point(int x, int y, int i, int j, int k, double radius) {
+  const std::uint64_t h = mix64((static_cast<std::uint64_t>(y) << 40) ^ (static_cast<std::uint64_t>(x) << 16) ^
+                                static_cast<std::uint64_t>(j * k + i));
+  const double ju = static_cast<double>(h & 0xffffffffULL) * 0x1.0p-32;
+  const double jv = static_cast<double>(h >> 32) * 0x1.0p-32;
+  const double a = 2.0 * (i + ju) / k - 1.0, b = 2.0 * (j + jv) / k - 1.0;
+  double r = 0, phi = 0;
+  if (a == 0 && b == 0) return glm::dvec2(0.0);
+  if (std::abs(a) > std::abs(b)) {
+    r = a, phi = M_PI / 4 * (b / a);
+  } else {
+    r = b, phi = M_PI / 2 - M_PI / 4 * (a / b);
+  }
+  return radius * r * glm::dvec2(std::cos(phi), std::sin(phi));
+}
+
 // Label used to find edges: drop index, with dark-band pixels distinguished.
 inline int edge_class(int label, bool dark) { return label < 0 ? -1 : 2 * label + (dark ? 1 : 0); }
 
 template <bool kFresnel, bool kDispersion>
 TraceResult run(const cv::Mat& clean, const Camera& camera, const SceneConfig& config,
-                const SceneSample& scene, const DropAccel& accel, const EffectPlan* plan, const TraceStrategy& strategy) {
-  const Kernel<kFresnel, kDispersion> kernel(clean, camera, config, scene, accel, plan, strategy.lockstep);
+                const SceneSample& scene, const DropAccel& accel, const EffectPlan* plan, const TraceStrategy& strategy,
+                const LensTrace* lens) {
+  const int margin = lens ? lens->margin : 0;
+  const Kernel<kFresnel, kDispersion> kernel(clean, camera, config, scene, accel, plan, strategy.lockstep, margin);
   TraceResult out;
   out.label = scratch_mat(camera.height, camera.width, CV_32S);  // -1 (no drop) row by row in pass 1
   out.color = scratch_mat(camera.height, camera.width, CV_32FC3);  // written at drop pixels only
@@ -682,6 +711,44 @@ TraceResult run(const cv::Mat& clean, const Camera& camera, const SceneConfig& c
   }
   out.drop_box = box_x1 < 0 ? cv::Rect() : cv::Rect(box_x0, box_y0, box_x1 - box_x0 + 1, box_y1 - box_y0 + 1);
 
+  // The pixels LensTrace averages over the aperture: those of a flagged drop and those next
+  // to one that met no drop (the lens spreads a drop by under half a pixel, so its coverage
+  // reaches at most the next pixel). Chosen from the pinhole labels before any changes.
+  const bool sample_lens = lens != nullptr && lens->any_sampled() && scene.aperture_cm() > 0;
+  cv::Mat lens_pixels;
+  if (sample_lens) {
+    CV_Assert(lens->sampled.size() == accel.drops().size());
+    lens_pixels = cv::Mat(camera.height, camera.width, CV_8U, cv::Scalar(0));
+    auto flagged = [&](int d) { return d >= 0 && lens->sampled[static_cast<size_t>(d)] != 0; };
+    tbb::parallel_for(tbb::blocked_range<int>(0, camera.height, 8), [&](const tbb::blocked_range<int>& r) {
+      for (int y = r.begin(); y < r.end(); ++y) {
+        const int* label = out.label.ptr<int>(y);
+        auto* pick = lens_pixels.ptr<std::uint8_t>(y);
+        for (const auto& [x0, x1] : spans[y]) {
+          for (int x = x0; x <= x1; ++x) {
+            if (flagged(label[x])) {
+              pick[x] = 1;
+              continue;
+            }
+            if (label[x] >= 0) continue;  // another drop's pixel keeps its pinhole ray
+            for (int dy = -1; dy <= 1 && !pick[x]; ++dy) {
+              const int yy = y + dy;
+              if (yy < 0 || yy >= camera.height) continue;
+              const int* row = out.label.ptr<int>(yy);
+              for (int dx = -1; dx <= 1; ++dx) {
+                const int xx = x + dx;
+                if (xx >= 0 && xx < camera.width && flagged(row[xx])) {
+                  pick[x] = 1;
+                  break;
+                }
+              }
+            }
+          }
+        }
+      }
+    });
+  }
+
   // Auto: does the background vary over the pixel's footprint by more than the budget
   // (effect_policy.h)? The footprint is the largest step to a neighbour's sample: the pixel's
   // sub-samples lie within half a step of its centre's where the map from pixels to the
@@ -732,6 +799,7 @@ TraceResult run(const cv::Mat& clean, const Camera& camera, const SceneConfig& c
         for (const auto& [x0, x1] : spans[y]) {
           for (int x = x0; x <= x1; ++x) {
             if (label[x] < 0) continue;
+            if (sample_lens && lens_pixels.at<std::uint8_t>(y, x)) continue;  // pass 3 samples it
             if (config.supersample != Supersample::All) {
               const int own = classes.at<int>(y, x);
               bool edge = false;
@@ -769,6 +837,107 @@ TraceResult run(const cv::Mat& clean, const Camera& camera, const SceneConfig& c
     });
   }
 
+  // Pass 3 (LensTrace): the chosen pixels average k x k rays from the lens disk through their
+  // point on the plane of focus, each traced as the aperture reference traces it; the colour is
+  // the mean, in linear light, of the rays that met a drop, the coverage their fraction.
+  std::atomic<std::int64_t> lens_sampled{0};
+  if (sample_lens) {
+    // Rays from the lens see the street before the lens blurred it: their spread is that blur.
+    std::optional<Kernel<kFresnel, kDispersion>> own_sharp;
+    if (lens->sharp != nullptr) {
+      CV_Assert(lens->sharp->size() == clean.size() && lens->sharp->type() == clean.type());
+      own_sharp.emplace(*lens->sharp, camera, config, scene, accel, plan, strategy.lockstep, margin);
+    }
+    const Kernel<kFresnel, kDispersion>& lens_kernel = own_sharp ? *own_sharp : kernel;
+    const HighlightLift& lift = scene.highlights;
+    out.coverage = cv::Mat(camera.height, camera.width, CV_32F, cv::Scalar(1));
+    const int kl = std::max(1, static_cast<int>(std::lround(std::sqrt(lens->samples))));
+    const double radius = 0.5 * scene.aperture_cm();
+    const double F = scene.focus_cm();
+    // Ray `sample` of a pixel starts at lens stratum `sample mod kl^2` and aims at its point on
+    // the plane of focus: the pixel's centre, or, where the scene supersamples (k x k per
+    // pixel), a point of stratum `sample mod k^2` of the pixel's square, jittered by a hash as
+    // the lens points are: the pixel's area as well as the aperture. As many rays as the larger
+    // grid has strata.
+    const int rays = std::max(kl * kl, k * k);
+    auto lens_origin = [&](int x, int y, int sample) {
+      const int stratum = sample % (kl * kl);
+      const glm::dvec2 p = lens_disk_point(x, y, stratum % kl, stratum / kl, kl, radius);
+      return glm::dvec3(p.x, p.y, 0.0);
+    };
+    auto focus_point = [&](int x, int y, int sample) {
+      if (k <= 1) return F * camera.ray_direction(x, y);
+      const int cell = sample % (k * k);
+      const std::uint64_t h = mix64((static_cast<std::uint64_t>(y) << 40) ^ (static_cast<std::uint64_t>(x) << 16) ^
+                                    static_cast<std::uint64_t>(sample) ^ 0x5bd1e995ULL << 20);
+      const double ju = static_cast<double>(h & 0xffffffffULL) * 0x1.0p-32;
+      const double jv = static_cast<double>(h >> 32) * 0x1.0p-32;
+      return F * camera.ray_direction(x + (cell % k + ju) / k - 0.5, y + (cell / k + jv) / k - 0.5);
+    };
+    tbb::parallel_for(tbb::blocked_range<int>(0, camera.height, 4), [&](const tbb::blocked_range<int>& r) {
+      std::int64_t n_sampled = 0;
+      glm::dvec3 origins[8], dirs[8];
+      DropPath paths[8];
+      for (int y = r.begin(); y < r.end(); ++y) {
+        int* label = out.label.ptr<int>(y);
+        auto* rgb = out.color.ptr<cv::Vec3f>(y);
+        float* cov = out.coverage.ptr<float>(y);
+        const auto* pick = lens_pixels.ptr<std::uint8_t>(y);
+        for (const auto& [x0, x1] : spans[y]) {
+          for (int x = x0; x <= x1; ++x) {
+            if (!pick[x]) continue;
+            ++n_sampled;
+            glm::dvec3 sum(0.0);
+            int hits = 0, first = -1;
+            for (int sample = 0; sample < rays; ++sample) {
+              Sample s;
+              if (!kDispersion && kernel.lockstep()) {
+                const int lane = sample % 8;
+                if (lane == 0) {
+                  const int n = std::min(8, rays - sample);
+                  for (int i = 0; i < n; ++i) {
+                    origins[i] = lens_origin(x, y, sample + i);
+                    dirs[i] = focus_point(x, y, sample + i) - origins[i];
+                  }
+                  lens_kernel.trace_packet(origins, dirs, n, paths);
+                }
+                if (!paths[lane].hit) continue;
+                s = lens_kernel.finish(paths[lane], lens_kernel.seen_point(paths[lane]));
+              } else {
+                const glm::dvec3 origin = lens_origin(x, y, sample);
+                s = lens_kernel.sample_ray(origin, focus_point(x, y, sample) - origin);
+              }
+              if (!s.hit) continue;
+              ++hits;
+              if (first < 0) first = s.drop;
+              // Lifted where the scene lifts highlights (as the reference averages its rays).
+              double ray[3];
+              for (int c = 0; c < 3; ++c) ray[c] = srgb_to_linear(std::min(std::max(s.rgb[c], 0.0), 1.0));
+              lift.apply(ray);
+              for (int c = 0; c < 3; ++c) sum[c] += ray[c];
+            }
+            if (hits == 0) {
+              label[x] = -1;
+              continue;
+            }
+            if (label[x] < 0) label[x] = first;
+            // Stored as the trace stores colours (sRGB, unlifted): the composite decodes and lifts
+            // them again.
+            double mean[3] = {sum[0] / hits, sum[1] / hits, sum[2] / hits};
+            lift.restore(mean);
+            for (int c = 0; c < 3; ++c) rgb[x][c] = static_cast<float>(linear_to_srgb(mean[c]));
+            cov[x] = static_cast<float>(hits) / static_cast<float>(rays);
+          }
+        }
+      }
+      lens_sampled += n_sampled;
+    });
+    // Pixels next to a drop may have joined it.
+    if (out.drop_box.area() > 0)
+      out.drop_box = cv::Rect(out.drop_box.x - 1, out.drop_box.y - 1, out.drop_box.width + 2, out.drop_box.height + 2) &
+                     cv::Rect(0, 0, camera.width, camera.height);
+  }
+
   out.stats.candidate_pixels = candidates;
   out.stats.drop_pixels = drops;
   out.stats.dark_band_pixels = dark;
@@ -777,6 +946,7 @@ TraceResult run(const cv::Mat& clean, const Camera& camera, const SceneConfig& c
   out.stats.aliasing_pixels = aliasing;
   out.stats.smooth_pixels = smooth;
   out.stats.lockstep_pixels = lockstep;
+  out.stats.lens_sampled_pixels = lens_sampled;
   return out;
 }
 
@@ -791,8 +961,8 @@ TraceResult run(const cv::Mat& clean, const Camera& camera, const SceneConfig& c
 template <bool kFresnel, bool kDispersion>
 ApertureResult run_aperture(const cv::Mat& clean, const Camera& camera, const SceneConfig& config,
                             const SceneSample& scene, const DropAccel& accel, int samples, const EffectPlan* plan,
-                            const TraceStrategy& strategy, bool street) {
-  const Kernel<kFresnel, kDispersion> kernel(clean, camera, config, scene, accel, plan, strategy.lockstep);
+                            const TraceStrategy& strategy, bool street, int margin) {
+  const Kernel<kFresnel, kDispersion> kernel(clean, camera, config, scene, accel, plan, strategy.lockstep, margin);
   ApertureResult out;
   out.linear = cv::Mat(camera.height, camera.width, CV_32FC3, cv::Scalar::all(0));
   out.coverage = cv::Mat(camera.height, camera.width, CV_32F, cv::Scalar(0));
@@ -800,25 +970,7 @@ ApertureResult run_aperture(const cv::Mat& clean, const Camera& camera, const Sc
   const HighlightLift& lift = scene.highlights;
   const int k = std::max(1, static_cast<int>(std::lround(std::sqrt(samples))));
   const double radius = 0.5 * scene.aperture_cm();
-  // Lens points: a k x k stratified grid, jittered per pixel and stratum by a hash (so the
-  // result is the same for any thread count), mapped onto the disk by the concentric map,
-  // which keeps the strata's equal areas. Without the jitter, every pixel would use the
-  // same k/2 rings of the disk and coverage would come in visible steps.
-  auto lens_point = [&](int x, int y, int i, int j) {
-    const std::uint64_t h = mix64((static_cast<std::uint64_t>(y) << 40) ^ (static_cast<std::uint64_t>(x) << 16) ^
-                                  static_cast<std::uint64_t>(j * k + i));
-    const double ju = static_cast<double>(h & 0xffffffffULL) * 0x1.0p-32;
-    const double jv = static_cast<double>(h >> 32) * 0x1.0p-32;
-    const double a = 2.0 * (i + ju) / k - 1.0, b = 2.0 * (j + jv) / k - 1.0;
-    double r = 0, phi = 0;
-    if (a == 0 && b == 0) return glm::dvec2(0.0);
-    if (std::abs(a) > std::abs(b)) {
-      r = a, phi = M_PI / 4 * (b / a);
-    } else {
-      r = b, phi = M_PI / 2 - M_PI / 4 * (a / b);
-    }
-    return radius * r * glm::dvec2(std::cos(phi), std::sin(phi));
-  };
+  auto lens_point = [&](int x, int y, int i, int j) { return lens_disk_point(x, y, i, j, k, radius); };
   // Pixels whose aperture cone can meet a drop: the pinhole candidates widened by the
   // largest circle of confusion (plus a pixel).
   const auto spans = candidate_spans(camera, accel);
@@ -957,30 +1109,30 @@ ApertureResult run_aperture(const cv::Mat& clean, const Camera& camera, const Sc
 
 ApertureResult trace_aperture(const cv::Mat& clean, const Camera& camera, const SceneConfig& config,
                               const SceneSample& scene, const DropAccel& accel, int samples, const EffectPlan* plan,
-                              const TraceStrategy& strategy) {
+                              const TraceStrategy& strategy, int margin) {
   CV_Assert(clean.type() == CV_8UC3 && clean.cols == camera.width && clean.rows == camera.height);
   const bool fresnel = config.fresnel.enabled;
   const bool dispersion = plan ? plan->dispersion_anywhere(config) : config.dispersion.enabled;
   const bool street = scene.background_coc_px(camera.fx) >= kMinVisibleCocPx;
   if (fresnel && dispersion)
-    return run_aperture<true, true>(clean, camera, config, scene, accel, samples, plan, strategy, street);
-  if (fresnel) return run_aperture<true, false>(clean, camera, config, scene, accel, samples, plan, strategy, street);
-  if (dispersion) return run_aperture<false, true>(clean, camera, config, scene, accel, samples, plan, strategy, street);
-  return run_aperture<false, false>(clean, camera, config, scene, accel, samples, plan, strategy, street);
+    return run_aperture<true, true>(clean, camera, config, scene, accel, samples, plan, strategy, street, margin);
+  if (fresnel) return run_aperture<true, false>(clean, camera, config, scene, accel, samples, plan, strategy, street, margin);
+  if (dispersion) return run_aperture<false, true>(clean, camera, config, scene, accel, samples, plan, strategy, street, margin);
+  return run_aperture<false, false>(clean, camera, config, scene, accel, samples, plan, strategy, street, margin);
 }
 
 TraceResult trace_drops(const cv::Mat& clean, const Camera& camera, const SceneConfig& config,
                         const SceneSample& scene, const DropAccel& accel, const EffectPlan* plan,
-                        const TraceStrategy& strategy) {
+                        const TraceStrategy& strategy, const LensTrace* lens) {
   CV_Assert(clean.type() == CV_8UC3 && clean.cols == camera.width && clean.rows == camera.height);
   // Effects pick the kernel instantiation once per frame, not per pixel: a frame where auto
   // finds no drop that needs dispersion runs the kernel without it.
   const bool fresnel = config.fresnel.enabled;
   const bool dispersion = plan ? plan->dispersion_anywhere(config) : config.dispersion.enabled;
-  if (fresnel && dispersion) return run<true, true>(clean, camera, config, scene, accel, plan, strategy);
-  if (fresnel) return run<true, false>(clean, camera, config, scene, accel, plan, strategy);
-  if (dispersion) return run<false, true>(clean, camera, config, scene, accel, plan, strategy);
-  return run<false, false>(clean, camera, config, scene, accel, plan, strategy);
+  if (fresnel && dispersion) return run<true, true>(clean, camera, config, scene, accel, plan, strategy, lens);
+  if (fresnel) return run<true, false>(clean, camera, config, scene, accel, plan, strategy, lens);
+  if (dispersion) return run<false, true>(clean, camera, config, scene, accel, plan, strategy, lens);
+  return run<false, false>(clean, camera, config, scene, accel, plan, strategy, lens);
 }
 
 }  // namespace raindrop

@@ -150,9 +150,9 @@ TEST(DetectorRouter, ARoutedImageIsExactlyTheAlternativesAndAKeptOneExactlyTheMa
   if (!m) GTEST_SKIP() << "the committed models are not in " << source_dir() / "models";
   raindrop::removal::SessionConfig session;
   session.threads = 2;
-  // Lens-cover drops on the demo street, scaled to 512x293: compact-windshield's detector finds
+  // Lens-cover drops on the demo street (seed 4), scaled to 512x293: compact-windshield's detector finds
   // a large drop there that the default's does not, so the coarse pass must follow the route too.
-  const RunResult rendered = run_command(RAINDROP_RENDER_BIN, {"--demo", "--size", "700x400", "--seed", "7", "--out", "set",
+  const RunResult rendered = run_command(RAINDROP_RENDER_BIN, {"--demo", "--size", "700x400", "--seed", "4", "--out", "set",
                                                                "--scene", "lens-cover", "-q", "-j", "1"}, tmp.path());
   ASSERT_EQ(rendered.code, 0) << rendered.describe();
   const auto read = read_image(tmp / "set/rainy/street_v00.png");

@@ -220,11 +220,11 @@ TEST(Defocus, FastLayersMatchTheExactPerDropConvolution) {
 
 // Threads take bands of output rows (and of coarse cells) and every pixel is summed in one
 // order: the result is the same, byte for byte, with one thread or two, on exact and coarse
-// circles.
+// circles, and with drops in focus traced through the aperture (glass-droplets).
 TEST(Defocus, FastLayersDoNotDependOnTheThreadCount) {
   for (const Camera& cam : {camera(384, 192, 424), camera(384, 192, 1696)}) {
     const cv::Mat clean = demo_street(cam.width, cam.height);
-    for (const char* preset : {"lens-cover", "windshield-day"}) {
+    for (const char* preset : {"lens-cover", "windshield-day", "glass-droplets"}) {
       for (std::uint64_t seed = 1; seed <= 3; ++seed) {
         const SceneConfig c = scene_preset(preset);
         Rng rng(seed);
@@ -249,27 +249,31 @@ TEST(Defocus, ExtremeLensesStayFinite) {
     for (double glass : {1.0, 3.0, 100.0}) {
       for (double focal : {0.5, 50.0, 2000.0}) {
         for (DefocusMethod method : {DefocusMethod::Layered, DefocusMethod::Aperture}) {
-          SceneConfig c = scene_preset("lens-cover");
-          c.glass_distance_cm = {glass, glass};
-          c.lens.f_number = {f_number, f_number};
-          c.lens.focal_length_mm = {focal, focal};
-          c.lens.method = method;
-          c.lens.aperture_samples = 4;
-          Rng rng(static_cast<std::uint64_t>(f_number * 7 + glass * 13 + focal));
-          const RenderedFrame f = render_frame(clean, cam, c, sample_scene(c, cam, rng));
-          ++scenes;
-          if (f.alpha.empty()) continue;
-          double lo, hi;
-          cv::minMaxLoc(f.alpha, &lo, &hi);
-          EXPECT_TRUE(std::isfinite(lo) && std::isfinite(hi));
-          EXPECT_GE(lo, 0.0);
-          EXPECT_LE(hi, 1.0);
-          EXPECT_TRUE(cv::checkRange(f.alpha));
+          // Focused on the glass too: the drops in focus traced through the aperture.
+          for (SceneConfig::Focus focus : {SceneConfig::Focus::Background, SceneConfig::Focus::Glass}) {
+            SceneConfig c = scene_preset("lens-cover");
+            c.glass_distance_cm = {glass, glass};
+            c.lens.f_number = {f_number, f_number};
+            c.lens.focal_length_mm = {focal, focal};
+            c.lens.method = method;
+            c.lens.aperture_samples = 4;
+            c.lens.focus = focus;
+            Rng rng(static_cast<std::uint64_t>(f_number * 7 + glass * 13 + focal));
+            const RenderedFrame f = render_frame(clean, cam, c, sample_scene(c, cam, rng));
+            ++scenes;
+            if (f.alpha.empty()) continue;
+            double lo, hi;
+            cv::minMaxLoc(f.alpha, &lo, &hi);
+            EXPECT_TRUE(std::isfinite(lo) && std::isfinite(hi));
+            EXPECT_GE(lo, 0.0);
+            EXPECT_LE(hi, 1.0);
+            EXPECT_TRUE(cv::checkRange(f.alpha));
+          }
         }
       }
     }
   }
-  EXPECT_EQ(scenes, 72);
+  EXPECT_EQ(scenes, 144);
 }
 
 TEST(Defocus, SceneFileRefusesTheLensTogetherWithThePaperBlur) {

@@ -124,8 +124,9 @@ TEST(Focus, FocusOnTheBackgroundIsTheDefaultRender) {
 }
 
 // Focused on the glass, a drop there is sharp (its circle under half a pixel: the pinhole's
-// outline, 2 fx a / z wide) while the street behind it is spread; outside the drop the rainy
-// image is the defocused street.
+// outline, 2 fx a / z wide) while the street behind it is spread; outside the drop's coverage the
+// rainy image is the defocused street. The drop's circle is 0, but the aperture's parallax
+// shows inside it (defocus.h): it is traced through the aperture, not spread as a layer.
 TEST(Focus, ADropOnTheFocusedGlassIsSharpAndTheStreetIsNot) {
   const Camera cam = camera(201, 121, 250);
   const double z = 10, a = 0.3;
@@ -133,7 +134,9 @@ TEST(Focus, ADropOnTheFocusedGlassIsSharpAndTheStreetIsNot) {
   s.drops = {cap(0, 0, a, 45)};
   const cv::Mat input = random_frame(cam);
   const RenderedFrame f = render_frame(input, cam, lens_config(SceneConfig::Focus::Glass), s);
-  EXPECT_FALSE(f.defocused);  // the drop's circle is 0
+  EXPECT_TRUE(f.lens_sampled);
+  ASSERT_EQ(f.coc_px.size(), 1u);
+  EXPECT_EQ(f.coc_px[0], 0.0);  // its layer is not spread
   ASSERT_FALSE(f.clean.empty());
   EXPECT_FALSE(equal_bits(f.clean, input));
   const int row = (cam.height - 1) / 2;
@@ -141,8 +144,8 @@ TEST(Focus, ADropOnTheFocusedGlassIsSharpAndTheStreetIsNot) {
   for (int x = 0; x < cam.width; ++x) run += f.mask.at<std::uint8_t>(row, x) != 0;
   EXPECT_NEAR(run, 2 * cam.fx * a / z, 1.5);
   cv::Mat outside_rainy, outside_clean;
-  f.rainy.copyTo(outside_rainy, f.mask == 0);
-  f.clean.copyTo(outside_clean, f.mask == 0);
+  f.rainy.copyTo(outside_rainy, f.alpha == 0);
+  f.clean.copyTo(outside_clean, f.alpha == 0);
   EXPECT_TRUE(equal_bits(outside_rainy, outside_clean));
   // The same drop a little off the plane of focus is defocused by its own circle.
   s.glass = upright_glass(6);
@@ -278,6 +281,12 @@ TEST(Focus, SceneFileForms) {
   EXPECT_EQ(parse_scene_json(head + R"("glass", "defocus": "aperture"}})", "t").lens.method, DefocusMethod::Aperture);
   // glass-droplets is focused on its glass.
   EXPECT_EQ(scene_preset("glass-droplets").lens.focus, SceneConfig::Focus::Glass);
+  // Drops in focus: through the aperture unless the scene asks for the lens' centre alone.
+  EXPECT_TRUE(parse_scene_json(head + R"("glass"}})", "t").lens.trace_in_focus);
+  const SceneConfig centre = parse_scene_json(head + R"("glass", "drops_in_focus": "centre"}})", "t");
+  EXPECT_FALSE(centre.lens.trace_in_focus);
+  EXPECT_EQ(scene_to_json(parse_scene_json(scene_to_json(centre), "again")), scene_to_json(centre));
+  expect_scene_refused(head + R"("glass", "drops_in_focus": "pinhole"}})", "drops_in_focus");
 }
 
 // The plane of focus is drawn after everything else: the same seed places the same drops with

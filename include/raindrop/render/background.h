@@ -22,8 +22,16 @@ class BackgroundSampler {
     CV_Assert(rgb8.type() == CV_8UC3);
   }
 
+  // The image may be the frame widened by `margin` pixels on every side, the margin being the
+  // border mode's continuation of the frame (cv::BORDER_REFLECT for mirror, BORDER_REPLICATE for
+  // clamp), as the thin-lens camera widens it so that drops just outside still spread into it.
+  // Coordinates stay the image's; what lies beyond the image, and the sky above the frame, are
+  // then continued from the frame itself, so a ray sees the same thing whatever the margin.
+  void set_margin(int margin) { margin_ = std::max(0, std::min(margin, (std::min(img_.cols, img_.rows) - 1) / 2)); }
+
+  // Inside the frame (not its margin).
   bool inside(double x, double y) const {
-    return x >= -0.5 && y >= -0.5 && x <= img_.cols - 0.5 && y <= img_.rows - 0.5;
+    return x >= margin_ - 0.5 && y >= margin_ - 0.5 && x <= img_.cols - margin_ - 0.5 && y <= img_.rows - margin_ - 0.5;
   }
 
   // Above the frame, the view fades from the border mode's continuation into `rgb` over
@@ -41,24 +49,28 @@ class BackgroundSampler {
     return w > 0 ? c + w * (sky_ - c) : c;
   }
 
-  // How much of the sky is seen at row y, from 0 (the frame's continuation) to 1.
+  // How much of the sky is seen at row y, from 0 (the frame's continuation) to 1: it starts at
+  // the frame's top edge.
   double sky_weight(double y) const {
-    if (sky_fade_px_ <= 0 || !(y < -0.5)) return 0.0;
-    return std::isfinite(y) ? std::min(1.0, (-0.5 - y) / sky_fade_px_) : 1.0;
+    const double top = margin_ - 0.5;
+    if (sky_fade_px_ <= 0 || !(y < top)) return 0.0;
+    return std::isfinite(y) ? std::min(1.0, (top - y) / sky_fade_px_) : 1.0;
   }
 
-  // Maps a coordinate into [0, n - 1] according to the border mode (n: the frame's width or
-  // height): where in the frame its continuation at v comes from.
+  // Maps a coordinate into [0, n - 1] according to the border mode (n: the image's width or
+  // height): where in the image its continuation at v comes from.
   double fold(double v, int n) const {
-    if (v >= 0.0 && v <= n - 1.0) return v;  // inside: the common case, no fmod
+    if (v >= 0.0 && v <= n - 1.0) return v;  // inside: the common case, no fmod (a margin holds the same continuation)
     if (!std::isfinite(v)) return v > 0 ? n - 1 : 0;
-    if (border_ == BorderMode::Clamp || n == 1) return std::min(std::max(v, 0.0), n - 1.0);
-    // Mirror about the outer pixel edges (-0.5 and n - 0.5): period 2n.
-    const double period = 2.0 * n;
-    double u = std::fmod(v + 0.5, period);
+    const int m = margin_, inner = n - 2 * margin_;
+    // Clamp: the edge pixel, the frame's and its margin's alike.
+    if (border_ == BorderMode::Clamp || inner <= 1) return std::min(std::max(v, 0.0), n - 1.0);
+    // Mirror about the frame's outer pixel edges (m - 0.5 and m + inner - 0.5): period 2 inner.
+    const double period = 2.0 * inner;
+    double u = std::fmod(v - m + 0.5, period);
     if (u < 0) u += period;
-    if (u > n) u = period - u;
-    return std::min(std::max(u - 0.5, 0.0), n - 1.0);
+    if (u > inner) u = period - u;
+    return m + std::min(std::max(u - 0.5, 0.0), inner - 1.0);
   }
 
   // Asks the processor to start loading the pixels sample(x, y) will read (the sky's blend
@@ -101,6 +113,7 @@ class BackgroundSampler {
 
   const cv::Mat& img_;
   BorderMode border_;
+  int margin_ = 0;
   glm::dvec3 sky_{0.0};
   double sky_fade_px_ = 0;
 };

@@ -3,7 +3,11 @@
 // the centre of the aperture (the pinhole render: each drop's radiance R_d and its coverage
 // a_d, 1 on its image and 0 elsewhere); each drop's layer is then spread by the disk of its
 // own circle of confusion (from the depth of its centre on the glass), and the layers are
-// composited over the clean frame in linear light:
+// composited over the clean frame in linear light. Drops in focus (circles under half a
+// pixel), whose layers are not spread, are traced through the aperture where it shows
+// (traced_through_aperture): their R_d is the mean of a pixel's rays from the lens disk and
+// a_d the fraction of them that met the drop (tracer.h, LensTrace).
+// The sums:
 //     A = sum_d blur_d(a_d),   I = (1 - A) B + sum_d blur_d(a_d R_d)
 // (A clamped to 1 where blurred drops overlap). A drop smaller than its circle of confusion
 // so never reaches A = 1: it is semi-transparent, and its image spreads beyond its outline,
@@ -45,6 +49,20 @@ inline constexpr double kMinVisibleCocPx = 0.5;
 // twice the frame's longer side, so that a pathological scene cannot ask for a kernel wider
 // than the frame per drop (the blur is then simply as wide as the frame).
 double layer_blur_diameter(const SceneSample& scene, const Drop& drop, double fx, cv::Size frame);
+
+// How far, in pixels, the aperture moves what a drop shows inside when its layer is not blurred
+// (a circle under kMinVisibleCocPx): the circle itself, which a drop does not hide as its
+// outline does (it shows the street minified many times, so a fraction of a pixel on the glass
+// is a wide patch of that view), plus the parallax of the drop across the aperture: its rays
+// arrive over the angle aperture / depth, which turns the view refracted through the cap and
+// moves the dark band's edge by up to that angle times the cap's sphere radius.
+double drop_lens_spread_px(const SceneSample& scene, const Drop& drop, double fx);
+
+// Whether the layered path traces a drop through the aperture (tracer.h, LensTrace::sampled)
+// instead of through the lens' centre alone: the lens has an aperture, the drop's layer is not
+// blurred, and its spread changes a pixel inside it by the auto budget or more
+// (effect_policy.h: shift_levels, kAutoBudgetLevels). A pinhole-sized aperture stays the pinhole.
+bool traced_through_aperture(const SceneSample& scene, const Drop& drop, double fx, cv::Size frame);
 
 // `traced`: the pinhole trace of `drops` over `clean` (CV_8UC3 RGB). Runs on the calling
 // thread's TBB arena; the result does not depend on the number of threads.

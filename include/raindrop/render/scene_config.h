@@ -149,7 +149,11 @@ struct SceneConfig {
     Range f_number{2, 8};
     Range focal_length_mm{5, 5};  // physical focal length (Cityscapes: fx 2262 px x 2.2 um ~ 5 mm)
     DefocusMethod method = DefocusMethod::Layered;
-    int aperture_samples = 16;    // per pixel, for method Aperture (square number)
+    int aperture_samples = 16;    // per pixel, for method Aperture and for drops in focus (square number)
+    // The layered path's drops in focus (circles under half a pixel): traced through the
+    // aperture where it shows (true), or through the lens' centre alone (false: faster, and
+    // farther from the reference inside them; defocus.h, traced_through_aperture).
+    bool trace_in_focus = true;
     double mask_threshold = 0.1;  // binary mask = coverage >= this
   } lens;
 

@@ -40,11 +40,15 @@ struct TraceStats {
   std::int64_t aliasing_pixels = 0;
   std::int64_t smooth_pixels = 0;
   std::int64_t lockstep_pixels = 0;  // camera rays traced side by side (TraceStrategy::lockstep)
+  std::int64_t lens_sampled_pixels = 0;  // pixels that averaged rays from the lens disk (LensTrace)
 };
 
 struct TraceResult {
   cv::Mat label;  // CV_32S: -1 where no drop is met, else the index of the first drop met
   cv::Mat color;  // CV_32FC3 RGB in [0, 1]: the traced colour where label >= 0
+  // CV_32F: the fraction of the pixel's rays that met a drop where label >= 0, with sampled drops
+  // (1 at the pixels it did not sample); empty without it (1 wherever label >= 0).
+  cv::Mat coverage;
   TraceStats stats;
   // Per row, the x-intervals that were traced (label is -1 everywhere else), and the
   // bounding box of the drop pixels: later passes visit only these.
@@ -82,12 +86,44 @@ struct TraceStrategy {
   bool lockstep = true;
 };
 
+// What the thin-lens camera's layered path (renderer.cpp) adds to the pinhole trace.
+//
+// `margin`: `clean` is the frame widened by this many pixels on every side (the border mode's
+// continuation of it), so that rays leaving the frame see the frame's continuation and the sky
+// above it wherever the image's edge lies (BackgroundSampler::set_margin).
+//
+// `sampled`: drops in focus seen through a real aperture. A drop whose circle of confusion is
+// under half a pixel keeps its outline where the pinhole puts it, but not what it shows inside:
+// a drop shows the street minified many times, so rays that spread over a fraction of a pixel
+// on the glass still see a wide patch of that view, and near the rim some of a pixel's rays are
+// turned back by total internal reflection while others are not. The pixels on and next to
+// these drops average `samples` rays from the lens disk (the aperture reference's stratified
+// points) through their point on the plane of focus (spread over the pixel's square too where
+// the scene supersamples k x k: then max(samples, k^2) rays), each traced to the sharp street (`sharp`,
+// widened like `clean`; null: `clean` is sharp), as the reference traces them: the spread of
+// the rays is the street's blur there. Their colour is the mean, in linear light, of the rays
+// that met a drop, their coverage the fraction that did (TraceResult::coverage); a pixel none of
+// whose rays met one leaves the drop. A ray that misses stands for the pixel's own (defocused)
+// street, which the layered composite mixes in by coverage.
+struct LensTrace {
+  int margin = 0;
+  std::vector<char> sampled;  // per drop of the accel: sampled through the aperture
+  int samples = 16;           // per pixel (a square number: a k x k stratified grid on the disk)
+  const cv::Mat* sharp = nullptr;
+  bool any_sampled() const {
+    for (char d : sampled)
+      if (d) return true;
+    return false;
+  }
+};
+
 // `clean` is the frame (CV_8UC3, RGB); `accel` holds the scene's drops. `plan`: the effects
 // chosen per drop where the scene says "auto" (effect_policy.h); without one, every effect
-// the scene names is simulated for every drop.
+// the scene names is simulated for every drop. `lens`: the thin-lens camera's margin and
+// sampled drops (none without it).
 TraceResult trace_drops(const cv::Mat& clean, const Camera& camera, const SceneConfig& config,
                         const SceneSample& scene, const DropAccel& accel, const EffectPlan* plan = nullptr,
-                        const TraceStrategy& strategy = {});
+                        const TraceStrategy& strategy = {}, const LensTrace* lens = nullptr);
 
 // The thin-lens reference (SceneConfig::lens, method Aperture): `samples` rays per pixel
 // from points spread over the aperture disk, focused on the scene's plane of focus. Where the
@@ -99,8 +135,9 @@ struct ApertureResult {
   cv::Mat clean_linear;  // CV_32FC3 linear RGB of the street alone, focus off it; else empty
   std::int64_t lockstep_rays = 0;  // rays traced side by side (TraceStrategy::lockstep)
 };
+// `margin`: as LensTrace's.
 ApertureResult trace_aperture(const cv::Mat& clean, const Camera& camera, const SceneConfig& config,
                               const SceneSample& scene, const DropAccel& accel, int samples,
-                              const EffectPlan* plan = nullptr, const TraceStrategy& strategy = {});
+                              const EffectPlan* plan = nullptr, const TraceStrategy& strategy = {}, int margin = 0);
 
 }  // namespace raindrop
