@@ -30,6 +30,7 @@
 #include "raindrop/common/rng.h"
 #include "raindrop/common/version.h"
 #include "raindrop/render/defocus.h"
+#include "raindrop/render/effect_policy.h"
 #include "raindrop/render/framing.h"
 #include "raindrop/render/manifest.h"
 #include "raindrop/render/sensor.h"
@@ -256,6 +257,7 @@ json sample_record(const std::string& id, const InputImage& input, int variant, 
               {"job", job}};
   if (rendered.effects.any_auto()) record["effects_auto"] = effects_auto_record(config, rendered);
   if (config.lens.enabled) {
+    const std::string budget = std::to_string(static_cast<int>(kAutoBudgetLevels)) + " levels";
     record["alpha"] = "alpha/" + id + ".png";
     record["lens"] = {{"f_number", scene.f_number},
                       {"focal_length_mm", scene.focal_length_mm},
@@ -265,11 +267,14 @@ json sample_record(const std::string& id, const InputImage& input, int variant, 
                       {"background_defocused", !rendered.clean.empty()},
                       {"defocus", rendered.defocused ? to_string(config.lens.method) : "skipped"},
                       {"why", !rendered.defocused
-                                  ? "every drop's circle of confusion is under 0.5 px, and no drop's spread through the "
-                                    "aperture moves a pixel by 2 levels"
+                                  ? (config.lens.trace_in_focus || config.lens.method == DefocusMethod::Aperture
+                                         ? "every drop's circle of confusion is under 0.5 px, and no drop's spread "
+                                           "through the aperture moves a pixel by " + budget + " or more"
+                                         : "every drop's circle of confusion is under 0.5 px (drops in focus through "
+                                           "the lens' centre: drops_in_focus)")
                               : some_drop_spread(rendered) ? "some drop's circle of confusion is at least 0.5 px"
                               : rendered.lens_sampled ? "some drop's spread through the aperture (circle and parallax) "
-                                                        "moves a pixel by 2 levels or more: traced through it"
+                                                        "moves a pixel by " + budget + " or more: traced through it"
                                                       : "the street's circle of confusion is at least 0.5 px "
                                                         "(the aperture reference traces it)"},
                       {"drops_traced_through_aperture", rendered.lens_sampled_drops},

@@ -149,17 +149,20 @@ RenderedFrame render_frame(const cv::Mat& input, const Camera& camera, const Sce
   accel.set_disjoint(!config.allow_overlap && !config.trails.enabled);
   frame.timings.accel_ms = ms_since(t0);
 
-  // The layered path's drops in focus: a circle under half a pixel leaves a drop's outline
-  // where the pinhole puts it, but not what it shows inside (defocus.h), so where that shows
-  // their pixels average rays from the aperture (tracer.h, LensTrace).
+  // Drops in focus: a circle under half a pixel leaves a drop's outline where the pinhole puts
+  // it, but not what it shows inside (defocus.h). Where that shows, the layered path's pixels
+  // near them average rays from the aperture (tracer.h, LensTrace), and the reference, which
+  // traces every drop so, runs even though no circle reaches half a pixel.
+  std::vector<char> in_focus;
+  if (lens && (config.lens.method == DefocusMethod::Aperture || config.lens.trace_in_focus)) {
+    in_focus.reserve(drops.size());
+    for (const Drop& d : drops) in_focus.push_back(traced_through_aperture(scene, d, camera.fx, input.size()));
+  }
+  for (char d : in_focus) frame.lens_sampled_drops += d != 0;
+  frame.lens_sampled = frame.lens_sampled_drops > 0;
   LensTrace sampling;
   sampling.samples = config.lens.aperture_samples;
-  if (lens && config.lens.method != DefocusMethod::Aperture && config.lens.trace_in_focus) {
-    sampling.sampled.reserve(drops.size());
-    for (const Drop& d : drops) sampling.sampled.push_back(traced_through_aperture(scene, d, camera.fx, input.size()));
-  }
-  for (char d : sampling.sampled) frame.lens_sampled_drops += d != 0;
-  frame.lens_sampled = frame.lens_sampled_drops > 0;
+  if (config.lens.method != DefocusMethod::Aperture) sampling.sampled = std::move(in_focus);
 
   if (defocus || street_traced || frame.lens_sampled) {
     // Without the lift, a copy of the sample with it off renders the frame exactly as without

@@ -4,6 +4,7 @@
 #include <atomic>
 #include <cmath>
 #include <limits>
+#include <numeric>
 #include <optional>
 #include <vector>
 
@@ -856,20 +857,32 @@ TraceResult run(const cv::Mat& clean, const Camera& camera, const SceneConfig& c
     const double F = scene.focus_cm();
     // Ray `sample` of a pixel starts at lens stratum `sample mod kl^2` and aims at its point on
     // the plane of focus: the pixel's centre, or, where the scene supersamples (k x k per
-    // pixel), a point of stratum `sample mod k^2` of the pixel's square, jittered by a hash as
-    // the lens points are: the pixel's area as well as the aperture. As many rays as the larger
-    // grid has strata.
-    const int rays = std::max(kl * kl, k * k);
+    // pixel), a point of one stratum of the pixel's square, jittered by a hash as the lens
+    // points are: the pixel's area as well as the aperture. The pixel's strata are paired with
+    // the lens' in an order shuffled per pixel (in a fixed order, one side of the pixel would
+    // always be seen from one side of the lens), and there are as many rays as the least common
+    // multiple of the two grids' strata, so that every stratum of each weighs the same.
+    const int cells = k > 1 ? k * k : 1;
+    const int rays = std::lcm(kl * kl, cells);
     auto lens_origin = [&](int x, int y, int sample) {
       const int stratum = sample % (kl * kl);
       const glm::dvec2 p = lens_disk_point(x, y, stratum % kl, stratum / kl, kl, radius);
       return glm::dvec3(p.x, p.y, 0.0);
     };
-    auto focus_point = [&](int x, int y, int sample) {
-      if (k <= 1) return F * camera.ray_direction(x, y);
-      const int cell = sample % (k * k);
+    auto shuffle_cells = [&](int x, int y, std::vector<int>& order) {
+      order.resize(cells);
+      for (int i = 0; i < cells; ++i) order[i] = i;
+      std::uint64_t h = mix64((static_cast<std::uint64_t>(y) << 40) ^ (static_cast<std::uint64_t>(x) << 16) ^ 0x9e3779b9ULL);
+      for (int i = cells - 1; i > 0; --i) {
+        h = mix64(h + static_cast<std::uint64_t>(i));
+        std::swap(order[i], order[static_cast<int>(h % static_cast<std::uint64_t>(i + 1))]);
+      }
+    };
+    auto focus_point = [&](int x, int y, int sample, const std::vector<int>& order) {
+      if (cells == 1) return F * camera.ray_direction(x, y);
+      const int cell = order[sample % cells];
       const std::uint64_t h = mix64((static_cast<std::uint64_t>(y) << 40) ^ (static_cast<std::uint64_t>(x) << 16) ^
-                                    static_cast<std::uint64_t>(sample) ^ 0x5bd1e995ULL << 20);
+                                    (static_cast<std::uint64_t>(sample) | 0x5bd1e995ULL << 20));
       const double ju = static_cast<double>(h & 0xffffffffULL) * 0x1.0p-32;
       const double jv = static_cast<double>(h >> 32) * 0x1.0p-32;
       return F * camera.ray_direction(x + (cell % k + ju) / k - 0.5, y + (cell / k + jv) / k - 0.5);
@@ -878,6 +891,7 @@ TraceResult run(const cv::Mat& clean, const Camera& camera, const SceneConfig& c
       std::int64_t n_sampled = 0;
       glm::dvec3 origins[8], dirs[8];
       DropPath paths[8];
+      std::vector<int> order;
       for (int y = r.begin(); y < r.end(); ++y) {
         int* label = out.label.ptr<int>(y);
         auto* rgb = out.color.ptr<cv::Vec3f>(y);
@@ -887,6 +901,7 @@ TraceResult run(const cv::Mat& clean, const Camera& camera, const SceneConfig& c
           for (int x = x0; x <= x1; ++x) {
             if (!pick[x]) continue;
             ++n_sampled;
+            if (cells > 1) shuffle_cells(x, y, order);
             glm::dvec3 sum(0.0);
             int hits = 0, first = -1;
             for (int sample = 0; sample < rays; ++sample) {
@@ -897,7 +912,7 @@ TraceResult run(const cv::Mat& clean, const Camera& camera, const SceneConfig& c
                   const int n = std::min(8, rays - sample);
                   for (int i = 0; i < n; ++i) {
                     origins[i] = lens_origin(x, y, sample + i);
-                    dirs[i] = focus_point(x, y, sample + i) - origins[i];
+                    dirs[i] = focus_point(x, y, sample + i, order) - origins[i];
                   }
                   lens_kernel.trace_packet(origins, dirs, n, paths);
                 }
@@ -905,9 +920,12 @@ TraceResult run(const cv::Mat& clean, const Camera& camera, const SceneConfig& c
                 s = lens_kernel.finish(paths[lane], lens_kernel.seen_point(paths[lane]));
               } else {
                 const glm::dvec3 origin = lens_origin(x, y, sample);
-                s = lens_kernel.sample_ray(origin, focus_point(x, y, sample) - origin);
+                s = lens_kernel.sample_ray(origin, focus_point(x, y, sample, order) - origin);
               }
-              if (!s.hit) continue;
+              // Only the flagged drops' light: a ray that meets another drop counts as a miss here
+              // (that drop's own pixels carry it; a blurred one's layer would spread it again).
+              // Two flagged drops in one pixel share its colour under the first one's label.
+              if (!s.hit || !lens->sampled[static_cast<size_t>(s.drop)]) continue;
               ++hits;
               if (first < 0) first = s.drop;
               // Lifted where the scene lifts highlights (as the reference averages its rays).

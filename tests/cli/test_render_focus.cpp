@@ -59,7 +59,10 @@ TEST(RenderFocus, FocusOnTheGlassDefocusesTheCleanImageOfEachVariant) {
     rainy->pixels.copyTo(outside_rainy, alpha->pixels == 0);
     clean->pixels.copyTo(outside_clean, alpha->pixels == 0);
     EXPECT_EQ(cv::norm(outside_rainy, outside_clean, cv::NORM_INF), 0);
-    EXPECT_EQ(cv::countNonZero((alpha->pixels == 0) & (mask->pixels != 0)), 0);
+    // The drops in focus were traced through the aperture: the manifest counts them, and their
+    // outlines are antialiased by the lens (coverage strictly between 0 and 1).
+    EXPECT_GT(g.at("lens").at("drops_traced_through_aperture").get<int>(), 0);
+    EXPECT_GT(cv::countNonZero((alpha->pixels > 0) & (alpha->pixels < 65535)), 0);
     EXPECT_GT(cv::countNonZero(mask->pixels), 0);
     cleans.push_back(read_file(tmp / "glass/clean" / (id + ".png")));
   }

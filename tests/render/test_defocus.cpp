@@ -233,6 +233,7 @@ TEST(Defocus, FastLayersDoNotDependOnTheThreadCount) {
         tbb::task_arena(1).execute([&] { one = render_frame(clean, cam, c, s); });
         tbb::task_arena(2).execute([&] { two = render_frame(clean, cam, c, s); });
         ASSERT_TRUE(one.defocused);
+        if (std::string(preset) == "glass-droplets") ASSERT_TRUE(one.lens_sampled);
         EXPECT_EQ(cv::norm(one.rainy, two.rainy, cv::NORM_INF), 0) << preset << " fx " << cam.fx << " seed " << seed;
         EXPECT_EQ(cv::norm(one.alpha, two.alpha, cv::NORM_INF), 0) << preset << " fx " << cam.fx << " seed " << seed;
       }
@@ -244,7 +245,7 @@ TEST(Defocus, FastLayersDoNotDependOnTheThreadCount) {
 TEST(Defocus, ExtremeLensesStayFinite) {
   const Camera cam = camera(96, 64, 90);
   const cv::Mat clean = demo_street(cam.width, cam.height);
-  int scenes = 0;
+  int scenes = 0, traced = 0;
   for (double f_number : {0.5, 1.4, 16.0, 1e6}) {
     for (double glass : {1.0, 3.0, 100.0}) {
       for (double focal : {0.5, 50.0, 2000.0}) {
@@ -261,6 +262,7 @@ TEST(Defocus, ExtremeLensesStayFinite) {
             Rng rng(static_cast<std::uint64_t>(f_number * 7 + glass * 13 + focal));
             const RenderedFrame f = render_frame(clean, cam, c, sample_scene(c, cam, rng));
             ++scenes;
+            traced += f.lens_sampled;
             if (f.alpha.empty()) continue;
             double lo, hi;
             cv::minMaxLoc(f.alpha, &lo, &hi);
@@ -274,6 +276,7 @@ TEST(Defocus, ExtremeLensesStayFinite) {
     }
   }
   EXPECT_EQ(scenes, 144);
+  EXPECT_GT(traced, 0);  // the sweep reaches drops in focus traced through the aperture
 }
 
 TEST(Defocus, SceneFileRefusesTheLensTogetherWithThePaperBlur) {

@@ -186,7 +186,7 @@ TEST(LensTrace, DropsWhoseSpreadIsUnderTheBudgetAreLeftToThePinhole) {
 // The thin-lens paths widen the frame by a margin (its mirror or its edge continued) so that
 // drops just outside still spread into it. A ray that leaves the widened image sees the frame's
 // own continuation and the sky above the frame's top, whatever the margin: the same colours as
-// the frame alone at the same point.
+// the frame alone at the same point, also where the coordinates are not finite.
 TEST(LensTrace, AWidenedFrameIsContinuedFromTheFrameItself) {
   const cv::Mat frame = demo_street(37, 23);
   Rng rng(5);
@@ -206,6 +206,14 @@ TEST(LensTrace, AWidenedFrameIsContinuedFromTheFrameItself) {
         const glm::dvec3 d = alone.sample(x, y) - widened.sample(x + margin, y + margin);
         worst = std::max({worst, std::abs(d.x), std::abs(d.y), std::abs(d.z)});
         EXPECT_EQ(alone.inside(x, y), widened.inside(x + margin, y + margin));
+      }
+      // Coordinates that are not finite (a ray parallel to the street) land on the frame's corner
+      // pixels, not the margin's.
+      for (double x : {-HUGE_VAL, HUGE_VAL, std::nan(""), 10.0}) {
+        for (double y : {-HUGE_VAL, HUGE_VAL, std::nan(""), 10.0}) {
+          const glm::dvec3 d = alone.sample(x, y) - widened.sample(x + margin, y + margin);
+          worst = std::max({worst, std::abs(d.x), std::abs(d.y), std::abs(d.z)});
+        }
       }
       EXPECT_LT(worst, 1e-12) << "margin " << margin << (mode == BorderMode::Clamp ? " clamp" : " mirror");
     }

@@ -61,8 +61,8 @@ class BackgroundSampler {
   // height): where in the image its continuation at v comes from.
   double fold(double v, int n) const {
     if (v >= 0.0 && v <= n - 1.0) return v;  // inside: the common case, no fmod (a margin holds the same continuation)
-    if (!std::isfinite(v)) return v > 0 ? n - 1 : 0;
     const int m = margin_, inner = n - 2 * margin_;
+    if (!std::isfinite(v)) return v > 0 ? m + inner - 1 : m;  // the frame's own last or first pixel
     // Clamp: the edge pixel, the frame's and its margin's alike.
     if (border_ == BorderMode::Clamp || inner <= 1) return std::min(std::max(v, 0.0), n - 1.0);
     // Mirror about the frame's outer pixel edges (m - 0.5 and m + inner - 0.5): period 2 inner.

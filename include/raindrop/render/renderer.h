@@ -37,7 +37,8 @@ struct RenderedFrame {
   const cv::Mat& clean_or(const cv::Mat& input) const { return clean.empty() ? input : clean; }
   bool defocused = false;  // the lens path ran (false: pinhole, or every circle < 0.5 px)
   // Drops in focus traced through the aperture (circles under half a pixel whose spread shows:
-  // defocus.h, traced_through_aperture; layered path).
+  // defocus.h, traced_through_aperture): by the layered path's LensTrace, or by the reference,
+  // which traces every drop so.
   bool lens_sampled = false;
   int lens_sampled_drops = 0;
   // The highlights' lift ran (false: off, not defocused, or no pixel reached its threshold).
