@@ -234,22 +234,25 @@ edited_scene() {
   printf '%s\n' "$text"
 }
 
-# realism_table DIR: the realism classifier's scores in DIR/{real-raindrop,clarity}-s{0,1,2}.json
-# (one `raindrop_tools.realism` call per photo set and seed), per rendered set, as markdown: the
-# classifier's accuracy, the street alone's and the drops' effect, means of the 3 seeds (RESULTS
-# 4.38, 4.40).
+# realism_table DIR: the realism classifier's scores in DIR/{real-raindrop,clarity}-s<seed>.json
+# (one `raindrop_tools.realism` call per photo set and seed, seeds 0, 1, ...), per rendered set, as
+# markdown: the classifier's accuracy, the street alone's and the drops' effect, means over the
+# seeds (RESULTS 4.38, 4.40).
 realism_table() {
   $py - "$1" <<'PY'
-import json, sys
+import json, os, sys
 import numpy as np
 rc = sys.argv[1]
 for photos in ("real-raindrop", "clarity"):
     rows = {}
-    for seed in range(3):
+    seeds = 0
+    while os.path.exists(f"{rc}/{photos}-s{seeds}.json"):
+        seeds += 1
+    for seed in range(seeds):
         for sc in json.load(open(f"{rc}/{photos}-s{seed}.json"))["photo_scores"]:
             name = sc["name"].split("(")[1].split(",")[0]
             rows.setdefault(name, []).append((sc["classifier"]["accuracy"], sc["street"]["accuracy"], sc["drops_effect"]))
-    print(f"\n{photos}, mean of 3 seeds\n\n| set | classifier | street alone | drops' effect (min to max) |\n| --- | ---: | ---: | ---: |")
+    print(f"\n{photos}, mean of {seeds} seeds\n\n| set | classifier | street alone | drops' effect (min to max) |\n| --- | ---: | ---: | ---: |")
     for name, v in rows.items():
         v = np.array(v)
         print(f"| {name} | {v[:, 0].mean():.3f} | {v[:, 1].mean():.3f} | {v[:, 2].mean():+.3f} ({v[:, 2].min():+.3f} to {v[:, 2].max():+.3f}) |")
@@ -1961,8 +1964,8 @@ if want infocus; then
   # RESULTS 4.40: drops in focus traced through the aperture. glass-droplets as it is (its drops in
   # focus traced through the aperture) and with "drops_in_focus": "centre" (through the lens' centre,
   # as before), over the same 100 CamVid frames as realismcontrol (512x256, seed 11), scored by the
-  # realism classifier in one call per photo set and seed; a sheet (beaded photograph | centre |
-  # aperture, not committed); the bench's accuracy/time table for the thin lens.
+  # realism classifier in one call per photo set and seed, crop for crop; a sheet (beaded photograph |
+  # centre | aperture, not committed); the bench's accuracy/time table for the thin lens.
   link_cv100
   io="$out/infocus"
   rm -rf "$io" && mkdir -p "$io/clarity"
@@ -1973,11 +1976,13 @@ if want infocus; then
     build/raindrop-render -i "$out/cv100" -o "$io/val-$(basename "$scene" .json)" --scene "$scene" --size 512x256 \
       --seed 11 -q
   done
+  # --paired: both sets cropped at the same places (the order of the sets in a call moved a set's
+  # score by about 0.01 without it); six seeds.
   for photos in "$shared/real-raindrop" "$io/clarity"; do
-    for seed in 0 1 2; do
+    for seed in 0 1 2 3 4 5; do
       $py -m raindrop_tools.realism --real-photos "$photos" --rendered "$io/val-glass-droplets-centre" \
-        --rendered "$io/val-glass-droplets" --limit 100 --seed "$seed" --json "$io/$(basename "$photos")-s$seed.json" \
-        >/dev/null
+        --rendered "$io/val-glass-droplets" --limit 100 --seed "$seed" --paired \
+        --json "$io/$(basename "$photos")-s$seed.json" >/dev/null
     done
   done
   realism_table "$io" | tee "$io/table.md"

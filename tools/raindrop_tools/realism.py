@@ -1,7 +1,7 @@
 """How far rendered drops are from real ones (project issue 9, items 1 and 5).
 
     python -m raindrop_tools.realism [--real-pairs DIR] [--split train|test|all] [--real-photos DIR] \\
-        [--rendered DATASET ...] [--limit N] [--crops-per-image 4] [--folds 5] [--seed 0] [--json FILE]
+        [--rendered DATASET ...] [--limit N] [--crops-per-image 4] [--folds 5] [--seed 0] [--paired] [--json FILE]
 
 (a) **Statistics of drops** from (rainy, clean, mask) triples. Real pairs: the rough masks of
 ``realpairs.rough_mask`` (its mask options apply). Rendered data sets (CONTRACTS.md section 1):
@@ -476,6 +476,10 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--crops-per-image", type=at_least(0), default=4, help=f"{CROP}x{CROP} crops per image for the classifier")
     ap.add_argument("--folds", type=at_least(2), default=5)
     ap.add_argument("--seed", type=int, default=0)
+    ap.add_argument("--paired", action="store_true",
+                    help="crop every rendered set at the same places (one random stream for all, whatever their "
+                    "order): renders of the same frames are then compared crop for crop, and a set scores the same "
+                    "in any call. Without it each set draws its own places by its position in the call")
     ap.add_argument("--json", help="write everything to this JSON file")
     RP.add_mask_arguments(ap)
     args = ap.parse_args(argv)
@@ -501,7 +505,8 @@ def main(argv: list[str] | None = None) -> int:
             photos = collect_photos(args.real_photos, np.random.default_rng([args.seed, 1000]), args.photo_crops)
         sets = [real] if real else []
         for i, root in enumerate(args.rendered):
-            sets.append(collect_rendered(root, np.random.default_rng([args.seed, i + 1]), args.crops_per_image,
+            stream = [args.seed, 1] if args.paired else [args.seed, i + 1]
+            sets.append(collect_rendered(root, np.random.default_rng(stream), args.crops_per_image,
                                          args.limit, args.rendered_split,
                                          params if args.rendered_masks == "rough" else None))
     except (RP.PairsError, DatasetError, ImageError, ValueError) as e:
