@@ -6,7 +6,7 @@
 # largedropmodels sensor mirroraverage highlights multiscale veil papermodels outline trails photos windshield
 # windshield-followup longer growth sharpness coalesce surround largewidth largedrops-all windshield2
 # errorsplit withoutvnni graphrewrites jitter windshieldscale router routed int8router droplets realismcontrol
-# droplets2 infocus
+# droplets2 infocus realismbar
 #
 # Nothing here is committed automatically: images derived from Cityscapes, CamVid or the
 # real raindrop photographs stay under out/ (their licences forbid redistribution).
@@ -21,7 +21,7 @@ sections=("$@")
                                   largedropmodels sensor mirroraverage highlights multiscale veil papermodels outline trails
                                   photos windshield windshield-followup longer growth sharpness coalesce
                                   surround largewidth largedrops-all windshield2 errorsplit withoutvnni graphrewrites
-                                  jitter windshieldscale router routed int8router droplets realismcontrol droplets2 infocus)
+                                  jitter windshieldscale router routed int8router droplets realismcontrol droplets2 infocus realismbar)
 want() { [[ " ${sections[*]} " == *" $1 "* ]]; }
 # link_set SRC DST SPLIT [LIMIT]: the first LIMIT (default 100; 0: all) samples of data set SRC
 # (of manifest split SPLIT; "-" = all) linked into DST/rainy and DST/clean (and DST/mask, where
@@ -214,12 +214,21 @@ real_pairs_data() {
   [[ -f data/real-pairs/manifest.jsonl ]] || $py -m raindrop_tools.realpairs prepare "$shared/real-pairs" --out data/real-pairs
 }
 
-# glass_droplets_435: scenes/glass-droplets.json with the ranges RESULTS 4.35 rendered it with
-# (glass 5-25 cm, footprint radius 0.015-0.12 cm, contact angles 40-90), on stdout.
+# glass_droplets_438: scenes/glass-droplets.json as RESULTS 4.38-4.40 rendered it (focal length
+# 4-6 mm; 4.41 made it 2.5-4), on stdout.
+glass_droplets_438() {
+  edited_scene 's/"focal_length_mm": \[2.5, 4\]/"focal_length_mm": [4, 6]/' scenes/glass-droplets.json
+}
+# glass_droplets_435: the same with the ranges RESULTS 4.35 rendered it with (glass 5-25 cm,
+# footprint radius 0.015-0.12 cm, contact angles 40-90), on stdout.
 glass_droplets_435() {
+  local s438
+  s438=$(mktemp)
+  glass_droplets_438 >"$s438"
   edited_scene 's/"glass_distance_cm": \[12, 60\]/"glass_distance_cm": [5, 25]/;
                 s/"footprint_radius_cm": \[0.025, 0.175\]/"footprint_radius_cm": [0.015, 0.12]/;
-                s/"contact_angle_deg": \[20, 50\]/"contact_angle_deg": [40, 90]/' scenes/glass-droplets.json 3
+                s/"contact_angle_deg": \[20, 50\]/"contact_angle_deg": [40, 90]/' "$s438" 3
+  rm -f "$s438"
 }
 # edited_scene SED FILE [N]: FILE edited by SED on stdout; fails (and prints nothing) unless N
 # lines (default 1) changed, so that a scene file edited since cannot silently render unchanged.
@@ -1858,19 +1867,20 @@ if want realismcontrol; then
   rm -rf "$rc" && mkdir -p "$rc/clarity"
   for f in "$shared"/real-raindrop/clarity_*; do ln -s "$(realpath "$f")" "$rc/clarity/"; done
   glass_droplets_435 >"$rc/glass-droplets-4.35.json"
+  glass_droplets_438 >"$rc/glass-droplets.json"
   small='s/"footprint_radius_cm": \[0.015, 0.12\]/"footprint_radius_cm": [0.01, 0.07]/; s/"contact_angle_deg": \[40, 90\]/"contact_angle_deg": [20, 50]/'
   edited_scene "$small; "'s/"f_number": \[1.6, 2.8\]/"f_number": [4, 8]/' "$rc/glass-droplets-4.35.json" 3 >"$rc/small-f4-8.json"
-  edited_scene 's/"contact_angle_deg": \[20, 50\]/"contact_angle_deg": [40, 90]/' scenes/glass-droplets.json >"$rc/far-angles-40-90.json"
+  edited_scene 's/"contact_angle_deg": \[20, 50\]/"contact_angle_deg": [40, 90]/' "$rc/glass-droplets.json" >"$rc/far-angles-40-90.json"
   edited_scene 's/"glass_distance_cm": \[12, 60\]/"glass_distance_cm": [10, 40]/; s/"footprint_radius_cm": \[0.025, 0.175\]/"footprint_radius_cm": [0.02, 0.15]/;
-       s/"drop_count": \[400, 1000\]/"drop_count": [600, 1000]/' scenes/glass-droplets.json 3 >"$rc/glass-10-40.json"
+       s/"drop_count": \[400, 1000\]/"drop_count": [600, 1000]/' "$rc/glass-droplets.json" 3 >"$rc/glass-10-40.json"
   # Traced dark bands instead of black ones, with one and with 4 samples per pixel.
   trace='s/"dark_band": "black"/"dark_band": "trace"/'
-  edited_scene "$trace" scenes/glass-droplets.json >"$rc/dark-band-trace.json"
-  edited_scene "$trace; "'s/"samples_per_pixel": 1,/"samples_per_pixel": 4,/' scenes/glass-droplets.json 2 \
+  edited_scene "$trace" "$rc/glass-droplets.json" >"$rc/dark-band-trace.json"
+  edited_scene "$trace; "'s/"samples_per_pixel": 1,/"samples_per_pixel": 4,/' "$rc/glass-droplets.json" 2 \
     >"$rc/dark-band-trace-4spp.json"
   sets=()
   for scene in paper real-photo lens-cover lens-cover-heavy lens-cover-merged windshield-day windshield-night \
-               windshield-sharp glass-droplets "$rc/glass-droplets-4.35.json" "$rc/small-f4-8.json" \
+               windshield-sharp "$rc/glass-droplets.json" "$rc/glass-droplets-4.35.json" "$rc/small-f4-8.json" \
                "$rc/far-angles-40-90.json" "$rc/glass-10-40.json" "$rc/dark-band-trace.json" \
                "$rc/dark-band-trace-4spp.json"; do
     name=$(basename "$scene" .json)
@@ -1899,10 +1909,11 @@ if want droplets2; then
   validation_sets
   d2="$out/droplets2"
   mkdir -p "$d2"
+  glass_droplets_438 >"$d2/glass-droplets.json"
   [[ -f data/val-glass-droplets-now/manifest.jsonl ]] || build/raindrop-render -i "$out/cv100" \
-    -o data/val-glass-droplets-now --scene glass-droplets --size 512x256 --seed 11 -q
+    -o data/val-glass-droplets-now --scene "$d2/glass-droplets.json" --size 512x256 --seed 11 -q
   [[ -f data/train-glass-droplets-now/manifest.jsonl ]] || build/raindrop-render -i "$shared/camvid/train" \
-    -o data/train-glass-droplets-now --scene glass-droplets --size 512x256 --variants 4 --seed 7 -q
+    -o data/train-glass-droplets-now --scene "$d2/glass-droplets.json" --size 512x256 --variants 4 --seed 7 -q
   [[ -f data/train-windshield-sharp/manifest.jsonl ]] || build/raindrop-render -i "$shared/camvid/train" \
     -o data/train-windshield-sharp --scene windshield-sharp --size 512x256 --variants 4 --seed 7 -q
   [[ -f data/train-hi/manifest.jsonl ]] || render_train_hi
@@ -1970,9 +1981,10 @@ if want infocus; then
   io="$out/infocus"
   rm -rf "$io" && mkdir -p "$io/clarity"
   for f in "$shared"/real-raindrop/clarity_*; do ln -s "$(realpath "$f")" "$io/clarity/"; done
-  edited_scene 's/"defocus": "layered",/"defocus": "layered", "drops_in_focus": "centre",/' scenes/glass-droplets.json \
+  glass_droplets_438 >"$io/glass-droplets.json"  # the preset as 4.40 measured it
+  edited_scene 's/"defocus": "layered",/"defocus": "layered", "drops_in_focus": "centre",/' "$io/glass-droplets.json" \
     >"$io/glass-droplets-centre.json"
-  for scene in "$io/glass-droplets-centre.json" glass-droplets; do
+  for scene in "$io/glass-droplets-centre.json" "$io/glass-droplets.json"; do
     build/raindrop-render -i "$out/cv100" -o "$io/val-$(basename "$scene" .json)" --scene "$scene" --size 512x256 \
       --seed 11 -q
   done
@@ -1987,5 +1999,50 @@ if want infocus; then
   done
   realism_table "$io" | tee "$io/table.md"
   beaded_sheet "$io" val-glass-droplets-centre val-glass-droplets
+  # (The bench renders the preset as it is now: its glass-droplets rows are 4.41's, not 4.40's.)
   build/raindrop-bench render --sections lens | tee "$io/lens-table.md"
+fi
+
+if want realismbar; then
+  # RESULTS 4.41: issue 9's bar (each new preset closer to the photographs than `paper` and
+  # `real-photo`) measured crop for crop: every preset rendered by this renderer over the same 100
+  # CamVid frames (512x256, seed 11), scored by the realism classifier with --paired (every set
+  # cropped at the same places), 6 seeds, against all 44 photographs and the 16 beaded ones; per
+  # preset, the mean and the per-seed paired differences to paper and real-photo.
+  link_cv100
+  rb="$out/realism-bar"
+  rm -rf "$rb" && mkdir -p "$rb/clarity"
+  for f in "$shared"/real-raindrop/clarity_*; do ln -s "$(realpath "$f")" "$rb/clarity/"; done
+  presets=(paper real-photo lens-cover lens-cover-heavy lens-cover-merged windshield-day windshield-night
+           windshield-sharp glass-droplets)
+  sets=()
+  for p in "${presets[@]}"; do
+    build/raindrop-render -i "$out/cv100" -o "$rb/val-$p" --scene "$p" --size 512x256 --seed 11 -q
+    sets+=(--rendered "$rb/val-$p")
+  done
+  for photos in "$shared/real-raindrop" "$rb/clarity"; do
+    for seed in 0 1 2 3 4 5; do
+      $py -m raindrop_tools.realism --real-photos "$photos" "${sets[@]}" --limit 100 --seed "$seed" --paired \
+        --json "$rb/$(basename "$photos")-s$seed.json" >/dev/null
+    done
+  done
+  $py - "$rb" <<'PY' | tee "$rb/table.md"
+import json, os, sys
+import numpy as np
+rb = sys.argv[1]
+for photos in ("real-raindrop", "clarity"):
+    acc = {}
+    seeds = 0
+    while os.path.exists(f"{rb}/{photos}-s{seeds}.json"):
+        for sc in json.load(open(f"{rb}/{photos}-s{seeds}.json"))["photo_scores"]:
+            name = sc["name"].split("(")[1].split(",")[0].removeprefix("val-")
+            acc.setdefault(name, []).append(sc["classifier"]["accuracy"])
+        seeds += 1
+    acc = {k: np.array(v) for k, v in acc.items()}
+    print(f"\n{photos}, {seeds} seeds, paired: accuracy (lower is closer); difference to paper and to real-photo, "
+          "mean (sd) over the seeds\n\n| preset | accuracy | - paper | - real-photo |\n| --- | ---: | ---: | ---: |")
+    for name, v in acc.items():
+        dp, dr = v - acc["paper"], v - acc["real-photo"]
+        print(f"| {name} | {v.mean():.3f} | {dp.mean():+.3f} ({dp.std(ddof=1):.3f}) | {dr.mean():+.3f} ({dr.std(ddof=1):.3f}) |")
+PY
 fi
