@@ -2045,4 +2045,26 @@ for photos in ("real-raindrop", "clarity"):
         dp, dr = v - acc["paper"], v - acc["real-photo"]
         print(f"| {name} | {v.mean():.3f} | {dp.mean():+.3f} ({dp.std(ddof=1):.3f}) | {dr.mean():+.3f} ({dr.std(ddof=1):.3f}) |")
 PY
+  # The same sets against the real lens-cover pairs (train split), 3 seeds, paired.
+  for seed in 0 1 2; do
+    $py -m raindrop_tools.realism --real-pairs "$shared/real-pairs" --split train "${sets[@]}" --limit 100 \
+      --seed "$seed" --paired --json "$rb/pairs-s$seed.json" >"$rb/pairs-s$seed.md"
+  done
+  $py - "$rb" <<'PY' | tee "$rb/pairs-table.md"
+import json, sys
+import numpy as np
+rb = sys.argv[1]
+acc = {}
+for seed in range(3):
+    for sc in json.load(open(f"{rb}/pairs-s{seed}.json"))["scores"]:
+        name = sc["name"].split("(")[1].split(",")[0].removeprefix("val-")
+        acc.setdefault(name, []).append((sc["classifier"]["accuracy"], sc["street"]["accuracy"], sc["drops_effect"]))
+acc = {k: np.array(v) for k, v in acc.items()}
+print("\nreal lens-cover pairs (train split), 3 seeds, paired\n\n"
+      "| preset | accuracy | - paper | - real-photo | street alone | drops' effect |\n| --- | ---: | ---: | ---: | ---: | ---: |")
+for name, v in acc.items():
+    dp, dr = v[:, 0] - acc["paper"][:, 0], v[:, 0] - acc["real-photo"][:, 0]
+    print(f"| {name} | {v[:, 0].mean():.3f} | {dp.mean():+.3f} ({dp.std(ddof=1):.3f}) | {dr.mean():+.3f} "
+          f"({dr.std(ddof=1):.3f}) | {v[:, 1].mean():.3f} | {v[:, 2].mean():+.3f} |")
+PY
 fi
