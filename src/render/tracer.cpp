@@ -306,6 +306,32 @@ class Kernel {
   }
   bool lockstep() const { return lockstep_; }
 
+  // Rays 0..n-1 of one pixel, `ray(i, &origin, &dir)` giving each (dir unnormalised), handed in
+  // order to `use(i, origin, sample)`: 8 at a time through trace_packet where rays are traced
+  // side by side (no dispersion), else one by one through sample_ray; each gets what sample_ray
+  // gives it, to the bit. Returns how many were traced side by side.
+  template <class Ray, class Use>
+  std::int64_t trace_rays(int n, const Ray& ray, const Use& use) const {
+    if (kDispersion || !lockstep_) {
+      for (int i = 0; i < n; ++i) {
+        glm::dvec3 origin, dir;
+        ray(i, &origin, &dir);
+        use(i, origin, sample_ray(origin, dir));
+      }
+      return 0;
+    }
+    std::int64_t side_by_side = 0;
+    glm::dvec3 origins[8], dirs[8];
+    DropPath paths[8];
+    for (int first = 0; first < n; first += 8) {
+      const int m = std::min(8, n - first);
+      for (int i = 0; i < m; ++i) ray(first + i, &origins[i], &dirs[i]);
+      side_by_side += trace_packet(origins, dirs, m, paths);
+      for (int i = 0; i < m; ++i) use(first + i, origins[i], paths[i].hit ? finish(paths[i], seen_point(paths[i])) : Sample{});
+    }
+    return side_by_side;
+  }
+
   // The rays of a packet that take the common path, traced side by side: in through
   // a drop's base, out through its cap, and on to the street with no other drop in reach
   // (or black in the dark band). One ray's path is a chain of square roots and divisions,
@@ -580,17 +606,24 @@ std::vector<std::vector<std::pair<int, int>>> candidate_spans(const Camera& came
   return rows;
 }
 
+// A hash of pixel (x, y) and `salt`: per-pixel random numbers that do not depend on the
+// thread count.
+std::uint64_t pixel_hash(int x, int y, std::uint64_t salt) {
+  return mix64((static_cast<std::uint64_t>(y) << 40) ^ (static_cast<std::uint64_t>(x) << 16) ^ salt);
+}
+// Two numbers in [0, 1) from a hash's halves.
+glm::dvec2 unit_pair(std::uint64_t h) {
+  return {static_cast<double>(h & 0xffffffffULL) * 0x1.0p-32, static_cast<double>(h >> 32) * 0x1.0p-32};
+}
+
 // A point of the lens disk of `radius` for pixel (x, y), stratum (i, j) of a k x k grid: the
 // strata jittered per pixel and stratum by a hash (so a render is the same for any thread
 // count), mapped onto the disk by the concentric map, which keeps the strata's equal areas.
 // Without the jitter, every pixel would use the same k/2 rings of the disk and coverage would
 // come in visible steps.
 glm::dvec2 lens_disk_point(int x, int y, int i, int j, int k, double radius) {
-  const std::uint64_t h = mix64((static_cast<std::uint64_t>(y) << 40) ^ (static_cast<std::uint64_t>(x) << 16) ^
-                                static_cast<std::uint64_t>(j * k + i));
-  const double ju = static_cast<double>(h & 0xffffffffULL) * 0x1.0p-32;
-  const double jv = static_cast<double>(h >> 32) * 0x1.0p-32;
-  const double a = 2.0 * (i + ju) / k - 1.0, b = 2.0 * (j + jv) / k - 1.0;
+  const glm::dvec2 jitter = unit_pair(pixel_hash(x, y, static_cast<std::uint64_t>(j * k + i)));
+  const double a = 2.0 * (i + jitter.x) / k - 1.0, b = 2.0 * (j + jitter.y) / k - 1.0;
   double r = 0, phi = 0;
   if (a == 0 && b == 0) return glm::dvec2(0.0);
   if (std::abs(a) > std::abs(b)) {
@@ -599,6 +632,15 @@ glm::dvec2 lens_disk_point(int x, int y, int i, int j, int k, double radius) {
     r = b, phi = M_PI / 2 - M_PI / 4 * (a / b);
   }
   return radius * r * glm::dvec2(std::cos(phi), std::sin(phi));
+}
+
+// A traced ray's colour in linear light, lifted where the scene lifts highlights
+// (highlights.h): what the aperture paths average.
+glm::dvec3 lifted_linear(const Sample& s, const HighlightLift& lift) {
+  double rgb[3];
+  for (int c = 0; c < 3; ++c) rgb[c] = srgb_to_linear(std::min(std::max(s.rgb[c], 0.0), 1.0));
+  lift.apply(rgb);
+  return {rgb[0], rgb[1], rgb[2]};
 }
 
 // Label used to find edges: drop index, with dark-band pixels distinguished.
@@ -872,7 +914,7 @@ TraceResult run(const cv::Mat& clean, const Camera& camera, const SceneConfig& c
     auto shuffle_cells = [&](int x, int y, std::vector<int>& order) {
       order.resize(cells);
       for (int i = 0; i < cells; ++i) order[i] = i;
-      std::uint64_t h = mix64((static_cast<std::uint64_t>(y) << 40) ^ (static_cast<std::uint64_t>(x) << 16) ^ 0x9e3779b9ULL);
+      std::uint64_t h = pixel_hash(x, y, 0x9e3779b9ULL);
       for (int i = cells - 1; i > 0; --i) {
         h = mix64(h + static_cast<std::uint64_t>(i));
         std::swap(order[i], order[static_cast<int>(h % static_cast<std::uint64_t>(i + 1))]);
@@ -881,16 +923,11 @@ TraceResult run(const cv::Mat& clean, const Camera& camera, const SceneConfig& c
     auto focus_point = [&](int x, int y, int sample, const std::vector<int>& order) {
       if (cells == 1) return F * camera.ray_direction(x, y);
       const int cell = order[sample % cells];
-      const std::uint64_t h = mix64((static_cast<std::uint64_t>(y) << 40) ^ (static_cast<std::uint64_t>(x) << 16) ^
-                                    (static_cast<std::uint64_t>(sample) | 0x5bd1e995ULL << 20));
-      const double ju = static_cast<double>(h & 0xffffffffULL) * 0x1.0p-32;
-      const double jv = static_cast<double>(h >> 32) * 0x1.0p-32;
-      return F * camera.ray_direction(x + (cell % k + ju) / k - 0.5, y + (cell / k + jv) / k - 0.5);
+      const glm::dvec2 jitter = unit_pair(pixel_hash(x, y, static_cast<std::uint64_t>(sample) | 0x5bd1e995ULL << 20));
+      return F * camera.ray_direction(x + (cell % k + jitter.x) / k - 0.5, y + (cell / k + jitter.y) / k - 0.5);
     };
     tbb::parallel_for(tbb::blocked_range<int>(0, camera.height, 4), [&](const tbb::blocked_range<int>& r) {
       std::int64_t n_sampled = 0;
-      glm::dvec3 origins[8], dirs[8];
-      DropPath paths[8];
       std::vector<int> order;
       for (int y = r.begin(); y < r.end(); ++y) {
         int* label = out.label.ptr<int>(y);
@@ -904,36 +941,21 @@ TraceResult run(const cv::Mat& clean, const Camera& camera, const SceneConfig& c
             if (cells > 1) shuffle_cells(x, y, order);
             glm::dvec3 sum(0.0);
             int hits = 0, first = -1;
-            for (int sample = 0; sample < rays; ++sample) {
-              Sample s;
-              if (!kDispersion && kernel.lockstep()) {
-                const int lane = sample % 8;
-                if (lane == 0) {
-                  const int n = std::min(8, rays - sample);
-                  for (int i = 0; i < n; ++i) {
-                    origins[i] = lens_origin(x, y, sample + i);
-                    dirs[i] = focus_point(x, y, sample + i, order) - origins[i];
-                  }
-                  lens_kernel.trace_packet(origins, dirs, n, paths);
-                }
-                if (!paths[lane].hit) continue;
-                s = lens_kernel.finish(paths[lane], lens_kernel.seen_point(paths[lane]));
-              } else {
-                const glm::dvec3 origin = lens_origin(x, y, sample);
-                s = lens_kernel.sample_ray(origin, focus_point(x, y, sample, order) - origin);
-              }
-              // Only the flagged drops' light: a ray that meets another drop counts as a miss here
-              // (that drop's own pixels carry it; a blurred one's layer would spread it again).
-              // Two flagged drops in one pixel share its colour under the first one's label.
-              if (!s.hit || !lens->sampled[static_cast<size_t>(s.drop)]) continue;
-              ++hits;
-              if (first < 0) first = s.drop;
-              // Lifted where the scene lifts highlights (as the reference averages its rays).
-              double ray[3];
-              for (int c = 0; c < 3; ++c) ray[c] = srgb_to_linear(std::min(std::max(s.rgb[c], 0.0), 1.0));
-              lift.apply(ray);
-              for (int c = 0; c < 3; ++c) sum[c] += ray[c];
-            }
+            lens_kernel.trace_rays(
+                rays,
+                [&](int sample, glm::dvec3* origin, glm::dvec3* dir) {
+                  *origin = lens_origin(x, y, sample);
+                  *dir = focus_point(x, y, sample, order) - *origin;
+                },
+                [&](int, const glm::dvec3&, const Sample& s) {
+                  // Only the flagged drops' light: a ray that meets another drop counts as a miss
+                  // here (that drop's own pixels carry it; a blurred one's layer would spread it
+                  // again). Two flagged drops in one pixel share its colour under the first one's label.
+                  if (!s.hit || !lens->sampled[static_cast<size_t>(s.drop)]) return;
+                  ++hits;
+                  if (first < 0) first = s.drop;
+                  sum += lifted_linear(s, lift);  // as the reference averages its rays
+                });
             if (hits == 0) {
               label[x] = -1;
               continue;
@@ -1064,49 +1086,28 @@ ApertureResult run_aperture(const cv::Mat& clean, const Camera& camera, const Sc
           const glm::dvec3 own(own_rgb[0], own_rgb[1], own_rgb[2]);
           glm::dvec3 sum(0.0), street_sum(0.0);
           int hits = 0;
-          // With lockstep (no dispersion), the pixel's rays go 8 at a time through
-          // trace_packet, which gives each what sample_ray's trace gives it.
-          constexpr bool kPackets = !kDispersion;
-          glm::dvec3 origins[8], dirs[8];
-          DropPath paths[8];
-          for (int sample = 0; sample < k * k; ++sample) {
-            Sample s;
-            glm::dvec3 origin;
-            if (kPackets && kernel.lockstep()) {
-              const int lane = sample % 8;
-              if (lane == 0) {
-                const int n = std::min(8, k * k - sample);
-                for (int i = 0; i < n; ++i) {
-                  const glm::dvec2 p = lens_point(x, y, (sample + i) % k, (sample + i) / k);
-                  origins[i] = glm::dvec3(p.x, p.y, 0.0);
-                  dirs[i] = focus - origins[i];
+          n_lock += kernel.trace_rays(
+              k * k,
+              [&](int sample, glm::dvec3* origin, glm::dvec3* dir) {
+                const glm::dvec2 p = lens_point(x, y, sample % k, sample / k);
+                *origin = glm::dvec3(p.x, p.y, 0.0);
+                *dir = focus - *origin;
+              },
+              [&](int, const glm::dvec3& origin, const Sample& s) {
+                // The street this ray would see without drops: the clean image's, and the rainy
+                // image's where the ray meets no drop.
+                glm::dvec3 seen = own;
+                if (street) {
+                  seen = street_seen(origin, focus);
+                  street_sum += seen;
                 }
-                n_lock += kernel.trace_packet(origins, dirs, n, paths);
-              }
-              s = kernel.finish(paths[lane], kernel.seen_point(paths[lane]));
-              origin = origins[lane];
-            } else {
-              const glm::dvec2 p = lens_point(x, y, sample % k, sample / k);
-              origin = glm::dvec3(p.x, p.y, 0.0);
-              s = kernel.sample_ray(origin, focus - origin);
-            }
-            // The street this ray would see without drops: the clean image's, and the rainy
-            // image's where the ray meets no drop.
-            glm::dvec3 seen = own;
-            if (street) {
-              seen = street_seen(origin, focus);
-              street_sum += seen;
-            }
-            if (!s.hit) {
-              sum += seen;
-              continue;
-            }
-            ++hits;
-            double rgb[3];
-            for (int c = 0; c < 3; ++c) rgb[c] = srgb_to_linear(std::min(std::max(s.rgb[c], 0.0), 1.0));
-            lift.apply(rgb);
-            for (int c = 0; c < 3; ++c) sum[c] += rgb[c];
-          }
+                if (!s.hit) {
+                  sum += seen;
+                  return;
+                }
+                ++hits;
+                sum += lifted_linear(s, lift);
+              });
           if (street) out_clean[x] = to_vec3f(street_sum / static_cast<double>(k * k));
           if (hits == 0) {
             if (street) out_rgb[x] = out_clean[x];

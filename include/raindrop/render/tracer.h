@@ -99,7 +99,7 @@ struct TraceStrategy {
 // turned back by total internal reflection while others are not. The pixels on and next to
 // these drops average `samples` rays from the lens disk (the aperture reference's stratified
 // points) through their point on the plane of focus (spread over the pixel's square too where
-// the scene supersamples k x k: then max(samples, k^2) rays), each traced to the sharp street (`sharp`,
+// the scene supersamples k x k: then lcm(samples, k^2) rays), each traced to the sharp street (`sharp`,
 // widened like `clean`; null: `clean` is sharp), as the reference traces them: the spread of
 // the rays is the street's blur there. Their colour is the mean, in linear light, of the rays
 // that met a drop, their coverage the fraction that did (TraceResult::coverage); a pixel none of
