@@ -2073,7 +2073,7 @@ fi
 if want windshieldday; then
   # docs/RESULTS.md 4.42: compact-windshield's detector trained on with windshield-day drops (not
   # kept), each detector's recall and error split on windshield-day renders over the CamVid val
-  # frames.
+  # frames; then the default's 3RN and RFN fine-tuned with windshield drops (not kept).
   wd="$out/windshield-day"
   mkdir -p "$wd/models"
   validation_sets
@@ -2113,4 +2113,38 @@ if want windshieldday; then
   done
   $py -m raindrop_tools.detector_router fit --models models/compact-multiscale --alternative compact-windshield-day \
     "${fit[@]}" --out "$wd/ROUTER" | tee "$wd/fit.txt"
+  # RESULTS 4.43: the default's 3RN and RFN fine-tuned with windshield drops (the detector, router
+  # and large-drop models as shipped), routed, against the default on the validation sets; then
+  # the new 3RN and RFN for the images the router sends to the windshield detector only (the
+  # outputs picked per image by the router's choice).
+  [[ -f tools/runs/compact-multiscale-windshield/checkpoints/stage2_step00000500.pt ]] ||
+    $py -m raindrop_tools.train --config tools/configs/compact-multiscale-windshield.yaml \
+      --out tools/runs/compact-multiscale-windshield --init-from models/compact-multiscale --no-progress
+  $py -m raindrop_tools.export --run tools/runs/compact-multiscale-windshield --name compact-multiscale \
+    --out "$wd/exported"
+  c="$wd/models/compact-multiscale"
+  rm -rf "$c" && mkdir -p "$c"
+  cp models/compact-multiscale/{rdn.onnx,export.json,LARGE_DROPS,ROUTER} "$c/"
+  cp "$wd"/exported/{rrn.onnx,rfn.onnx} "$c/"
+  ln -sfn "$PWD/models/compact-windshield" "$wd/models/compact-windshield"
+  sets="val-windshield-day:-:0 $val"
+  {
+    # shellcheck disable=SC2086
+    score_sets "$wd" base "-j 2" $sets
+    # shellcheck disable=SC2086
+    score_sets "$wd" cand "-j 2 --models $c" $sets
+    for s in val-windshield-day-- real-pairs-train val-sparse-- val-windshield-sharp-- val-size-512x288-- val-size-1280x720--; do
+      rm -rf "$wd/mix-$s" && mkdir -p "$wd/mix-$s/out"
+      $py -m raindrop_tools.detector_router decide --models models/compact-multiscale --threads 2 "$wd/base-$s/set/rainy/"* |
+        while read -r img _ who; do
+          stem=$(basename "${img%.*}")
+          for f in "$wd/base-$s/out/$stem".*; do
+            pick="$wd/base-$s/out"
+            [[ $who == main ]] || pick="$wd/cand-$s/out"
+            ln -s "$PWD/$pick/$(basename "$f")" "$wd/mix-$s/out/"
+          done
+        done
+      $py -m raindrop_tools.score_outputs --data "$wd/base-$s/set" --outputs "$wd/mix-$s/out" --label "routed images only $s"
+    done
+  } | tee "$wd/reconstruction.txt"
 fi
