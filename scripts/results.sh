@@ -6,7 +6,7 @@
 # largedropmodels sensor mirroraverage highlights multiscale veil papermodels outline trails photos windshield
 # windshield-followup longer growth sharpness coalesce surround largewidth largedrops-all windshield2
 # errorsplit withoutvnni graphrewrites jitter windshieldscale router routed int8router droplets realismcontrol
-# droplets2 infocus realismbar windshieldday
+# droplets2 infocus realismbar windshieldday fillarea
 #
 # Nothing here is committed automatically: images derived from Cityscapes, CamVid or the
 # real raindrop photographs stay under out/ (their licences forbid redistribution).
@@ -22,7 +22,7 @@ sections=("$@")
                                   photos windshield windshield-followup longer growth sharpness coalesce
                                   surround largewidth largedrops-all windshield2 errorsplit withoutvnni graphrewrites
                                   jitter windshieldscale router routed int8router droplets realismcontrol droplets2 infocus realismbar
-                                  windshieldday)
+                                  windshieldday fillarea)
 want() { [[ " ${sections[*]} " == *" $1 "* ]]; }
 # link_set SRC DST SPLIT [LIMIT]: the first LIMIT (default 100; 0: all) samples of data set SRC
 # (of manifest split SPLIT; "-" = all) linked into DST/rainy and DST/clean (and DST/mask, where
@@ -2073,7 +2073,8 @@ fi
 if want windshieldday; then
   # docs/RESULTS.md 4.42: compact-windshield's detector trained on with windshield-day drops (not
   # kept), each detector's recall and error split on windshield-day renders over the CamVid val
-  # frames; then the default's 3RN and RFN fine-tuned with windshield drops (not kept).
+  # frames; then the default's 3RN and RFN fine-tuned with windshield drops (not kept). Both were
+  # measured before compact-windshield had its own surround-fill area (4.44): 150 throughout.
   wd="$out/windshield-day"
   mkdir -p "$wd/models"
   validation_sets
@@ -2096,8 +2097,9 @@ if want windshieldday; then
   ln -sfn "$PWD/models/paper-real-coarse" "$wd/models/paper-real-coarse"
   val="real-pairs:train:0 val-sparse:-:0 val-windshield-sharp:-:0 val-size-512x288:-:0 val-size-1280x720:-:0"
   {
-    split_sets "$wd" routed "-j 2" val-windshield-day:-:0
-    split_sets "$wd" ws-t0.75 "-j 2 --no-router --model-config compact-windshield" val-windshield-day:-:0
+    split_sets "$wd" routed "-j 2 --surround-fill-area 150" val-windshield-day:-:0
+    split_sets "$wd" ws-t0.75 "-j 2 --no-router --model-config compact-windshield --surround-fill-area 150" \
+      val-windshield-day:-:0
     # shellcheck disable=SC2086
     score_sets "$wd" day "-j 2 --no-router --models $m" $val
     for t in 0.75 0.5 0.3; do
@@ -2130,9 +2132,9 @@ if want windshieldday; then
   sets="val-windshield-day:-:0 $val"
   {
     # shellcheck disable=SC2086
-    score_sets "$wd" base "-j 2" $sets
+    score_sets "$wd" base "-j 2 --surround-fill-area 150" $sets
     # shellcheck disable=SC2086
-    score_sets "$wd" cand "-j 2 --models $c" $sets
+    score_sets "$wd" cand "-j 2 --models $c --surround-fill-area 150" $sets
     for s in val-windshield-day-- real-pairs-train val-sparse-- val-windshield-sharp-- val-size-512x288-- val-size-1280x720--; do
       rm -rf "$wd/mix-$s" && mkdir -p "$wd/mix-$s/out"
       $py -m raindrop_tools.detector_router decide --models models/compact-multiscale --threads 2 "$wd/base-$s/set/rainy/"* |
@@ -2147,4 +2149,41 @@ if want windshieldday; then
       $py -m raindrop_tools.score_outputs --data "$wd/base-$s/set" --outputs "$wd/mix-$s/out" --label "routed images only $s"
     done
   } | tee "$wd/reconstruction.txt"
+fi
+
+if want fillarea; then
+  # docs/RESULTS.md 4.44: compact-windshield's own surround-fill area (raindrop.surround_fill_area
+  # 1500 in its rdn.onnx). The area chosen with its detector alone on the validation sets; the
+  # routed default with it against the default before (--surround-fill-area 150 for both
+  # detectors), on the validation sets and, once, on the test sets.
+  fa="$out/fill-area"
+  mkdir -p "$fa"
+  validation_sets
+  link_cv100
+  size_sets val test-size
+  [[ -f data/val-windshield-day/manifest.jsonl ]] || build/raindrop-render -i "$out/cv100" -o data/val-windshield-day \
+    --scene windshield-day --size 512x256 --seed 11 -q
+  for p in windshield-sharp windshield-day; do
+    [[ -f data/test-$p/manifest.jsonl ]] || build/raindrop-render -i "$shared/camvid/test" -o "data/test-$p" \
+      --scene "$p" --size 512x256 --seed 2 -q
+  done
+  val="val-windshield-day:-:0 real-pairs:train:0 val-sparse:-:0 val-windshield-sharp:-:0 val-size-512x288:-:0 val-size-1280x720:-:0"
+  for a in 150 400 1500 3000; do
+    # shellcheck disable=SC2086
+    score_sets "$fa" "ws$a" "-j 2 --no-router --model-config compact-windshield --surround-fill-area $a" $val
+  done | tee "$fa/validation.txt"
+  {
+    # shellcheck disable=SC2086
+    score_sets "$fa" before "-j 2 --surround-fill-area 150" $val
+    # shellcheck disable=SC2086
+    score_sets "$fa" now "-j 2" $val
+  } | tee "$fa/routed-validation.txt"
+  {
+    score_sets "$fa" before "-j 2 --surround-fill-area 150" real-pairs:test:0 test-windshield-day:-:0
+    score_sets "$fa" now "-j 2" real-pairs:test:0 test-sparse:-:0 test-windshield-sharp:-:0 test-size-512x288:-:0 \
+      test-size-1280x720:-:0 test-windshield-day:-:0
+  } | tee "$fa/test.txt"
+  build/raindrop-remove "$shared/real-raindrop" "$fa/photos-before" -q -j 2 --surround-fill-area 150
+  build/raindrop-remove "$shared/real-raindrop" "$fa/photos-now" -q -j 2 --time 2>"$fa/photos-time.txt"
+  photos_changed "$fa/photos-now" "$fa/photos-before" | tee "$fa/photos.txt"
 fi

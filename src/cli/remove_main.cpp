@@ -231,7 +231,7 @@ std::vector<cv::Mat> process(Remover& remover, const Job& job, const Settings& s
       std::snprintf(coarse, sizeof coarse, ", %d large drop%s%s at scale %.3g", r.large_drops, r.large_drops == 1 ? "" : "s",
                     sharp, r.coarse_scale);
     // Parts of the mask filled from their surroundings instead of by the 3RN (--surround-fill-area).
-    if (s.options.surround_fill_area > 0)
+    if (s.options.surround_fill_area.value_or(1) > 0)
       std::snprintf(filled, sizeof filled, ", %d small drop%s filled from the surround", r.surround_filled,
                     r.surround_filled == 1 ? "" : "s");
     // Which detector decided the mask, where the models have a router (--no-router: none).
@@ -289,7 +289,7 @@ int run(int argc, char** argv) {
   std::optional<int> dilation;
   std::optional<double> large_drop_growth;
   double large_drop_sharpness = kLargeDropMaxSharpness;
-  int surround_fill_area = kSurroundFillArea;
+  std::optional<int> surround_fill_area;
   double surround_fill_mad = kSurroundFillMad;
   int threads = 0, tile = kDefaultTile, overlap = kDefaultOverlap;
   bool time = false, quiet = false, keep_going = false, no_large_drops = false, mirror_average = false;
@@ -345,8 +345,8 @@ int run(int argc, char** argv) {
                  "scaled with --scale) from their surroundings "
                  "(push-pull interpolation) instead of by the 3RN, where those surroundings are smooth "
                  "(--surround-fill-mad): the 3RN leaves faint rims of small sharp drops on sky, walls and roads; "
-                 "0: the 3RN everywhere")
-      ->capture_default_str()
+                 "0: the 3RN everywhere (default: the detector's own, 150 for the default's, 1500 for "
+                 "compact-windshield's, which the router gives windshield photographs)")
       ->check(CLI::Range(0, std::numeric_limits<int>::max()));
   app.add_option("--surround-fill-mad", surround_fill_mad,
                  "How smooth a part's surroundings must be for --surround-fill-area: the median absolute deviation of "

@@ -242,6 +242,12 @@ Models::Models(const fs::path& dir, const SessionConfig& config, Graphs graphs) 
       throw Error(quoted(rdn_->file()) + ": metadata raindrop.large_drop_growth = " + it->second +
                   " must be between 0 and " + std::to_string(static_cast<int>(kMaxLargeDropGrowth)));
   }
+  if (const auto it = rdn_->metadata().find("raindrop.surround_fill_area"); it != rdn_->metadata().end()) {
+    info_.surround_fill_area = parse_int(rdn_->file(), "raindrop.surround_fill_area", it->second);
+    if (info_.surround_fill_area < 0)
+      throw Error(quoted(rdn_->file()) + ": metadata raindrop.surround_fill_area = " + it->second +
+                  " must be a whole number >= 0 (0: off)");
+  }
   if (const auto it = rdn_->metadata().find("raindrop.working_size"); it != rdn_->metadata().end()) {
     info_.working_size = parse_int(rdn_->file(), "raindrop.working_size", it->second);
     if (info_.working_size < 16 || info_.working_size > 65536)

@@ -230,13 +230,12 @@ RemoveResult Remover::run(const cv::Mat& image, const RemoveOptions& opt) {
     throw Error("--large-drop-growth must be between 0 and " + std::to_string(static_cast<int>(kMaxLargeDropGrowth)));
   if (std::isnan(opt.large_drop_max_sharpness) || opt.large_drop_max_sharpness < 0)
     throw Error("--large-drop-sharpness must be a number >= 0 (inf: no limit)");
-  if (opt.surround_fill_area < 0) throw Error("--surround-fill-area must be a whole number >= 0 (0: off)");
+  if (opt.surround_fill_area && *opt.surround_fill_area < 0)
+    throw Error("--surround-fill-area must be a whole number >= 0 (0: off)");
   if (!(opt.surround_fill_mad >= 0)) throw Error("--surround-fill-mad must be a number >= 0");
   const double auto_scale = auto_working_scale(image.size(), info().working_size);
   const double scale = opt.scale.value_or(auto_scale);
   const cv::Size small = scaled_size(image.size(), scale);
-  RemoveOptions scaled_opt = opt;
-  scaled_opt.surround_fill_area = surround_fill_area_at_scale(opt.surround_fill_area, image.size(), scale);
   // The image as the working-scale pass sees it; the coarse pass measures its sharpness there.
   cv::Mat working = image;
   double t_down = 0;
@@ -252,6 +251,8 @@ RemoveResult Remover::run(const cv::Mat& image, const RemoveOptions& opt) {
   RouteDecision decision;
   std::optional<double> router_score;
   Detection detection;
+  detection.image_size = image.size();
+  detection.scale = scale;
   if (route) {
     detection.route = [&](const cv::Mat& prob) {
       const double z = router_->score(router_features(prob));
@@ -263,8 +264,8 @@ RemoveResult Remover::run(const cv::Mat& image, const RemoveOptions& opt) {
   }
   const auto working_pass = [&] {
     try {
-      res = small == image.size() ? run_native(image, scaled_opt, {}, {}, 0, detection)
-                                  : run_scaled(image, working, scaled_opt, scale, detection);
+      res = small == image.size() ? run_native(image, opt, {}, {}, 0, detection)
+                                  : run_scaled(image, working, opt, scale, detection);
     } catch (...) {
       decision.fail(std::current_exception());  // a coarse pass waiting for the decision stops too
       throw;
@@ -573,6 +574,11 @@ RemoveResult Remover::run_native(const cv::Mat& image, const RemoveOptions& opt,
     }
   }
   const int k = opt.dilation.value_or(detector->info().dilation);
+  // The fill's area is the deciding detector's (a routed image: the alternative's), at this scale.
+  const int fill_area_given = opt.surround_fill_area.value_or(detector->info().surround_fill_area);
+  const int fill_area = detection.scale > 0
+                            ? surround_fill_area_at_scale(fill_area_given, detection.image_size, detection.scale)
+                            : fill_area_given;
   auto clock = Clock::now();
   const cv::Mat mask = dilate_mask_by_size(mask0, k, growth);
   mask0.release();
@@ -622,7 +628,7 @@ RemoveResult Remover::run_native(const cv::Mat& image, const RemoveOptions& opt,
       // (as in numpy: 1 * a + 0 * b == a for finite values).
       std::vector<float>& blend = ihat;
       res.surround_filled += fill_small_drops_from_surround(in.r.data(), mask(cv::Rect(x0, y0, in.w, in.h)),
-                                                            opt.surround_fill_area, opt.surround_fill_mad, ihat);
+                                                            fill_area, opt.surround_fill_mad, ihat);
       for (int y = 0; y < in.h; ++y) {
         const unsigned char* mrow = mask.ptr<unsigned char>(y0 + y) + x0;
         for (int c = 0; c < 3; ++c) {

@@ -134,4 +134,13 @@ using testsupport::png_chunks;
 using testsupport::png_declaring;
 using testsupport::png_from_chunks;
 
+// `model` (an ONNX file's bytes) with one more metadata entry: a top-level ModelProto field 14
+// (tag 0x72), a message {1: key, 2: value}, appended (protobuf reads fields in any order).
+inline std::string with_added_metadata(const std::string& model, const std::string& key, const std::string& value) {
+  const std::string body = std::string{'\x0a', static_cast<char>(key.size())} + key +
+                           std::string{'\x12', static_cast<char>(value.size())} + value;
+  EXPECT_LT(body.size(), 128u);
+  return model + '\x72' + static_cast<char>(body.size()) + body;
+}
+
 }  // namespace removetest

@@ -143,6 +143,16 @@ std::optional<RoutedModels> link_models(const TempDir& tmp) {
   return RoutedModels{root / "main", root / "alt"};
 }
 
+// The demo street at 700x400 (seed 4) with `scene`'s drops, rendered into tmp/set: its rainy frame.
+cv::Mat render_demo(const TempDir& tmp, const std::string& scene) {
+  const RunResult rendered = run_command(RAINDROP_RENDER_BIN, {"--demo", "--size", "700x400", "--seed", "4", "--out", "set",
+                                                               "--scene", scene, "-q", "-j", "1"}, tmp.path());
+  EXPECT_EQ(rendered.code, 0) << rendered.describe();
+  const auto read = read_image(tmp / "set/rainy/street_v00.png");
+  EXPECT_TRUE(read.has_value());
+  return read ? read->pixels : cv::Mat();
+}
+
 TEST(DetectorRouter, ARoutedImageIsExactlyTheAlternativesAndAKeptOneExactlyTheMains) {
   REQUIRE_RENDER();
   TempDir tmp;
@@ -154,12 +164,8 @@ TEST(DetectorRouter, ARoutedImageIsExactlyTheAlternativesAndAKeptOneExactlyTheMa
   // continue the frame from itself beyond its edges, RESULTS 4.40; any frame with it will do.)
   // Lens-cover drops on the demo street (seed 4), scaled to 512x293: compact-windshield's detector finds
   // a large drop there that the default's does not, so the coarse pass must follow the route too.
-  const RunResult rendered = run_command(RAINDROP_RENDER_BIN, {"--demo", "--size", "700x400", "--seed", "4", "--out", "set",
-                                                               "--scene", "lens-cover", "-q", "-j", "1"}, tmp.path());
-  ASSERT_EQ(rendered.code, 0) << rendered.describe();
-  const auto read = read_image(tmp / "set/rainy/street_v00.png");
-  ASSERT_TRUE(read.has_value());
-  const cv::Mat image = read->pixels;
+  const cv::Mat image = render_demo(tmp, "lens-cover");
+  ASSERT_FALSE(image.empty());
   const auto run = [&](const fs::path& dir, bool use_router, const RemoveOptions& opt = {}) {
     Remover r(dir, session, std::nullopt, use_router);
     return r.run(image, opt);
@@ -205,6 +211,49 @@ TEST(DetectorRouter, ARoutedImageIsExactlyTheAlternativesAndAKeptOneExactlyTheMa
   EXPECT_FALSE(kept.alternative_detector());
   EXPECT_EQ(max_abs_diff(kept.image, main_alone.image), 0);
   EXPECT_EQ(max_abs_diff(kept.mask, main_alone.mask), 0);
+}
+
+// The area of the parts filled from their surroundings is the deciding detector's
+// (raindrop.surround_fill_area of its rdn.onnx): a routed image takes the alternative's, a kept
+// one the main's, and --surround-fill-area overrides both. Here the main folder's detector says 0
+// (off) and compact-windshield's its committed area, over sharp windshield drops on the demo
+// street, where that area fills many parts.
+TEST(DetectorRouter, TheFillAreaIsTheDecidingDetectors) {
+  REQUIRE_RENDER();
+  TempDir tmp;
+  const auto m = link_models(tmp);
+  if (!m) GTEST_SKIP() << "the committed models are not in " << source_dir() / "models";
+  fs::remove(m->main / "rdn.onnx");
+  write_file(m->main / "rdn.onnx", with_added_metadata(read_file(source_dir() / "models/compact-multiscale/rdn.onnx"),
+                                                       "raindrop.surround_fill_area", "0"));
+  raindrop::removal::SessionConfig session;
+  session.threads = 2;
+  const cv::Mat image = render_demo(tmp, "windshield-sharp");
+  ASSERT_FALSE(image.empty());
+  const auto run = [&](const fs::path& dir, bool use_router, const RemoveOptions& opt = {}) {
+    Remover r(dir, session, std::nullopt, use_router);
+    return r.run(image, opt);
+  };
+  RemoveOptions area_150;
+  area_150.surround_fill_area = 150;
+  const auto alt_alone = run(m->alt, false);
+  ASSERT_GT(alt_alone.surround_filled, 0) << "the alternative's area must fill parts here for the test to mean anything";
+  EXPECT_GT(alt_alone.surround_filled, run(m->alt, false, area_150).surround_filled) << "its area is larger than 150";
+
+  write_file(m->main / "ROUTER", router_text("alt", +1.0));  // every image to the alternative
+  const auto routed = run(m->main, true);
+  ASSERT_TRUE(routed.alternative_detector());
+  EXPECT_EQ(routed.surround_filled, alt_alone.surround_filled);
+  EXPECT_EQ(max_abs_diff(routed.image, alt_alone.image), 0);
+  RemoveOptions off;
+  off.surround_fill_area = 0;
+  EXPECT_EQ(run(m->main, true, off).surround_filled, 0) << "the option overrides the detector's area";
+
+  write_file(m->main / "ROUTER", router_text("alt", -1.0));  // every image kept: the main's area, 0
+  const auto kept = run(m->main, true);
+  EXPECT_FALSE(kept.alternative_detector());
+  EXPECT_EQ(kept.surround_filled, 0);
+  EXPECT_GT(run(m->main, true, area_150).surround_filled, 0) << "the main detector finds parts a 150 px area fills";
 }
 
 TEST(DetectorRouter, AMissingAlternativeIsAnErrorUnlessTheRouterIsOff) {

@@ -27,14 +27,6 @@ std::string with_metadata(const std::string& model, const std::string& key, cons
   return model.substr(0, entry) + '\x72' + static_cast<char>(body.size()) + body + model.substr(entry + 2 + old_len);
 }
 
-// `model` with one more metadata entry (appended: protobuf reads fields in any order).
-std::string with_added_metadata(const std::string& model, const std::string& key, const std::string& value) {
-  const std::string body = std::string{'\x0a', static_cast<char>(key.size())} + key +
-                           std::string{'\x12', static_cast<char>(value.size())} + value;
-  EXPECT_LT(body.size(), 128u);
-  return model + '\x72' + static_cast<char>(body.size()) + body;
-}
-
 class ModelMetadata : public ::testing::Test {
  protected:
   void SetUp() override {
@@ -96,6 +88,25 @@ TEST_F(ModelMetadata, LargeDropGrowthOutOfRangeBlamesTheModel) {
     SCOPED_TRACE(v);
     add("raindrop.large_drop_growth", v);
     expect_load_blames("raindrop.large_drop_growth");
+  }
+}
+
+TEST_F(ModelMetadata, SurroundFillAreaIsReadAndTheDefaultWhenAbsent) {
+  SessionConfig config;
+  config.threads = 1;
+  EXPECT_EQ(Models(tmp / "models", config).info().surround_fill_area, raindrop::removal::kSurroundFillArea);
+  add("raindrop.surround_fill_area", "1500");
+  EXPECT_EQ(Models(tmp / "models", config).info().surround_fill_area, 1500) << "the added entry did not take";
+  add("raindrop.surround_fill_area", "0");
+  EXPECT_EQ(Models(tmp / "models", config).info().surround_fill_area, 0) << "0 (off) is a valid area";
+}
+
+TEST_F(ModelMetadata, SurroundFillAreaOutOfRangeBlamesTheModel) {
+  for (const std::string v : {"-1", "1.5", "x", "99999999999"}) {
+    SCOPED_TRACE(v);
+    add("raindrop.surround_fill_area", v);
+    const std::string e = expect_load_blames("raindrop.surround_fill_area");
+    EXPECT_EQ(e.find("--surround-fill-area"), std::string::npos) << "the option was not given: " << e;
   }
 }
 

@@ -24,6 +24,10 @@ META_KEYS = (META_PAD_MULTIPLE, META_CONFIG, META_NETWORK, META_THRESHOLD, META_
 # fixed k there too. The reference pipeline has no coarse pass and does not read it.
 META_LARGE_DROP_GROWTH = "raindrop.large_drop_growth"
 MAX_LARGE_DROP_GROWTH = 10.0
+# Optional: the largest part of the mask this detector's images fill from their surroundings
+# (include/raindrop/remove/surround_fill.h), with the long side at 512; 150 where absent.
+META_SURROUND_FILL_AREA = "raindrop.surround_fill_area"
+DEFAULT_SURROUND_FILL_AREA = 150
 
 # The small JSON the exporter writes next to the graphs (not part of the contract).
 EXPORT_INFO = "export.json"

@@ -46,18 +46,26 @@ def _replace(path: Path, data: bytes) -> None:
 def set_large_drop_growth(folder: Path, growth: float) -> dict:
     """Record `growth` in folder/rdn.onnx (and export.json); returns export.json's new content
     (or {} without one)."""
-    folder = Path(folder)
     if not 0.0 <= growth <= C.MAX_LARGE_DROP_GROWTH:
         raise GrowthError(f"large-drop growth must be between 0 and {C.MAX_LARGE_DROP_GROWTH:g}, got {growth:g}")
+    return set_detector_metadata(folder, C.META_LARGE_DROP_GROWTH, "large_drop_growth",
+                                 float(growth) if growth > 0 else None)
+
+
+def set_detector_metadata(folder: Path, key: str, pipeline_key: str, value: float | int | None) -> dict:
+    """Record `value` as rdn.onnx's metadata `key` and export.json's pipeline.`pipeline_key` in
+    `folder` (None: removes both, giving the graph back as it was); returns export.json's new
+    content (or {} without one). Refusals raise GrowthError and change nothing."""
+    folder = Path(folder)
     rdn = folder / C.FILES["rdn"]
     if not rdn.is_file():
         raise GrowthError(f"{rdn}: no such file")
     model = onnx.load_from_string(rdn.read_bytes())
     if C.META_NETWORK not in [p.key for p in model.metadata_props]:
         raise GrowthError(f"{rdn}: not a raindrop graph (no {C.META_NETWORK} metadata)")
-    props = {p.key: p.value for p in model.metadata_props if p.key != C.META_LARGE_DROP_GROWTH}
-    if growth > 0:
-        props[C.META_LARGE_DROP_GROWTH] = repr(float(growth))
+    props = {p.key: p.value for p in model.metadata_props if p.key != key}
+    if value is not None:
+        props[key] = repr(value)
     del model.metadata_props[:]
     onnx.helper.set_model_props(model, props)  # in order, as export writes them
     data = model.SerializeToString()
@@ -80,10 +88,10 @@ def set_large_drop_growth(folder: Path, growth: float) -> dict:
     if not info_path.is_file():
         return {}
     pipeline = info.setdefault("pipeline", {})
-    if growth > 0:
-        pipeline["large_drop_growth"] = float(growth)
+    if value is not None:
+        pipeline[pipeline_key] = value
     else:
-        pipeline.pop("large_drop_growth", None)
+        pipeline.pop(pipeline_key, None)
     info["files"] = C.graph_files(folder)
     _replace(info_path, (json.dumps(info, indent=2) + "\n").encode())
     return info
@@ -98,16 +106,23 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("models", type=Path, help="model folder (rdn.onnx, and export.json where there is one)")
     ap.add_argument("growth", type=float, help=f"0 (k for every drop) to {C.MAX_LARGE_DROP_GROWTH:g}")
     args = ap.parse_args(argv)
+    return run_tool(args.models, lambda: set_large_drop_growth(args.models, args.growth),
+                    f"large-drop growth {args.growth:g}")
+
+
+def run_tool(folder: Path, change, what: str) -> int:
+    """Runs `change` (a set_* call on `folder`) for a command line: one line on stdout naming
+    `what` and rdn.onnx's new digest, or one error line on stderr and exit code 2."""
     try:
-        info = set_large_drop_growth(args.models, args.growth)
+        info = change()
     except (GrowthError, OSError) as e:
         print(f"error: {e}", file=sys.stderr)
         return 2
     except Exception as e:  # noqa: BLE001 - a file that is not ONNX: onnx's own error, on one line
-        print(f"error: {args.models / C.FILES['rdn']}: {e}".splitlines()[0], file=sys.stderr)
+        print(f"error: {folder / C.FILES['rdn']}: {e}".splitlines()[0], file=sys.stderr)
         return 2
     digest = info.get("files", {}).get(C.FILES["rdn"], {}).get("sha256", "")
-    print(f"{args.models}: large-drop growth {args.growth:g}" + (f", rdn.onnx sha256 {digest}" if digest else ""))
+    print(f"{folder}: {what}" + (f", rdn.onnx sha256 {digest}" if digest else ""))
     return 0
 
 

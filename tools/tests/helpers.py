@@ -178,3 +178,17 @@ def quiet_session(model_or_path):
     so.log_severity_level = 3
     src = model_or_path.SerializeToString() if isinstance(model_or_path, onnx.ModelProto) else str(model_or_path)
     return ort.InferenceSession(src, so, providers=["CPUExecutionProvider"])
+
+
+def smoke_model_folder(tmp_path: Path) -> Path:
+    """A copy of the smoke models in tmp_path/models with an export.json as export writes one
+    (config, pipeline, files): a folder for the tools that edit a model folder's metadata."""
+    import shutil
+
+    from raindrop_tools import contract as C
+
+    d = tmp_path / "models"
+    shutil.copytree(FIXTURE_MODELS, d)
+    info = {"config": "smoke", "pipeline": {"threshold": 0.5, "dilation": 3}, "files": C.graph_files(d)}
+    (d / C.EXPORT_INFO).write_text(json.dumps(info, indent=2) + "\n")
+    return d

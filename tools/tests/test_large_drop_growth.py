@@ -3,13 +3,12 @@ folder (rdn.onnx's raindrop.large_drop_growth and export.json) and changes nothi
 growth does is raindrop-remove's (tests/remove/test_large_drops.cpp, test_mask.cpp)."""
 
 import json
-import shutil
 
 import numpy as np
 import onnx
 import pytest
 
-from helpers import FIXTURE_MODELS
+from helpers import smoke_model_folder
 from raindrop_tools import contract as C
 from raindrop_tools.large_drop_growth import GrowthError, main, set_large_drop_growth
 from raindrop_tools.reference import RaindropRemover
@@ -17,11 +16,7 @@ from raindrop_tools.reference import RaindropRemover
 
 @pytest.fixture
 def folder(tmp_path):
-    d = tmp_path / "models"
-    shutil.copytree(FIXTURE_MODELS, d)
-    info = {"config": "smoke", "pipeline": {"threshold": 0.5, "dilation": 3}, "files": C.graph_files(d)}
-    (d / C.EXPORT_INFO).write_text(json.dumps(info, indent=2) + "\n")
-    return d
+    return smoke_model_folder(tmp_path)
 
 
 def _meta(path):

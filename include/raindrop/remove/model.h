@@ -18,6 +18,7 @@
 #include <onnxruntime_cxx_api.h>
 
 #include "raindrop/remove/session.h"
+#include "raindrop/remove/surround_fill.h"
 
 namespace raindrop::removal {
 
@@ -40,6 +41,11 @@ struct ModelInfo {
   // for large drops, each drop's mask dilation grows with its size (large_drops.h); 0 (absent):
   // k for every drop there too.
   double large_drop_growth = 0;
+  // Optional raindrop.surround_fill_area of rdn.onnx, a whole number >= 0: the largest part of
+  // the mask this detector's images fill from their surroundings (surround_fill.h), given with
+  // the long side at 512; RemoveOptions::surround_fill_area overrides it. kSurroundFillArea
+  // where absent.
+  int surround_fill_area = kSurroundFillArea;
   // Optional raindrop.working_size of rdn.onnx: the long side, in pixels, of the frames the
   // networks were trained on (working_scale.h); 512 when absent (the committed models).
   int working_size = 512;

@@ -64,10 +64,13 @@ struct RemoveOptions {
   // working-scale pass too (raindrop-remove --mirror-average).
   bool mirror_average = false;
   // In the working-scale pass, parts of the mask at most this many pixels (given with the long
-  // side at 512; run() scales it to the pass's scale, surround_fill_area_at_scale) whose surround
-  // is at most surround_fill_mad levels rough (median absolute deviation of its luma) are filled
-  // from that surround instead of by the 3RN (surround_fill.h); 0: the 3RN everywhere.
-  int surround_fill_area = kSurroundFillArea;
+  // side at 512; run_native scales it to the pass's scale, surround_fill_area_at_scale) whose
+  // surround is at most surround_fill_mad levels rough (median absolute deviation of its luma)
+  // are filled from that surround instead of by the 3RN (surround_fill.h); 0: the 3RN
+  // everywhere. Default: the area of the detector that decides the mask (ModelInfo::
+  // surround_fill_area: 150 for the default's, 1500 for compact-windshield's, which a router
+  // may choose per image; docs/RESULTS.md 4.44).
+  std::optional<int> surround_fill_area;
   double surround_fill_mad = kSurroundFillMad;
   // Where the models have a detector router (detector_router.h) and the networks see the image
   // at the automatic working scale (no `scale`, or the one auto_working_scale gives: the scale
@@ -140,6 +143,10 @@ class Remover {
   struct Detection {
     Models* models = nullptr;
     std::function<Models*(const cv::Mat& prob)> route;
+    // The whole image's size and the scale the pass runs at, for surround_fill_area_at_scale
+    // (scale 0: the area as given).
+    cv::Size image_size;
+    double scale = 0;
   };
   // The pipeline at the image's own size (the networks see every pixel). With a `gate` that
   // returns false, it stops after detection: the result then holds the mask and the times

@@ -29,7 +29,10 @@ namespace raindrop::removal {
 
 // Defaults of RemoveOptions::surround_fill_area / surround_fill_mad (chosen on validation sets,
 // docs/RESULTS.md 4.24): a disk about 14 px across with the image's long side at 512 (scaled with
-// the scale the image is processed at: surround_fill_area_at_scale), and 4 levels.
+// the scale the image is processed at: surround_fill_area_at_scale), and 4 levels. The area is
+// the deciding detector's where its rdn.onnx says (raindrop.surround_fill_area, ModelInfo):
+// compact-windshield's 1500, whose drops on windshield photographs are larger and the 3RN leaves
+// faded (docs/RESULTS.md 4.44); this where it does not.
 inline constexpr int kSurroundFillArea = 150;
 inline constexpr double kSurroundFillMad = 4.0;
 // The area limit at the scale an image is processed at. The limit is given at the scale that
