@@ -28,6 +28,7 @@ MAX_LARGE_DROP_GROWTH = 10.0
 # (include/raindrop/remove/surround_fill.h), with the long side at 512; 150 where absent.
 META_SURROUND_FILL_AREA = "raindrop.surround_fill_area"
 DEFAULT_SURROUND_FILL_AREA = 150
+MAX_SURROUND_FILL_AREA = 2**31 - 1  # raindrop-remove reads it as a C int
 
 # The small JSON the exporter writes next to the graphs (not part of the contract).
 EXPORT_INFO = "export.json"

@@ -24,8 +24,10 @@ from .large_drop_growth import GrowthError, run_tool, set_detector_metadata
 
 def set_surround_fill_area(folder: Path, area: int | None) -> dict:
     """Record `area` (None: the default, the entry removed) in folder/rdn.onnx and export.json."""
-    if area is not None and area < 0:
-        raise GrowthError(f"the surround-fill area must be a whole number >= 0 (0: off), got {area}")
+    # A plain int in raindrop-remove's range (a C int, read with std::stoi): checked before any
+    # file is touched, and written by repr as the digits alone (not a numpy or bool repr).
+    if area is not None and (not isinstance(area, int) or isinstance(area, bool) or not 0 <= area <= C.MAX_SURROUND_FILL_AREA):
+        raise GrowthError(f"the surround-fill area must be a whole number from 0 (off) to {C.MAX_SURROUND_FILL_AREA}, got {area!r}")
     return set_detector_metadata(folder, C.META_SURROUND_FILL_AREA, "surround_fill_area", area)
 
 

@@ -4,11 +4,13 @@ does with it is tested in C++ (tests/remove/test_model_metadata.cpp, test_detect
 
 import json
 
+import numpy as np
 import onnx
 import pytest
 
 from helpers import smoke_model_folder
 from raindrop_tools import contract as C
+from raindrop_tools.large_drop_growth import GrowthError
 from raindrop_tools.surround_fill_area import main, set_surround_fill_area
 
 
@@ -43,9 +45,13 @@ def test_refusals_change_nothing(folder, capsys):
     before = {f: (folder / f).read_bytes() for f in C.FILES.values()}
     assert main([str(folder), "-5"]) == 2
     assert main([str(folder), "1.5"]) == 2
+    assert main([str(folder), str(2**31)]) == 2  # past what raindrop-remove reads (a C int)
     assert main([str(folder / "missing"), "100"]) == 2
     err = capsys.readouterr().err
-    assert err.count("error:") == 3 and all(len(line) < 300 for line in err.splitlines())
+    assert err.count("error:") == 4 and all(len(line) < 300 for line in err.splitlines())
+    for bad in (1500.0, True, np.int64(1500)):  # through the API: only a plain int is written
+        with pytest.raises(GrowthError):
+            set_surround_fill_area(folder, bad)
     assert {f: (folder / f).read_bytes() for f in C.FILES.values()} == before
     assert main([str(folder), "default"]) == 0
     assert main([str(folder), "700"]) == 0
