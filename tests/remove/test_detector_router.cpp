@@ -239,6 +239,13 @@ TEST(DetectorRouter, TheFillAreaIsTheDecidingDetectors) {
   const auto alt_alone = run(m->alt, false);
   ASSERT_GT(alt_alone.surround_filled, 0) << "the alternative's area must fill parts here for the test to mean anything";
   EXPECT_GT(alt_alone.surround_filled, run(m->alt, false, area_150).surround_filled) << "its area is larger than 150";
+  // At another scale the detector's area follows it as the option's does (surround_fill_area_at_scale).
+  RemoveOptions full, full_1500;
+  full.scale = full_1500.scale = 1.0;
+  full_1500.surround_fill_area = 1500;
+  const auto alt_full = run(m->alt, false, full);
+  EXPECT_EQ(alt_full.surround_filled, run(m->alt, false, full_1500).surround_filled);
+  EXPECT_EQ(max_abs_diff(alt_full.image, run(m->alt, false, full_1500).image), 0);
 
   write_file(m->main / "ROUTER", router_text("alt", +1.0));  // every image to the alternative
   const auto routed = run(m->main, true);
