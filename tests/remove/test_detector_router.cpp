@@ -243,9 +243,9 @@ TEST(DetectorRouter, TheFillAreaIsTheDecidingDetectors) {
   RemoveOptions full, full_1500;
   full.scale = full_1500.scale = 1.0;
   full_1500.surround_fill_area = 1500;
-  const auto alt_full = run(m->alt, false, full);
-  EXPECT_EQ(alt_full.surround_filled, run(m->alt, false, full_1500).surround_filled);
-  EXPECT_EQ(max_abs_diff(alt_full.image, run(m->alt, false, full_1500).image), 0);
+  const auto alt_full = run(m->alt, false, full), alt_full_1500 = run(m->alt, false, full_1500);
+  EXPECT_EQ(alt_full.surround_filled, alt_full_1500.surround_filled);
+  EXPECT_EQ(max_abs_diff(alt_full.image, alt_full_1500.image), 0);
 
   write_file(m->main / "ROUTER", router_text("alt", +1.0));  // every image to the alternative
   const auto routed = run(m->main, true);

@@ -21,26 +21,14 @@ file whole.
 from __future__ import annotations
 
 import argparse
-import json
-import os
 import sys
 from pathlib import Path
 
-import onnx
-
 from . import contract as C
-from .read_only import refuse_read_only
+from .detector_metadata import MetadataError, run_tool, set_detector_metadata
 
-
-class GrowthError(ValueError):
-    """A request refused, reported on one line."""
-
-
-def _replace(path: Path, data: bytes) -> None:
-    refuse_read_only(path, follow_links=False)
-    tmp = path.with_name(f".{path.name}.tmp")
-    tmp.write_bytes(data)
-    os.replace(tmp, path)
+# Its refusals are the shared writer's (the name this module's callers know).
+GrowthError = MetadataError
 
 
 def set_large_drop_growth(folder: Path, growth: float) -> dict:
@@ -50,51 +38,6 @@ def set_large_drop_growth(folder: Path, growth: float) -> dict:
         raise GrowthError(f"large-drop growth must be between 0 and {C.MAX_LARGE_DROP_GROWTH:g}, got {growth:g}")
     return set_detector_metadata(folder, C.META_LARGE_DROP_GROWTH, "large_drop_growth",
                                  float(growth) if growth > 0 else None)
-
-
-def set_detector_metadata(folder: Path, key: str, pipeline_key: str, value: float | int | None) -> dict:
-    """Record `value` as rdn.onnx's metadata `key` and export.json's pipeline.`pipeline_key` in
-    `folder` (None: removes both, giving the graph back as it was); returns export.json's new
-    content (or {} without one). Refusals raise GrowthError and change nothing."""
-    folder = Path(folder)
-    rdn = folder / C.FILES["rdn"]
-    if not rdn.is_file():
-        raise GrowthError(f"{rdn}: no such file")
-    model = onnx.load_from_string(rdn.read_bytes())
-    if C.META_NETWORK not in [p.key for p in model.metadata_props]:
-        raise GrowthError(f"{rdn}: not a raindrop graph (no {C.META_NETWORK} metadata)")
-    props = {p.key: p.value for p in model.metadata_props if p.key != key}
-    if value is not None:
-        props[key] = repr(value)
-    del model.metadata_props[:]
-    onnx.helper.set_model_props(model, props)  # in order, as export writes them
-    data = model.SerializeToString()
-    # Everything is read and checked before the first file is replaced: a bad export.json or a
-    # missing graph leaves the folder as it was.
-    info_path = folder / C.EXPORT_INFO
-    info: dict = {}
-    if info_path.is_file():
-        try:
-            info = json.loads(info_path.read_text())
-        except ValueError as e:
-            raise GrowthError(f"{info_path}: not JSON ({e})") from None
-        if not isinstance(info, dict):
-            raise GrowthError(f"{info_path}: not a JSON object")
-        for name in ("rrn", "rfn"):
-            if not (folder / C.FILES[name]).is_file():
-                raise GrowthError(f"{folder / C.FILES[name]}: no such file (export.json lists every graph)")
-    refuse_read_only(rdn, info_path, follow_links=False)  # both kept, not the graph replaced and export.json refused
-    _replace(rdn, data)
-    if not info_path.is_file():
-        return {}
-    pipeline = info.setdefault("pipeline", {})
-    if value is not None:
-        pipeline[pipeline_key] = value
-    else:
-        pipeline.pop(pipeline_key, None)
-    info["files"] = C.graph_files(folder)
-    _replace(info_path, (json.dumps(info, indent=2) + "\n").encode())
-    return info
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -108,22 +51,6 @@ def main(argv: list[str] | None = None) -> int:
     args = ap.parse_args(argv)
     return run_tool(args.models, lambda: set_large_drop_growth(args.models, args.growth),
                     f"large-drop growth {args.growth:g}")
-
-
-def run_tool(folder: Path, change, what: str) -> int:
-    """Runs `change` (a set_* call on `folder`) for a command line: one line on stdout naming
-    `what` and rdn.onnx's new digest, or one error line on stderr and exit code 2."""
-    try:
-        info = change()
-    except (GrowthError, OSError) as e:
-        print(f"error: {e}", file=sys.stderr)
-        return 2
-    except Exception as e:  # noqa: BLE001 - a file that is not ONNX: onnx's own error, on one line
-        print(f"error: {folder / C.FILES['rdn']}: {e}".splitlines()[0], file=sys.stderr)
-        return 2
-    digest = info.get("files", {}).get(C.FILES["rdn"], {}).get("sha256", "")
-    print(f"{folder}: {what}" + (f", rdn.onnx sha256 {digest}" if digest else ""))
-    return 0
 
 
 if __name__ == "__main__":

@@ -8,8 +8,8 @@ side at 512) whose surroundings are smooth by push-pull interpolation instead of
 mask: a router that gives an image another folder's detector gives it that folder's area too
 (docs/RESULTS.md 4.44). It is recorded in rdn.onnx's optional metadata
 ``raindrop.surround_fill_area`` (absent: 150) and export.json's ``pipeline.surround_fill_area``,
-as ``large_drop_growth`` records its value (same guarantees: nothing changes on a refusal, each
-file is replaced whole). ``default`` removes the entry and gives the file back as it was.
+by ``detector_metadata``, as ``large_drop_growth`` records its value (nothing changes on a
+refusal, each file is replaced whole). ``default`` removes the entry and gives the file back as it was.
 """
 
 from __future__ import annotations
@@ -19,7 +19,7 @@ import sys
 from pathlib import Path
 
 from . import contract as C
-from .large_drop_growth import GrowthError, run_tool, set_detector_metadata
+from .detector_metadata import MetadataError, run_tool, set_detector_metadata
 
 
 def set_surround_fill_area(folder: Path, area: int | None) -> dict:
@@ -27,7 +27,7 @@ def set_surround_fill_area(folder: Path, area: int | None) -> dict:
     # A plain int in raindrop-remove's range (a C int, read with std::stoi): checked before any
     # file is touched, and written by repr as the digits alone (not a numpy or bool repr).
     if area is not None and (not isinstance(area, int) or isinstance(area, bool) or not 0 <= area <= C.MAX_SURROUND_FILL_AREA):
-        raise GrowthError(f"the surround-fill area must be a whole number from 0 (off) to {C.MAX_SURROUND_FILL_AREA}, got {area!r}")
+        raise MetadataError(f"the surround-fill area must be a whole number from 0 (off) to {C.MAX_SURROUND_FILL_AREA}, got {area!r}")
     return set_detector_metadata(folder, C.META_SURROUND_FILL_AREA, "surround_fill_area", area)
 
 

@@ -10,7 +10,7 @@ import pytest
 
 from helpers import smoke_model_folder
 from raindrop_tools import contract as C
-from raindrop_tools.large_drop_growth import GrowthError
+from raindrop_tools.detector_metadata import MetadataError
 from raindrop_tools.surround_fill_area import main, set_surround_fill_area
 
 
@@ -50,7 +50,7 @@ def test_refusals_change_nothing(folder, capsys):
     err = capsys.readouterr().err
     assert err.count("error:") == 4 and all(len(line) < 300 for line in err.splitlines())
     for bad in (1500.0, True, np.int64(1500)):  # through the API: only a plain int is written
-        with pytest.raises(GrowthError):
+        with pytest.raises(MetadataError):
             set_surround_fill_area(folder, bad)
     assert {f: (folder / f).read_bytes() for f in C.FILES.values()} == before
     assert main([str(folder), "default"]) == 0
