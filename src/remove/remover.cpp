@@ -429,9 +429,9 @@ Remover::CoarsePass Remover::coarse_pass(const cv::Mat& image, const cv::Mat& wo
     // and RFN run, which are about two thirds of its cost.
     const MaskGate only_with_large_drops = [&](const cv::Mat& mask) {
       if (speculative) {
-        auto clock = Clock::now();
+        auto waiting = Clock::now();
         const Models& decided = route->wait();
-        waited_ms += lap_ms(clock);
+        waited_ms += lap_ms(waiting);
         if (&decided != &chosen) {
           rerun = true;
           return false;

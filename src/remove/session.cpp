@@ -107,6 +107,13 @@ Ort::SessionOptions make_session_options(const SessionConfig& config) {
   // The graphs are chains: parallelism is inside the operators, not between them.
   so.SetInterOpNumThreads(1);
   so.SetExecutionMode(ORT_SEQUENTIAL);
+  // Idle workers sleep instead of spinning. The remover runs more threads than cores by design
+  // (the 3RN beside the RDN, the coarse pass beside both, each session with its own pool), and
+  // a worker that spins between operators takes a core from the thread beside it. On two
+  // cores, process start to file, the same bytes: a routed 1280x720 photograph 1.15x faster, a
+  // kept one 1.07x, int8 1.10x, a folder of 512x256 frames 1.19x; one thread has no workers
+  // and does not change (docs/RESULTS.md 3.19).
+  so.AddConfigEntry(kIntraOpSpinningKey, "0");
   if (config.device == Device::cpu) {
     // The environment's shared CPU arena (ort_env); a CUDA session keeps its own allocators.
     so.AddConfigEntry("session.use_env_allocators", "1");

@@ -506,6 +506,17 @@ TEST_F(BadModels, MissingFolder) {
   }
 }
 
+// Workers that spin between operators take a core from the session running beside them.
+TEST(Session, IdleWorkersSleepInsteadOfSpinning) {
+  for (const int threads : {0, 1, 2}) {
+    SessionConfig c;
+    c.threads = threads;
+    Ort::SessionOptions so = make_session_options(c);
+    ASSERT_TRUE(so.HasConfigEntry(kIntraOpSpinningKey)) << threads << " threads";
+    EXPECT_EQ(so.GetConfigEntry(kIntraOpSpinningKey), "0") << threads << " threads";
+  }
+}
+
 TEST(Device, CudaIsAClearErrorWithoutTheProvider) {
   const auto providers = available_providers();
   if (std::find(providers.begin(), providers.end(), "CUDAExecutionProvider") != providers.end())

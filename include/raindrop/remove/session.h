@@ -58,6 +58,10 @@ std::string onnxruntime_telemetry_state();
 // Execution providers compiled into the loaded library, e.g. {"CPUExecutionProvider"}.
 std::vector<std::string> available_providers();
 
+// ONNX Runtime's session option for its intra-op workers' spinning; make_session_options turns
+// it off ("0").
+inline constexpr const char* kIntraOpSpinningKey = "session.intra_op.allow_spinning";
+
 // Options for one session. Throws raindrop::Error naming the available providers when
 // Device::cuda is asked for and the library has no CUDA provider.
 Ort::SessionOptions make_session_options(const SessionConfig& config);
