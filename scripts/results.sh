@@ -6,7 +6,7 @@
 # largedropmodels sensor mirroraverage highlights multiscale veil papermodels outline trails photos windshield
 # windshield-followup longer growth sharpness coalesce surround largewidth largedrops-all windshield2
 # errorsplit withoutvnni graphrewrites jitter windshieldscale router routed int8router droplets realismcontrol
-# droplets2 infocus realismbar windshieldday fillarea
+# droplets2 infocus realismbar windshieldday fillarea finedrops
 #
 # Sections measured before docs/RESULTS.md 4.44 run compact-windshield's detector (and the routed
 # default) with --surround-fill-area 150, the area they had then, so that they reproduce.
@@ -25,7 +25,7 @@ sections=("$@")
                                   photos windshield windshield-followup longer growth sharpness coalesce
                                   surround largewidth largedrops-all windshield2 errorsplit withoutvnni graphrewrites
                                   jitter windshieldscale router routed int8router droplets realismcontrol droplets2 infocus realismbar
-                                  windshieldday fillarea)
+                                  windshieldday fillarea finedrops)
 want() { [[ " ${sections[*]} " == *" $1 "* ]]; }
 # link_set SRC DST SPLIT [LIMIT]: the first LIMIT (default 100; 0: all) samples of data set SRC
 # (of manifest split SPLIT; "-" = all) linked into DST/rainy and DST/clean (and DST/mask, where
@@ -174,6 +174,25 @@ for s in ["real-pairs-test", "test-sparse--", "test-windshield-sharp--", "test-s
     print(f"test {s:24s} n={len(r):3d} gain default {np.mean(r[:, 1] - r[:, 0]):+.2f} windshield "
           f"{np.mean(r[:, 2] - r[:, 0]):+.2f} routed {np.mean(routed - r[:, 0]):+.2f} (to windshield {pick.mean():.0%})")
 PY
+}
+# alternate_times ROUNDS LABEL PHOTO... -- FLAGS...: ROUNDS rounds of `raindrop-remove PHOTO -j 2`
+# (PHOTO from the real photographs) with each FLAGS in turn, wall time from the shell (process
+# start to file written); lines "PHOTO FLAGS MS", LABEL standing for empty FLAGS (median_times reads them).
+alternate_times() {
+  local rounds="$1" label="$2" photos=() photo flags i s
+  shift 2
+  while [[ $1 != -- ]]; do photos+=("$1"); shift; done
+  shift
+  for i in $(seq "$rounds"); do
+    for photo in "${photos[@]}"; do
+      for flags in "$@"; do
+        s=$(date +%s%N)
+        # shellcheck disable=SC2086
+        build/raindrop-remove "$shared/real-raindrop/$photo" "$out/alternate-times.png" -j 2 -q $flags
+        echo "$photo ${flags:-$label} $(( ($(date +%s%N) - s) / 1000000 ))"
+      done
+    done
+  done
 }
 # median_times FILE: FILE's lines are "KEY... MS" (timed runs); per key, in first-seen order, the
 # median, minimum and maximum of the milliseconds.
@@ -1646,15 +1665,8 @@ if want routed; then
     -q -j 2 --time --contact-sheet "$ro/photos-sheet.png" 2>"$ro/photos/time.txt"
   grep -c "detector 'compact-windshield'" "$ro/photos/time.txt" | sed 's/$/ of 44 photographs to the windshield detector/' |
     tee "$ro/photos.txt"
-  for i in $(seq 15); do
-    for photo in windshield_2.jpg attgan-fork_test_5.png; do
-      for m in "" "--no-router" "--model-config compact-windshield --surround-fill-area 150"; do
-        s=$(date +%s%N)
-        build/raindrop-remove "$shared/real-raindrop/$photo" "$ro/photo.png" -j 2 -q $m
-        echo "$photo ${m:-routed} $(( ($(date +%s%N) - s) / 1000000 ))"
-      done
-    done
-  done >"$ro/times.txt"
+  alternate_times 15 routed windshield_2.jpg attgan-fork_test_5.png -- "" "--no-router" \
+    "--model-config compact-windshield --surround-fill-area 150" >"$ro/times.txt"
   median_times "$ro/times.txt" | tee "$ro/times-summary.txt"
   # Kinds the router was not fitted on: windshield-day and lens-cover renders over the CamVid val
   # frames, three ways; then the what-if fit with them among the validation sets.
@@ -2189,4 +2201,43 @@ if want fillarea; then
   build/raindrop-remove "$shared/real-raindrop" "$fa/photos-before" -q -j 2 --surround-fill-area 150
   build/raindrop-remove "$shared/real-raindrop" "$fa/photos-now" -q -j 2 --time 2>"$fa/photos-time.txt"
   photos_changed "$fa/photos-now" "$fa/photos-before" | tee "$fa/photos.txt"
+fi
+
+if want finedrops; then
+  # docs/RESULTS.md 4.45: --fine-drops (the deciding detector at 1.5 times the working scale, small
+  # parts over smooth surroundings filled). Windshield drops at 1280x720 over the 100 CamVid val
+  # frames (seed 11) and the 233 test frames (seed 2), and the Cityscapes size sets; the default
+  # with and without it; the 44 photographs; the time of three photographs, alternated.
+  fd="$out/fine-drops"
+  mkdir -p "$fd"
+  link_cv100
+  size_sets val test-size
+  for p in windshield-sharp:val-ws-1280x720 windshield-day:val-wsday-1280x720; do
+    IFS=: read -r scene set <<<"$p"
+    [[ -f data/$set/manifest.jsonl ]] || build/raindrop-render -i "$out/cv100" -o "data/$set" --scene "$scene" \
+      --size 1280x720 --seed 11 -q
+  done
+  for p in windshield-sharp:test-ws-1280x720 windshield-day:test-wsday-1280x720; do
+    IFS=: read -r scene set <<<"$p"
+    [[ -f data/$set/manifest.jsonl ]] || build/raindrop-render -i "$shared/camvid/test" -o "data/$set" --scene "$scene" \
+      --size 1280x720 --seed 2 -q
+  done
+  {
+    for m in base:"-j 2" fine:"-j 2 --fine-drops"; do
+      IFS=: read -r label flags <<<"$m"
+      score_sets "$fd" "$label" "$flags" val-ws-1280x720:-:0 val-wsday-1280x720:-:0 val-size-1280x720:-:0
+    done
+  } | tee "$fd/validation.txt"
+  {
+    for m in base:"-j 2" fine:"-j 2 --fine-drops"; do
+      IFS=: read -r label flags <<<"$m"
+      score_sets "$fd" "$label" "$flags" test-ws-1280x720:-:0 test-wsday-1280x720:-:0 test-size-1280x720:-:0
+    done
+  } | tee "$fd/test.txt"
+  rm -rf "$fd/photos-base" "$fd/photos-fine"
+  build/raindrop-remove "$shared/real-raindrop" "$fd/photos-base" -q -j 2
+  build/raindrop-remove "$shared/real-raindrop" "$fd/photos-fine" -q -j 2 --fine-drops --time 2>"$fd/photos-time.txt"
+  photos_changed "$fd/photos-fine" "$fd/photos-base" | tee "$fd/photos.txt"
+  alternate_times 10 default windshield_2.jpg attgan-fork_test_5.png clarity_00309.png -- "" "--fine-drops" >"$fd/times.txt"
+  median_times "$fd/times.txt" | tee "$fd/times-summary.txt"
 fi

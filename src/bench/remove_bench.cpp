@@ -410,6 +410,11 @@ int run_remove_bench(RemoveBenchOptions o) {
     print_option_cost(model_dirs, *process, session, runs, warmup, "what --mirror-average costs",
                       "with the working-scale pass's 3RN and RFN averaged with their run on the mirror image "
                       "(--mirror-average) and without", "without", "with", [](RemoveOptions& opts, bool on) { opts.mirror_average = on; });
+    // --fine-drops: the deciding detector again at 1.5 times the working scale (fine_drops.h).
+    print_option_cost(model_dirs, *process, session, runs, warmup, "what --fine-drops costs",
+                      "with the fine pass for small drops (--fine-drops: the detector at 1.5 times the working scale, "
+                      "small parts over smooth surroundings filled) and without", "without", "with",
+                      [](RemoveOptions& opts, bool on) { opts.fine_drops = on; });
   }
   std::cout << "\n## raindrop-remove: GFLOP/s\n\nGFLOPs from each model folder's export.json (at 256x512), scaled by "
                "the pixels the networks ran on (tiles and their overlaps included).\n\n"

@@ -285,7 +285,48 @@ RemoveResult Remover::run(const cv::Mat& image, const RemoveOptions& opt) {
   res.times.convert += t_down;
   res.router_score = router_score;
   if (opt.large_drops) composite_large_drops(coarse, opt, res);
+  if (opt.fine_drops) fine_pass(image, opt, scale, res);
   return res;
+}
+
+void Remover::fine_pass(const cv::Mat& image, const RemoveOptions& opt, double scale, RemoveResult& res) {
+  const double fine = fine_drop_scale(scale);
+  if (fine == 0) return;  // the networks saw every pixel already
+  res.fine_scale = fine;
+  auto clock = Clock::now();
+  const cv::Size size = scaled_size(image.size(), fine);
+  cv::Mat input_fine, output_fine;
+  cv::resize(image, input_fine, size, 0, 0, cv::INTER_AREA);
+  cv::resize(res.image, output_fine, size, 0, 0, cv::INTER_AREA);
+  res.times.convert += lap_ms(clock);
+  // The detector that decided the working pass's mask (the router's choice), with its own
+  // threshold and dilation (or the options'); it stops at its mask: no 3RN at this scale.
+  Detection detection;
+  detection.models = res.alternative_detector() ? &alternative_detector() : &models_;
+  detection.all_threads = true;
+  RemoveOptions sub = opt;
+  sub.scale = 1.0;
+  sub.large_drops = false;
+  sub.surround_fill_area = 0;
+  sub.mirror_average = false;
+  sub.fine_drops = false;
+  const RemoveResult found = run_native(input_fine, sub, [](const cv::Mat&) { return false; }, {}, 0.0, detection);
+  res.times += found.times;
+  res.network_pixels += found.network_pixels;
+  clock = Clock::now();
+  // Filled from the result (the drops the passes removed are gone from the surroundings).
+  const int area = surround_fill_area_at_scale(kFineDropArea, image.size(), fine);
+  cv::Mat weight;
+  const cv::Mat filled = fill_fine_drops(to_rgb_float(output_fine, cv::Rect(0, 0, size.width, size.height)), found.mask,
+                                         area, opt.surround_fill_mad, &weight, &res.fine_drops);
+  if (res.fine_drops > 0) {
+    detail::Upsampled up = detail::composite_upsampled(res.image, opt.keep_float ? res.rgb : cv::Mat(), filled, weight,
+                                                       opt.keep_float, composite_workers());
+    res.image = up.image;
+    res.mask = res.mask | up.mask;
+    if (opt.keep_float) res.rgb = up.rgb;
+  }
+  res.times.output += lap_ms(clock);
 }
 
 namespace detail {
@@ -535,7 +576,8 @@ RemoveResult Remover::run_native(const cv::Mat& image, const RemoveOptions& opt,
     res.network_pixels += canvas_pixels;
     if (single) {
       // rdn_beside() is the all-thread session when branches == 1.
-      detect(models.rdn_beside(), kept, cv::Rect(0, 0, kept.w, kept.h), threshold, mask0, times, prob);
+      detect(detection.all_threads ? models.rdn() : models.rdn_beside(), kept, cv::Rect(0, 0, kept.w, kept.h), threshold,
+             mask0, times, prob);
       return;
     }
     for (int iy = 0; iy < ly.count(); ++iy) {

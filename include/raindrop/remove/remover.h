@@ -30,6 +30,7 @@
 #include <opencv2/core.hpp>
 
 #include "raindrop/remove/detector_router.h"
+#include "raindrop/remove/fine_drops.h"
 #include "raindrop/remove/large_drops.h"
 #include "raindrop/remove/model.h"
 #include "raindrop/remove/session.h"
@@ -77,6 +78,9 @@ struct RemoveOptions {
   // the router was fitted at), it chooses which detector decides the mask, for both passes.
   // Off: the models' own detector always. --threshold and --dilation apply to either detector.
   bool route = true;
+  // After both passes, the deciding detector at 1.5 times the working scale, and the small
+  // parts it finds over smooth surroundings filled from them (fine_drops.h). Off: no such pass.
+  bool fine_drops = false;
 };
 
 struct RemoveResult {
@@ -96,6 +100,8 @@ struct RemoveResult {
   int large_drops = 0;        // drops the coarse pass found large and replaced
   int surround_filled = 0;    // parts of the mask filled from their surround (surround_fill.h)
   int sharp_large_drops = 0;  // regions it found large but left alone: too sharp (large_drops.h)
+  double fine_scale = 0;      // the fine pass's scale (fine_drops.h); 0 when it did not run
+  int fine_drops = 0;         // small drops it filled
   // The router's z for this image (detector_router.h); empty when it did not run.
   std::optional<double> router_score;
   // Whether the router's alternative detector decided the mask (z > 0).
@@ -147,6 +153,9 @@ class Remover {
     // (scale 0: the area as given).
     cv::Size image_size;
     double scale = 0;
+    // A single tile's detector on all the threads (a pass that runs nothing beside it: the fine
+    // pass) instead of the half it gets beside the 3RN.
+    bool all_threads = false;
   };
   // The pipeline at the image's own size (the networks see every pixel). With a `gate` that
   // returns false, it stops after detection: the result then holds the mask and the times
@@ -183,6 +192,8 @@ class Remover {
   CoarsePass coarse_pass(const cv::Mat& image, const cv::Mat& working, const RemoveOptions& options, double scale,
                          const RouteDecision* route);
   void composite_large_drops(const CoarsePass& coarse, const RemoveOptions& options, RemoveResult& res);
+  // The fine pass (fine_drops.h) over `res`, the result of both passes at `scale`.
+  void fine_pass(const cv::Mat& image, const RemoveOptions& options, double scale, RemoveResult& res);
 
   // Companion models loaded on first use, once; a failed load is kept and rethrown for every
   // later image (a folder run with --keep-going then reports it per image without loading the
