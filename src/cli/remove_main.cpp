@@ -368,7 +368,8 @@ int run(int argc, char** argv) {
                "After both passes, run the detector again at 1.5 times the working scale and fill the small drops it "
                "finds over smooth surroundings (sky, walls, road) from them: the tiny sharp drops of windshield and "
                "glass photographs the working scale misses. Costs a detector run on 2.25 times the working pixels "
-               "(docs/RESULTS.md 4.45); images of at most 512 px on their long side are unchanged");
+               "(docs/RESULTS.md 4.45); images the networks see at full size (long side at most 512 without --scale) "
+               "are unchanged; --surround-fill-area does not apply to it");
   app.add_option("-j,--threads", threads, "CPU threads (0: one per core; more than the cores: capped, with a warning); with 2 or more, RDN and 3RN run side by side on half each")
       ->capture_default_str()->check(CLI::Range(0, 1024));
   app.add_option("--device", device, "Execution device")->transform(cli::names_to(device_names()))->default_str("cpu");

@@ -24,11 +24,13 @@ cv::Mat fill_fine_drops(const cv::Mat& rgb, const cv::Mat& mask, int max_area, d
     for (int x = 0; x < w; ++x)
       for (int c = 0; c < 3; ++c) planar[c * plane + static_cast<size_t>(y) * w + x] = row[3 * x + c];
   }
-  const cv::Mat chosen = surround_fill_mask(mask, planar.data(), max_area, max_mad, parts);
+  std::vector<float> filled = planar;
+  cv::Mat chosen;
+  *parts = fill_small_drops_from_surround(planar.data(), mask, max_area, max_mad, filled, &chosen);
   chosen.convertTo(*weight, CV_32F, 1.0 / 255.0);
   if (*parts == 0) return rgb.clone();
-  std::vector<float> filled = planar;
-  fill_small_drops_from_surround(planar.data(), mask, max_area, max_mad, filled);
+  planar.clear();
+  planar.shrink_to_fit();
   cv::Mat out(h, w, CV_32FC3);
   for (int y = 0; y < h; ++y) {
     float* row = out.ptr<float>(y);

@@ -270,25 +270,20 @@ Network& Models::rfn() {
   return *rfn_;
 }
 
-void Models::make_all_thread_sessions() {
-  std::call_once(all_threads_once_, [this] {
-    if (rdn_) rdn_all_ = std::make_unique<Network>(rdn_->file(), "rdn", config_);
-    if (rrn_) rrn_all_ = std::make_unique<Network>(rrn_->file(), "rrn", config_);
-  });
-}
-
+// Each all-thread session is made on its own first use: the fine pass (fine_drops.h) wants the
+// detector's alone, a tiled image both.
 Network& Models::rdn() {
   // A detector loaded alone already runs on all the threads (the constructor says why).
   if (branches_ == 1 || !rrn_) return rdn_beside();
   rdn_beside();  // throws without a detector
-  make_all_thread_sessions();
+  std::call_once(rdn_all_once_, [this] { rdn_all_ = std::make_unique<Network>(rdn_->file(), "rdn", config_); });
   return *rdn_all_;
 }
 
 Network& Models::rrn() {
   if (branches_ == 1) return rrn_beside();
   rrn_beside();  // throws without a 3RN
-  make_all_thread_sessions();
+  std::call_once(rrn_all_once_, [this] { rrn_all_ = std::make_unique<Network>(rrn_->file(), "rrn", config_); });
   return *rrn_all_;
 }
 

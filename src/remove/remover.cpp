@@ -291,10 +291,11 @@ RemoveResult Remover::run(const cv::Mat& image, const RemoveOptions& opt) {
 
 void Remover::fine_pass(const cv::Mat& image, const RemoveOptions& opt, double scale, RemoveResult& res) {
   const double fine = fine_drop_scale(scale);
-  if (fine == 0) return;  // the networks saw every pixel already
+  const cv::Size size = scaled_size(image.size(), fine);
+  // Nothing finer to see: the networks saw every pixel already, or the sizes round alike.
+  if (fine == 0 || size == scaled_size(image.size(), scale)) return;
   res.fine_scale = fine;
   auto clock = Clock::now();
-  const cv::Size size = scaled_size(image.size(), fine);
   cv::Mat input_fine, output_fine;
   cv::resize(image, input_fine, size, 0, 0, cv::INTER_AREA);
   cv::resize(res.image, output_fine, size, 0, 0, cv::INTER_AREA);
@@ -659,7 +660,7 @@ RemoveResult Remover::run_native(const cv::Mat& image, const RemoveOptions& opt,
       TileInputs in = single ? std::move(kept) : build_inputs(image, y0, y1, x0, x1, t);
       // 3RN (already run beside the RDN for a single tile on two threads).
       // A single tile whose 3RN did not run beside its RDN (a gated pass, or one thread) uses the
-      // same half-thread session: the all-thread sessions are made only for tiled images, so a
+      // same half-thread session: the all-thread 3RN session is made only for tiled images, so a
       // coarse pass creates no sessions beyond those its models load with (it runs on a
       // ninth-size copy, where half the threads cost little).
       std::vector<float> ihat = !kept_ihat.empty() ? std::move(kept_ihat)

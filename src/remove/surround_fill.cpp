@@ -111,6 +111,16 @@ ChosenParts choose_parts(const cv::Mat& mask, const float* rgb, int max_area, do
   return out;
 }
 
+// The chosen parts as one CV_8U 0/255 mask.
+cv::Mat chosen_mask(const ChosenParts& chosen, cv::Size size) {
+  cv::Mat out(size, CV_8U, cv::Scalar(0));
+  for (size_t i = 0; i < chosen.ids.size(); ++i) {
+    const cv::Rect& box = chosen.boxes[i];
+    out(box).setTo(255, chosen.labels(box) == chosen.ids[i]);
+  }
+  return out;
+}
+
 }  // namespace
 
 bool push_pull_fill(const float* rgb, int h, int w, const cv::Mat& hole, float* out) {
@@ -183,21 +193,17 @@ bool push_pull_fill(const float* rgb, int h, int w, const cv::Mat& hole, float* 
 
 cv::Mat surround_fill_mask(const cv::Mat& mask, const float* rgb, int max_area, double max_mad, int* filled_parts) {
   const ChosenParts chosen = choose_parts(mask, rgb, max_area, max_mad);
-  cv::Mat out(mask.size(), CV_8U, cv::Scalar(0));
-  for (size_t i = 0; i < chosen.ids.size(); ++i) {
-    const cv::Rect& box = chosen.boxes[i];
-    out(box).setTo(255, chosen.labels(box) == chosen.ids[i]);
-  }
   if (filled_parts) *filled_parts = static_cast<int>(chosen.ids.size());
-  return out;
+  return chosen_mask(chosen, mask.size());
 }
 
 int fill_small_drops_from_surround(const float* rgb, const cv::Mat& mask, int max_area, double max_mad,
-                                   std::vector<float>& ihat) {
+                                   std::vector<float>& ihat, cv::Mat* filled_parts) {
   const int h = mask.rows, w = mask.cols;
   const size_t plane = static_cast<size_t>(h) * w;
   CV_Assert(ihat.size() == 3 * plane);
   const ChosenParts chosen = choose_parts(mask, rgb, max_area, max_mad);
+  if (filled_parts) *filled_parts = chosen_mask(chosen, mask.size());
   if (chosen.ids.empty()) return 0;
   // Each part is filled from a window around it (its box grown by kSurroundWindow times its
   // larger side, at least 2 kSurroundRing): a drop is predicted by its neighbourhood, and the

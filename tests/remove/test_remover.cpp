@@ -409,6 +409,72 @@ TEST(Remover, FormatsAreKept) {
   EXPECT_EQ(cv::countNonZero(g.mask != g_rgb.mask), 0);
 }
 
+// --fine-drops (fine_drops.h) for every input format, at a scale where the fine copy is tiled
+// and with the float output kept: the formats, the alpha and the size come through, the float
+// output stays finite in [0, 1], and it changes only pixels within a pixel of the written mask.
+// Where the working copy is the image's own size, it does not run.
+TEST(Remover, FineDropsKeepEveryFormat) {
+  // Small bright dots on a flat ground: the smoke models' detector marks them at 0.3, and their
+  // surround is smooth, so the fine pass fills them.
+  cv::Mat rgb8(150, 200, CV_8UC3, cv::Scalar(120, 130, 140));
+  for (int i = 0; i < 8; ++i) cv::circle(rgb8, {20 + 22 * i, 40 + 10 * (i % 3)}, 2, cv::Scalar(250, 250, 250), cv::FILLED);
+  cv::Mat grey8, alpha8(rgb8.size(), CV_8U), rgba8, ga8, rgb16, grey16, rgb32;
+  cv::cvtColor(rgb8, grey8, cv::COLOR_RGB2GRAY);
+  cv::randu(alpha8, 0, 256);
+  cv::merge(std::vector<cv::Mat>{rgb8, alpha8}, rgba8);
+  cv::merge(std::vector<cv::Mat>{grey8, alpha8}, ga8);
+  rgb8.convertTo(rgb16, CV_16U, 257.0);
+  grey8.convertTo(grey16, CV_16U, 257.0);
+  rgb8.convertTo(rgb32, CV_32F, 1.0 / 255.0);
+  int filled = 0;
+  for (const cv::Mat* m : std::vector<const cv::Mat*>{&rgb8, &grey8, &rgba8, &ga8, &rgb16, &grey16, &rgb32}) {
+    SCOPED_TRACE("type " + std::to_string(m->type()));
+    RemoveOptions off;
+    off.scale = 0.5;
+    off.keep_float = true;
+    off.tile = 64;  // the fine copy (150x113) in tiles
+    off.overlap = 16;
+    off.threshold = 0.3;
+    RemoveOptions on = off;
+    on.fine_drops = true;
+    const RemoveResult a = smoke().run(*m, off), b = smoke().run(*m, on);
+    EXPECT_EQ(a.fine_scale, 0.0);
+    EXPECT_DOUBLE_EQ(b.fine_scale, 0.75);
+    ASSERT_EQ(b.image.type(), m->type());
+    ASSERT_EQ(b.image.size(), m->size());
+    ASSERT_EQ(b.mask.size(), m->size());
+    EXPECT_TRUE(all_in_unit_range(b.rgb));
+    if (m->channels() == 2) {
+      cv::Mat a_out;
+      cv::extractChannel(b.image, a_out, 1);
+      EXPECT_EQ(cv::countNonZero(alpha8 != a_out), 0) << "alpha must pass through unchanged";
+    }
+    cv::Mat diff, changed, near_mask;
+    cv::absdiff(a.rgb, b.rgb, diff);
+    cv::cvtColor(diff, diff, cv::COLOR_RGB2GRAY);
+    changed = diff > 0;
+    cv::dilate(b.mask, near_mask, cv::getStructuringElement(cv::MORPH_RECT, {3, 3}));
+    EXPECT_EQ(cv::countNonZero(changed & ~near_mask), 0) << "changed away from the mask";
+    EXPECT_EQ(cv::countNonZero((a.mask > 0) & ~(b.mask > 0)), 0) << "the mask lost pixels";
+    if (b.fine_drops == 0) {
+      EXPECT_EQ(cv::countNonZero(changed), 0);
+    } else {
+      EXPECT_GT(cv::countNonZero(changed), 0) << "parts filled, output unchanged";
+    }
+    filled += b.fine_drops;
+  }
+  EXPECT_GT(filled, 0) << "no image had a part to fill: the test checks nothing";
+  // At the image's own scale there is nothing finer to see.
+  RemoveOptions own;
+  own.scale = 1.0;
+  own.fine_drops = true;
+  EXPECT_EQ(smoke().run(rgb8, own).fine_scale, 0.0);
+  // Sizes that round alike at both scales: 3x3 at 0.5 and at 0.75 are both 2x2.
+  RemoveOptions tiny = own;
+  tiny.scale = 0.5;
+  EXPECT_EQ(smoke().run(make_image(3, 3, 1), tiny).fine_scale, 0.0);
+}
+
 TEST(Remover, StageTimesAreRecorded) {
   const RemoveResult r = smoke().run(make_image(64, 48, 12));
   EXPECT_GT(r.times.rdn, 0.0);

@@ -193,9 +193,14 @@ TEST(SurroundFill, OnlyTheChosenPartsOfTheReconstructionChange) {
   std::uniform_real_distribution<float> u(0.0f, 1.0f);
   for (float& v : ihat) v = u(rng);
   const std::vector<float> before = ihat;
-  EXPECT_EQ(fill_small_drops_from_surround(s.rgb.data(), s.mask, kSurroundFillArea, kSurroundFillMad, ihat), 1);
+  cv::Mat filled;
+  EXPECT_EQ(fill_small_drops_from_surround(s.rgb.data(), s.mask, kSurroundFillArea, kSurroundFillMad, ihat, &filled), 1);
   cv::Mat chosen(s.h, s.w, CV_8U, cv::Scalar(0));
   cv::circle(chosen, {30, 30}, 6, cv::Scalar(255), cv::FILLED);
+  // The parts it reports filled are those it filled, as surround_fill_mask chooses them.
+  ASSERT_EQ(filled.type(), CV_8UC1);
+  EXPECT_EQ(cv::norm(filled, chosen, cv::NORM_INF), 0.0);
+  EXPECT_EQ(cv::norm(filled, surround_fill_mask(s.mask, s.rgb.data(), kSurroundFillArea, kSurroundFillMad), cv::NORM_INF), 0.0);
   for (int c = 0; c < 3; ++c)
     for (int y = 0; y < s.h; ++y)
       for (int x = 0; x < s.w; ++x) {

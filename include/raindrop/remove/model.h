@@ -86,7 +86,8 @@ class Network {
 // cores (2 threads were slower than 1 at 256x512); two independent graphs on two cores do
 // not share that cost. Tiled images run their tiles in order with every stage on all the
 // threads (pairing tiles left a core idle on an odd tile count: 17% slower for the paper's
-// networks on 2048x1024), from RDN and 3RN sessions made on the first tiled image.
+// networks on 2048x1024), from RDN and 3RN sessions made on the first tiled image (the RDN's
+// alone on the first fine pass, fine_drops.h, which runs nothing beside its detector).
 class Models {
  public:
   // Which graphs to load: all three; the 3RN and RFN only (models that reconstruct what
@@ -109,13 +110,11 @@ class Models {
   const std::filesystem::path& dir() const { return dir_; }
 
  private:
-  void make_all_thread_sessions();
-
   std::filesystem::path dir_;
   SessionConfig config_;
   std::unique_ptr<Network> rdn_, rrn_, rfn_;
   std::unique_ptr<Network> rdn_all_, rrn_all_;
-  std::once_flag all_threads_once_;
+  std::once_flag rdn_all_once_, rrn_all_once_;
   ModelInfo info_;
   int branches_ = 1;
 };

@@ -73,8 +73,9 @@ cv::Mat surround_fill_mask(const cv::Mat& mask, const float* rgb, int max_area, 
 // Replaces the 3RN's output `ihat` (3 planes of h x w) by the push-pull fill of `rgb` from
 // outside `mask` wherever surround_fill_mask chooses, each part from its own window
 // (kSurroundWindow; the whole image past kSurroundWindowBudget); the rest of `ihat` is left bit
-// for bit. Returns the number of parts filled.
+// for bit. Returns the number of parts filled. `filled_parts`, when given, receives them as
+// surround_fill_mask gives them (CV_8U 0/255).
 int fill_small_drops_from_surround(const float* rgb, const cv::Mat& mask, int max_area, double max_mad,
-                                   std::vector<float>& ihat);
+                                   std::vector<float>& ihat, cv::Mat* filled_parts = nullptr);
 
 }  // namespace raindrop::removal
