@@ -2222,18 +2222,13 @@ if want finedrops; then
     [[ -f data/$set/manifest.jsonl ]] || build/raindrop-render -i "$shared/camvid/test" -o "data/$set" --scene "$scene" \
       --size 1280x720 --seed 2 -q
   done
-  {
-    for m in base:"-j 2" fine:"-j 2 --fine-drops"; do
-      IFS=: read -r label flags <<<"$m"
-      score_sets "$fd" "$label" "$flags" val-ws-1280x720:-:0 val-wsday-1280x720:-:0 val-size-1280x720:-:0
-    done
-  } | tee "$fd/validation.txt"
-  {
-    for m in base:"-j 2" fine:"-j 2 --fine-drops"; do
-      IFS=: read -r label flags <<<"$m"
-      score_sets "$fd" "$label" "$flags" test-ws-1280x720:-:0 test-wsday-1280x720:-:0 test-size-1280x720:-:0
-    done
-  } | tee "$fd/test.txt"
+  # with_and_without SET...: the default's outputs without --fine-drops and with it, scored.
+  with_and_without() {
+    score_sets "$fd" base "-j 2" "$@"
+    score_sets "$fd" fine "-j 2 --fine-drops" "$@"
+  }
+  with_and_without val-ws-1280x720:-:0 val-wsday-1280x720:-:0 val-size-1280x720:-:0 | tee "$fd/validation.txt"
+  with_and_without test-ws-1280x720:-:0 test-wsday-1280x720:-:0 test-size-1280x720:-:0 | tee "$fd/test.txt"
   rm -rf "$fd/photos-base" "$fd/photos-fine"
   build/raindrop-remove "$shared/real-raindrop" "$fd/photos-base" -q -j 2
   build/raindrop-remove "$shared/real-raindrop" "$fd/photos-fine" -q -j 2 --fine-drops --time 2>"$fd/photos-time.txt"

@@ -6,6 +6,15 @@
 #include "raindrop/remove/surround_fill.h"
 
 namespace raindrop::removal {
+namespace {
+
+// Planes of h x w floats inside `data` (3 of them, one after the other), as OpenCV matrices.
+std::vector<cv::Mat> plane_views(float* data, int h, int w) {
+  const size_t plane = static_cast<size_t>(h) * w;
+  return {cv::Mat(h, w, CV_32F, data), cv::Mat(h, w, CV_32F, data + plane), cv::Mat(h, w, CV_32F, data + 2 * plane)};
+}
+
+}  // namespace
 
 double fine_drop_scale(double scale) {
   const double fine = std::min(1.0, scale * kFineDropScaleFactor);
@@ -16,27 +25,18 @@ cv::Mat fill_fine_drops(const cv::Mat& rgb, const cv::Mat& mask, int max_area, d
                         int* parts) {
   CV_Assert(rgb.type() == CV_32FC3 && mask.type() == CV_8UC1 && mask.size() == rgb.size());
   const int h = rgb.rows, w = rgb.cols;
-  const size_t plane = static_cast<size_t>(h) * w;
-  // surround_fill.h works on planar RGB.
-  std::vector<float> planar(3 * plane);
-  for (int y = 0; y < h; ++y) {
-    const float* row = rgb.ptr<float>(y);
-    for (int x = 0; x < w; ++x)
-      for (int c = 0; c < 3; ++c) planar[c * plane + static_cast<size_t>(y) * w + x] = row[3 * x + c];
-  }
+  // surround_fill.h works on planar RGB: split into views of one buffer, merged back after.
+  std::vector<float> planar(3 * static_cast<size_t>(h) * w);
+  std::vector<cv::Mat> planes = plane_views(planar.data(), h, w);
+  cv::split(rgb, planes);
+  CV_Assert(planes[0].ptr<float>() == planar.data());  // written in place, not reallocated
   std::vector<float> filled = planar;
   cv::Mat chosen;
   *parts = fill_small_drops_from_surround(planar.data(), mask, max_area, max_mad, filled, &chosen);
   chosen.convertTo(*weight, CV_32F, 1.0 / 255.0);
   if (*parts == 0) return rgb.clone();
-  planar.clear();
-  planar.shrink_to_fit();
-  cv::Mat out(h, w, CV_32FC3);
-  for (int y = 0; y < h; ++y) {
-    float* row = out.ptr<float>(y);
-    for (int x = 0; x < w; ++x)
-      for (int c = 0; c < 3; ++c) row[3 * x + c] = filled[c * plane + static_cast<size_t>(y) * w + x];
-  }
+  cv::Mat out;
+  cv::merge(plane_views(filled.data(), h, w), out);
   return out;
 }
 

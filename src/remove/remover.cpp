@@ -301,17 +301,12 @@ void Remover::fine_pass(const cv::Mat& image, const RemoveOptions& opt, double s
   cv::resize(res.image, output_fine, size, 0, 0, cv::INTER_AREA);
   res.times.convert += lap_ms(clock);
   // The detector that decided the working pass's mask (the router's choice), with its own
-  // threshold and dilation (or the options'); it stops at its mask: no 3RN at this scale.
+  // threshold and dilation (or the options'); it stops at its mask: no 3RN at this scale, so
+  // of the options only those of detection (threshold, dilation, tiles) count.
   Detection detection;
   detection.models = res.alternative_detector() ? &alternative_detector() : &models_;
   detection.all_threads = true;
-  RemoveOptions sub = opt;
-  sub.scale = 1.0;
-  sub.large_drops = false;
-  sub.surround_fill_area = 0;
-  sub.mirror_average = false;
-  sub.fine_drops = false;
-  const RemoveResult found = run_native(input_fine, sub, [](const cv::Mat&) { return false; }, {}, 0.0, detection);
+  const RemoveResult found = run_native(input_fine, opt, [](const cv::Mat&) { return false; }, {}, 0.0, detection);
   res.times += found.times;
   res.network_pixels += found.network_pixels;
   clock = Clock::now();

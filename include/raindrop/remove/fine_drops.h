@@ -19,13 +19,15 @@
 // at the finer scale. docs/RESULTS.md 4.45 has what it gains and costs.
 #include <opencv2/core.hpp>
 
+#include "raindrop/remove/surround_fill.h"
+
 namespace raindrop::removal {
 
 // The finer scale: this many times the working scale, at most 1.
 inline constexpr double kFineDropScaleFactor = 1.5;
-// The largest part filled, in pixels with the long side at 512 (kSurroundFillArea's value):
-// larger drops the working scale sees.
-inline constexpr int kFineDropArea = 150;
+// The largest part filled, in pixels with the long side at 512: the working pass's default
+// (larger drops the working scale sees).
+inline constexpr int kFineDropArea = kSurroundFillArea;
 
 // The scale of the fine pass for a working scale `scale` in (0, 1]: min(1, 1.5 scale), or 0
 // where that is no finer than `scale` (the working scale is the image's own size).
