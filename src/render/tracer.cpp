@@ -19,6 +19,7 @@
 #include "raindrop/render/defocus.h"
 #include "raindrop/render/linear_frame.h"
 #include "raindrop/render/optics.h"
+#include "raindrop/render/pinhole_lanes.h"
 #include "raindrop/render/scratch_pool.h"
 #include "raindrop/render/sky.h"
 #include "raindrop/render/spans.h"
@@ -526,19 +527,26 @@ void convex_hull(std::vector<glm::dvec2> points, std::vector<glm::dvec2>* hull) 
 // irregular outline, drop.h); the hull of a dense sample of rim
 // and cap points, padded by more than the sampling error, bounds it conservatively. Rays
 // outside these intervals cannot meet a drop and are not traced.
-std::vector<std::vector<std::pair<int, int>>> candidate_spans(const Camera& camera,
-                                                              const DropAccel& accel) {
+// `by_drop`, if given, receives the same intervals per drop, unmerged (PinholeLanes).
+std::vector<std::vector<std::pair<int, int>>> candidate_spans(const Camera& camera, const DropAccel& accel,
+                                                              std::vector<std::vector<DropSpan>>* by_drop = nullptr) {
   std::vector<std::vector<std::pair<int, int>>> rows(camera.height);
+  if (by_drop) by_drop->assign(camera.height, {});
+  int index = 0;  // the drop whose rows are added
   auto add_rows = [&](double y0, double y1, double x0, double x1) {
     const int ix0 = static_cast<int>(std::max(0.0, std::floor(x0)));
     const int ix1 = static_cast<int>(std::min(camera.width - 1.0, std::ceil(x1)));
     const int iy0 = static_cast<int>(std::max(0.0, std::floor(y0)));
     const int iy1 = static_cast<int>(std::min(camera.height - 1.0, std::ceil(y1)));
-    for (int y = iy0; y <= iy1 && ix0 <= ix1; ++y) rows[y].push_back({ix0, ix1});
+    for (int y = iy0; y <= iy1 && ix0 <= ix1; ++y) {
+      rows[y].push_back({ix0, ix1});
+      if (by_drop) (*by_drop)[y].push_back({ix0, ix1, index});
+    }
   };
   constexpr int kAzimuths = 48, kRings = 4;
   std::vector<glm::dvec2> points, hull;
   for (const Drop& drop : accel.drops()) {
+    index = static_cast<int>(&drop - accel.drops().data());
     points.clear();
     bool behind = false;
     const double tau = drop.shape().contact_angle;
@@ -666,7 +674,14 @@ TraceResult run(const cv::Mat& clean, const Camera& camera, const SceneConfig& c
   cv::Mat seen_at = automatic ? cv::Mat(camera.height, camera.width, CV_32FC2, cv::Scalar::all(NAN)) : cv::Mat();
   std::optional<BackgroundRange> variation;
   if (automatic) variation.emplace(clean, kernel.background());
-  out.spans = candidate_spans(camera, accel);
+  // The pinhole pass in SIMD lanes where they apply (pinhole_lanes.h): the same bits.
+  std::optional<PinholeLanes> lanes;
+  std::vector<std::vector<DropSpan>> drop_spans;
+  if constexpr (!kFresnel && !kDispersion) {
+    if (strategy.lanes && kernel.lockstep() && PinholeLanes::applies(accel))
+      lanes.emplace(camera, accel, scene.glass, config.channel_indices().y, config.tir);
+  }
+  out.spans = candidate_spans(camera, accel, lanes ? &drop_spans : nullptr);
   const auto& spans = out.spans;
   std::atomic<std::int64_t> candidates{0}, drops{0}, dark{0}, off{0}, supersampled{0}, aliasing{0}, smooth{0},
       lockstep{0};
@@ -681,6 +696,7 @@ TraceResult run(const cv::Mat& clean, const Camera& camera, const SceneConfig& c
       glm::dvec2 xy;
     };
     std::vector<Pending> pending;
+    PinholeLanes::Row lane_row;
     for (int y = r.begin(); y < r.end(); ++y) {
       auto* label = out.label.ptr<int>(y);
       std::fill(label, label + camera.width, -1);
@@ -723,11 +739,29 @@ TraceResult run(const cv::Mat& clean, const Camera& camera, const SceneConfig& c
             if (paths[i].hit) pending.push_back({xs[i], paths[i], kernel.seen_point(paths[i])});
           queued = 0;
         };
-        for (const auto& [x0, x1] : spans[y]) {
-          for (int x = x0; x <= x1; ++x) {
-            ++n_cand;
-            xs[queued++] = x;
-            if (queued == 8) flush();
+        if (lanes) {
+          // The lanes trace most rays; those that leave the common path go to flush().
+          n_lock += lanes->trace_row(y, drop_spans[y], &lane_row);
+          for (const auto& [x0, x1] : spans[y]) {
+            for (int x = x0; x <= x1; ++x) {
+              ++n_cand;
+              const PinholeLanes::Outcome o = lane_row.outcome[x];
+              if (o == PinholeLanes::Outcome::Path) {
+                const DropPath& path = lane_row.path[x];
+                pending.push_back({x, path, kernel.seen_point(path)});
+              } else if (o == PinholeLanes::Outcome::Alone) {
+                xs[queued++] = x;
+                if (queued == 8) flush();
+              }
+            }
+          }
+        } else {
+          for (const auto& [x0, x1] : spans[y]) {
+            for (int x = x0; x <= x1; ++x) {
+              ++n_cand;
+              xs[queued++] = x;
+              if (queued == 8) flush();
+            }
           }
         }
         if (queued > 0) flush();

@@ -101,6 +101,26 @@ inline SceneSample crowded_scene(std::uint64_t seed, const Camera& cam) {
   return sample_scene(c, cam, rng);
 }
 
+// A scene to trace, and what a failure message calls it.
+struct NamedScene {
+  std::string name;
+  SceneConfig config;
+  SceneSample scene;
+};
+
+// Every preset's scene drawn with seeds 1 and 2 ("<preset> seed <n>").
+inline std::vector<NamedScene> preset_scenes(const Camera& cam) {
+  std::vector<NamedScene> scenes;
+  for (const std::string& preset : scene_preset_names()) {
+    for (std::uint64_t seed : {1, 2}) {
+      Rng rng(seed);
+      const SceneConfig c = scene_preset(preset);
+      scenes.push_back({preset + " seed " + std::to_string(seed), c, sample_scene(c, cam, rng)});
+    }
+  }
+  return scenes;
+}
+
 // A frame of uniform random 8-bit RGB noise of the camera's size, the same for every call:
 // every pixel differs from its neighbours, so any change to a traced ray shows.
 inline cv::Mat random_frame(const Camera& cam) {

@@ -84,6 +84,9 @@ struct TraceStrategy {
   // other. Off: every ray is traced alone after its first query (trace_drops still asks the
   // camera rays' first queries as Embree packets; trace_aperture asks one query per ray).
   bool lockstep = true;
+  // With lockstep, the pinhole pass's camera rays traced in SIMD lanes a drop at a time
+  // (pinhole_lanes.h; exact disjoint caps of circular outline, no Fresnel, no dispersion).
+  bool lanes = true;
 };
 
 // What the thin-lens camera's layered path (renderer.cpp) adds to the pinhole trace.

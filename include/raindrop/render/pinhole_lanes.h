@@ -1,0 +1,105 @@
+#pragma once
+// The pinhole camera's rays traced in SIMD lanes, one drop at a time.
+//
+// In the paper's scenes nearly every traced pixel takes one path: its ray crosses the glass
+// inside one drop's footprint, refracts into the water through the flat base, leaves through
+// the cap (or is totally internally reflected there: the dark band) and goes on to the street
+// with no other drop in reach. Traced one ray at a time, that path is a chain of square roots
+// and divisions behind an Embree query whose callbacks cost as much again. Here a row's rays
+// are taken a drop at a time, over the pixels whose rays can reach that drop (the tracer's
+// spans, kept per drop), eight lanes at a time, with the drop's constants the same in every
+// lane:
+//
+//   1. first hits: Drop::intersect of each ray with the drop (base, then the cap's roots);
+//      over the drops whose spans cover a pixel, the nearest hit, ties to the lower index:
+//      what the Embree query answers (drop_accel.cpp);
+//   2. the common path of the rays whose first hit is this drop's base: refraction in,
+//      the exit through the cap (cap_exit.h), refraction out, and the exit ray's slab range.
+//
+// Every step is the scalar code's arithmetic in its order (the build has -ffp-contract=off;
+// IEEE addition, multiplication, division and square root round the same in a lane as
+// alone), so each ray gets trace_path's answer to the bit. A ray that leaves the common path
+// anywhere (a cap met from outside, a refraction that fails, another drop in reach) is marked
+// for the one-at-a-time tracer, which handles everything. The lanes run in AVX-512, AVX2 or
+// SSE2 registers, whichever the processor has (chosen at run time: one binary runs anywhere,
+// and every width gives the same bits; tests/render/test_pinhole_lanes.cpp).
+//
+// Only where every drop is an exact cap of circular outline and drops are disjoint
+// (`applies`); no Fresnel, no dispersion (the tracer's other kernels keep their paths).
+#include <cstdint>
+#include <vector>
+
+#include "raindrop/render/camera.h"
+#include "raindrop/render/drop_accel.h"
+#include "raindrop/render/glass.h"
+#include "raindrop/render/scene_config.h"
+#include "raindrop/render/tracer.h"
+
+namespace raindrop {
+
+// Pixels [first, last] of one row whose camera rays can reach drop `drop`.
+struct DropSpan {
+  int first, last, drop;
+};
+
+namespace lanes_detail {
+// The frame's constants, as the scalar code computes them (pinhole_lanes.cpp).
+struct SceneConstants {
+  double cx, cy, fx, fy;   // camera
+  double gp[3], gn[3];     // glass: a point and the unit normal (GlassFrame)
+  double top;              // slab_top
+  double h0;               // slab_range's height of the camera's centre above the glass
+  double eta_in, eta_out;  // 1 / n_water, n_water
+  bool tir_black;
+};
+// One drop's constants (Drop::intersect's, for the camera's centre as origin).
+struct DropConstants {
+  double c[3], u[3], v[3], n[3];  // footprint centre and glass frame
+  double radius, centre_height, inv_e, inv_f, rim2;
+  double o[3];   // to_local(camera centre)
+  double oc_z;   // o.z - centre_height
+  double c_sq;   // dot(oc, oc) - R^2
+  double hn[3];  // the base's normal, -n
+};
+}  // namespace lanes_detail
+
+class PinholeLanes {
+ public:
+  enum class Outcome : std::uint8_t {
+    Miss,   // meets no drop
+    Path,   // traced here: `path`
+    Alone,  // left the common path: trace it one ray at a time
+  };
+  // A row's results, indexed by x (sized to the frame's width by trace_row).
+  struct Row {
+    std::vector<Outcome> outcome;
+    std::vector<DropPath> path;
+    // Scratch: the nearest first hit so far, and the common path's intermediate results.
+    std::vector<double> t, ox, oy, oz, dx, dy, dz, range;
+    std::vector<int> drop;
+    std::vector<std::uint8_t> base, state;
+  };
+
+  // Whether the lanes can trace this accelerator's drops: exact caps, all of circular
+  // outline, disjoint.
+  static bool applies(const DropAccel& accel);
+
+  PinholeLanes(const Camera& camera, const DropAccel& accel, const GlassPlane& glass, double n_water, TirMode tir);
+
+  // The camera rays through the pixels of row y that `spans` (one row's DropSpans; a pixel
+  // may lie in several) cover: row->outcome[x] for each, row->path[x] where it is Path.
+  // Returns how many were traced here (Outcome::Path).
+  int trace_row(int y, const std::vector<DropSpan>& spans, Row* row) const;
+
+  // The register width used: 2 AVX-512, 1 AVX2, 0 SSE2 (the widest the processor has,
+  // unless force_level lowered it: for tests).
+  static int level();
+  static void force_level(int level);  // -1: the widest again
+
+ private:
+  const DropAccel& accel_;
+  lanes_detail::SceneConstants scene_;
+  std::vector<lanes_detail::DropConstants> drops_;
+};
+
+}  // namespace raindrop

@@ -1,0 +1,203 @@
+#include "raindrop/render/pinhole_lanes.h"
+
+#include <algorithm>
+#include <atomic>
+#include <cstring>
+#include <limits>
+
+#include <glm/geometric.hpp>
+
+#if defined(__x86_64__) && defined(__GNUC__)
+#include <immintrin.h>
+#else
+#error "pinhole_lanes.cpp needs GCC or Clang on x86-64"
+#endif
+
+namespace raindrop {
+namespace {
+
+// The kernel once per register width, each compiled for its own instruction set. Its
+// eight-double vectors never cross a function boundary (every helper is inlined), so the
+// warning that passing them by value would change the ABI does not apply (GCC gives it at
+// the end of the file: off for all of it).
+#pragma GCC diagnostic ignored "-Wpsabi"
+#pragma GCC push_options
+#define LANES_NS lanes_sse2
+#define LANES_LEVEL 0
+#include "pinhole_lanes_kernel.inc"
+#undef LANES_NS
+#undef LANES_LEVEL
+#pragma GCC pop_options
+
+#pragma GCC push_options
+#pragma GCC target("avx2")
+#define LANES_NS lanes_avx2
+#define LANES_LEVEL 1
+#include "pinhole_lanes_kernel.inc"
+#undef LANES_NS
+#undef LANES_LEVEL
+#pragma GCC pop_options
+
+#pragma GCC push_options
+#pragma GCC target("avx512f")
+#define LANES_NS lanes_avx512
+#define LANES_LEVEL 2
+#include "pinhole_lanes_kernel.inc"
+#undef LANES_NS
+#undef LANES_LEVEL
+#pragma GCC pop_options
+
+// The kernel's steps' states, the same in every namespace.
+namespace state = lanes_sse2;
+
+std::atomic<int> forced_level{-1};
+
+int widest_level() {
+  static const int level = __builtin_cpu_supports("avx512f") ? 2 : __builtin_cpu_supports("avx2") ? 1 : 0;
+  return level;
+}
+
+}  // namespace
+
+int PinholeLanes::level() {
+  const int forced = forced_level.load(std::memory_order_relaxed);
+  return forced >= 0 ? std::min(forced, widest_level()) : widest_level();
+}
+
+void PinholeLanes::force_level(int level) { forced_level.store(level, std::memory_order_relaxed); }
+
+bool PinholeLanes::applies(const DropAccel& accel) {
+  if (!accel.disjoint() || accel.options().kind != GeometryOptions::Kind::Exact) return false;
+  for (const Drop& d : accel.drops())
+    if (!d.shape().outline.circular()) return false;
+  return true;
+}
+
+PinholeLanes::PinholeLanes(const Camera& camera, const DropAccel& accel, const GlassPlane& glass, double n_water,
+                           TirMode tir)
+    : accel_(accel) {
+  // Every constant computed here as the scalar code computes it (same expressions, glm's).
+  const glm::dvec3 point = glass.origin(), normal = glass.normal();
+  scene_.cx = camera.cx, scene_.cy = camera.cy, scene_.fx = camera.fx, scene_.fy = camera.fy;
+  for (int i = 0; i < 3; ++i) scene_.gp[i] = point[i], scene_.gn[i] = normal[i];
+  scene_.top = accel.max_height() * (1 + 1e-9) + 1e-9;  // slab_top
+  scene_.h0 = glm::dot(glm::dvec3(0.0) - point, normal);
+  scene_.eta_in = 1.0 / n_water;
+  scene_.eta_out = n_water;
+  scene_.tir_black = tir == TirMode::Black;
+  drops_.reserve(accel.drops().size());
+  for (const Drop& drop : accel.drops()) {
+    const Drop::Frame f = drop.frame();
+    lanes_detail::DropConstants k{};
+    for (int i = 0; i < 3; ++i) k.c[i] = f.c[i], k.u[i] = f.u[i], k.v[i] = f.v[i], k.n[i] = f.n[i];
+    k.radius = f.radius, k.centre_height = f.centre_height, k.inv_e = f.inv_elongation, k.inv_f = f.inv_flattening;
+    const double a = drop.shape().footprint_radius;
+    k.rim2 = a * a;
+    // Drop::to_local(camera centre), and the sphere's constant term for that origin.
+    const glm::dvec3 rel = glm::dvec3(0.0) - f.c;
+    const glm::dvec3 o{glm::dot(rel, f.u), glm::dot(rel, f.v) * f.inv_elongation, glm::dot(rel, f.n) * f.inv_flattening};
+    const glm::dvec3 oc{o.x, o.y, o.z - f.centre_height};
+    for (int i = 0; i < 3; ++i) k.o[i] = o[i];
+    k.oc_z = oc.z;
+    k.c_sq = glm::dot(oc, oc) - f.radius * f.radius;
+    const glm::dvec3 hn = drop.base_normal();
+    for (int i = 0; i < 3; ++i) k.hn[i] = hn[i];
+    drops_.push_back(k);
+  }
+}
+
+int PinholeLanes::trace_row(int y, const std::vector<DropSpan>& spans, Row* row) const {
+  int x_end = 0;
+  for (const DropSpan& s : spans) x_end = std::max(x_end, s.last + 1);
+  if (row->outcome.size() < static_cast<size_t>(x_end)) {  // the scratch grows to the widest row
+    const size_t n = static_cast<size_t>(x_end);
+    for (auto* v : {&row->t, &row->ox, &row->oy, &row->oz, &row->dx, &row->dy, &row->dz, &row->range}) v->resize(n);
+    row->outcome.resize(n);
+    row->path.resize(n);
+    row->drop.resize(n);
+    row->base.resize(n);
+    row->state.resize(n);
+  }
+  for (const DropSpan& s : spans) {
+    std::fill(row->t.begin() + s.first, row->t.begin() + s.last + 1, std::numeric_limits<double>::infinity());
+    std::fill(row->drop.begin() + s.first, row->drop.begin() + s.last + 1, -1);
+  }
+  const int level = PinholeLanes::level();
+  const double ry = (static_cast<double>(y) - scene_.cy) / scene_.fy;  // Camera::ray_direction's
+  for (const DropSpan& s : spans) {
+    const lanes_detail::DropConstants& k = drops_[static_cast<size_t>(s.drop)];
+    auto* t = row->t.data();
+    auto* d = row->drop.data();
+    auto* b = row->base.data();
+    if (level == 2) {
+      lanes_avx512::first_hits(scene_, k, s.drop, ry, s.first, s.last, t, d, b);
+    } else if (level == 1) {
+      lanes_avx2::first_hits(scene_, k, s.drop, ry, s.first, s.last, t, d, b);
+    } else {
+      lanes_sse2::first_hits(scene_, k, s.drop, ry, s.first, s.last, t, d, b);
+    }
+  }
+  int traced = 0;
+  for (const DropSpan& s : spans) {
+    const lanes_detail::DropConstants& k = drops_[static_cast<size_t>(s.drop)];
+    auto* st = row->state.data();
+    if (level == 2) {
+      lanes_avx512::common_paths(scene_, k, s.drop, ry, s.first, s.last, row->t.data(), row->drop.data(),
+                                 row->base.data(), st, row->ox.data(), row->oy.data(), row->oz.data(),
+                                 row->dx.data(), row->dy.data(), row->dz.data(), row->range.data());
+    } else if (level == 1) {
+      lanes_avx2::common_paths(scene_, k, s.drop, ry, s.first, s.last, row->t.data(), row->drop.data(),
+                               row->base.data(), st, row->ox.data(), row->oy.data(), row->oz.data(), row->dx.data(),
+                               row->dy.data(), row->dz.data(), row->range.data());
+    } else {
+      lanes_sse2::common_paths(scene_, k, s.drop, ry, s.first, s.last, row->t.data(), row->drop.data(),
+                               row->base.data(), st, row->ox.data(), row->oy.data(), row->oz.data(), row->dx.data(),
+                               row->dy.data(), row->dz.data(), row->range.data());
+    }
+    // The outcome of every pixel of the span whose nearest hit is this drop (a pixel without
+    // any hit: Miss, each time a span covers it).
+    for (int x = s.first; x <= s.last; ++x) {
+      const int drop = row->drop[x];
+      if (drop < 0) {
+        row->outcome[x] = Outcome::Miss;
+        continue;
+      }
+      if (drop != s.drop) continue;
+      if (!row->base[x]) {  // a cap met from outside
+        row->outcome[x] = Outcome::Alone;
+        continue;
+      }
+      const std::uint8_t code = st[x];
+      if (code == state::kAlone) {
+        row->outcome[x] = Outcome::Alone;
+        continue;
+      }
+      DropPath& path = row->path[x];
+      path = DropPath();
+      path.hit = true;
+      path.first_drop = drop;
+      if (code == state::kTrapped) {
+        path.events = 1;
+        path.dark = true;
+      } else if (code == state::kDarkBand) {
+        path.events = 2;
+        path.dark = true;
+      } else {
+        const glm::dvec3 o(row->ox[x], row->oy[x], row->oz[x]), dir(row->dx[x], row->dy[x], row->dz[x]);
+        if ((code & ~state::kEscaped) == state::kOutSlab && accel_.may_meet_after_exit(drop, o, dir, row->range[x])) {
+          row->outcome[x] = Outcome::Alone;
+          continue;
+        }
+        path.events = 2;
+        path.escaped_in = (code & state::kEscaped) != 0;
+        path.origin = o;
+        path.dir = dir;
+      }
+      row->outcome[x] = Outcome::Path;
+      ++traced;
+    }
+  }
+  return traced;
+}
+
+}  // namespace raindrop

@@ -1,0 +1,196 @@
+// The pinhole pass in SIMD lanes (pinhole_lanes.h) against the same rays traced one at a time.
+#include <algorithm>
+#include <cstring>
+#include <string>
+
+#include <gtest/gtest.h>
+
+#include "raindrop/common/rng.h"
+#include "raindrop/render/pinhole_lanes.h"
+#include "raindrop/render/renderer.h"
+#include "raindrop/render/scene_config.h"
+#include "raindrop/render/tracer.h"
+#include "support.h"
+
+namespace raindrop {
+namespace {
+
+using namespace test;
+
+// Scenes the lanes take: every preset whose drops are disjoint circular caps, crowded glass
+// (neighbours in reach of leaving rays, caps met from outside), traced internal reflection,
+// and random glass tilts and contact angles up to 90 degrees.
+std::vector<NamedScene> lane_cases(const Camera& cam) {
+  std::vector<NamedScene> cases = preset_scenes(cam);
+  for (std::uint64_t seed : {1, 2, 3}) {
+    SceneConfig c = scene_preset("paper");
+    cases.push_back({"crowded seed " + std::to_string(seed), c, crowded_scene(seed, cam)});
+    c.tir = TirMode::Trace;
+    cases.push_back({"crowded, internal reflection traced, seed " + std::to_string(seed), c, crowded_scene(seed, cam)});
+  }
+  Rng pick(99);
+  for (int i = 0; i < 24; ++i) {
+    SceneConfig c = scene_preset("paper");
+    const double tilt = pick.uniform(0.0, 85.0), angle = pick.uniform(5.0, 90.0);
+    c.tilt_deg = {tilt, tilt};
+    c.contact_angle_deg = {angle, std::min(90.0, angle + 10)};
+    c.glass_distance_cm = {pick.uniform(2.0, 60.0), 80.0};
+    c.drop_count = {20, 200};
+    if (i % 3 == 1) c.tir = TirMode::Trace;
+    Rng rng(1000 + static_cast<std::uint64_t>(i));
+    cases.push_back({"random " + std::to_string(i), c, sample_scene(c, cam, rng)});
+  }
+  return cases;
+}
+
+// For every register width the processor has, the lanes' images are the one-ray-at-a-time
+// images to the bit, and they do trace most rays that meet a drop where the dark band is
+// black (else this test would hold nothing).
+TEST(PinholeLanes, EveryRegisterWidthTracesWhatOneRayAtATimeTraces) {
+  const Camera cam = camera(240, 120, 265);
+  const cv::Mat clean = random_frame(cam);
+  const std::vector<NamedScene> cases = lane_cases(cam);
+  int applied = 0;
+  const int widest = PinholeLanes::level();
+  for (int level = 0; level <= widest; ++level) {
+    PinholeLanes::force_level(level);
+    applied = 0;
+    std::int64_t drop_pixels = 0, lane_pixels = 0;
+    for (const NamedScene& k : cases) {
+      const std::vector<Drop> drops = drops_of(k.scene);
+      DropAccel accel(drops, k.config.geometry);
+      accel.set_disjoint(!k.config.allow_overlap && !k.config.trails.enabled);
+      // The lanes take the kernel without Fresnel and dispersion.
+      if (!PinholeLanes::applies(accel) || k.config.fresnel.enabled || k.config.dispersion.enabled) continue;
+      ++applied;
+      const TraceResult a = trace_drops(clean, cam, k.config, k.scene, accel, nullptr, TraceStrategy{true, true});
+      const TraceResult b = trace_drops(clean, cam, k.config, k.scene, accel, nullptr, TraceStrategy{false, false});
+      const std::string name = k.name + ", level " + std::to_string(level);
+      EXPECT_TRUE(equal_bits(a.label, b.label)) << name;
+      cv::Mat ca = a.color.clone(), cb = b.color.clone();
+      ca.setTo(cv::Scalar::all(0), a.label < 0);
+      cb.setTo(cv::Scalar::all(0), b.label < 0);
+      EXPECT_TRUE(equal_bits(ca, cb)) << name;
+      EXPECT_EQ(a.stats.drop_pixels, b.stats.drop_pixels) << name;
+      EXPECT_EQ(a.stats.dark_band_pixels, b.stats.dark_band_pixels) << name;
+      EXPECT_EQ(a.stats.off_frame_pixels, b.stats.off_frame_pixels) << name;
+      EXPECT_EQ(b.stats.lockstep_pixels, 0) << name;
+      // On the presets' glass, with the dark band painted black, nearly every ray takes the
+      // common path (crowded glass and steep random scenes send many elsewhere on purpose).
+      if (k.config.tir == TirMode::Black && k.name.find("crowded") == std::string::npos &&
+          k.name.find("random") == std::string::npos) {
+        drop_pixels += a.stats.drop_pixels;
+        lane_pixels += a.stats.lockstep_pixels;
+      }
+    }
+    EXPECT_GT(lane_pixels, drop_pixels * 95 / 100) << "level " << level;
+  }
+  PinholeLanes::force_level(-1);
+  EXPECT_GE(applied, 30);
+}
+
+// Each ray the lanes trace ends where trace_path ends it, to the bit (origin, direction,
+// events, dark band, escape into the car), and each ray they call a miss meets no drop. Rows
+// are given every drop over their whole width, so the lanes see every drop for every pixel.
+TEST(PinholeLanes, EachPathIsTracePathsToTheBit) {
+  const Camera cam = camera(160, 80, 176);
+  const std::vector<NamedScene> cases = lane_cases(cam);
+  const int widest = PinholeLanes::level();
+  std::vector<std::int64_t> paths(widest + 1, 0), misses(widest + 1, 0);
+  for (const NamedScene& k : cases) {
+    const std::vector<Drop> drops = drops_of(k.scene);
+    DropAccel accel(drops, k.config.geometry);
+    accel.set_disjoint(!k.config.allow_overlap && !k.config.trails.enabled);
+    if (!PinholeLanes::applies(accel)) continue;
+    const double n = k.config.channel_indices().y;
+    std::vector<DropPath> want(static_cast<size_t>(cam.width * cam.height));
+    for (int y = 0; y < cam.height; ++y)
+      for (int x = 0; x < cam.width; ++x)
+        want[y * cam.width + x] = trace_through_drops(glm::dvec3(0.0), cam.ray_direction(x, y), n, k.config.tir, false,
+                                                      accel, k.scene.glass);
+    std::vector<DropSpan> spans;
+    for (int d = 0; d < static_cast<int>(drops.size()); ++d) spans.push_back({0, cam.width - 1, d});
+    for (int level = 0; level <= widest; ++level) {
+      PinholeLanes::force_level(level);
+      const PinholeLanes lanes(cam, accel, k.scene.glass, n, k.config.tir);
+      PinholeLanes::Row row;
+      for (int y = 0; y < cam.height; ++y) {
+        lanes.trace_row(y, spans, &row);
+        for (int x = 0; x < cam.width; ++x) {
+          const PinholeLanes::Outcome o = row.outcome[x];
+          if (o == PinholeLanes::Outcome::Alone) continue;
+          const DropPath& w = want[y * cam.width + x];
+          auto where = [&] {
+            return k.name + ", level " + std::to_string(level) + ", pixel " + std::to_string(x) + "," + std::to_string(y);
+          };
+          if (o == PinholeLanes::Outcome::Miss) {
+            ++misses[level];
+            EXPECT_FALSE(w.hit) << where();
+            continue;
+          }
+          ++paths[level];
+          const DropPath& got = row.path[x];
+          ASSERT_TRUE(w.hit) << where();
+          EXPECT_EQ(got.first_drop, w.first_drop) << where();
+          EXPECT_EQ(got.dark, w.dark) << where();
+          EXPECT_EQ(got.escaped_in, w.escaped_in) << where();
+          EXPECT_EQ(got.events, w.events) << where();
+          EXPECT_EQ(std::memcmp(&got.origin, &w.origin, sizeof got.origin), 0) << where();
+          ASSERT_EQ(std::memcmp(&got.dir, &w.dir, sizeof got.dir), 0) << where();
+        }
+      }
+    }
+  }
+  PinholeLanes::force_level(-1);
+  for (int level = 0; level <= widest; ++level) {
+    EXPECT_GT(paths[level], 20000) << "level " << level;
+    EXPECT_GT(misses[level], 20000) << "level " << level;
+  }
+}
+
+// The lanes and the side-by-side path without them agree too (the lanes replace both the
+// Embree packet query and trace_through_one_drop).
+TEST(PinholeLanes, TraceWhatTheSideBySidePathTraces) {
+  const Camera cam = camera(320, 160, 353);
+  const cv::Mat clean = random_frame(cam);
+  for (std::uint64_t seed : {4, 5}) {
+    const SceneConfig c = scene_preset("paper");
+    const SceneSample scene = crowded_scene(seed, cam);
+    const std::vector<Drop> drops = drops_of(scene);
+    DropAccel accel(drops, c.geometry);
+    accel.set_disjoint(true);
+    const TraceResult a = trace_drops(clean, cam, c, scene, accel, nullptr, TraceStrategy{true, true});
+    const TraceResult b = trace_drops(clean, cam, c, scene, accel, nullptr, TraceStrategy{true, false});
+    ASSERT_GT(a.stats.drop_pixels, 1000);
+    EXPECT_TRUE(equal_bits(a.label, b.label)) << seed;
+    cv::Mat ca = a.color.clone(), cb = b.color.clone();
+    ca.setTo(cv::Scalar::all(0), a.label < 0);
+    cb.setTo(cv::Scalar::all(0), b.label < 0);
+    EXPECT_TRUE(equal_bits(ca, cb)) << seed;
+  }
+}
+
+// Only drops the lanes' closed forms describe: overlapping drops (one body of water), meshes
+// and irregular outlines keep the general tracer.
+TEST(PinholeLanes, ApplyOnlyToDisjointExactCircularCaps) {
+  const GlassPlane glass{30, 40 * kDegToRad};
+  const std::vector<Drop> drops{Drop(cap(-1, 0, 0.4, 40), glass), Drop(cap(1, 0, 0.4, 40), glass)};
+  DropAccel exact(drops, GeometryOptions{});
+  exact.set_disjoint(true);
+  EXPECT_TRUE(PinholeLanes::applies(exact));
+  exact.set_disjoint(false);
+  EXPECT_FALSE(PinholeLanes::applies(exact));
+  DropAccel mesh(drops, GeometryOptions::parse("mesh-32-smooth"));
+  mesh.set_disjoint(true);
+  EXPECT_FALSE(PinholeLanes::applies(mesh));
+  DropShape irregular = cap(0, 2, 0.4, 40);
+  Rng rng(3);
+  irregular.outline = Outline::draw(0.2, 4, rng);
+  const std::vector<Drop> with_irregular{drops[0], Drop(irregular, glass)};
+  DropAccel odd(with_irregular, GeometryOptions{});
+  odd.set_disjoint(true);
+  EXPECT_FALSE(PinholeLanes::applies(odd));
+}
+
+}  // namespace
+}  // namespace raindrop
