@@ -47,9 +47,6 @@ namespace {
 #undef LANES_LEVEL
 #pragma GCC pop_options
 
-// The kernel's steps' states, the same in every namespace.
-namespace state = lanes_sse2;
-
 std::atomic<int> forced_level{-1};
 
 int widest_level() {
@@ -73,8 +70,8 @@ bool PinholeLanes::applies(const DropAccel& accel) {
   return true;
 }
 
-PinholeLanes::PinholeLanes(const Camera& camera, const DropAccel& accel, const GlassPlane& glass, double n_water,
-                           TirMode tir)
+PinholeLanes::PinholeLanes(const Camera& camera, const DropAccel& accel, const GlassPlane& glass,
+                           double background_z, double n_water, TirMode tir)
     : accel_(accel) {
   // Every constant computed here as the scalar code computes it (same expressions, glm's).
   const glm::dvec3 point = glass.origin(), normal = glass.normal();
@@ -85,6 +82,7 @@ PinholeLanes::PinholeLanes(const Camera& camera, const DropAccel& accel, const G
   scene_.eta_in = 1.0 / n_water;
   scene_.eta_out = n_water;
   scene_.tir_black = tir == TirMode::Black;
+  scene_.background_z = background_z;
   drops_.reserve(accel.drops().size());
   for (const Drop& drop : accel.drops()) {
     const Drop::Frame f = drop.frame();
@@ -106,17 +104,32 @@ PinholeLanes::PinholeLanes(const Camera& camera, const DropAccel& accel, const G
   }
 }
 
+DropPath PinholeLanes::Row::path(int x) const {
+  DropPath p;
+  p.hit = true;
+  p.first_drop = drop[x];
+  p.dark = dark(x);
+  p.escaped_in = escaped_in(x);
+  p.events = state[x] == kTrapped ? 1 : 2;
+  if (!p.dark) {
+    p.origin = glm::dvec3(ox[x], oy[x], oz[x]);
+    p.dir = glm::dvec3(dx[x], dy[x], dz[x]);
+  }
+  return p;
+}
+
 int PinholeLanes::trace_row(int y, const std::vector<DropSpan>& spans, Row* row) const {
   int x_end = 0;
   for (const DropSpan& s : spans) x_end = std::max(x_end, s.last + 1);
   if (row->outcome.size() < static_cast<size_t>(x_end)) {  // the scratch grows to the widest row
     const size_t n = static_cast<size_t>(x_end);
-    for (auto* v : {&row->t, &row->ox, &row->oy, &row->oz, &row->dx, &row->dy, &row->dz, &row->range}) v->resize(n);
+    for (auto* v : {&row->ox, &row->oy, &row->oz, &row->dx, &row->dy, &row->dz, &row->seen_x, &row->seen_y, &row->t,
+                    &row->range})
+      v->resize(n);
     row->outcome.resize(n);
-    row->path.resize(n);
     row->drop.resize(n);
-    row->base.resize(n);
     row->state.resize(n);
+    row->base.resize(n);
   }
   for (const DropSpan& s : spans) {
     std::fill(row->t.begin() + s.first, row->t.begin() + s.last + 1, std::numeric_limits<double>::infinity());
@@ -140,61 +153,31 @@ int PinholeLanes::trace_row(int y, const std::vector<DropSpan>& spans, Row* row)
   int traced = 0;
   for (const DropSpan& s : spans) {
     const lanes_detail::DropConstants& k = drops_[static_cast<size_t>(s.drop)];
-    auto* st = row->state.data();
-    if (level == 2) {
-      lanes_avx512::common_paths(scene_, k, s.drop, ry, s.first, s.last, row->t.data(), row->drop.data(),
-                                 row->base.data(), st, row->ox.data(), row->oy.data(), row->oz.data(),
-                                 row->dx.data(), row->dy.data(), row->dz.data(), row->range.data());
-    } else if (level == 1) {
-      lanes_avx2::common_paths(scene_, k, s.drop, ry, s.first, s.last, row->t.data(), row->drop.data(),
-                               row->base.data(), st, row->ox.data(), row->oy.data(), row->oz.data(), row->dx.data(),
-                               row->dy.data(), row->dz.data(), row->range.data());
-    } else {
-      lanes_sse2::common_paths(scene_, k, s.drop, ry, s.first, s.last, row->t.data(), row->drop.data(),
-                               row->base.data(), st, row->ox.data(), row->oy.data(), row->oz.data(), row->dx.data(),
-                               row->dy.data(), row->dz.data(), row->range.data());
-    }
+    Row& r = *row;
+    auto common_paths = level == 2 ? lanes_avx512::common_paths
+                        : level == 1 ? lanes_avx2::common_paths
+                                     : lanes_sse2::common_paths;
+    common_paths(scene_, k, s.drop, ry, s.first, s.last, r.t.data(), r.drop.data(), r.base.data(), r.state.data(),
+                 r.ox.data(), r.oy.data(), r.oz.data(), r.dx.data(), r.dy.data(), r.dz.data(), r.range.data(),
+                 r.seen_x.data(), r.seen_y.data());
     // The outcome of every pixel of the span whose nearest hit is this drop (a pixel without
     // any hit: Miss, each time a span covers it).
     for (int x = s.first; x <= s.last; ++x) {
-      const int drop = row->drop[x];
+      const int drop = r.drop[x];
       if (drop < 0) {
-        row->outcome[x] = Outcome::Miss;
+        r.outcome[x] = Outcome::Miss;
         continue;
       }
       if (drop != s.drop) continue;
-      if (!row->base[x]) {  // a cap met from outside
-        row->outcome[x] = Outcome::Alone;
-        continue;
-      }
-      const std::uint8_t code = st[x];
-      if (code == state::kAlone) {
-        row->outcome[x] = Outcome::Alone;
-        continue;
-      }
-      DropPath& path = row->path[x];
-      path = DropPath();
-      path.hit = true;
-      path.first_drop = drop;
-      if (code == state::kTrapped) {
-        path.events = 1;
-        path.dark = true;
-      } else if (code == state::kDarkBand) {
-        path.events = 2;
-        path.dark = true;
-      } else {
-        const glm::dvec3 o(row->ox[x], row->oy[x], row->oz[x]), dir(row->dx[x], row->dy[x], row->dz[x]);
-        if ((code & ~state::kEscaped) == state::kOutSlab && accel_.may_meet_after_exit(drop, o, dir, row->range[x])) {
-          row->outcome[x] = Outcome::Alone;
-          continue;
-        }
-        path.events = 2;
-        path.escaped_in = (code & state::kEscaped) != 0;
-        path.origin = o;
-        path.dir = dir;
-      }
-      row->outcome[x] = Outcome::Path;
-      ++traced;
+      const std::uint8_t state = r.state[x];
+      // A cap met from outside, or off the common path on the way; or, out of the drop within
+      // the slab, another drop in reach.
+      const bool alone = !r.base[x] || state == kAlone ||
+                         ((state & ~kEscaped) == kOutSlab &&
+                          accel_.may_meet_after_exit(drop, glm::dvec3(r.ox[x], r.oy[x], r.oz[x]),
+                                                     glm::dvec3(r.dx[x], r.dy[x], r.dz[x]), r.range[x]));
+      r.outcome[x] = alone ? Outcome::Alone : Outcome::Path;
+      traced += !alone;
     }
   }
   return traced;

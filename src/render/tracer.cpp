@@ -452,10 +452,19 @@ class Kernel {
     if (!std::isnan(xy.x)) bg_.prefetch(xy.x, xy.y);
   }
   Sample finish(const DropPath& p, const glm::dvec2& xy) const {
+    if (!p.hit) return Sample{};
+    return finish(PathEnd{p.first_drop, p.dark, p.escaped_in, p.transmittance}, xy);
+  }
+  // The same from what shading reads of a path that met a drop.
+  struct PathEnd {
+    int drop;
+    bool dark, escaped_in;
+    double transmittance;
+  };
+  Sample finish(const PathEnd& p, const glm::dvec2& xy) const {
     Sample s;
-    s.hit = p.hit;
-    if (!s.hit) return s;
-    s.drop = p.first_drop;
+    s.hit = true;
+    s.drop = p.drop;
     s.dark = p.dark;
     s.rgb = shade_at(p, xy, &s.off_frame, &s.xy);
     return s;
@@ -468,10 +477,10 @@ class Kernel {
   // `seen_at`, if given, receives the background point seen (left alone for a dark ray or one
   // that reaches the car's interior).
   glm::dvec3 shade(const DropPath& p, bool* off_frame, glm::dvec2* seen_at = nullptr) const {
-    return shade_at(p, seen_point(p), off_frame, seen_at);
+    return shade_at(PathEnd{p.first_drop, p.dark, p.escaped_in, p.transmittance}, seen_point(p), off_frame, seen_at);
   }
   // The same with the background point seen already computed (seen_point).
-  glm::dvec3 shade_at(const DropPath& p, const glm::dvec2& xy, bool* off_frame, glm::dvec2* seen_at = nullptr) const {
+  glm::dvec3 shade_at(const PathEnd& p, const glm::dvec2& xy, bool* off_frame, glm::dvec2* seen_at = nullptr) const {
     if (p.dark) return glm::dvec3(0.0);
     glm::dvec3 seen;
     if (p.escaped_in) {
@@ -522,95 +531,108 @@ void convex_hull(std::vector<glm::dvec2> points, std::vector<glm::dvec2>* hull) 
   hull->resize(k > 1 ? k - 1 : k);
 }
 
-// Per image row, the merged x-intervals that can show a drop. A drop's cap is convex, so
-// its image is the convex hull of its projected surface (of its convex envelope for an
-// irregular outline, drop.h); the hull of a dense sample of rim
-// and cap points, padded by more than the sampling error, bounds it conservatively. Rays
-// outside these intervals cannot meet a drop and are not traced.
-// `by_drop`, if given, receives the same intervals per drop, unmerged (PinholeLanes).
-std::vector<std::vector<std::pair<int, int>>> candidate_spans(const Camera& camera, const DropAccel& accel,
-                                                              std::vector<std::vector<DropSpan>>* by_drop = nullptr) {
-  std::vector<std::vector<std::pair<int, int>>> rows(camera.height);
-  if (by_drop) by_drop->assign(camera.height, {});
-  int index = 0;  // the drop whose rows are added
+// One drop's part of candidate_spans: the rows (y, x0, x1) its image can reach.
+struct RowSpan {
+  int y, x0, x1;
+};
+void drop_rows(const Camera& camera, const Drop& drop, std::vector<RowSpan>* out) {
   auto add_rows = [&](double y0, double y1, double x0, double x1) {
     const int ix0 = static_cast<int>(std::max(0.0, std::floor(x0)));
     const int ix1 = static_cast<int>(std::min(camera.width - 1.0, std::ceil(x1)));
     const int iy0 = static_cast<int>(std::max(0.0, std::floor(y0)));
     const int iy1 = static_cast<int>(std::min(camera.height - 1.0, std::ceil(y1)));
-    for (int y = iy0; y <= iy1 && ix0 <= ix1; ++y) {
-      rows[y].push_back({ix0, ix1});
-      if (by_drop) (*by_drop)[y].push_back({ix0, ix1, index});
-    }
+    for (int y = iy0; y <= iy1 && ix0 <= ix1; ++y) out->push_back({y, ix0, ix1});
   };
   constexpr int kAzimuths = 48, kRings = 4;
   std::vector<glm::dvec2> points, hull;
-  for (const Drop& drop : accel.drops()) {
-    index = static_cast<int>(&drop - accel.drops().data());
-    points.clear();
-    bool behind = false;
-    const double tau = drop.shape().contact_angle;
-    for (int r = 0; r <= kRings && !behind; ++r) {
-      for (int a = 0; a < (r == 0 ? 1 : kAzimuths); ++a) {
-        const glm::dvec3 p = drop.envelope_point(tau * r / kRings, 2 * M_PI * a / kAzimuths);
-        if (p.z <= 1e-9) {
-          behind = true;
-          break;
-        }
-        points.push_back(camera.project(p));
+  bool behind = false;
+  const double tau = drop.shape().contact_angle;
+  for (int r = 0; r <= kRings && !behind; ++r) {
+    for (int a = 0; a < (r == 0 ? 1 : kAzimuths); ++a) {
+      const glm::dvec3 p = drop.envelope_point(tau * r / kRings, 2 * M_PI * a / kAzimuths);
+      if (p.z <= 1e-9) {
+        behind = true;
+        break;
       }
-    }
-    if (behind || points.size() < 3) {  // reaches behind the camera: trace the whole frame
-      add_rows(0, camera.height - 1, 0, camera.width - 1);
-      continue;
-    }
-    convex_hull(points, &hull);
-    double x0 = 1e300, x1 = -1e300, y0 = 1e300, y1 = -1e300;
-    for (const auto& p : hull) {
-      x0 = std::min(x0, p.x), x1 = std::max(x1, p.x), y0 = std::min(y0, p.y), y1 = std::max(y1, p.y);
-    }
-    if (!(x1 >= -camera.width && x0 <= 2.0 * camera.width && y1 >= -camera.height && y0 <= 2.0 * camera.height))
-      continue;  // far outside the frame
-    // Padding: the sampled hull lies inside the true one by at most the sagitta of the
-    // largest sampling step (< 1% of the size here), plus a pixel for rasterisation.
-    const double pad = 1.0 + 0.01 * std::max(x1 - x0, y1 - y0);
-    if (x1 - x0 > 4.0 * camera.width || y1 - y0 > 4.0 * camera.height) {  // huge: bounds will do
-      add_rows(y0 - pad, y1 + pad, x0 - pad, x1 + pad);
-      continue;
-    }
-    // For each row, the x-extent of the hull within the band [y - pad, y + pad], padded.
-    const int iy0 = static_cast<int>(std::max(0.0, std::floor(y0 - pad)));
-    const int iy1 = static_cast<int>(std::min(camera.height - 1.0, std::ceil(y1 + pad)));
-    if (iy0 > iy1) continue;
-    std::vector<double> lo(iy1 - iy0 + 1, 1e300), hi(iy1 - iy0 + 1, -1e300);
-    for (size_t i = 0; i < hull.size(); ++i) {
-      const glm::dvec2 a = hull[i], b = hull[(i + 1) % hull.size()];
-      const int ra = std::max(iy0, static_cast<int>(std::floor(std::min(a.y, b.y) - pad)));
-      const int rb = std::min(iy1, static_cast<int>(std::ceil(std::max(a.y, b.y) + pad)));
-      for (int y = ra; y <= rb; ++y) {
-        // Part of the edge inside the band, by its parameter range.
-        double s0 = 0, s1 = 1;
-        const double dy = b.y - a.y;
-        if (std::abs(dy) > 1e-12) {
-          double u0 = (y - pad - a.y) / dy, u1 = (y + pad - a.y) / dy;
-          if (u0 > u1) std::swap(u0, u1);
-          s0 = std::max(s0, u0);
-          s1 = std::min(s1, u1);
-        } else if (std::abs(a.y - y) > pad) {
-          continue;
-        }
-        if (s0 > s1) continue;
-        const double xa = a.x + s0 * (b.x - a.x), xb = a.x + s1 * (b.x - a.x);
-        lo[y - iy0] = std::min({lo[y - iy0], xa, xb});
-        hi[y - iy0] = std::max({hi[y - iy0], xa, xb});
-      }
-    }
-    for (int y = iy0; y <= iy1; ++y) {
-      if (lo[y - iy0] > hi[y - iy0]) continue;
-      add_rows(y, y, lo[y - iy0] - pad, hi[y - iy0] + pad);
+      points.push_back(camera.project(p));
     }
   }
-  for (auto& spans : rows) merge_spans(spans);
+  if (behind || points.size() < 3) {  // reaches behind the camera: trace the whole frame
+    add_rows(0, camera.height - 1, 0, camera.width - 1);
+    return;
+  }
+  convex_hull(points, &hull);
+  double x0 = 1e300, x1 = -1e300, y0 = 1e300, y1 = -1e300;
+  for (const auto& p : hull) {
+    x0 = std::min(x0, p.x), x1 = std::max(x1, p.x), y0 = std::min(y0, p.y), y1 = std::max(y1, p.y);
+  }
+  if (!(x1 >= -camera.width && x0 <= 2.0 * camera.width && y1 >= -camera.height && y0 <= 2.0 * camera.height))
+    return;  // far outside the frame
+  // Padding: the sampled hull lies inside the true one by at most the sagitta of the
+  // largest sampling step (< 1% of the size here), plus a pixel for rasterisation.
+  const double pad = 1.0 + 0.01 * std::max(x1 - x0, y1 - y0);
+  if (x1 - x0 > 4.0 * camera.width || y1 - y0 > 4.0 * camera.height) {  // huge: bounds will do
+    add_rows(y0 - pad, y1 + pad, x0 - pad, x1 + pad);
+    return;
+  }
+  // For each row, the x-extent of the hull within the band [y - pad, y + pad], padded.
+  const int iy0 = static_cast<int>(std::max(0.0, std::floor(y0 - pad)));
+  const int iy1 = static_cast<int>(std::min(camera.height - 1.0, std::ceil(y1 + pad)));
+  if (iy0 > iy1) return;
+  std::vector<double> lo(iy1 - iy0 + 1, 1e300), hi(iy1 - iy0 + 1, -1e300);
+  for (size_t i = 0; i < hull.size(); ++i) {
+    const glm::dvec2 a = hull[i], b = hull[(i + 1) % hull.size()];
+    const int ra = std::max(iy0, static_cast<int>(std::floor(std::min(a.y, b.y) - pad)));
+    const int rb = std::min(iy1, static_cast<int>(std::ceil(std::max(a.y, b.y) + pad)));
+    for (int y = ra; y <= rb; ++y) {
+      // Part of the edge inside the band, by its parameter range.
+      double s0 = 0, s1 = 1;
+      const double dy = b.y - a.y;
+      if (std::abs(dy) > 1e-12) {
+        double u0 = (y - pad - a.y) / dy, u1 = (y + pad - a.y) / dy;
+        if (u0 > u1) std::swap(u0, u1);
+        s0 = std::max(s0, u0);
+        s1 = std::min(s1, u1);
+      } else if (std::abs(a.y - y) > pad) {
+        continue;
+      }
+      if (s0 > s1) continue;
+      const double xa = a.x + s0 * (b.x - a.x), xb = a.x + s1 * (b.x - a.x);
+      lo[y - iy0] = std::min({lo[y - iy0], xa, xb});
+      hi[y - iy0] = std::max({hi[y - iy0], xa, xb});
+    }
+  }
+  for (int y = iy0; y <= iy1; ++y) {
+    if (lo[y - iy0] > hi[y - iy0]) continue;
+    add_rows(y, y, lo[y - iy0] - pad, hi[y - iy0] + pad);
+  }
+}
+
+// Per image row, the merged x-intervals that can show a drop. A drop's cap is convex, so
+// its image is the convex hull of its projected surface (of its convex envelope for an
+// irregular outline, drop.h); the hull of a dense sample of rim
+// and cap points, padded by more than the sampling error, bounds it conservatively. Rays
+// outside these intervals cannot meet a drop and are not traced.
+// `by_drop`, if given, receives the same intervals per drop, unmerged (PinholeLanes). The
+// drops' hulls are found in parallel, the rows merged in parallel.
+std::vector<std::vector<std::pair<int, int>>> candidate_spans(const Camera& camera, const DropAccel& accel,
+                                                              std::vector<std::vector<DropSpan>>* by_drop = nullptr) {
+  const std::vector<Drop>& drops = accel.drops();
+  std::vector<std::vector<RowSpan>> parts(drops.size());
+  tbb::parallel_for(tbb::blocked_range<size_t>(0, drops.size(), 4), [&](const tbb::blocked_range<size_t>& r) {
+    for (size_t i = r.begin(); i < r.end(); ++i) drop_rows(camera, drops[i], &parts[i]);
+  });
+  std::vector<std::vector<std::pair<int, int>>> rows(camera.height);
+  if (by_drop) by_drop->assign(camera.height, {});
+  for (size_t i = 0; i < parts.size(); ++i) {
+    for (const RowSpan& s : parts[i]) {
+      rows[s.y].push_back({s.x0, s.x1});
+      if (by_drop) (*by_drop)[s.y].push_back({s.x0, s.x1, static_cast<int>(i)});
+    }
+  }
+  tbb::parallel_for(tbb::blocked_range<int>(0, camera.height, 64), [&](const tbb::blocked_range<int>& r) {
+    for (int y = r.begin(); y < r.end(); ++y) merge_spans(rows[y]);
+  });
   return rows;
 }
 
@@ -679,7 +701,7 @@ TraceResult run(const cv::Mat& clean, const Camera& camera, const SceneConfig& c
   std::vector<std::vector<DropSpan>> drop_spans;
   if constexpr (!kFresnel && !kDispersion) {
     if (strategy.lanes && kernel.lockstep() && PinholeLanes::applies(accel))
-      lanes.emplace(camera, accel, scene.glass, config.channel_indices().y, config.tir);
+      lanes.emplace(camera, accel, scene.glass, scene.background_distance_cm, config.channel_indices().y, config.tir);
   }
   out.spans = candidate_spans(camera, accel, lanes ? &drop_spans : nullptr);
   const auto& spans = out.spans;
@@ -692,7 +714,7 @@ TraceResult run(const cv::Mat& clean, const Camera& camera, const SceneConfig& c
     std::int64_t n_cand = 0, n_drop = 0, n_dark = 0, n_off = 0, n_lock = 0;
     struct Pending {
       int x;
-      DropPath path;
+      typename Kernel<kFresnel, kDispersion>::PathEnd end;
       glm::dvec2 xy;
     };
     std::vector<Pending> pending;
@@ -736,7 +758,10 @@ TraceResult run(const cv::Mat& clean, const Camera& camera, const SceneConfig& c
         auto flush = [&] {
           n_lock += kernel.trace_camera_packet(xs, queued, y, paths);
           for (int i = 0; i < queued; ++i)
-            if (paths[i].hit) pending.push_back({xs[i], paths[i], kernel.seen_point(paths[i])});
+            if (paths[i].hit) {
+              const DropPath& p = paths[i];
+              pending.push_back({xs[i], {p.first_drop, p.dark, p.escaped_in, p.transmittance}, kernel.seen_point(p)});
+            }
           queued = 0;
         };
         if (lanes) {
@@ -747,8 +772,11 @@ TraceResult run(const cv::Mat& clean, const Camera& camera, const SceneConfig& c
               ++n_cand;
               const PinholeLanes::Outcome o = lane_row.outcome[x];
               if (o == PinholeLanes::Outcome::Path) {
-                const DropPath& path = lane_row.path[x];
-                pending.push_back({x, path, kernel.seen_point(path)});
+                // As seen_point: no background point for a dark ray or one into the car.
+                const bool black = lane_row.dark(x), escaped = lane_row.escaped_in(x);
+                const glm::dvec2 xy = black || escaped ? glm::dvec2(NAN, NAN)
+                                                       : glm::dvec2(lane_row.seen_x[x], lane_row.seen_y[x]);
+                pending.push_back({x, {lane_row.drop[x], black, escaped, 1.0}, xy});
               } else if (o == PinholeLanes::Outcome::Alone) {
                 xs[queued++] = x;
                 if (queued == 8) flush();
@@ -769,7 +797,7 @@ TraceResult run(const cv::Mat& clean, const Camera& camera, const SceneConfig& c
         for (size_t i = 0; i < std::min(kAhead, pending.size()); ++i) kernel.prefetch(pending[i].xy);
         for (size_t i = 0; i < pending.size(); ++i) {
           if (i + kAhead < pending.size()) kernel.prefetch(pending[i + kAhead].xy);
-          keep(pending[i].x, kernel.finish(pending[i].path, pending[i].xy));
+          keep(pending[i].x, kernel.finish(pending[i].end, pending[i].xy));
         }
       }
     }

@@ -90,7 +90,7 @@ TEST(PinholeLanes, EveryRegisterWidthTracesWhatOneRayAtATimeTraces) {
 }
 
 // Each ray the lanes trace ends where trace_path ends it, to the bit (origin, direction,
-// events, dark band, escape into the car), and each ray they call a miss meets no drop. Rows
+// events, dark band, escape into the car, the background point seen), and each ray they call a miss meets no drop. Rows
 // are given every drop over their whole width, so the lanes see every drop for every pixel.
 TEST(PinholeLanes, EachPathIsTracePathsToTheBit) {
   const Camera cam = camera(160, 80, 176);
@@ -112,7 +112,7 @@ TEST(PinholeLanes, EachPathIsTracePathsToTheBit) {
     for (int d = 0; d < static_cast<int>(drops.size()); ++d) spans.push_back({0, cam.width - 1, d});
     for (int level = 0; level <= widest; ++level) {
       PinholeLanes::force_level(level);
-      const PinholeLanes lanes(cam, accel, k.scene.glass, n, k.config.tir);
+      const PinholeLanes lanes(cam, accel, k.scene.glass, k.scene.background_distance_cm, n, k.config.tir);
       PinholeLanes::Row row;
       for (int y = 0; y < cam.height; ++y) {
         lanes.trace_row(y, spans, &row);
@@ -129,7 +129,7 @@ TEST(PinholeLanes, EachPathIsTracePathsToTheBit) {
             continue;
           }
           ++paths[level];
-          const DropPath& got = row.path[x];
+          const DropPath got = row.path(x);
           ASSERT_TRUE(w.hit) << where();
           EXPECT_EQ(got.first_drop, w.first_drop) << where();
           EXPECT_EQ(got.dark, w.dark) << where();
@@ -137,6 +137,10 @@ TEST(PinholeLanes, EachPathIsTracePathsToTheBit) {
           EXPECT_EQ(got.events, w.events) << where();
           EXPECT_EQ(std::memcmp(&got.origin, &w.origin, sizeof got.origin), 0) << where();
           ASSERT_EQ(std::memcmp(&got.dir, &w.dir, sizeof got.dir), 0) << where();
+          if (w.dark || w.escaped_in) continue;
+          const glm::dvec2 seen = background_pixel(w, cam, k.scene.background_distance_cm);
+          EXPECT_EQ(std::memcmp(&row.seen_x[x], &seen.x, sizeof seen.x), 0) << where();
+          EXPECT_EQ(std::memcmp(&row.seen_y[x], &seen.y, sizeof seen.y), 0) << where();
         }
       }
     }

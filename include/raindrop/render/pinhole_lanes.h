@@ -50,6 +50,7 @@ struct SceneConstants {
   double top;              // slab_top
   double h0;               // slab_range's height of the camera's centre above the glass
   double eta_in, eta_out;  // 1 / n_water, n_water
+  double background_z;     // the background plane, z = background_z
   bool tir_black;
 };
 // One drop's constants (Drop::intersect's, for the camera's centre as origin).
@@ -73,18 +74,31 @@ class PinholeLanes {
   // A row's results, indexed by x (sized to the frame's width by trace_row).
   struct Row {
     std::vector<Outcome> outcome;
-    std::vector<DropPath> path;
-    // Scratch: the nearest first hit so far, and the common path's intermediate results.
-    std::vector<double> t, ox, oy, oz, dx, dy, dz, range;
+    // Where outcome is Path: the drop met first, and how the ray ended (a State).
     std::vector<int> drop;
-    std::vector<std::uint8_t> base, state;
+    std::vector<std::uint8_t> state;
+    // The exit ray o + t d and the background point it sees (unset for a dark path).
+    std::vector<double> ox, oy, oz, dx, dy, dz, seen_x, seen_y;
+    // Scratch: the nearest first hit so far, whether on a base, the exit ray's slab range.
+    std::vector<double> t, range;
+    std::vector<std::uint8_t> base;
+
+    bool dark(int x) const { return state[x] == kTrapped || state[x] == kDarkBand; }
+    bool escaped_in(int x) const { return (state[x] & kEscaped) != 0; }
+    // trace_path's DropPath for a Path pixel.
+    DropPath path(int x) const;
   };
+  // How a traced ray ended: no way out of the water (dark), the dark band, out of the drop
+  // (with kOutSlab: within the slab, where may_meet_after_exit decides), plus kEscaped when it
+  // heads back through the glass; kAlone: left the common path.
+  enum State : std::uint8_t { kAlone = 1, kTrapped = 2, kDarkBand = 3, kOut = 4, kOutSlab = 5, kEscaped = 8 };
 
   // Whether the lanes can trace this accelerator's drops: exact caps, all of circular
   // outline, disjoint.
   static bool applies(const DropAccel& accel);
 
-  PinholeLanes(const Camera& camera, const DropAccel& accel, const GlassPlane& glass, double n_water, TirMode tir);
+  PinholeLanes(const Camera& camera, const DropAccel& accel, const GlassPlane& glass, double background_z,
+               double n_water, TirMode tir);
 
   // The camera rays through the pixels of row y that `spans` (one row's DropSpans; a pixel
   // may lie in several) cover: row->outcome[x] for each, row->path[x] where it is Path.
