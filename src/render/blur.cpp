@@ -54,45 +54,100 @@ struct Source {
   const f4* prefix_row(int y) const { return prefix.data() + static_cast<size_t>(y - y0) * (w + 1) - x0; }
 };
 
-// The part of row y that the blur of drop pixels can read: the traced spans of the rows
-// within `reach`, widened by `reach` and clipped to the box, merged. Without spans: the row.
-std::vector<std::pair<int, int>> read_intervals(const Spans* spans, int y, int reach, const cv::Rect& box) {
-  const int lo = box.x, hi = box.x + box.width - 1;
-  if (!spans) return {{lo, hi}};
-  std::vector<std::pair<int, int>> in;
-  for (int yy = std::max(0, y - reach); yy <= std::min(static_cast<int>(spans->size()) - 1, y + reach); ++yy) {
-    for (const auto& [a, b] : (*spans)[yy]) {
-      const int ia = std::max(lo, a - reach), ib = std::min(hi, b + reach);
-      if (ia <= ib) in.push_back({ia, ib});
+// The union of two sorted lists of disjoint spans, merged (touching spans joined), in one pass.
+std::vector<std::pair<int, int>> unite(const std::vector<std::pair<int, int>>& a, const std::vector<std::pair<int, int>>& b) {
+  std::vector<std::pair<int, int>> out;
+  out.reserve(a.size() + b.size());
+  size_t i = 0, j = 0;
+  while (i < a.size() || j < b.size()) {
+    const auto& next = j == b.size() || (i < a.size() && a[i] < b[j]) ? a[i++] : b[j++];
+    if (!out.empty() && next.first <= out.back().second + 1) {
+      out.back().second = std::max(out.back().second, next.second);
+    } else {
+      out.push_back(next);
     }
   }
-  merge_spans(in);
-  return in;
+  return out;
 }
+
+}  // namespace
+
+// Per row y of `box`, the part of it that the blur of drop pixels can read: the traced spans
+// of rows y - reach .. y + reach, widened by `reach` and clipped to the box, merged. Without
+// spans: the row. Each window's union is that of two running unions (as van Herk and
+// Gil-Werman take running maxima): in blocks of 2 reach + 1 rows, the union from each row to
+// its block's end and from its block's start to each row; a window starts in one block and
+// ends in the next (or at its end), so it is a union from its first row to that block's end
+// with a union from the next block's start to its last row.
+std::vector<std::vector<Span>> blur_read_intervals(const Spans* spans, int reach, const cv::Rect& box) {
+  const int lo = box.x, hi = box.x + box.width - 1;
+  std::vector<std::vector<std::pair<int, int>>> out(box.height);
+  if (!spans) {
+    for (auto& row : out) row = {{lo, hi}};
+    return out;
+  }
+  // Rows box.y - reach .. box.y + box.height - 1 + reach, as v = 0 .. n - 1 (empty outside the frame).
+  const int first = box.y - reach, n = box.height + 2 * reach, block = 2 * reach + 1;
+  const int frame_rows = static_cast<int>(spans->size());
+  std::vector<std::vector<std::pair<int, int>>> widened(n), to_end(n), from_start(n);
+  tbb::parallel_for(tbb::blocked_range<int>(0, (n + block - 1) / block), [&](const tbb::blocked_range<int>& r) {
+    for (int b = r.begin(); b < r.end(); ++b) {
+      const int v0 = b * block, v1 = std::min(n, v0 + block);
+      for (int v = v0; v < v1; ++v) {
+        const int y = first + v;
+        if (y < 0 || y >= frame_rows) continue;
+        for (const auto& [a, e] : (*spans)[y]) {
+          const int ia = std::max(lo, a - reach), ib = std::min(hi, e + reach);
+          if (ia <= ib) widened[v].push_back({ia, ib});
+        }
+        merge_spans(widened[v]);  // spans may touch once widened
+      }
+      for (int v = v0; v < v1; ++v) from_start[v] = v == v0 ? widened[v] : unite(from_start[v - 1], widened[v]);
+      for (int v = v1 - 1; v >= v0; --v) to_end[v] = v == v1 - 1 ? widened[v] : unite(widened[v], to_end[v + 1]);
+    }
+  });
+  // Row j of the box: window v = j .. j + 2 reach.
+  tbb::parallel_for(tbb::blocked_range<int>(0, box.height, 16), [&](const tbb::blocked_range<int>& r) {
+    for (int j = r.begin(); j < r.end(); ++j) {
+      const int last = j + 2 * reach;
+      out[j] = j % block == 0 ? from_start[last] : unite(to_end[j], from_start[last]);
+    }
+  });
+  return out;
+}
+
+namespace {
 
 Source make_source(const cv::Mat& clean, const cv::Mat& label, const cv::Mat& color, const cv::Rect& box,
                    bool prefix, const Spans* spans, int reach) {
   Source s{box.x, box.y, box.width, box.height, F4Buffer(static_cast<size_t>(box.width) * box.height), {}, {}};
   if (prefix) s.prefix = F4Buffer(static_cast<size_t>(box.width + 1) * box.height);
-  s.intervals.resize(box.height);
+  s.intervals = blur_read_intervals(spans, reach, box);
   tbb::parallel_for(tbb::blocked_range<int>(0, box.height, 16), [&](const tbb::blocked_range<int>& r) {
     for (int j = r.begin(); j < r.end(); ++j) {
       const int y = box.y + j;
-      s.intervals[j] = read_intervals(spans, y, reach, box);
       const auto* c8 = clean.ptr<cv::Vec3b>(y);
       const int* lab = label.ptr<int>(y);
       const auto* col = color.ptr<cv::Vec3f>(y);
       f4* dst = s.rgb.data() + static_cast<size_t>(j) * box.width - box.x;
       f4* p = prefix ? s.prefix.data() + static_cast<size_t>(j) * (box.width + 1) - box.x : nullptr;
       constexpr float k = 1.0f / 255.0f;
+      auto source = [&](int x) {
+        return lab[x] >= 0 ? f4{col[x][0], col[x][1], col[x][2], 0.f} : f4{c8[x][0] * k, c8[x][1] * k, c8[x][2] * k, 0.f};
+      };
       for (const auto& [a, b] : s.intervals[j]) {
-        for (int x = a; x <= b; ++x) {
-          dst[x] = lab[x] >= 0 ? f4{col[x][0], col[x][1], col[x][2], 0.f}
-                               : f4{c8[x][0] * k, c8[x][1] * k, c8[x][2] * k, 0.f};
+        if (!p) {
+          for (int x = a; x <= b; ++x) dst[x] = source(x);
+          continue;
         }
-        if (p) {
-          p[a] = f4{0, 0, 0, 0};
-          for (int x = a; x <= b; ++x) p[x + 1] = p[x] + dst[x];
+        // One pass: the running sum's chain of additions overlaps the conversion.
+        f4 sum{0, 0, 0, 0};
+        p[a] = sum;
+        for (int x = a; x <= b; ++x) {
+          const f4 v = source(x);
+          dst[x] = v;
+          sum = sum + v;
+          p[x + 1] = sum;
         }
       }
     }

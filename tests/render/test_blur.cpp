@@ -172,6 +172,44 @@ TEST(Blur, ReadingOnlyNearTracedSpansGivesTheSameResult) {
   }
 }
 
+// What the blur reads near the traced spans is, row for row, the union of the window's spans
+// widened and clipped (here computed directly, sorted and merged), for random spans, reaches
+// (0 to 12: windows of 1 to 25 rows) and boxes at and inside the frame's border.
+TEST(Blur, ReadIntervalsAreEachWindowsWidenedSpans) {
+  Rng rng(23);
+  int rows_checked = 0;
+  for (int trial = 0; trial < 60; ++trial) {
+    const int width = rng.uniform_int(20, 200), height = rng.uniform_int(5, 90);
+    std::vector<std::vector<std::pair<int, int>>> spans(height);
+    for (auto& row : spans) {
+      const int count = rng.uniform_int(0, 4);
+      for (int i = 0; i < count; ++i) {
+        const int a = rng.uniform_int(0, width - 1);
+        row.push_back({a, std::min(width - 1, a + rng.uniform_int(0, 30))});
+      }
+      merge_spans(row);
+    }
+    const int reach = rng.uniform_int(0, 12);
+    const int x = rng.uniform_int(0, width / 3), y = rng.uniform_int(0, height / 3);
+    const cv::Rect box(x, y, rng.uniform_int(1, width - x), rng.uniform_int(1, height - y));
+    const auto got = blur_read_intervals(&spans, reach, box);
+    ASSERT_EQ(static_cast<int>(got.size()), box.height);
+    for (int j = 0; j < box.height; ++j) {
+      std::vector<std::pair<int, int>> want;
+      for (int yy = std::max(0, box.y + j - reach); yy <= std::min(height - 1, box.y + j + reach); ++yy) {
+        for (const auto& [a, b] : spans[yy]) {
+          const int ia = std::max(box.x, a - reach), ib = std::min(box.x + box.width - 1, b + reach);
+          if (ia <= ib) want.push_back({ia, ib});
+        }
+      }
+      merge_spans(want);
+      EXPECT_EQ(got[j], want) << "trial " << trial << " row " << j;
+      ++rows_checked;
+    }
+  }
+  EXPECT_GT(rows_checked, 1000);
+}
+
 // The blur of a single bright drop pixel is the kernel itself, so its footprint shows the
 // disk's diameter (blur.h): for "disk" and "disk-direct" exactly the pixels whose centre is
 // within d / 2 of the point; for "disk-aa" each column holds the area of the disk of

@@ -38,6 +38,12 @@ int blur_simd_level();
 // Tests: use at most `level` from now on (-1: the processor's widest again).
 void force_blur_simd_level(int level);
 
+// Per row y of `box`, the x-intervals blur_drops reads when given `spans`: the spans of rows
+// y - reach .. y + reach, widened by `reach`, clipped to the box, merged (touching intervals
+// joined). Without spans, the box's row. Exposed for tests.
+std::vector<std::vector<Span>> blur_read_intervals(const std::vector<std::vector<Span>>* spans, int reach,
+                                                   const cv::Rect& box);
+
 // The kernel's weights as a dense (2R+1)^2 matrix, for tests and documentation.
 cv::Mat blur_kernel(double diameter_px, BlurMethod method);
 
