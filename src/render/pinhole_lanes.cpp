@@ -17,7 +17,7 @@ namespace raindrop {
 namespace {
 
 // The kernel once per register width, each compiled for its own instruction set. Its
-// eight-double vectors never cross a function boundary (every helper is inlined), so the
+// vectors never cross a function boundary (every helper is inlined), so the
 // warning that passing them by value would change the ABI does not apply (GCC gives it at
 // the end of the file: off for all of it).
 #pragma GCC diagnostic ignored "-Wpsabi"

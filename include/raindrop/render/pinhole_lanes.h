@@ -7,8 +7,8 @@
 // with no other drop in reach. Traced one ray at a time, that path is a chain of square roots
 // and divisions behind an Embree query whose callbacks cost as much again. Here a row's rays
 // are taken a drop at a time, over the pixels whose rays can reach that drop (the tracer's
-// spans, kept per drop), eight lanes at a time, with the drop's constants the same in every
-// lane:
+// spans, kept per drop), as many lanes at a time as a register holds doubles, with the
+// drop's constants the same in every lane:
 //
 //   1. first hits: Drop::intersect of each ray with the drop (base, then the cap's roots);
 //      over the drops whose spans cover a pixel, the nearest hit, ties to the lower index:
