@@ -71,7 +71,7 @@ bool PinholeLanes::applies(const DropAccel& accel) {
 }
 
 PinholeLanes::PinholeLanes(const Camera& camera, const DropAccel& accel, const GlassPlane& glass,
-                           double background_z, double n_water, TirMode tir)
+                           double background_z, double n_water, TirMode tir, bool fresnel)
     : accel_(accel) {
   // Every constant computed here as the scalar code computes it (same expressions, glm's).
   const glm::dvec3 point = glass.origin(), normal = glass.normal();
@@ -82,6 +82,7 @@ PinholeLanes::PinholeLanes(const Camera& camera, const DropAccel& accel, const G
   scene_.eta_in = 1.0 / n_water;
   scene_.eta_out = n_water;
   scene_.tir_black = tir == TirMode::Black;
+  scene_.fresnel = fresnel;
   scene_.background_z = background_z;
   drops_.reserve(accel.drops().size());
   for (const Drop& drop : accel.drops()) {
@@ -111,6 +112,7 @@ DropPath PinholeLanes::Row::path(int x) const {
   p.dark = dark(x);
   p.escaped_in = escaped_in(x);
   p.events = state[x] == kTrapped ? 1 : 2;
+  p.transmittance = transmittance[x];
   if (!p.dark) {
     p.origin = glm::dvec3(ox[x], oy[x], oz[x]);
     p.dir = glm::dvec3(dx[x], dy[x], dz[x]);
@@ -124,7 +126,7 @@ int PinholeLanes::trace_row(int y, const std::vector<DropSpan>& spans, Row* row)
   if (row->outcome.size() < static_cast<size_t>(x_end)) {  // the scratch grows to the widest row
     const size_t n = static_cast<size_t>(x_end);
     for (auto* v : {&row->ox, &row->oy, &row->oz, &row->dx, &row->dy, &row->dz, &row->seen_x, &row->seen_y, &row->t,
-                    &row->range})
+                    &row->range, &row->transmittance})
       v->resize(n);
     row->outcome.resize(n);
     row->drop.resize(n);
@@ -159,7 +161,7 @@ int PinholeLanes::trace_row(int y, const std::vector<DropSpan>& spans, Row* row)
                                      : lanes_sse2::common_paths;
     common_paths(scene_, k, s.drop, ry, s.first, s.last, r.t.data(), r.drop.data(), r.base.data(), r.state.data(),
                  r.ox.data(), r.oy.data(), r.oz.data(), r.dx.data(), r.dy.data(), r.dz.data(), r.range.data(),
-                 r.seen_x.data(), r.seen_y.data());
+                 r.seen_x.data(), r.seen_y.data(), r.transmittance.data());
     // The outcome of every pixel of the span whose nearest hit is this drop (a pixel without
     // any hit: Miss, each time a span covers it).
     for (int x = s.first; x <= s.last; ++x) {

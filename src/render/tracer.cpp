@@ -699,9 +699,10 @@ TraceResult run(const cv::Mat& clean, const Camera& camera, const SceneConfig& c
   // The pinhole pass in SIMD lanes where they apply (pinhole_lanes.h): the same bits.
   std::optional<PinholeLanes> lanes;
   std::vector<std::vector<DropSpan>> drop_spans;
-  if constexpr (!kFresnel && !kDispersion) {
+  if constexpr (!kDispersion) {
     if (strategy.lanes && kernel.lockstep() && PinholeLanes::applies(accel))
-      lanes.emplace(camera, accel, scene.glass, scene.background_distance_cm, config.channel_indices().y, config.tir);
+      lanes.emplace(camera, accel, scene.glass, scene.background_distance_cm, config.channel_indices().y, config.tir,
+                    kFresnel);
   }
   out.spans = candidate_spans(camera, accel, lanes ? &drop_spans : nullptr);
   const auto& spans = out.spans;
@@ -776,7 +777,7 @@ TraceResult run(const cv::Mat& clean, const Camera& camera, const SceneConfig& c
                 const bool black = lane_row.dark(x), escaped = lane_row.escaped_in(x);
                 const glm::dvec2 xy = black || escaped ? glm::dvec2(NAN, NAN)
                                                        : glm::dvec2(lane_row.seen_x[x], lane_row.seen_y[x]);
-                pending.push_back({x, {lane_row.drop[x], black, escaped, 1.0}, xy});
+                pending.push_back({x, {lane_row.drop[x], black, escaped, lane_row.transmittance[x]}, xy});
               } else if (o == PinholeLanes::Outcome::Alone) {
                 xs[queued++] = x;
                 if (queued == 8) flush();

@@ -25,7 +25,7 @@
 // and every width gives the same bits; tests/render/test_pinhole_lanes.cpp).
 //
 // Only where every drop is an exact cap of circular outline and drops are disjoint
-// (`applies`); no Fresnel, no dispersion (the tracer's other kernels keep their paths).
+// (`applies`); Fresnel's transmittances included, not dispersion (whose kernel keeps its path).
 #include <cstdint>
 #include <vector>
 
@@ -52,6 +52,7 @@ struct SceneConstants {
   double eta_in, eta_out;  // 1 / n_water, n_water
   double background_z;     // the background plane, z = background_z
   bool tir_black;
+  bool fresnel;            // transmittances traced (Fresnel)
 };
 // One drop's constants (Drop::intersect's, for the camera's centre as origin).
 struct DropConstants {
@@ -79,6 +80,7 @@ class PinholeLanes {
     std::vector<std::uint8_t> state;
     // The exit ray o + t d and the background point it sees (unset for a dark path).
     std::vector<double> ox, oy, oz, dx, dy, dz, seen_x, seen_y;
+    std::vector<double> transmittance;  // Fresnel's product (1 without it)
     // Scratch: the nearest first hit so far, whether on a base, the exit ray's slab range.
     std::vector<double> t, range;
     std::vector<std::uint8_t> base;
@@ -98,7 +100,7 @@ class PinholeLanes {
   static bool applies(const DropAccel& accel);
 
   PinholeLanes(const Camera& camera, const DropAccel& accel, const GlassPlane& glass, double background_z,
-               double n_water, TirMode tir);
+               double n_water, TirMode tir, bool fresnel);
 
   // The camera rays through the pixels of row y that `spans` (one row's DropSpans; a pixel
   // may lie in several) cover: row->outcome[x] for each, row->path[x] where it is Path.

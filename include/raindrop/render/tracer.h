@@ -85,7 +85,7 @@ struct TraceStrategy {
   // camera rays' first queries as Embree packets; trace_aperture asks one query per ray).
   bool lockstep = true;
   // With lockstep, the pinhole pass's camera rays traced in SIMD lanes a drop at a time
-  // (pinhole_lanes.h; exact disjoint caps of circular outline, no Fresnel, no dispersion).
+  // (pinhole_lanes.h; exact disjoint caps of circular outline, no dispersion).
   bool lanes = true;
 };
 
