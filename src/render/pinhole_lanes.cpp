@@ -7,14 +7,19 @@
 
 #include <glm/geometric.hpp>
 
-#if defined(__x86_64__) && defined(__GNUC__)
+// The kernel's vectors, per-function targets and builtins are GCC's on x86-64 (Clang ignores
+// `#pragma GCC target`); other builds keep the tracer's own path (available() is false).
+#if defined(__x86_64__) && defined(__GNUC__) && !defined(__clang__)
+#define RAINDROP_PINHOLE_LANES 1
 #include <immintrin.h>
 #else
-#error "pinhole_lanes.cpp needs GCC or Clang on x86-64"
+#define RAINDROP_PINHOLE_LANES 0
 #endif
 
 namespace raindrop {
 namespace {
+
+#if RAINDROP_PINHOLE_LANES
 
 // The kernel once per register width, each compiled for its own instruction set. Its
 // vectors never cross a function boundary (every helper is inlined), so the
@@ -47,11 +52,17 @@ namespace {
 #undef LANES_LEVEL
 #pragma GCC pop_options
 
+#endif  // RAINDROP_PINHOLE_LANES
+
 std::atomic<int> forced_level{-1};
 
 int widest_level() {
+#if RAINDROP_PINHOLE_LANES
   static const int level = __builtin_cpu_supports("avx512f") ? 2 : __builtin_cpu_supports("avx2") ? 1 : 0;
   return level;
+#else
+  return 0;
+#endif
 }
 
 }  // namespace
@@ -63,8 +74,10 @@ int PinholeLanes::level() {
 
 void PinholeLanes::force_level(int level) { forced_level.store(level, std::memory_order_relaxed); }
 
+bool PinholeLanes::available() { return RAINDROP_PINHOLE_LANES != 0; }
+
 bool PinholeLanes::applies(const DropAccel& accel) {
-  if (!accel.disjoint() || accel.options().kind != GeometryOptions::Kind::Exact) return false;
+  if (!available() || !accel.disjoint() || accel.options().kind != GeometryOptions::Kind::Exact) return false;
   for (const Drop& d : accel.drops())
     if (!d.shape().outline.circular()) return false;
   return true;
@@ -137,31 +150,28 @@ int PinholeLanes::trace_row(int y, const std::vector<DropSpan>& spans, Row* row)
     std::fill(row->t.begin() + s.first, row->t.begin() + s.last + 1, std::numeric_limits<double>::infinity());
     std::fill(row->drop.begin() + s.first, row->drop.begin() + s.last + 1, -1);
   }
+  CV_Assert(available());
   const int level = PinholeLanes::level();
   const double ry = (static_cast<double>(y) - scene_.cy) / scene_.fy;  // Camera::ray_direction's
+  Row& r = *row;
+#if RAINDROP_PINHOLE_LANES
+  const auto first_hits = level == 2 ? lanes_avx512::first_hits : level == 1 ? lanes_avx2::first_hits : lanes_sse2::first_hits;
+  const auto common_paths =
+      level == 2 ? lanes_avx512::common_paths : level == 1 ? lanes_avx2::common_paths : lanes_sse2::common_paths;
+#else
+  const auto first_hits = [](auto&&...) {};
+  const auto common_paths = [](auto&&...) {};
+  (void)level;
+#endif
   for (const DropSpan& s : spans) {
-    const lanes_detail::DropConstants& k = drops_[static_cast<size_t>(s.drop)];
-    auto* t = row->t.data();
-    auto* d = row->drop.data();
-    auto* b = row->base.data();
-    if (level == 2) {
-      lanes_avx512::first_hits(scene_, k, s.drop, ry, s.first, s.last, t, d, b);
-    } else if (level == 1) {
-      lanes_avx2::first_hits(scene_, k, s.drop, ry, s.first, s.last, t, d, b);
-    } else {
-      lanes_sse2::first_hits(scene_, k, s.drop, ry, s.first, s.last, t, d, b);
-    }
+    first_hits(scene_, drops_[static_cast<size_t>(s.drop)], s.drop, ry, s.first, s.last, r.t.data(), r.drop.data(),
+               r.base.data());
   }
   int traced = 0;
   for (const DropSpan& s : spans) {
-    const lanes_detail::DropConstants& k = drops_[static_cast<size_t>(s.drop)];
-    Row& r = *row;
-    auto common_paths = level == 2 ? lanes_avx512::common_paths
-                        : level == 1 ? lanes_avx2::common_paths
-                                     : lanes_sse2::common_paths;
-    common_paths(scene_, k, s.drop, ry, s.first, s.last, r.t.data(), r.drop.data(), r.base.data(), r.state.data(),
-                 r.ox.data(), r.oy.data(), r.oz.data(), r.dx.data(), r.dy.data(), r.dz.data(), r.range.data(),
-                 r.seen_x.data(), r.seen_y.data(), r.transmittance.data());
+    common_paths(scene_, drops_[static_cast<size_t>(s.drop)], s.drop, ry, s.first, s.last, r.t.data(), r.drop.data(),
+                 r.base.data(), r.state.data(), r.ox.data(), r.oy.data(), r.oz.data(), r.dx.data(), r.dy.data(),
+                 r.dz.data(), r.range.data(), r.seen_x.data(), r.seen_y.data(), r.transmittance.data());
     // The outcome of every pixel of the span whose nearest hit is this drop (a pixel without
     // any hit: Miss, each time a span covers it).
     for (int x = s.first; x <= s.last; ++x) {

@@ -636,6 +636,16 @@ std::vector<std::vector<std::pair<int, int>>> candidate_spans(const Camera& came
   return rows;
 }
 
+}  // namespace
+
+std::vector<std::vector<DropSpan>> drop_candidate_spans(const Camera& camera, const DropAccel& accel) {
+  std::vector<std::vector<DropSpan>> by_drop;
+  candidate_spans(camera, accel, &by_drop);
+  return by_drop;
+}
+
+namespace {
+
 // A hash of pixel (x, y) and `salt`: per-pixel random numbers that do not depend on the
 // thread count.
 std::uint64_t pixel_hash(int x, int y, std::uint64_t salt) {
@@ -707,12 +717,12 @@ TraceResult run(const cv::Mat& clean, const Camera& camera, const SceneConfig& c
   out.spans = candidate_spans(camera, accel, lanes ? &drop_spans : nullptr);
   const auto& spans = out.spans;
   std::atomic<std::int64_t> candidates{0}, drops{0}, dark{0}, off{0}, supersampled{0}, aliasing{0}, smooth{0},
-      lockstep{0};
+      lockstep{0}, in_lanes{0};
   std::vector<int> row_lo(camera.height, camera.width), row_hi(camera.height, -1);
 
   // Pass 1: one ray through every candidate pixel's centre.
   tbb::parallel_for(tbb::blocked_range<int>(0, camera.height, 8), [&](const tbb::blocked_range<int>& r) {
-    std::int64_t n_cand = 0, n_drop = 0, n_dark = 0, n_off = 0, n_lock = 0;
+    std::int64_t n_cand = 0, n_drop = 0, n_dark = 0, n_off = 0, n_lock = 0, n_lanes = 0;
     struct Pending {
       int x;
       typename Kernel<kFresnel, kDispersion>::PathEnd end;
@@ -767,7 +777,9 @@ TraceResult run(const cv::Mat& clean, const Camera& camera, const SceneConfig& c
         };
         if (lanes) {
           // The lanes trace most rays; those that leave the common path go to flush().
-          n_lock += lanes->trace_row(y, drop_spans[y], &lane_row);
+          const int traced_here = lanes->trace_row(y, drop_spans[y], &lane_row);
+          n_lock += traced_here;
+          n_lanes += traced_here;
           for (const auto& [x0, x1] : spans[y]) {
             for (int x = x0; x <= x1; ++x) {
               ++n_cand;
@@ -807,6 +819,7 @@ TraceResult run(const cv::Mat& clean, const Camera& camera, const SceneConfig& c
     dark += n_dark;
     off += n_off;
     lockstep += n_lock;
+    in_lanes += n_lanes;
   });
 
   int box_x0 = camera.width, box_x1 = -1, box_y0 = camera.height, box_y1 = -1;
@@ -1049,6 +1062,7 @@ TraceResult run(const cv::Mat& clean, const Camera& camera, const SceneConfig& c
   out.stats.aliasing_pixels = aliasing;
   out.stats.smooth_pixels = smooth;
   out.stats.lockstep_pixels = lockstep;
+  out.stats.lane_pixels = in_lanes;
   out.stats.lens_sampled_pixels = lens_sampled;
   return out;
 }

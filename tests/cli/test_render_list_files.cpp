@@ -7,7 +7,9 @@ namespace {
 
 TEST(RenderInputListFile, BinaryFileIsNotReadAsAList) {
   TempDir tmp;
-  const std::string bytes("GIF89a\x10\x00\x10\x00\x80\x00\x00\xff\xff\xff\n\x00\x00\x00!\xf9\x04\x01\x00\x00\x00\x00,", 31);
+  // Its bytes, NULs included (the length said by the array, not counted by hand).
+  static const char kGif[] = "GIF89a\x10\x00\x10\x00\x80\x00\x00\xff\xff\xff\n\x00\x00\x00!\xf9\x04\x01\x00\x00\x00\x00,";
+  const std::string bytes(kGif, sizeof kGif - 1);
   write_file(tmp / "anim.gif", bytes);
   const auto r = run_render({"-i", "anim.gif", "--out", "out", "-j", "1"}, tmp.path());
   expect_clean_failure(r, tmp / "out", "anim.gif");

@@ -18,7 +18,11 @@
 //
 // Every step is the scalar code's arithmetic in its order (the build has -ffp-contract=off;
 // IEEE addition, multiplication, division and square root round the same in a lane as
-// alone), so each ray gets trace_path's answer to the bit. A ray that leaves the common path
+// alone), so each ray gets trace_path's answer to the bit. Two assumptions: a drop's span
+// covers every pixel whose ray meets it (the tracer's conservative hull of the drop's image,
+// padded far beyond the sampling error), and no two drops' surfaces meet a ray within a
+// rounding error of each other (drops that touch to 1e-16: there Embree's answer depends on
+// the order it visits them in; the lanes give the nearer, ties to the lower index). A ray that leaves the common path
 // anywhere (a cap met from outside, a refraction that fails, another drop in reach) is marked
 // for the one-at-a-time tracer, which handles everything. The lanes run in AVX-512, AVX2 or
 // SSE2 registers, whichever the processor has (chosen at run time: one binary runs anywhere,
@@ -26,6 +30,7 @@
 //
 // Only where every drop is an exact cap of circular outline and drops are disjoint
 // (`applies`); Fresnel's transmittances included, not dispersion (whose kernel keeps its path).
+// Built with GCC for x86-64 only (`available`; elsewhere the tracer keeps its own path).
 #include <cstdint>
 #include <vector>
 
@@ -36,11 +41,6 @@
 #include "raindrop/render/tracer.h"
 
 namespace raindrop {
-
-// Pixels [first, last] of one row whose camera rays can reach drop `drop`.
-struct DropSpan {
-  int first, last, drop;
-};
 
 namespace lanes_detail {
 // The frame's constants, as the scalar code computes them (pinhole_lanes.cpp).
@@ -69,10 +69,11 @@ class PinholeLanes {
  public:
   enum class Outcome : std::uint8_t {
     Miss,   // meets no drop
-    Path,   // traced here: `path`
+    Path,   // traced here: the Row's arrays at x (Row::path)
     Alone,  // left the common path: trace it one ray at a time
   };
-  // A row's results, indexed by x (sized to the frame's width by trace_row).
+  // A row's results, indexed by x: trace_row grows the arrays to the furthest span end it has
+  // been given and sets them over its spans only.
   struct Row {
     std::vector<Outcome> outcome;
     // Where outcome is Path: the drop met first, and how the ray ended (a State).
@@ -90,21 +91,25 @@ class PinholeLanes {
     // trace_path's DropPath for a Path pixel.
     DropPath path(int x) const;
   };
-  // How a traced ray ended: no way out of the water (dark), the dark band, out of the drop
-  // (with kOutSlab: within the slab, where may_meet_after_exit decides), plus kEscaped when it
-  // heads back through the glass; kAlone: left the common path.
+  // How a traced ray ended, one of five values: left the common path (kAlone), no way out
+  // of the water (kTrapped: dark), the dark band, out of the drop (kOutSlab: within the slab,
+  // where may_meet_after_exit decides); to kOut and kOutSlab the bit kEscaped is added when
+  // the ray heads back through the glass. Compare values, not bits: (state & ~kEscaped).
   enum State : std::uint8_t { kAlone = 1, kTrapped = 2, kDarkBand = 3, kOut = 4, kOutSlab = 5, kEscaped = 8 };
 
-  // Whether the lanes can trace this accelerator's drops: exact caps, all of circular
-  // outline, disjoint.
+  // Whether this build has the lanes (GCC on x86-64).
+  static bool available();
+  // Whether the lanes can trace this accelerator's drops: available, exact caps, all of
+  // circular outline, disjoint.
   static bool applies(const DropAccel& accel);
 
   PinholeLanes(const Camera& camera, const DropAccel& accel, const GlassPlane& glass, double background_z,
                double n_water, TirMode tir, bool fresnel);
 
-  // The camera rays through the pixels of row y that `spans` (one row's DropSpans; a pixel
-  // may lie in several) cover: row->outcome[x] for each, row->path[x] where it is Path.
-  // Returns how many were traced here (Outcome::Path).
+  // The camera rays through the pixels of row y that `spans` cover (one row's DropSpans, at
+  // most one per drop; a pixel may lie in several drops' spans): row->outcome[x] for each,
+  // and where it is Path the row's other arrays at x. Returns how many were traced here
+  // (Outcome::Path).
   int trace_row(int y, const std::vector<DropSpan>& spans, Row* row) const;
 
   // The register width used: 2 AVX-512, 1 AVX2, 0 SSE2 (the widest the processor has,

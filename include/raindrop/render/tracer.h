@@ -40,6 +40,7 @@ struct TraceStats {
   std::int64_t aliasing_pixels = 0;
   std::int64_t smooth_pixels = 0;
   std::int64_t lockstep_pixels = 0;  // camera rays traced side by side (TraceStrategy::lockstep)
+  std::int64_t lane_pixels = 0;      // of those, in SIMD lanes (TraceStrategy::lanes)
   std::int64_t lens_sampled_pixels = 0;  // pixels that averaged rays from the lens disk (LensTrace)
 };
 
@@ -74,6 +75,11 @@ DropPath trace_through_drops(const glm::dvec3& origin, const glm::dvec3& dir, do
 // Continuous image coordinates of the background point seen along a path's exit ray (the
 // background plane is z = background_z); rays that never reach it are followed to infinity.
 glm::dvec2 background_pixel(const DropPath& path, const Camera& camera, double background_z);
+
+// Per image row, the pixels whose camera rays can reach each drop: one span per drop and row
+// where its image (a conservative hull of it) covers the row. The pinhole trace's candidates
+// are their union; exposed for tests.
+std::vector<std::vector<DropSpan>> drop_candidate_spans(const Camera& camera, const DropAccel& accel);
 
 // How trace_drops and trace_aperture schedule their work; every choice gives the same result
 // to the bit (tests hold them to each other).
