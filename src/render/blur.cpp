@@ -412,6 +412,8 @@ int blur_simd_level() {
 
 void force_blur_simd_level(int level) { forced_simd_level.store(level, std::memory_order_relaxed); }
 
+int blur_simd_level_used() { return simd_level(); }
+
 void blur_drops(const cv::Mat& clean, const cv::Mat& label, cv::Mat& color, double diameter_px,
                 BlurMethod method, const cv::Rect* drop_box, const Spans* spans) {
   if (!(diameter_px > 0)) return;

@@ -21,6 +21,7 @@
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
 
+#include "raindrop/render/blur.h"
 #include "raindrop/render/disk_kernel.h"
 #include "raindrop/render/layer_mix.h"
 #include "raindrop/render/spans.h"
@@ -287,34 +288,99 @@ void interpolate_row(const Layer& layer, int y, f4* acc) {
 // One disk row (or mirrored pair of rows) over columns [ia, ib) of the layer's storage, added
 // to acc[x0 + i]: a and b are the layer rows it reads (b: the mirrored row, when kPair), pa and
 // pb their prefix sums.
-template <bool kPair, bool kRun>
-inline void spread_loop(const SpreadRow& k, const Spread& s, const f4* a, const f4* pa, const f4* b, const f4* pb,
-                        int ia, int ib, int x0, f4* acc) {
+template <typename V>
+inline __attribute__((always_inline)) void load(V& v, const f4* p) {
+  __builtin_memcpy(&v, p, sizeof v);
+}
+
+// Output pixels i, i + P, ... of [i, ib) while a whole register of P pixels fits, P pixels per
+// V (f4: one); returns the first pixel left. Neighbouring pixels' f4 are neighbours in memory,
+// so one load serves P pixels, and each lane does the one-pixel arithmetic in its order (no
+// fused multiply-add: -ffp-contract=off): every register width gives the same bits.
+template <typename V, bool kPair, bool kRun>
+inline __attribute__((always_inline)) int spread_wide(const SpreadRow& k, const Spread& s, const f4* a, const f4* pa,
+                                                      const f4* b, const f4* pb, int i, int ib, int x0, f4* acc) {
+  constexpr int P = sizeof(V) / sizeof(f4);
   const TapPair* pairs = s.pairs.data() + k.pair_begin;
   const int n_pairs = k.pair_end - k.pair_begin;
-  for (int i = ia; i < ib; ++i) {
-    f4 sum;
+  for (; i + P <= ib; i += P) {
+    V sum;
     if constexpr (kRun) {
-      f4 run = pa[i + k.hi + 1] - pa[i + k.lo];
-      if constexpr (kPair) run += pb[i + k.hi + 1] - pb[i + k.lo];
+      V hi, lo;
+      load(hi, pa + i + k.hi + 1);
+      load(lo, pa + i + k.lo);
+      V run = hi - lo;
+      if constexpr (kPair) {
+        load(hi, pb + i + k.hi + 1);
+        load(lo, pb + i + k.lo);
+        run += hi - lo;
+      }
       sum = s.run_weight * run;
     } else {
-      f4 centre = a[i];
-      if constexpr (kPair) centre += b[i];
+      V centre;
+      load(centre, a + i);
+      if constexpr (kPair) {
+        V other;
+        load(other, b + i);
+        centre += other;
+      }
       sum = k.centre * centre;
     }
     for (int t = 0; t < n_pairs; ++t) {
       const int dx = pairs[t].dx;
-      f4 taps = a[i + dx] + a[i - dx];
-      if constexpr (kPair) taps += b[i + dx] + b[i - dx];
+      V plus, minus;
+      load(plus, a + i + dx);
+      load(minus, a + i - dx);
+      V taps = plus + minus;
+      if constexpr (kPair) {
+        load(plus, b + i + dx);
+        load(minus, b + i - dx);
+        taps += plus + minus;
+      }
       sum += pairs[t].w * taps;
     }
-    acc[x0 + i] += sum;
+    V out;
+    load(out, acc + x0 + i);
+    out += sum;
+    __builtin_memcpy(acc + x0 + i, &out, sizeof out);
   }
+  return i;
+}
+
+#if defined(__x86_64__) && defined(__GNUC__)
+// Two pixels per AVX register, four per AVX-512 one, chosen when the program runs (the
+// blur's choice: blur_simd_level_used, force_blur_simd_level for tests).
+typedef float f8 __attribute__((vector_size(32)));
+typedef float f16 __attribute__((vector_size(64)));
+template <bool kPair, bool kRun>
+__attribute__((target("avx"))) int spread_avx(const SpreadRow& k, const Spread& s, const f4* a, const f4* pa,
+                                              const f4* b, const f4* pb, int i, int ib, int x0, f4* acc) {
+  return spread_wide<f8, kPair, kRun>(k, s, a, pa, b, pb, i, ib, x0, acc);
+}
+template <bool kPair, bool kRun>
+__attribute__((target("avx512f"))) int spread_avx512(const SpreadRow& k, const Spread& s, const f4* a, const f4* pa,
+                                                     const f4* b, const f4* pb, int i, int ib, int x0, f4* acc) {
+  return spread_wide<f16, kPair, kRun>(k, s, a, pa, b, pb, i, ib, x0, acc);
+}
+#endif
+
+// Adds rows a (and, with kPair, b: rows dy and -dy of the disk) spread by disk row k to
+// acc[x0 + i] for i in [ia, ib); pa and pb their prefix sums.
+template <bool kPair, bool kRun>
+inline void spread_loop(const SpreadRow& k, const Spread& s, const f4* a, const f4* pa, const f4* b, const f4* pb,
+                        int ia, int ib, int x0, f4* acc, int level) {
+  int i = ia;
+#if defined(__x86_64__) && defined(__GNUC__)
+  if (level >= 2) i = spread_avx512<kPair, kRun>(k, s, a, pa, b, pb, i, ib, x0, acc);
+  if (level == 1) i = spread_avx<kPair, kRun>(k, s, a, pa, b, pb, i, ib, x0, acc);
+#endif
+  (void)level;
+  spread_wide<f4, kPair, kRun>(k, s, a, pa, b, pb, i, ib, x0, acc);
 }
 
 void spread_row(const Rows& layer, int y, int width, f4* acc) {
   const Spread& s = layer.spread;
+  const int level = blur_simd_level_used();
   for (const SpreadRow& k : s.rows) {
     const int ja = y + k.dy - layer.y0, jb = y - k.dy - layer.y0;
     const bool has_a = layer.has_row(ja), has_b = k.dy > 0 && layer.has_row(jb);
@@ -334,16 +400,39 @@ void spread_row(const Rows& layer, int y, int width, f4* acc) {
     const bool run = k.lo <= k.hi;  // a row with a run has its centre in the run
     const int x0 = layer.x0;
     if (has_a && has_b) {
-      run ? spread_loop<true, true>(k, s, a, pa, b, pb, ia, ib, x0, acc)
-          : spread_loop<true, false>(k, s, a, pa, b, pb, ia, ib, x0, acc);
+      run ? spread_loop<true, true>(k, s, a, pa, b, pb, ia, ib, x0, acc, level)
+          : spread_loop<true, false>(k, s, a, pa, b, pb, ia, ib, x0, acc, level);
     } else {
-      run ? spread_loop<false, true>(k, s, a, pa, a, pa, ia, ib, x0, acc)
-          : spread_loop<false, false>(k, s, a, pa, a, pa, ia, ib, x0, acc);
+      run ? spread_loop<false, true>(k, s, a, pa, a, pa, ia, ib, x0, acc, level)
+          : spread_loop<false, false>(k, s, a, pa, a, pa, ia, ib, x0, acc, level);
     }
   }
 }
 
 }  // namespace
+
+cv::Mat spread_layer(const cv::Mat& values, double diameter) {
+  CV_Assert(values.type() == CV_32FC4 && diameter > 0);
+  Rows rows;
+  rows.y0 = 0;
+  rows.extent.assign(values.rows, Span{0, values.cols - 1});
+  rows.spread = make_spread(diameter);
+  rows.allocate();
+  for (int y = 0; y < values.rows; ++y) {
+    const auto* v = values.ptr<cv::Vec4f>(y);
+    for (int x = 0; x < values.cols; ++x) rows.at(y, x) = f4{v[x][0], v[x][1], v[x][2], v[x][3]};
+  }
+  rows.sum_rows();
+  cv::Mat out(values.size(), CV_32FC4);
+  std::vector<f4> acc(values.cols);
+  for (int y = 0; y < values.rows; ++y) {
+    std::fill(acc.begin(), acc.end(), f4{0, 0, 0, 0});
+    spread_row(rows, y, values.cols, acc.data());
+    auto* o = out.ptr<cv::Vec4f>(y);
+    for (int x = 0; x < values.cols; ++x) o[x] = cv::Vec4f(acc[x][0], acc[x][1], acc[x][2], acc[x][3]);
+  }
+  return out;
+}
 
 DefocusedFrame composite_layers(const cv::Mat& clean, const TraceResult& traced, const Camera& camera,
                                 const SceneSample& scene, const std::vector<Drop>& drops) {

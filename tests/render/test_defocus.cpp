@@ -8,6 +8,7 @@
 #include <tbb/task_arena.h>
 
 #include "raindrop/common/rng.h"
+#include "raindrop/render/blur.h"
 #include "raindrop/render/defocus.h"
 #include "raindrop/common/demo.h"
 #include "raindrop/render/renderer.h"
@@ -241,6 +242,47 @@ TEST(Defocus, FastLayersDoNotDependOnTheThreadCount) {
       }
     }
   }
+}
+
+// The layers' spread takes two or four pixels per register where the processor has AVX or
+// AVX-512 (defocus_rows.cpp), each lane doing the one-pixel arithmetic in its order: every
+// width spreads a random layer to the same bits (float), and renders the same image and
+// coverage, on exact and coarse circles.
+TEST(Defocus, EveryRegisterWidthSpreadsTheSameBits) {
+  if (blur_simd_level() == 0) GTEST_SKIP() << "this processor has neither AVX nor AVX-512: one width only";
+  cv::Mat layer(45, 77, CV_32FC4);
+  cv::RNG(7).fill(layer, cv::RNG::UNIFORM, 0.0, 1.0);
+  for (double diameter : {1.5, 4.0, 9.3, 23.0}) {
+    std::vector<cv::Mat> spread;
+    for (int level = 0; level <= blur_simd_level(); ++level) {
+      force_blur_simd_level(level);
+      spread.push_back(spread_layer(layer, diameter));
+    }
+    force_blur_simd_level(-1);
+    for (size_t i = 1; i < spread.size(); ++i) EXPECT_TRUE(equal_bits(spread[0], spread[i])) << diameter << " level " << i;
+  }
+  int compared = 0;
+  for (const Camera& cam : {camera(384, 192, 424), camera(384, 192, 1696)}) {
+    const cv::Mat clean = demo_street(cam.width, cam.height);
+    for (const char* preset : {"lens-cover", "windshield-day"}) {
+      const SceneConfig c = scene_preset(preset);
+      Rng rng(1);
+      const SceneSample s = sample_scene(c, cam, rng);
+      std::vector<RenderedFrame> frames;
+      for (int level = 0; level <= blur_simd_level(); ++level) {
+        force_blur_simd_level(level);
+        frames.push_back(render_frame(clean, cam, c, s));
+      }
+      force_blur_simd_level(-1);
+      ASSERT_TRUE(frames[0].defocused) << preset;
+      for (size_t i = 1; i < frames.size(); ++i) {
+        EXPECT_TRUE(equal_bits(frames[0].rainy, frames[i].rainy)) << preset << " level " << i;
+        EXPECT_TRUE(equal_bits(frames[0].alpha, frames[i].alpha)) << preset << " level " << i;
+        ++compared;
+      }
+    }
+  }
+  EXPECT_GE(compared, 4);
 }
 
 // Extreme apertures, glass distances and focal lengths: coverage stays in [0, 1], finite.

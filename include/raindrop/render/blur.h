@@ -32,11 +32,14 @@ void blur_drops(const cv::Mat& clean, const cv::Mat& label, cv::Mat& color, doub
                 BlurMethod method, const cv::Rect* drop_box = nullptr,
                 const std::vector<std::vector<Span>>* spans = nullptr);
 
-// The widest registers the disk blurs use on this processor: 0 SSE2 (one pixel per register),
+// The widest registers the disk blurs (and the thin lens's spread) use on this processor: 0 SSE2 (one pixel per register),
 // 1 AVX (two), 2 AVX-512 (four). Every level gives the same bits (blur.cpp says why).
 int blur_simd_level();
 // Tests: use at most `level` from now on (-1: the processor's widest again).
 void force_blur_simd_level(int level);
+// The width in use: blur_simd_level(), or less where a test forced it. The thin lens's
+// spread of drop layers (defocus_rows.cpp) uses it too.
+int blur_simd_level_used();
 
 // Per row y of `box`, the x-intervals blur_drops reads when given `spans`: the spans of rows
 // y - reach .. y + reach, widened by `reach`, clipped to the box, merged (touching intervals

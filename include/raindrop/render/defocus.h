@@ -64,6 +64,11 @@ double drop_lens_spread_px(const SceneSample& scene, const Drop& drop, double fx
 // (effect_policy.h: shift_levels, kAutoBudgetLevels). A pinhole-sized aperture stays the pinhole.
 bool traced_through_aperture(const SceneSample& scene, const Drop& drop, double fx, cv::Size frame);
 
+// One layer (CV_32FC4: R, G, B and coverage, premultiplied, in linear light) spread by the
+// disk of `diameter` pixels, as composite_layers spreads a drop's layer whose circle is
+// exact (not coarse); for tests.
+cv::Mat spread_layer(const cv::Mat& values, double diameter);
+
 // `traced`: the pinhole trace of `drops` over `clean` (CV_8UC3 RGB). Runs on the calling
 // thread's TBB arena; the result does not depend on the number of threads.
 DefocusedFrame composite_layers(const cv::Mat& clean, const TraceResult& traced, const Camera& camera,
