@@ -6,7 +6,7 @@
 # largedropmodels sensor mirroraverage highlights multiscale veil papermodels outline trails photos windshield
 # windshield-followup longer growth sharpness coalesce surround largewidth largedrops-all windshield2
 # errorsplit withoutvnni graphrewrites jitter windshieldscale router routed int8router droplets realismcontrol
-# droplets2 infocus realismbar windshieldday fillarea finedrops
+# droplets2 infocus realismbar windshieldday fillarea finedrops lanes
 #
 # Sections measured before docs/RESULTS.md 4.44 run compact-windshield's detector (and the routed
 # default) with --surround-fill-area 150, the area they had then, so that they reproduce.
@@ -25,7 +25,7 @@ sections=("$@")
                                   photos windshield windshield-followup longer growth sharpness coalesce
                                   surround largewidth largedrops-all windshield2 errorsplit withoutvnni graphrewrites
                                   jitter windshieldscale router routed int8router droplets realismcontrol droplets2 infocus realismbar
-                                  windshieldday fillarea finedrops)
+                                  windshieldday fillarea finedrops lanes)
 want() { [[ " ${sections[*]} " == *" $1 "* ]]; }
 # link_set SRC DST SPLIT [LIMIT]: the first LIMIT (default 100; 0: all) samples of data set SRC
 # (of manifest split SPLIT; "-" = all) linked into DST/rainy and DST/clean (and DST/mask, where
@@ -2235,4 +2235,64 @@ if want finedrops; then
   photos_changed "$fd/photos-fine" "$fd/photos-base" | tee "$fd/photos.txt"
   alternate_times 10 default windshield_2.jpg attgan-fork_test_5.png clarity_00309.png -- "" "--fine-drops" >"$fd/times.txt"
   median_times "$fd/times.txt" | tee "$fd/times-summary.txt"
+fi
+
+if want lanes; then
+  # docs/RESULTS.md 1.2, "Camera rays in SIMD lanes" and "The thin lens's layer spread": the build
+  # before both (754a2e2, built in a worktree under $ln/before) and this one side by side: the
+  # same bytes for every preset and three more sizes, the render core by stage (three rounds),
+  # end to end (two), the presets as programs on the 8 Cityscapes frames (two) and the lens
+  # section (two). The register-width rows of 1.2 forced the width with a temporary variable
+  # and are not repeated here.
+  ln="$out/lanes"
+  before="$ln/before"
+  mkdir -p "$ln"
+  if [[ ! -x $before/build/raindrop-bench ]]; then
+    rm -rf "$before"
+    git worktree prune
+    git worktree add --detach "$before" 754a2e2 >/dev/null
+    cmake -S "$before" -B "$before/build" -G Ninja -DCMAKE_BUILD_TYPE=Release -DRAINDROP_BUILD_TESTS=OFF >/dev/null
+    cmake --build "$before/build" --target raindrop-render raindrop-bench >/dev/null
+  fi
+  city="$shared/cityscapes-mini"
+  presets=(paper full-physics lens-cover lens-cover-heavy lens-cover-merged windshield-day windshield-night real-photo
+           windshield-sharp glass-droplets)
+  for args in "${presets[@]/#/--scene }" "--scene paper --size 512x256 -j1" \
+              "--scene windshield-day --size 1024x512 --variants 3" "--scene lens-cover --size 640x320 --variants 2"; do
+    for b in before now; do
+      bin=build; [[ $b == before ]] && bin="$before/build"
+      rm -rf "$ln/render-$b"
+      # shellcheck disable=SC2086
+      "$bin/raindrop-render" --cityscapes "$city" --split all $args --seed 7 -q $([[ $args == *-j1* ]] || echo -j2) \
+        --out "$ln/render-$b" >/dev/null
+    done
+    echo "$args: $(diff -r -x 'manifest*' "$ln/render-before" "$ln/render-now" | wc -l) lines differ"
+  done | tee "$ln/same-bytes.txt"
+  for r in 1 2 3; do
+    for b in before now; do
+      bin=build; [[ $b == before ]] && bin="$before/build"
+      echo "$b round $r"
+      "$bin/raindrop-bench" render --sections core --frames 4 --repeats 5 2>/dev/null | grep -E '^\| [12] '
+    done
+  done | tee "$ln/core.txt"
+  for r in 1 2; do
+    for b in before now; do
+      bin=build; [[ $b == before ]] && bin="$before/build"
+      echo "$b round $r"
+      "$bin/raindrop-bench" render --sections time --repeats 3 2>/dev/null | grep -E '^\| (2048|512)'
+      "$bin/raindrop-bench" render --sections lens --repeats 3 2>/dev/null | grep -E 'layered \(fast|aperture, 16'
+    done
+  done | tee "$ln/time-lens.txt"
+  for p in "${presets[@]}"; do
+    for r in 1 2; do
+      for b in before now; do
+        bin=build; [[ $b == before ]] && bin="$before/build"
+        rm -rf "$ln/run"
+        s=$(date +%s%N)
+        "$bin/raindrop-render" --cityscapes "$city" --split all --scene "$p" --seed 1 -q -j2 --out "$ln/run" >/dev/null
+        echo "$p $b $(( ($(date +%s%N) - s) / 1000000 )) ms"
+      done
+    done
+  done | tee "$ln/presets.txt"
+  rm -rf "$ln/run" "$ln/render-before" "$ln/render-now"
 fi
