@@ -9,6 +9,7 @@
 
 #ifdef RAINDROP_HAVE_RENDER_BENCH
 #include "../bench/render_bench.h"
+#include "raindrop/render/heap_tuning.h"
 #endif
 #ifdef RAINDROP_HAVE_REMOVE_BENCH
 #include "../bench/remove_bench.h"
@@ -39,7 +40,10 @@ int main(int argc, char** argv) {
   }
   try {
 #ifdef RAINDROP_HAVE_RENDER_BENCH
-    if (app.got_subcommand("render")) return render();
+    if (app.got_subcommand("render")) {
+      raindrop::keep_freed_frame_memory();  // as raindrop-render runs (heap_tuning.h)
+      return render();
+    }
 #endif
 #ifdef RAINDROP_HAVE_REMOVE_BENCH
     if (app.got_subcommand("remove")) return remove();

@@ -19,6 +19,7 @@
 #include "raindrop/common/image_io.h"
 #include "raindrop/common/shard.h"
 #include "raindrop/common/demo.h"
+#include "raindrop/render/heap_tuning.h"
 #include "raindrop/render/inputs.h"
 #include "raindrop/render/render_job.h"
 #include "raindrop/render/scene_config.h"
@@ -240,6 +241,7 @@ int run(int argc, char** argv) {
 }  // namespace
 
 int main(int argc, char** argv) {
+  raindrop::keep_freed_frame_memory();  // before any thread starts (heap_tuning.h)
   try {
     return run(argc, argv);
   } catch (const std::exception& e) {
