@@ -2255,12 +2255,13 @@ if want lanes; then
     cmake --build "$before/build" --target raindrop-render raindrop-bench >/dev/null
   fi
   city="$shared/cityscapes-mini"
+  bin_of() { if [[ $1 == before ]]; then echo "$before/build"; else echo build; fi; }
   presets=(paper full-physics lens-cover lens-cover-heavy lens-cover-merged windshield-day windshield-night real-photo
            windshield-sharp glass-droplets)
   for args in "${presets[@]/#/--scene }" "--scene paper --size 512x256 -j1" \
               "--scene windshield-day --size 1024x512 --variants 3" "--scene lens-cover --size 640x320 --variants 2"; do
     for b in before now; do
-      bin=build; [[ $b == before ]] && bin="$before/build"
+      bin=$(bin_of "$b")
       rm -rf "$ln/render-$b"
       # shellcheck disable=SC2086
       "$bin/raindrop-render" --cityscapes "$city" --split all $args --seed 7 -q $([[ $args == *-j1* ]] || echo -j2) \
@@ -2270,14 +2271,14 @@ if want lanes; then
   done | tee "$ln/same-bytes.txt"
   for r in 1 2 3; do
     for b in before now; do
-      bin=build; [[ $b == before ]] && bin="$before/build"
+      bin=$(bin_of "$b")
       echo "$b round $r"
       "$bin/raindrop-bench" render --sections core --frames 4 --repeats 5 2>/dev/null | grep -E '^\| [12] '
     done
   done | tee "$ln/core.txt"
   for r in 1 2; do
     for b in before now; do
-      bin=build; [[ $b == before ]] && bin="$before/build"
+      bin=$(bin_of "$b")
       echo "$b round $r"
       "$bin/raindrop-bench" render --sections time --repeats 3 2>/dev/null | grep -E '^\| (2048|512)'
       "$bin/raindrop-bench" render --sections lens --repeats 3 2>/dev/null | grep -E 'layered \(fast|aperture, 16'
@@ -2286,7 +2287,7 @@ if want lanes; then
   for p in "${presets[@]}"; do
     for r in 1 2; do
       for b in before now; do
-        bin=build; [[ $b == before ]] && bin="$before/build"
+        bin=$(bin_of "$b")
         rm -rf "$ln/run"
         s=$(date +%s%N)
         "$bin/raindrop-render" --cityscapes "$city" --split all --scene "$p" --seed 1 -q -j2 --out "$ln/run" >/dev/null

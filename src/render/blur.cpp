@@ -13,14 +13,15 @@
 #include "raindrop/render/disk_kernel.h"
 #include "raindrop/render/scratch_pool.h"
 #include "raindrop/render/spans.h"
+#include "pixel_vectors.h"
 
 namespace raindrop {
 namespace {
 
 using Spans = std::vector<std::vector<std::pair<int, int>>>;
 
-// Four floats (RGB and a pad) as one SIMD register: GCC/Clang vector extension.
-typedef float f4 __attribute__((vector_size(16)));
+using pixel_vectors::f4;
+using pixel_vectors::load;
 
 // A buffer of f4 left uninitialised (every element is written before it is read), from the
 // scratch pool: tens of megabytes per frame, whose fresh pages would cost more than the
@@ -182,12 +183,6 @@ struct RowKernel {
   float inv_total;
 };
 
-// Neighbouring pixels' f4 from p on, unaligned (memcpy compiles to one load; a V returned by
-// value would trip GCC's ABI warning for wide vectors outside the target functions).
-template <typename V>
-inline __attribute__((always_inline)) void load(V& v, const f4* p) {
-  __builtin_memcpy(&v, p, sizeof v);
-}
 
 // Pixels [x, x + A * P) of a row, P pixels per V (f4: one, the SSE2 path), A registers at a
 // time: A independent sums instead of one chain of dependent additions per pixel (which waits
@@ -223,14 +218,12 @@ inline __attribute__((always_inline)) void sum_wide(const RowKernel& k, int x, c
 }
 
 #if defined(__x86_64__) && defined(__GNUC__)
-// Wider registers hold several pixels' f4 side by side (AVX: 2, AVX-512: 4). Neighbouring
-// pixels' f4 are neighbours in memory, so one load reads all of them, and every lane still does
-// the SSE2 path's additions, subtractions and multiplications in its order (the build has
-// -ffp-contract=off: no fused multiply-add): the same bits, with half or a quarter of the loads
-// and arithmetic instructions. Chosen at run time (blur_simd_level), so one binary runs
-// everywhere.
-typedef float f8 __attribute__((vector_size(32)));
-typedef float f16 __attribute__((vector_size(64)));
+// Wider registers hold several pixels' f4 side by side (AVX: 2, AVX-512: 4; pixel_vectors.h):
+// every lane does the SSE2 path's arithmetic in its order, so the same bits with half or a
+// quarter of the loads and arithmetic instructions. Chosen at run time (blur_simd_level), so
+// one binary runs everywhere.
+using pixel_vectors::f8;
+using pixel_vectors::f16;
 
 // Each blurs pixels x, x+1, ... of [x, end) in blocks of 8 and returns the first it left.
 __attribute__((target("avx"))) int blur_span_avx(const RowKernel& k, int x, int end, cv::Vec3f* dst) {

@@ -26,12 +26,14 @@
 #include "raindrop/render/layer_mix.h"
 #include "raindrop/render/spans.h"
 #include "raindrop/render/srgb.h"
+#include "pixel_vectors.h"
 
 namespace raindrop {
 namespace {
 
-// a R (linear RGB) and a in one SIMD register (GCC/Clang vector extension, as in blur.cpp).
-typedef float f4 __attribute__((vector_size(16)));
+// a R (linear RGB) and a in one SIMD register (pixel_vectors.h).
+using pixel_vectors::f4;
+using pixel_vectors::load;
 
 // A row of the disk as the inner loop reads it: the run [lo, hi] of full weight, and the
 // partial taps of the rim in mirrored pairs (the disk is symmetric: dx and -dx weigh the
@@ -285,14 +287,6 @@ void interpolate_row(const Layer& layer, int y, f4* acc) {
   }
 }
 
-// One disk row (or mirrored pair of rows) over columns [ia, ib) of the layer's storage, added
-// to acc[x0 + i]: a and b are the layer rows it reads (b: the mirrored row, when kPair), pa and
-// pb their prefix sums.
-template <typename V>
-inline __attribute__((always_inline)) void load(V& v, const f4* p) {
-  __builtin_memcpy(&v, p, sizeof v);
-}
-
 // Output pixels i, i + P, ... of [i, ib) while a whole register of P pixels fits, P pixels per
 // V (f4: one); returns the first pixel left. Neighbouring pixels' f4 are neighbours in memory,
 // so one load serves P pixels, and each lane does the one-pixel arithmetic in its order (no
@@ -350,8 +344,8 @@ inline __attribute__((always_inline)) int spread_wide(const SpreadRow& k, const 
 #if defined(__x86_64__) && defined(__GNUC__)
 // Two pixels per AVX register, four per AVX-512 one, chosen when the program runs (the
 // blur's choice: blur_simd_level_used, force_blur_simd_level for tests).
-typedef float f8 __attribute__((vector_size(32)));
-typedef float f16 __attribute__((vector_size(64)));
+using pixel_vectors::f8;
+using pixel_vectors::f16;
 template <bool kPair, bool kRun>
 __attribute__((target("avx"))) int spread_avx(const SpreadRow& k, const Spread& s, const f4* a, const f4* pa,
                                               const f4* b, const f4* pb, int i, int ib, int x0, f4* acc) {
@@ -364,8 +358,9 @@ __attribute__((target("avx512f"))) int spread_avx512(const SpreadRow& k, const S
 }
 #endif
 
-// Adds rows a (and, with kPair, b: rows dy and -dy of the disk) spread by disk row k to
-// acc[x0 + i] for i in [ia, ib); pa and pb their prefix sums.
+// One disk row (or mirrored pair of rows) over columns [ia, ib) of the layer's storage, added
+// to acc[x0 + i]: a and b are the layer rows it reads (b: the mirrored row, when kPair), pa and
+// pb their prefix sums.
 template <bool kPair, bool kRun>
 inline void spread_loop(const SpreadRow& k, const Spread& s, const f4* a, const f4* pa, const f4* b, const f4* pb,
                         int ia, int ib, int x0, f4* acc, int level) {

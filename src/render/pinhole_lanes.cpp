@@ -90,7 +90,7 @@ PinholeLanes::PinholeLanes(const Camera& camera, const DropAccel& accel, const G
   const glm::dvec3 point = glass.origin(), normal = glass.normal();
   scene_.cx = camera.cx, scene_.cy = camera.cy, scene_.fx = camera.fx, scene_.fy = camera.fy;
   for (int i = 0; i < 3; ++i) scene_.gp[i] = point[i], scene_.gn[i] = normal[i];
-  scene_.top = accel.max_height() * (1 + 1e-9) + 1e-9;  // slab_top
+  scene_.top = accel.slab_top();
   scene_.h0 = glm::dot(glm::dvec3(0.0) - point, normal);
   scene_.eta_in = 1.0 / n_water;
   scene_.eta_out = n_water;

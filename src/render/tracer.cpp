@@ -41,9 +41,9 @@ struct GlassFrame {
   explicit GlassFrame(const GlassPlane& g) : normal(g.normal()), point(g.origin()) {}
 };
 
-// All drops lie in the slab between the glass plane and the tallest cap: each query is
-// limited to the part of the ray inside that slab (padded), so Embree can prune early.
-double slab_top(const DropAccel& accel) { return accel.max_height() * (1 + 1e-9) + 1e-9; }
+// All drops lie in the slab between the glass plane and the tallest cap (DropAccel::slab_top):
+// each query is limited to the part of the ray inside that slab (padded), so Embree can prune
+// early.
 
 // The part [t_min, t_max] of o + t d inside the slab; false when the ray cannot meet it.
 bool slab_range(const glm::dvec3& o, const glm::dvec3& d, const GlassFrame& glass, double top, double* t_min,
@@ -71,7 +71,7 @@ DropPath trace_path(const glm::dvec3& origin, const glm::dvec3& dir0, double n_w
   DropHit current;
   bool on_surface = false, inside = false;
   const glm::dvec3& normal = glass.normal;
-  const double top = slab_top(accel);
+  const double top = accel.slab_top();
   // Overlapping drops (merged drops, a trail and its drop) are one body of water: a drop's
   // surface inside another's water is no boundary, and a ray crosses it unbent. Those
   // crossings are not events; they are bounded apart (each moves the ray on).
@@ -276,7 +276,7 @@ class Kernel {
     glm::dvec3 dirs[8];
     double t_min[8], t_max[8];
     int ask[8], asked = 0;  // the rays that meet the slab, whose first query is asked
-    const double top = slab_top(accel_);
+    const double top = accel_.slab_top();
     for (int i = 0; i < n; ++i) {
       dirs[i] = glm::normalize(raw_dirs[i]);
       if (slab_range(origins[i], dirs[i], glass_, top, &t_min[i], &t_max[i])) ask[asked++] = i;
@@ -371,7 +371,7 @@ class Kernel {
     }
     // Event 1: out through the drop's cap (its only surface a ray inside can meet when
     // drops are disjoint).
-    const double top = slab_top(accel_);
+    const double top = accel_.slab_top();
     double t_lo;
     std::optional<DropHit> exit_hit[8];
     // Rays in through the base of an exact cap of circular outline leave through that cap: the
@@ -451,16 +451,14 @@ class Kernel {
   void prefetch(const glm::dvec2& xy) const {
     if (!std::isnan(xy.x)) bg_.prefetch(xy.x, xy.y);
   }
-  Sample finish(const DropPath& p, const glm::dvec2& xy) const {
-    if (!p.hit) return Sample{};
-    return finish(PathEnd{p.first_drop, p.dark, p.escaped_in, p.transmittance}, xy);
-  }
-  // The same from what shading reads of a path that met a drop.
+  // What shading reads of a path that met a drop.
   struct PathEnd {
     int drop;
     bool dark, escaped_in;
     double transmittance;
   };
+  static PathEnd end_of(const DropPath& p) { return {p.first_drop, p.dark, p.escaped_in, p.transmittance}; }
+  Sample finish(const DropPath& p, const glm::dvec2& xy) const { return p.hit ? finish(end_of(p), xy) : Sample{}; }
   Sample finish(const PathEnd& p, const glm::dvec2& xy) const {
     Sample s;
     s.hit = true;
@@ -477,7 +475,7 @@ class Kernel {
   // `seen_at`, if given, receives the background point seen (left alone for a dark ray or one
   // that reaches the car's interior).
   glm::dvec3 shade(const DropPath& p, bool* off_frame, glm::dvec2* seen_at = nullptr) const {
-    return shade_at(PathEnd{p.first_drop, p.dark, p.escaped_in, p.transmittance}, seen_point(p), off_frame, seen_at);
+    return shade_at(end_of(p), seen_point(p), off_frame, seen_at);
   }
   // The same with the background point seen already computed (seen_point).
   glm::dvec3 shade_at(const PathEnd& p, const glm::dvec2& xy, bool* off_frame, glm::dvec2* seen_at = nullptr) const {
@@ -769,10 +767,7 @@ TraceResult run(const cv::Mat& clean, const Camera& camera, const SceneConfig& c
         auto flush = [&] {
           n_lock += kernel.trace_camera_packet(xs, queued, y, paths);
           for (int i = 0; i < queued; ++i)
-            if (paths[i].hit) {
-              const DropPath& p = paths[i];
-              pending.push_back({xs[i], {p.first_drop, p.dark, p.escaped_in, p.transmittance}, kernel.seen_point(p)});
-            }
+            if (paths[i].hit) pending.push_back({xs[i], kernel.end_of(paths[i]), kernel.seen_point(paths[i])});
           queued = 0;
         };
         if (lanes) {

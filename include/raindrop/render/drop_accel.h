@@ -92,6 +92,9 @@ class DropAccel {
 
   // Every drop lies between the glass plane and this height above it (cm).
   double max_height() const { return max_height_; }
+  // The top of the layer the tracer limits each query to: max_height, padded far beyond the
+  // rounding of the heights it is compared with.
+  double slab_top() const { return max_height_ * (1 + 1e-9) + 1e-9; }
 
   const std::vector<Drop>& drops() const { return drops_; }
   const GeometryOptions& options() const { return options_; }

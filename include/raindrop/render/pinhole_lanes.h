@@ -47,7 +47,7 @@ namespace lanes_detail {
 struct SceneConstants {
   double cx, cy, fx, fy;   // camera
   double gp[3], gn[3];     // glass: a point and the unit normal (GlassFrame)
-  double top;              // slab_top
+  double top;              // DropAccel::slab_top
   double h0;               // slab_range's height of the camera's centre above the glass
   double eta_in, eta_out;  // 1 / n_water, n_water
   double background_z;     // the background plane, z = background_z
