@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <atomic>
+#include <climits>
 #include <cmath>
 #include <limits>
 #include <numeric>
@@ -1083,23 +1084,38 @@ ApertureResult run_aperture(const cv::Mat& clean, const Camera& camera, const Sc
   const int k = std::max(1, static_cast<int>(std::lround(std::sqrt(samples))));
   const double radius = 0.5 * scene.aperture_cm();
   auto lens_point = [&](int x, int y, int i, int j) { return lens_disk_point(x, y, i, j, k, radius); };
-  // Pixels whose aperture cone can meet a drop: the pinhole candidates widened by the
-  // largest circle of confusion (plus a pixel).
-  const auto spans = candidate_spans(camera, accel);
-  double reach = 0;
-  for (const Drop& d : accel.drops()) {
-    reach = std::max(reach, 0.5 * scene.drop_coc_px(d.shape(), camera.fx));
-    glm::dvec3 lo, hi;
-    d.bounds(&lo, &hi);
-    if (lo.z > 1e-9) reach = std::max(reach, 0.5 * scene.coc_px(lo.z, camera.fx));
-  }
-  const int pad = static_cast<int>(std::ceil(std::min(reach, 4.0 * (camera.width + camera.height)))) + 1;
-  std::vector<std::vector<Span>> rows(camera.height);
+  // Pixels whose aperture cone can meet a drop: each drop's pinhole candidates widened by
+  // half the largest circle of confusion over its depths (plus a pixel). A ray from lens point
+  // o towards pixel p's point on the plane of focus crosses depth z at (1 - z/F) o off the
+  // pinhole ray of p, which the pinhole projects within half the circle at z of p; the circle
+  // is largest at one end of the drop's depth range. Each drop by its own reach, not the
+  // frame's largest: small drops far from the lens' nearest glass trace far fewer pixels. A
+  // drop's candidates are taken as their bounding box, widened: a few more pixels than the
+  // exact widening, each of which finds no drop, and one span per row and drop to merge.
+  const auto by_drop = drop_candidate_spans(camera, accel);
+  const std::vector<Drop>& drops = accel.drops();
+  const double fxy = std::max(camera.fx, camera.fy);
+  struct Box {
+    int x0 = INT_MAX, x1 = INT_MIN, y0 = INT_MAX, y1 = INT_MIN;
+  };
+  std::vector<Box> boxes(drops.size());
   for (int y = 0; y < camera.height; ++y) {
-    for (const auto& [x0, x1] : spans[y]) {
-      for (int yy = std::max(0, y - pad); yy <= std::min(camera.height - 1, y + pad); ++yy)
-        rows[yy].push_back({std::max(0, x0 - pad), std::min(camera.width - 1, x1 + pad)});
+    for (const DropSpan& s : by_drop[y]) {
+      Box& b = boxes[static_cast<size_t>(s.drop)];
+      b = {std::min(b.x0, s.first), std::max(b.x1, s.last), std::min(b.y0, y), std::max(b.y1, y)};
     }
+  }
+  std::vector<std::vector<Span>> rows(camera.height);
+  for (size_t i = 0; i < drops.size(); ++i) {
+    const Box& b = boxes[i];
+    if (b.y0 > b.y1) continue;  // no pixel's pinhole ray comes near it
+    double reach = 0.5 * scene.drop_coc_px(drops[i].shape(), fxy);
+    glm::dvec3 lo, hi;
+    drops[i].bounds(&lo, &hi);
+    reach = lo.z > 1e-9 ? std::max({reach, 0.5 * scene.coc_px(lo.z, fxy), 0.5 * scene.coc_px(hi.z, fxy)}) : INFINITY;
+    const int pad = static_cast<int>(std::ceil(std::min(reach, 4.0 * (camera.width + camera.height)))) + 1;
+    for (int y = std::max(0, b.y0 - pad); y <= std::min(camera.height - 1, b.y1 + pad); ++y)
+      rows[y].push_back({std::max(0, b.x0 - pad), std::min(camera.width - 1, b.x1 + pad)});
   }
   for (auto& r : rows) merge_spans(r);
   const double T = scene.background_distance_cm;
