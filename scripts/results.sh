@@ -6,7 +6,7 @@
 # largedropmodels sensor mirroraverage highlights multiscale veil papermodels outline trails photos windshield
 # windshield-followup longer growth sharpness coalesce surround largewidth largedrops-all windshield2
 # errorsplit withoutvnni graphrewrites jitter windshieldscale router routed int8router droplets realismcontrol
-# droplets2 infocus realismbar windshieldday fillarea finedrops lanes
+# droplets2 infocus realismbar windshieldday fillarea finedrops lanes glassplate
 #
 # Sections measured before docs/RESULTS.md 4.44 run compact-windshield's detector (and the routed
 # default) with --surround-fill-area 150, the area they had then, so that they reproduce.
@@ -25,7 +25,7 @@ sections=("$@")
                                   photos windshield windshield-followup longer growth sharpness coalesce
                                   surround largewidth largedrops-all windshield2 errorsplit withoutvnni graphrewrites
                                   jitter windshieldscale router routed int8router droplets realismcontrol droplets2 infocus realismbar
-                                  windshieldday fillarea finedrops lanes)
+                                  windshieldday fillarea finedrops lanes glassplate)
 want() { [[ " ${sections[*]} " == *" $1 "* ]]; }
 # link_set SRC DST SPLIT [LIMIT]: the first LIMIT (default 100; 0: all) samples of data set SRC
 # (of manifest split SPLIT; "-" = all) linked into DST/rainy and DST/clean (and DST/mask, where
@@ -270,6 +270,42 @@ edited_scene() {
 # (one `raindrop_tools.realism` call per photo set and seed, seeds 0, 1, ...), per rendered set, as
 # markdown: the classifier's accuracy, the street alone's and the drops' effect, means over the
 # seeds (RESULTS 4.38, 4.40).
+# paired_realism DIR PHOTOS... -- SETS...: the realism classifier crop for crop (--paired), seeds 0-5,
+# against each folder of photographs PHOTOS (its JSONs DIR/<basename>-s<seed>.json), with SETS the
+# --rendered arguments; then per photo folder a table of each set's accuracy, its paired differences
+# to the sets named val-paper and val-real-photo (mean and sd over the seeds) and its drops' effect.
+paired_realism() {
+  local dir="$1" photos=() photo seed
+  shift
+  while [[ $1 != -- ]]; do photos+=("$1"); shift; done
+  shift
+  for photo in "${photos[@]}"; do
+    for seed in 0 1 2 3 4 5; do
+      $py -m raindrop_tools.realism --real-photos "$photo" "$@" --limit 100 --seed "$seed" --paired \
+        --json "$dir/$(basename "$photo")-s$seed.json" >/dev/null
+    done
+  done
+  $py - "$dir" "${photos[@]}" <<'PY'
+import json, os, sys
+import numpy as np
+d = sys.argv[1]
+for photos in map(os.path.basename, sys.argv[2:]):
+    acc, seeds = {}, 0
+    while os.path.exists(f"{d}/{photos}-s{seeds}.json"):
+        for sc in json.load(open(f"{d}/{photos}-s{seeds}.json"))["photo_scores"]:
+            name = sc["name"].split("(")[1].split(",")[0].removeprefix("val-")
+            acc.setdefault(name, []).append((sc["classifier"]["accuracy"], sc["drops_effect"]))
+        seeds += 1
+    acc = {k: np.array(v) for k, v in acc.items()}
+    print(f"\n{photos}, {seeds} seeds, paired: accuracy (lower is closer); difference to paper and to real-photo, "
+          "mean (sd) over the seeds; drops' effect\n\n| preset | accuracy | - paper | - real-photo | drops' effect |\n"
+          "| --- | ---: | ---: | ---: | ---: |")
+    for name, v in acc.items():
+        dp, dr = v[:, 0] - acc["paper"][:, 0], v[:, 0] - acc["real-photo"][:, 0]
+        print(f"| {name} | {v[:, 0].mean():.3f} | {dp.mean():+.3f} ({dp.std(ddof=1):.3f}) | {dr.mean():+.3f} "
+              f"({dr.std(ddof=1):.3f}) | {v[:, 1].mean():+.3f} |")
+PY
+}
 realism_table() {
   $py - "$1" <<'PY'
 import json, os, sys
@@ -330,6 +366,26 @@ router_alternative() {
   cp models/compact-multiscale/LARGE_DROPS "out/models/$run/"
   cp -r models/compact-multiscale "out/models/cm-$run"
   sed -i "s/^alternative compact-windshield\$/alternative $run/" "out/models/cm-$run/ROUTER"
+}
+
+# alternative_scored DIR RUN SET...: RUN trained and exported as the routed default's alternative
+# (router_alternative), the routed default and it scored on each SET (score_sets, -j 2) into
+# DIR/scores.txt, and both run on the 44 photographs (DIR/photos-default, DIR/photos-RUN: outputs
+# and masks).
+alternative_scored() {
+  local dir="$1" run="$2" m flags
+  shift 2
+  router_alternative "$run"
+  {
+    score_sets "$dir" routed "-j 2" "$@"
+    score_sets "$dir" "$run" "-j 2 --models out/models/cm-$run" "$@"
+  } | tee "$dir/scores.txt"
+  for m in default "$run"; do
+    flags=()
+    [[ $m == default ]] || flags=(--models "out/models/cm-$m")
+    rm -rf "$dir/photos-$m" && build/raindrop-remove "$shared/real-raindrop" "$dir/photos-$m/out" \
+      --mask-dir "$dir/photos-$m/masks" -q -j 2 "${flags[@]}"
+  done
 }
 
 # link_cv100: the first 100 CamVid val frames of 4.2, linked into out/results/cv100.
@@ -1935,17 +1991,7 @@ if want droplets2; then
   [[ -f data/train-hi/manifest.jsonl ]] || render_train_hi
   sets=(real-pairs:train:0 val-glass-droplets-now:-:0 val-windshield-sharp:-:0 val-sparse:-:0)
   run=compact-droplets-4
-  router_alternative "$run"
-  {
-    score_sets "$d2" routed "-j 2" "${sets[@]}"
-    score_sets "$d2" "$run" "-j 2 --models out/models/cm-$run" "${sets[@]}"
-  } | tee "$d2/scores.txt"
-  for m in default "$run"; do
-    flags=()
-    [[ $m == default ]] || flags=(--models "out/models/cm-$m")
-    rm -rf "$d2/photos-$m" && build/raindrop-remove "$shared/real-raindrop" "$d2/photos-$m/out" \
-      --mask-dir "$d2/photos-$m/masks" -q -j 2 "${flags[@]}"
-  done
+  alternative_scored "$d2" "$run" "${sets[@]}"
   # Where the default's error on the refitted renders lies (masks against the renders' own), and
   # the default's own detector trained with them (compact-multiscale-droplets), without the router.
   SPLIT_ERROR=1 score_sets "$d2/split" routed "-j 2" real-pairs:train:0 val-glass-droplets-now:-:0 | tee "$d2/split.txt"
@@ -2036,31 +2082,7 @@ if want realismbar; then
     build/raindrop-render -i "$out/cv100" -o "$rb/val-$p" --scene "$p" --size 512x256 --seed 11 -q
     sets+=(--rendered "$rb/val-$p")
   done
-  for photos in "$shared/real-raindrop" "$rb/clarity"; do
-    for seed in 0 1 2 3 4 5; do
-      $py -m raindrop_tools.realism --real-photos "$photos" "${sets[@]}" --limit 100 --seed "$seed" --paired \
-        --json "$rb/$(basename "$photos")-s$seed.json" >/dev/null
-    done
-  done
-  $py - "$rb" <<'PY' | tee "$rb/table.md"
-import json, os, sys
-import numpy as np
-rb = sys.argv[1]
-for photos in ("real-raindrop", "clarity"):
-    acc = {}
-    seeds = 0
-    while os.path.exists(f"{rb}/{photos}-s{seeds}.json"):
-        for sc in json.load(open(f"{rb}/{photos}-s{seeds}.json"))["photo_scores"]:
-            name = sc["name"].split("(")[1].split(",")[0].removeprefix("val-")
-            acc.setdefault(name, []).append(sc["classifier"]["accuracy"])
-        seeds += 1
-    acc = {k: np.array(v) for k, v in acc.items()}
-    print(f"\n{photos}, {seeds} seeds, paired: accuracy (lower is closer); difference to paper and to real-photo, "
-          "mean (sd) over the seeds\n\n| preset | accuracy | - paper | - real-photo |\n| --- | ---: | ---: | ---: |")
-    for name, v in acc.items():
-        dp, dr = v - acc["paper"], v - acc["real-photo"]
-        print(f"| {name} | {v.mean():.3f} | {dp.mean():+.3f} ({dp.std(ddof=1):.3f}) | {dr.mean():+.3f} ({dr.std(ddof=1):.3f}) |")
-PY
+  paired_realism "$rb" "$shared/real-raindrop" "$rb/clarity" -- "${sets[@]}" | tee "$rb/table.md"
   # The same sets against the real lens-cover pairs (train split), 3 seeds, paired.
   for seed in 0 1 2; do
     $py -m raindrop_tools.realism --real-pairs "$shared/real-pairs" --split train "${sets[@]}" --limit 100 \
@@ -2296,4 +2318,69 @@ if want lanes; then
     done
   done | tee "$ln/presets.txt"
   rm -rf "$ln/run" "$ln/render-before" "$ln/render-now"
+fi
+
+if want glassplate; then
+  # RESULTS 4.46: the glass-plate preset (dense, softly defocused drops on a plate 2-5 cm from the
+  # lens) against the photographs by the realism classifier (crop for crop, 6 seeds: all 44 and the
+  # 23 Qian-style 720x480 ones), and compact-plate (compact-windshield's detector trained with
+  # glass-plate renders) as the routed default's alternative, on the validation sets, on the 44
+  # photographs (mask coverage per photograph, a sheet), then the held-out test split.
+  validation_sets
+  gp="$out/glassplate"
+  rm -rf "$gp" && mkdir -p "$gp/qian-style"
+  for f in "$shared"/real-raindrop/{attgan,qian_demo,maxim,daclip}*; do ln -s "$(realpath "$f")" "$gp/qian-style/"; done
+  [[ -f data/train/manifest.jsonl ]] || build/raindrop-render --input "$shared/camvid/train" --input "$shared/camvid/val" \
+    --cityscapes "$shared/cityscapes-mini" --split train --size 512x256 --variants 6 --seed 1 --out data/train -q
+  [[ -f data/train-hi/manifest.jsonl ]] || render_train_hi
+  [[ -f data/train-windshield-sharp/manifest.jsonl ]] || build/raindrop-render -i "$shared/camvid/train" \
+    -o data/train-windshield-sharp --scene windshield-sharp --size 512x256 --variants 4 --seed 7 -q
+  [[ -f data/train-glass-plate/manifest.jsonl ]] || build/raindrop-render -i "$shared/camvid/train" \
+    -o data/train-glass-plate --scene glass-plate --size 512x256 --variants 4 --seed 7 -q
+  [[ -f data/val-glass-plate/manifest.jsonl ]] || build/raindrop-render -i "$out/cv100" -o data/val-glass-plate \
+    --scene glass-plate --size 512x256 --seed 11 -q
+  # Realism: the presets a Qian-style photograph could be confused with, over the same 100 frames.
+  sets=()
+  for p in paper real-photo lens-cover lens-cover-heavy windshield-day glass-plate; do
+    build/raindrop-render -i "$out/cv100" -o "$gp/val-$p" --scene "$p" --size 512x256 --seed 11 -q
+    sets+=(--rendered "$gp/val-$p")
+  done
+  paired_realism "$gp" "$shared/real-raindrop" "$gp/qian-style" -- "${sets[@]}" | tee "$gp/realism.md"
+  # The detector: criteria in tools/configs/compact-plate.yaml, fixed before scoring.
+  run=compact-plate
+  alternative_scored "$gp" "$run" real-pairs:train:0 val-glass-plate:-:0 val-windshield-sharp:-:0 val-sparse:-:0
+  # Where the error on glass-plate's renders lies: both detectors' masks against the renders' own.
+  for m in routed "$run"; do
+    flags="-j 2"
+    [[ $m == routed ]] || flags="-j 2 --models out/models/cm-$m"
+    split_sets "$gp/split" "$m" "$flags" val-glass-plate:-:0
+  done | tee "$gp/split.txt"
+  $py - "$gp" "$shared/real-raindrop" <<'PY' | tee "$gp/photo-masks.txt"
+import os, sys
+import cv2
+import numpy as np
+gp, photos = sys.argv[1:]
+names = sorted(os.listdir(f"{gp}/photos-default/masks"))
+cov = {n: [(cv2.imread(f"{gp}/photos-{m}/masks/{n}", 0) > 0).mean() for m in ("default", "compact-plate")] for n in names}
+for n, (a, b) in cov.items():
+    print(f"{n}: default {a:.3f}, compact-plate {b:.3f}")
+qian = [n for n in names if n.startswith(("attgan", "qian_demo", "maxim", "daclip"))]
+for label, group in (("all 44", names), ("23 Qian-style", qian)):
+    a, b = np.array([cov[n] for n in group]).T
+    print(f"{label}: mean mask {a.mean():.3f} -> {b.mean():.3f}; more of {(b > a + 0.005).sum()}, less of {(b < a - 0.005).sum()}")
+# Looked at (not committed): Qian-style photographs, input | default (mask in red) | compact-plate.
+def fit(im, w=360): return cv2.resize(im, (w, round(im.shape[0] * w / im.shape[1])), interpolation=cv2.INTER_AREA)
+def shown(m, n):
+    out = cv2.imread(f"{gp}/photos-{m}/out/" + next(f for f in os.listdir(f"{gp}/photos-{m}/out") if f.startswith(n[:-4] + ".")))
+    mask = cv2.imread(f"{gp}/photos-{m}/masks/{n}", 0) > 0
+    over = out.copy()
+    over[mask] = (0.6 * over[mask] + [0, 0, 100]).astype(np.uint8)
+    return np.hstack([fit(over), fit(out)])
+rows = []
+for n in qian[::3]:
+    src = cv2.imread(os.path.join(photos, next(f for f in os.listdir(photos) if f.startswith(n[:-4] + "."))))
+    rows.append(np.hstack([fit(src), shown("default", n), shown("compact-plate", n)]))
+w = max(r.shape[1] for r in rows)
+cv2.imwrite(f"{gp}/photos-sheet.png", np.vstack([cv2.copyMakeBorder(r, 0, 4, 0, w - r.shape[1], cv2.BORDER_CONSTANT) for r in rows]))
+PY
 fi
