@@ -6,7 +6,7 @@
 # largedropmodels sensor mirroraverage highlights multiscale veil papermodels outline trails photos windshield
 # windshield-followup longer growth sharpness coalesce surround largewidth largedrops-all windshield2
 # errorsplit withoutvnni graphrewrites jitter windshieldscale router routed int8router droplets realismcontrol
-# droplets2 infocus realismbar windshieldday fillarea finedrops lanes glassplate
+# droplets2 infocus realismbar windshieldday fillarea finedrops lanes glassplate platerecon
 #
 # Sections measured before docs/RESULTS.md 4.44 run compact-windshield's detector (and the routed
 # default) with --surround-fill-area 150, the area they had then, so that they reproduce.
@@ -25,7 +25,7 @@ sections=("$@")
                                   photos windshield windshield-followup longer growth sharpness coalesce
                                   surround largewidth largedrops-all windshield2 errorsplit withoutvnni graphrewrites
                                   jitter windshieldscale router routed int8router droplets realismcontrol droplets2 infocus realismbar
-                                  windshieldday fillarea finedrops lanes glassplate)
+                                  windshieldday fillarea finedrops lanes glassplate platerecon)
 want() { [[ " ${sections[*]} " == *" $1 "* ]]; }
 # link_set SRC DST SPLIT [LIMIT]: the first LIMIT (default 100; 0: all) samples of data set SRC
 # (of manifest split SPLIT; "-" = all) linked into DST/rainy and DST/clean (and DST/mask, where
@@ -2383,4 +2383,45 @@ for n in qian[::3]:
 w = max(r.shape[1] for r in rows)
 cv2.imwrite(f"{gp}/photos-sheet.png", np.vstack([cv2.copyMakeBorder(r, 0, 4, 0, w - r.shape[1], cv2.BORDER_CONSTANT) for r in rows]))
 PY
+fi
+
+if want platerecon; then
+  # RESULTS 4.47: compact-multiscale-plate, the default's 3RN and RFN fine-tuned with glass-plate
+  # renders (criteria in its config, fixed before scoring), exported under the default's name beside
+  # its detector, router and large-drop networks, against the routed default on the validation sets.
+  validation_sets
+  pr="$out/platerecon"
+  mkdir -p "$pr"
+  [[ -f data/train/manifest.jsonl ]] || build/raindrop-render --input "$shared/camvid/train" --input "$shared/camvid/val" \
+    --cityscapes "$shared/cityscapes-mini" --split train --size 512x256 --variants 6 --seed 1 --out data/train -q
+  [[ -f data/train-hi/manifest.jsonl ]] || render_train_hi
+  [[ -f data/train-glass-plate/manifest.jsonl ]] || build/raindrop-render -i "$shared/camvid/train" \
+    -o data/train-glass-plate --scene glass-plate --size 512x256 --variants 4 --seed 7 -q
+  [[ -f data/val-glass-plate/manifest.jsonl ]] || build/raindrop-render -i "$out/cv100" -o data/val-glass-plate \
+    --scene glass-plate --size 512x256 --seed 11 -q
+  run=compact-multiscale-plate
+  [[ -f "tools/runs/$run/checkpoints/stage2_step00000300.pt" ]] ||
+    $py -m raindrop_tools.train --config "tools/configs/$run.yaml" --out "tools/runs/$run" --init-from models/compact-multiscale
+  rm -rf "out/models/$run" && mkdir -p out/models
+  $py -m raindrop_tools.export --run "tools/runs/$run" --name compact-multiscale --out "out/models/$run"
+  $py -m raindrop_tools.large_drop_growth "out/models/$run" 0.35  # the default's (export.json)
+  cp models/compact-multiscale/{ROUTER,LARGE_DROPS} "out/models/$run/"
+  # The detector got no gradient (detection_weight 0, BatchNorm frozen): exported again, its graph
+  # is serialized with other initializer names, and computes what the default's does.
+  $py - "out/models/$run/rdn.onnx" models/compact-multiscale/rdn.onnx <<'PY'
+import sys
+import numpy as np
+import onnxruntime as ort
+x = np.random.default_rng(0).random((1, 3, 256, 512), dtype=np.float32)
+new, shipped = (ort.InferenceSession(p, providers=["CPUExecutionProvider"]) for p in sys.argv[1:])
+out = [s.run(None, {s.get_inputs()[0].name: x})[0] for s in (new, shipped)]
+print(f"rdn.onnx against the default's on a random 512x256 input: max difference {np.abs(out[0] - out[1]).max():.3g}")
+PY
+  ln -sfn "$PWD/models/compact-windshield" out/models/compact-windshield
+  ln -sfn "$PWD/models/paper-real-coarse" out/models/paper-real-coarse
+  sets=(real-pairs:train:0 val-glass-plate:-:0 val-windshield-sharp:-:0 val-sparse:-:0)
+  {
+    score_sets "$pr" routed "-j 2" "${sets[@]}"
+    score_sets "$pr" "$run" "-j 2 --models out/models/$run" "${sets[@]}"
+  } | tee "$pr/scores.txt"
 fi
