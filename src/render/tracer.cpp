@@ -2,7 +2,6 @@
 
 #include <algorithm>
 #include <atomic>
-#include <climits>
 #include <cmath>
 #include <limits>
 #include <numeric>
@@ -1092,30 +1091,28 @@ ApertureResult run_aperture(const cv::Mat& clean, const Camera& camera, const Sc
   // frame's largest: small drops far from the lens' nearest glass trace far fewer pixels. A
   // drop's candidates are taken as their bounding box, widened: a few more pixels than the
   // exact widening, each of which finds no drop, and one span per row and drop to merge.
-  const auto by_drop = drop_candidate_spans(camera, accel);
   const std::vector<Drop>& drops = accel.drops();
-  const double fxy = std::max(camera.fx, camera.fy);
-  struct Box {
-    int x0 = INT_MAX, x1 = INT_MIN, y0 = INT_MAX, y1 = INT_MIN;
-  };
-  std::vector<Box> boxes(drops.size());
-  for (int y = 0; y < camera.height; ++y) {
-    for (const DropSpan& s : by_drop[y]) {
-      Box& b = boxes[static_cast<size_t>(s.drop)];
-      b = {std::min(b.x0, s.first), std::max(b.x1, s.last), std::min(b.y0, y), std::max(b.y1, y)};
+  const double fxy = std::max(camera.fx, camera.fy);  // the circle's larger axis in pixels
+  std::vector<cv::Rect> boxes(drops.size());          // each drop's candidates (drop_rows), bounded
+  tbb::parallel_for(tbb::blocked_range<size_t>(0, drops.size(), 4), [&](const tbb::blocked_range<size_t>& r) {
+    std::vector<RowSpan> own;
+    for (size_t i = r.begin(); i < r.end(); ++i) {
+      own.clear();
+      drop_rows(camera, drops[i], &own);
+      for (const RowSpan& s : own) boxes[i] |= cv::Rect(s.x0, s.y, s.x1 - s.x0 + 1, 1);
     }
-  }
+  });
   std::vector<std::vector<Span>> rows(camera.height);
   for (size_t i = 0; i < drops.size(); ++i) {
-    const Box& b = boxes[i];
-    if (b.y0 > b.y1) continue;  // no pixel's pinhole ray comes near it
+    const cv::Rect& b = boxes[i];
+    if (b.empty()) continue;  // no pixel's pinhole ray comes near it
     double reach = 0.5 * scene.drop_coc_px(drops[i].shape(), fxy);
     glm::dvec3 lo, hi;
     drops[i].bounds(&lo, &hi);
     reach = lo.z > 1e-9 ? std::max({reach, 0.5 * scene.coc_px(lo.z, fxy), 0.5 * scene.coc_px(hi.z, fxy)}) : INFINITY;
     const int pad = static_cast<int>(std::ceil(std::min(reach, 4.0 * (camera.width + camera.height)))) + 1;
-    for (int y = std::max(0, b.y0 - pad); y <= std::min(camera.height - 1, b.y1 + pad); ++y)
-      rows[y].push_back({std::max(0, b.x0 - pad), std::min(camera.width - 1, b.x1 + pad)});
+    for (int y = std::max(0, b.y - pad); y <= std::min(camera.height - 1, b.y + b.height - 1 + pad); ++y)
+      rows[y].push_back({std::max(0, b.x - pad), std::min(camera.width - 1, b.x + b.width - 1 + pad)});
   }
   for (auto& r : rows) merge_spans(r);
   const double T = scene.background_distance_cm;
