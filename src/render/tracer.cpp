@@ -13,10 +13,12 @@
 #include <tbb/parallel_for.h>
 
 #include "raindrop/common/rng.h"
+#include "raindrop/render/aperture_reach.h"
 #include "raindrop/render/background.h"
 #include "raindrop/render/background_range.h"
 #include "raindrop/render/cap_exit.h"
 #include "raindrop/render/defocus.h"
+#include "raindrop/render/lens_disk.h"
 #include "raindrop/render/linear_frame.h"
 #include "raindrop/render/optics.h"
 #include "raindrop/render/pinhole_lanes.h"
@@ -644,39 +646,13 @@ std::vector<std::vector<DropSpan>> drop_candidate_spans(const Camera& camera, co
 
 namespace {
 
-// A hash of pixel (x, y) and `salt`: per-pixel random numbers that do not depend on the
-// thread count.
-std::uint64_t pixel_hash(int x, int y, std::uint64_t salt) {
-  return mix64((static_cast<std::uint64_t>(y) << 40) ^ (static_cast<std::uint64_t>(x) << 16) ^ salt);
-}
-// Two numbers in [0, 1) from a hash's halves.
-glm::dvec2 unit_pair(std::uint64_t h) {
-  return {static_cast<double>(h & 0xffffffffULL) * 0x1.0p-32, static_cast<double>(h >> 32) * 0x1.0p-32};
-}
-
-// A point of the lens disk of `radius` for pixel (x, y), stratum (i, j) of a k x k grid: the
-// strata jittered per pixel and stratum by a hash (so a render is the same for any thread
-// count), mapped onto the disk by the concentric map, which keeps the strata's equal areas.
-// Without the jitter, every pixel would use the same k/2 rings of the disk and coverage would
-// come in visible steps.
-glm::dvec2 lens_disk_point(int x, int y, int i, int j, int k, double radius) {
-  const glm::dvec2 jitter = unit_pair(pixel_hash(x, y, static_cast<std::uint64_t>(j * k + i)));
-  const double a = 2.0 * (i + jitter.x) / k - 1.0, b = 2.0 * (j + jitter.y) / k - 1.0;
-  double r = 0, phi = 0;
-  if (a == 0 && b == 0) return glm::dvec2(0.0);
-  if (std::abs(a) > std::abs(b)) {
-    r = a, phi = M_PI / 4 * (b / a);
-  } else {
-    r = b, phi = M_PI / 2 - M_PI / 4 * (a / b);
-  }
-  return radius * r * glm::dvec2(std::cos(phi), std::sin(phi));
-}
-
 // A traced ray's colour in linear light, lifted where the scene lifts highlights
-// (highlights.h): what the aperture paths average.
+// (highlights.h): what the aperture paths average. Decoded by the table (within 2e-7 of the formula: srgb.h), as the fast path decodes: a pow
+// per channel was a tenth of the reference's time.
 glm::dvec3 lifted_linear(const Sample& s, const HighlightLift& lift) {
+  const SrgbTables& tables = SrgbTables::get();
   double rgb[3];
-  for (int c = 0; c < 3; ++c) rgb[c] = srgb_to_linear(std::min(std::max(s.rgb[c], 0.0), 1.0));
+  for (int c = 0; c < 3; ++c) rgb[c] = tables.decode(static_cast<float>(s.rgb[c]));
   lift.apply(rgb);
   return {rgb[0], rgb[1], rgb[2]};
 }
@@ -1062,6 +1038,10 @@ TraceResult run(const cv::Mat& clean, const Camera& camera, const SceneConfig& c
   return out;
 }
 
+// Past this many drops in a pixel's cone, its rays are not tested one by one against them
+// (Embree's query tests them faster).
+constexpr size_t kMaxDropsTestedPerRay = 8;
+
 // The aperture reference: every pixel near a drop averages rays from a stratified grid of
 // points on the lens disk, each aimed at the pixel's point on the plane of focus (z = F) and
 // traced through the drops. Focused on the background (F = T), a ray that meets no drop lands
@@ -1083,38 +1063,49 @@ ApertureResult run_aperture(const cv::Mat& clean, const Camera& camera, const Sc
   const int k = std::max(1, static_cast<int>(std::lround(std::sqrt(samples))));
   const double radius = 0.5 * scene.aperture_cm();
   auto lens_point = [&](int x, int y, int i, int j) { return lens_disk_point(x, y, i, j, k, radius); };
-  // Pixels whose aperture cone can meet a drop: each drop's pinhole candidates widened by
-  // half the largest circle of confusion over its depths (plus a pixel). A ray from lens point
-  // o towards pixel p's point on the plane of focus crosses depth z at (1 - z/F) o off the
-  // pinhole ray of p, which the pinhole projects within half the circle at z of p; the circle
-  // is largest at one end of the drop's depth range. Each drop by its own reach, not the
-  // frame's largest: small drops far from the lens' nearest glass trace far fewer pixels. A
-  // drop's candidates are taken as their bounding box, widened: a few more pixels than the
-  // exact widening, each of which finds no drop, and one span per row and drop to merge.
+  // Pixels whose aperture cone can meet a drop: the pinhole image of each drop's bounding box
+  // (the hull of its eight corners' images; unclipped, so that a drop just outside the frame
+  // still reaches in) widened by half the largest circle of confusion over its depths (plus a
+  // pixel). A ray from lens point o towards pixel p's point on the plane of focus crosses depth
+  // z at (1 - z/F) o off the pinhole ray of p, which the pinhole projects within half the circle
+  // at z of p; the circle is largest at one end of the drop's depth range. Each drop by its own
+  // reach, not the frame's largest: small drops far from the lens' nearest glass trace far
+  // fewer pixels. Within these boxes ApertureReach culls the pixels and rays that cannot meet.
   const std::vector<Drop>& drops = accel.drops();
   const double fxy = std::max(camera.fx, camera.fy);  // the circle's larger axis in pixels
-  std::vector<cv::Rect> boxes(drops.size());          // each drop's candidates (drop_rows), bounded
-  tbb::parallel_for(tbb::blocked_range<size_t>(0, drops.size(), 4), [&](const tbb::blocked_range<size_t>& r) {
-    std::vector<RowSpan> own;
-    for (size_t i = r.begin(); i < r.end(); ++i) {
-      own.clear();
-      drop_rows(camera, drops[i], &own);
-      for (const RowSpan& s : own) boxes[i] |= cv::Rect(s.x0, s.y, s.x1 - s.x0 + 1, 1);
-    }
-  });
+  const double frame_reach = 4.0 * (camera.width + camera.height);  // beyond it: the whole frame
   std::vector<std::vector<Span>> rows(camera.height);
+  std::vector<std::vector<DropSpan>> row_drops(camera.height);  // the same, drop by drop
   for (size_t i = 0; i < drops.size(); ++i) {
-    const cv::Rect& b = boxes[i];
-    if (b.empty()) continue;  // no pixel's pinhole ray comes near it
-    double reach = 0.5 * scene.drop_coc_px(drops[i].shape(), fxy);
     glm::dvec3 lo, hi;
     drops[i].bounds(&lo, &hi);
-    reach = lo.z > 1e-9 ? std::max({reach, 0.5 * scene.coc_px(lo.z, fxy), 0.5 * scene.coc_px(hi.z, fxy)}) : INFINITY;
-    const int pad = static_cast<int>(std::ceil(std::min(reach, 4.0 * (camera.width + camera.height)))) + 1;
-    for (int y = std::max(0, b.y - pad); y <= std::min(camera.height - 1, b.y + b.height - 1 + pad); ++y)
-      rows[y].push_back({std::max(0, b.x - pad), std::min(camera.width - 1, b.x + b.width - 1 + pad)});
+    double bx0 = -frame_reach, bx1 = camera.width + frame_reach, by0 = -frame_reach, by1 = camera.height + frame_reach;
+    if (lo.z > 1e-9) {  // else it reaches behind the camera: the whole frame
+      const double reach = std::max({0.5 * scene.drop_coc_px(drops[i].shape(), fxy), 0.5 * scene.coc_px(lo.z, fxy),
+                                     0.5 * scene.coc_px(hi.z, fxy)}) + 1.0;
+      bx0 = by0 = INFINITY;
+      bx1 = by1 = -INFINITY;
+      for (int c = 0; c < 8; ++c) {
+        const glm::dvec2 p = camera.project({(c & 1) ? hi.x : lo.x, (c & 2) ? hi.y : lo.y, (c & 4) ? hi.z : lo.z});
+        bx0 = std::min(bx0, p.x), bx1 = std::max(bx1, p.x), by0 = std::min(by0, p.y), by1 = std::max(by1, p.y);
+      }
+      bx0 -= reach, by0 -= reach, bx1 += reach, by1 += reach;
+    }
+    const int x0 = static_cast<int>(std::max(0.0, std::floor(bx0)));
+    const int x1 = static_cast<int>(std::min(camera.width - 1.0, std::ceil(bx1)));
+    const int y0 = static_cast<int>(std::max(0.0, std::floor(by0)));
+    const int y1 = static_cast<int>(std::min(camera.height - 1.0, std::ceil(by1)));
+    for (int y = y0; y <= y1 && x0 <= x1; ++y) {
+      rows[y].push_back({x0, x1});
+      row_drops[y].push_back({x0, x1, static_cast<int>(i)});
+    }
   }
   for (auto& r : rows) merge_spans(r);
+  for (auto& r : row_drops)
+    std::sort(r.begin(), r.end(), [](const DropSpan& a, const DropSpan& b) { return a.first < b.first; });
+  // Within those boxes, the pixels and rays that can meet a drop: the rest would find none,
+  // and give what an untraced pixel gives (aperture_reach.h).
+  const ApertureReach reach(drops, radius, scene.focus_cm());
   const double T = scene.background_distance_cm;
   const double F = scene.focus_cm();
   // The street a ray from lens point o through `focus` (z = F) meets on the plane z = T: the
@@ -1139,9 +1130,25 @@ ApertureResult run_aperture(const cv::Mat& clean, const Camera& camera, const Sc
   auto to_vec3f = [](const glm::dvec3& v) {
     return cv::Vec3f(static_cast<float>(v.x), static_cast<float>(v.y), static_cast<float>(v.z));
   };
-  std::atomic<std::int64_t> lockstep{0};
+  std::atomic<std::int64_t> lockstep{0}, traced_rays{0};
+  const int n = k * k;
   tbb::parallel_for(tbb::blocked_range<int>(0, camera.height, 4), [&](const tbb::blocked_range<int>& r) {
-    std::int64_t n_lock = 0;
+    std::int64_t n_lock = 0, n_traced = 0;
+    std::vector<int> near;  // the drops a pixel's cone can meet
+    std::vector<glm::dvec3> origins(n), dirs(n);
+    std::vector<int> asked;  // the rays that can meet one of them
+    std::vector<Sample> seen_by(n);
+    // A pixel none of whose rays meets a drop, off the background's focus: the street its rays
+    // see, averaged (the rays' street, as a traced pixel averages it).
+    const auto street_alone = [&](int x, int y, cv::Vec3f* rgb, cv::Vec3f* clean_rgb) {
+      const glm::dvec3 focus = F * camera.ray_direction(x, y);
+      glm::dvec3 sum(0.0);
+      for (int sample = 0; sample < n; ++sample) {
+        const glm::dvec2 p = lens_point(x, y, sample % k, sample / k);
+        sum += street_seen(glm::dvec3(p.x, p.y, 0.0), focus);
+      }
+      *rgb = *clean_rgb = to_vec3f(sum / static_cast<double>(n));
+    };
     for (int y = r.begin(); y < r.end(); ++y) {
       auto* out_rgb = out.linear.ptr<cv::Vec3f>(y);
       auto* out_cov = out.coverage.ptr<float>(y);
@@ -1154,57 +1161,82 @@ ApertureResult run_aperture(const cv::Mat& clean, const Camera& camera, const Sc
         for (int x = 0; x < camera.width; ++x) {
           while (span < rows[y].size() && rows[y][span].second < x) ++span;
           if (span < rows[y].size() && rows[y][span].first <= x) continue;  // near a drop
-          const glm::dvec3 focus = F * camera.ray_direction(x, y);
-          glm::dvec3 sum(0.0);
-          for (int sample = 0; sample < k * k; ++sample) {
-            const glm::dvec2 p = lens_point(x, y, sample % k, sample / k);
-            sum += street_seen(glm::dvec3(p.x, p.y, 0.0), focus);
-          }
-          out_rgb[x] = out_clean[x] = to_vec3f(sum / static_cast<double>(k * k));
+          street_alone(x, y, &out_rgb[x], &out_clean[x]);
         }
       }
+      const std::vector<DropSpan>& boxes_here = row_drops[y];
       for (const auto& [x0, x1] : rows[y]) {
         for (int x = x0; x <= x1; ++x) {
           const glm::dvec3 focus = F * camera.ray_direction(x, y);
+          near.clear();
+          for (const DropSpan& b : boxes_here) {
+            if (b.first > x) break;
+            if (b.last >= x && (!strategy.cull || reach.cone_meets(b.drop, focus))) near.push_back(b.drop);
+          }
+          if (near.empty()) {
+            if (street) street_alone(x, y, &out_rgb[x], &out_clean[x]);
+            continue;
+          }
+          // The rays, and which of them can meet a drop (each tested against the few drops
+          // its pixel's cone meets; past a few, every ray goes to Embree's query).
+          asked.clear();
+          const bool test_rays = strategy.cull && near.size() <= kMaxDropsTestedPerRay;
+          for (int sample = 0; sample < n; ++sample) {
+            const glm::dvec2 p = lens_point(x, y, sample % k, sample / k);
+            origins[sample] = glm::dvec3(p.x, p.y, 0.0);
+            dirs[sample] = focus - origins[sample];
+            bool can = !test_rays;
+            for (size_t j = 0; j < near.size() && !can; ++j) can = reach.ray_meets(near[j], origins[sample], dirs[sample]);
+            if (can) {
+              asked.push_back(sample);
+            } else {
+              seen_by[sample] = Sample{};
+            }
+          }
+          n_traced += static_cast<std::int64_t>(asked.size());
+          n_lock += kernel.trace_rays(
+              static_cast<int>(asked.size()),
+              [&](int i, glm::dvec3* origin, glm::dvec3* dir) {
+                *origin = origins[asked[i]];
+                *dir = dirs[asked[i]];
+              },
+              [&](int i, const glm::dvec3&, const Sample& s) { seen_by[asked[i]] = s; });
           float own_rgb[3] = {lin[src[x][0]], lin[src[x][1]], lin[src[x][2]]};
           lift.apply(own_rgb);  // what the pixel's clipped bytes stood for (highlights.h)
           const glm::dvec3 own(own_rgb[0], own_rgb[1], own_rgb[2]);
           glm::dvec3 sum(0.0), street_sum(0.0);
           int hits = 0;
-          n_lock += kernel.trace_rays(
-              k * k,
-              [&](int sample, glm::dvec3* origin, glm::dvec3* dir) {
-                const glm::dvec2 p = lens_point(x, y, sample % k, sample / k);
-                *origin = glm::dvec3(p.x, p.y, 0.0);
-                *dir = focus - *origin;
-              },
-              [&](int, const glm::dvec3& origin, const Sample& s) {
-                // The street this ray would see without drops: the clean image's, and the rainy
-                // image's where the ray meets no drop.
-                glm::dvec3 seen = own;
-                if (street) {
-                  seen = street_seen(origin, focus);
-                  street_sum += seen;
-                }
-                if (!s.hit) {
-                  sum += seen;
-                  return;
-                }
-                ++hits;
-                sum += lifted_linear(s, lift);
-              });
-          if (street) out_clean[x] = to_vec3f(street_sum / static_cast<double>(k * k));
+          // In the rays' order, whichever were traced: the same sums as tracing them all.
+          for (int sample = 0; sample < n; ++sample) {
+            const Sample& s = seen_by[sample];
+            // The street this ray would see without drops: the clean image's, and the rainy
+            // image's where the ray meets no drop.
+            glm::dvec3 seen = own;
+            if (street) {
+              seen = street_seen(origins[sample], focus);
+              street_sum += seen;
+            }
+            if (!s.hit) {
+              sum += seen;
+              continue;
+            }
+            ++hits;
+            sum += lifted_linear(s, lift);
+          }
+          if (street) out_clean[x] = to_vec3f(street_sum / static_cast<double>(n));
           if (hits == 0) {
             if (street) out_rgb[x] = out_clean[x];
             continue;
           }
-          out_rgb[x] = to_vec3f(sum / static_cast<double>(k * k));
-          out_cov[x] = static_cast<float>(hits) / static_cast<float>(k * k);
+          out_rgb[x] = to_vec3f(sum / static_cast<double>(n));
+          out_cov[x] = static_cast<float>(hits) / static_cast<float>(n);
         }
       }
     }
     lockstep += n_lock;
+    traced_rays += n_traced;
   });
+  out.traced_rays = traced_rays;
   out.lockstep_rays = lockstep;
   return out;
 }

@@ -93,6 +93,9 @@ struct TraceStrategy {
   // With lockstep, the pinhole pass's camera rays traced in SIMD lanes a drop at a time
   // (pinhole_lanes.h; exact disjoint caps of circular outline, no dispersion).
   bool lanes = true;
+  // The aperture reference's pixels and rays that cannot meet a drop (aperture_reach.h) left
+  // untraced: what they would give is known. Off: every ray of every pixel near a drop traced.
+  bool cull = true;
 };
 
 // What the thin-lens camera's layered path (renderer.cpp) adds to the pinhole trace.
@@ -143,6 +146,7 @@ struct ApertureResult {
   cv::Mat coverage;      // CV_32F: the fraction of the aperture's rays that met a drop
   cv::Mat clean_linear;  // CV_32FC3 linear RGB of the street alone, focus off it; else empty
   std::int64_t lockstep_rays = 0;  // rays traced side by side (TraceStrategy::lockstep)
+  std::int64_t traced_rays = 0;    // rays traced at all (the others cannot meet a drop: aperture_reach.h)
 };
 // `margin`: as LensTrace's.
 ApertureResult trace_aperture(const cv::Mat& clean, const Camera& camera, const SceneConfig& config,
