@@ -133,19 +133,76 @@ DropPath PinholeLanes::Row::path(int x) const {
   return p;
 }
 
+namespace {
+
+// The scratch grows to the widest row (or the most rays) it is given.
+void grow(PinholeLanes::Row* row, int x_end) {
+  if (row->outcome.size() >= static_cast<size_t>(x_end)) return;
+  const size_t n = static_cast<size_t>(x_end);
+  for (auto* v : {&row->ox, &row->oy, &row->oz, &row->dx, &row->dy, &row->dz, &row->seen_x, &row->seen_y, &row->t,
+                  &row->range, &row->transmittance})
+    v->resize(n);
+  row->outcome.resize(n);
+  row->drop.resize(n);
+  row->state.resize(n);
+  row->base.resize(n);
+}
+
+}  // namespace
+
+// Whether the ray traced to i in the lanes left the common path: a cap met from outside, off
+// the common path on the way, or out of the drop within the slab with another drop in reach.
+bool PinholeLanes::alone(const Row& r, int i) const {
+  const std::uint8_t state = r.state[i];
+  return !r.base[i] || state == kAlone ||
+         ((state & ~kEscaped) == kOutSlab &&
+          accel_.may_meet_after_exit(r.drop[i], glm::dvec3(r.ox[i], r.oy[i], r.oz[i]),
+                                     glm::dvec3(r.dx[i], r.dy[i], r.dz[i]), r.range[i]));
+}
+
+int PinholeLanes::trace_rays(const lanes_detail::RayArrays& rays, int n, const std::vector<int>& drops,
+                             Row* row) const {
+  grow(row, n);
+  Row& r = *row;
+  std::fill(r.t.begin(), r.t.begin() + n, std::numeric_limits<double>::infinity());
+  std::fill(r.drop.begin(), r.drop.begin() + n, -1);
+  CV_Assert(available());
+  const int level = PinholeLanes::level();
+#if RAINDROP_PINHOLE_LANES
+  const auto first_hits =
+      level == 2 ? lanes_avx512::ray_first_hits : level == 1 ? lanes_avx2::ray_first_hits : lanes_sse2::ray_first_hits;
+  const auto common_paths = level == 2   ? lanes_avx512::ray_common_paths
+                            : level == 1 ? lanes_avx2::ray_common_paths
+                                         : lanes_sse2::ray_common_paths;
+#else
+  const auto first_hits = [](auto&&...) {};
+  const auto common_paths = [](auto&&...) {};
+  (void)level;
+#endif
+  for (int drop : drops)
+    first_hits(scene_, drops_[static_cast<size_t>(drop)], drop, rays, n, r.t.data(), r.drop.data(), r.base.data());
+  int traced = 0;
+  for (int drop : drops) {
+    common_paths(scene_, drops_[static_cast<size_t>(drop)], drop, rays, n, r.t.data(), r.drop.data(), r.base.data(),
+                 r.state.data(), r.ox.data(), r.oy.data(), r.oz.data(), r.dx.data(), r.dy.data(), r.dz.data(),
+                 r.range.data(), r.seen_x.data(), r.seen_y.data(), r.transmittance.data());
+  }
+  for (int i = 0; i < n; ++i) {
+    if (r.drop[i] < 0) {
+      r.outcome[i] = Outcome::Miss;
+      continue;
+    }
+    const bool by_itself = alone(r, i);
+    r.outcome[i] = by_itself ? Outcome::Alone : Outcome::Path;
+    traced += !by_itself;
+  }
+  return traced;
+}
+
 int PinholeLanes::trace_row(int y, const std::vector<DropSpan>& spans, Row* row) const {
   int x_end = 0;
   for (const DropSpan& s : spans) x_end = std::max(x_end, s.last + 1);
-  if (row->outcome.size() < static_cast<size_t>(x_end)) {  // the scratch grows to the widest row
-    const size_t n = static_cast<size_t>(x_end);
-    for (auto* v : {&row->ox, &row->oy, &row->oz, &row->dx, &row->dy, &row->dz, &row->seen_x, &row->seen_y, &row->t,
-                    &row->range, &row->transmittance})
-      v->resize(n);
-    row->outcome.resize(n);
-    row->drop.resize(n);
-    row->state.resize(n);
-    row->base.resize(n);
-  }
+  grow(row, x_end);
   for (const DropSpan& s : spans) {
     std::fill(row->t.begin() + s.first, row->t.begin() + s.last + 1, std::numeric_limits<double>::infinity());
     std::fill(row->drop.begin() + s.first, row->drop.begin() + s.last + 1, -1);
@@ -181,15 +238,9 @@ int PinholeLanes::trace_row(int y, const std::vector<DropSpan>& spans, Row* row)
         continue;
       }
       if (drop != s.drop) continue;
-      const std::uint8_t state = r.state[x];
-      // A cap met from outside, or off the common path on the way; or, out of the drop within
-      // the slab, another drop in reach.
-      const bool alone = !r.base[x] || state == kAlone ||
-                         ((state & ~kEscaped) == kOutSlab &&
-                          accel_.may_meet_after_exit(drop, glm::dvec3(r.ox[x], r.oy[x], r.oz[x]),
-                                                     glm::dvec3(r.dx[x], r.dy[x], r.dz[x]), r.range[x]));
-      r.outcome[x] = alone ? Outcome::Alone : Outcome::Path;
-      traced += !alone;
+      const bool by_itself = alone(r, x);
+      r.outcome[x] = by_itself ? Outcome::Alone : Outcome::Path;
+      traced += !by_itself;
     }
   }
   return traced;

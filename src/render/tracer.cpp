@@ -1041,6 +1041,9 @@ TraceResult run(const cv::Mat& clean, const Camera& camera, const SceneConfig& c
 // Past this many drops in a pixel's cone, its rays are not tested one by one against them
 // (Embree's query tests them faster).
 constexpr size_t kMaxDropsTestedPerRay = 8;
+// Past this many, a pixel's rays go to Embree's query instead of the lanes, which try every
+// drop in the cone on every ray.
+constexpr size_t kMaxDropsInLanes = 8;
 
 // The aperture reference: every pixel near a drop averages rays from a stratified grid of
 // points on the lens disk, each aimed at the pixel's point on the plane of focus (z = F) and
@@ -1130,10 +1133,21 @@ ApertureResult run_aperture(const cv::Mat& clean, const Camera& camera, const Sc
   auto to_vec3f = [](const glm::dvec3& v) {
     return cv::Vec3f(static_cast<float>(v.x), static_cast<float>(v.y), static_cast<float>(v.z));
   };
-  std::atomic<std::int64_t> lockstep{0}, traced_rays{0};
+  // A pixel's rays that take the common path traced in SIMD lanes (pinhole_lanes.h), as the
+  // pinhole pass's are: the same bits.
+  std::optional<PinholeLanes> lanes;
+  if constexpr (!kDispersion) {
+    if (strategy.lanes && kernel.lockstep() && PinholeLanes::applies(accel))
+      lanes.emplace(camera, accel, scene.glass, scene.background_distance_cm, config.channel_indices().y, config.tir,
+                    kFresnel);
+  }
+  std::atomic<std::int64_t> lockstep{0}, traced_rays{0}, lane_rays_traced{0};
   const int n = k * k;
   tbb::parallel_for(tbb::blocked_range<int>(0, camera.height, 4), [&](const tbb::blocked_range<int>& r) {
-    std::int64_t n_lock = 0, n_traced = 0;
+    std::int64_t n_lock = 0, n_traced = 0, n_lanes = 0;
+    PinholeLanes::Row lane_row;
+    std::vector<double> lane_rays[6];  // origins x, y, z and directions x, y, z, padded to 8
+    for (auto& v : lane_rays) v.resize(static_cast<size_t>((n + 7) / 8 * 8));
     std::vector<int> near;  // the drops a pixel's cone can meet
     std::vector<glm::dvec3> origins(n), dirs(n);
     std::vector<int> asked;  // the rays that can meet one of them
@@ -1194,6 +1208,45 @@ ApertureResult run_aperture(const cv::Mat& clean, const Camera& camera, const Sc
             }
           }
           n_traced += static_cast<std::int64_t>(asked.size());
+          if (lanes && !asked.empty() && near.size() <= kMaxDropsInLanes) {
+            // In the lanes, against the drops the pixel's cone meets (every drop its rays can
+            // meet); those that leave the common path go on alone below.
+            const int m = static_cast<int>(asked.size());
+            const int padded = (m + 7) / 8 * 8;
+            for (int i = 0; i < padded; ++i) {
+              const int ray = asked[std::min(i, m - 1)];
+              const glm::dvec3 d = glm::normalize(dirs[ray]);  // as trace_packet normalises it
+              lane_rays[0][i] = origins[ray].x, lane_rays[1][i] = origins[ray].y, lane_rays[2][i] = origins[ray].z;
+              lane_rays[3][i] = d.x, lane_rays[4][i] = d.y, lane_rays[5][i] = d.z;
+            }
+            const lanes_detail::RayArrays arrays{lane_rays[0].data(), lane_rays[1].data(), lane_rays[2].data(),
+                                                 lane_rays[3].data(), lane_rays[4].data(), lane_rays[5].data()};
+            const int in_lanes = lanes->trace_rays(arrays, m, near, &lane_row);
+            n_lock += in_lanes;
+            n_lanes += in_lanes;
+            int left = 0;
+            for (int i = 0; i < m; ++i) {
+              const int ray = asked[i];
+              switch (lane_row.outcome[i]) {
+                case PinholeLanes::Outcome::Miss:
+                  seen_by[ray] = Sample{};
+                  break;
+                case PinholeLanes::Outcome::Path: {
+                  // As seen_point: no background point for a dark ray or one into the car.
+                  const bool black = lane_row.dark(i), escaped = lane_row.escaped_in(i);
+                  const glm::dvec2 xy = black || escaped ? glm::dvec2(NAN, NAN)
+                                                         : glm::dvec2(lane_row.seen_x[i], lane_row.seen_y[i]);
+                  using End = typename Kernel<kFresnel, kDispersion>::PathEnd;
+                  seen_by[ray] = kernel.finish(End{lane_row.drop[i], black, escaped, lane_row.transmittance[i]}, xy);
+                  break;
+                }
+                case PinholeLanes::Outcome::Alone:
+                  asked[left++] = ray;
+                  break;
+              }
+            }
+            asked.resize(static_cast<size_t>(left));
+          }
           n_lock += kernel.trace_rays(
               static_cast<int>(asked.size()),
               [&](int i, glm::dvec3* origin, glm::dvec3* dir) {
@@ -1235,8 +1288,10 @@ ApertureResult run_aperture(const cv::Mat& clean, const Camera& camera, const Sc
     }
     lockstep += n_lock;
     traced_rays += n_traced;
+    lane_rays_traced += n_lanes;
   });
   out.traced_rays = traced_rays;
+  out.lane_rays = lane_rays_traced;
   out.lockstep_rays = lockstep;
   return out;
 }

@@ -7,6 +7,7 @@
 #include <gtest/gtest.h>
 
 #include "raindrop/common/rng.h"
+#include "raindrop/render/aperture_reach.h"
 #include "raindrop/render/pinhole_lanes.h"
 #include "raindrop/render/renderer.h"
 #include "raindrop/render/scene_config.h"
@@ -204,6 +205,133 @@ TEST(PinholeLanes, TraceWhatTheSideBySidePathTraces) {
     ca.setTo(cv::Scalar::all(0), a.label < 0);
     cb.setTo(cv::Scalar::all(0), b.label < 0);
     EXPECT_TRUE(equal_bits(ca, cb)) << seed;
+  }
+}
+
+// An aperture pixel's rays (trace_rays: any origins, the drops the pixel's cone meets): each
+// ray the lanes trace ends where trace_path ends it, to the bit, and each they call a miss
+// meets no drop; every register width, the lane cases' scenes seen through a 0.6 cm aperture
+// focused on the background, 16 rays a pixel from random points of the disk (its rim among them).
+TEST(PinholeLanes, EachApertureRayPathIsTracePathsToTheBit) {
+  SKIP_WITHOUT_LANES();
+  const Camera cam = camera(163, 80, 180);
+  const std::vector<NamedScene> cases = lane_cases(cam);
+  const int widest = PinholeLanes::level();
+  std::vector<std::int64_t> paths(widest + 1, 0), misses(widest + 1, 0);
+  constexpr int kRays = 16;
+  constexpr double kRadius = 0.3;
+  for (const NamedScene& k : cases) {
+    const std::vector<Drop> drops = drops_of(k.scene);
+    DropAccel accel(drops, k.config.geometry);
+    accel.set_disjoint(!k.config.allow_overlap && !k.config.trails.enabled);
+    if (!PinholeLanes::applies(accel)) continue;
+    const double n = k.config.channel_indices().y, F = k.scene.background_distance_cm;
+    const ApertureReach reach(drops, kRadius, F);
+    for (int level = 0; level <= widest; ++level) {
+      const ForcedLevel forced(level);
+      const PinholeLanes lanes(cam, accel, k.scene.glass, F, n, k.config.tir, k.config.fresnel.enabled);
+      PinholeLanes::Row row;
+      Rng rng(17);
+      std::vector<double> arrays[6];
+      for (auto& v : arrays) v.resize(kRays);
+      for (int y = 0; y < cam.height; y += 3) {
+        for (int x = 0; x < cam.width; x += 3) {
+          const glm::dvec3 focus = F * cam.ray_direction(x, y);
+          std::vector<int> near;
+          for (int d = 0; d < static_cast<int>(drops.size()); ++d)
+            if (reach.cone_meets(d, focus)) near.push_back(d);
+          if (near.empty()) continue;
+          glm::dvec3 origins[kRays], raw[kRays];
+          for (int i = 0; i < kRays; ++i) {
+            const double angle = rng.uniform(0.0, 2 * M_PI), rho = i % 4 == 0 ? kRadius : kRadius * std::sqrt(rng.uniform());
+            origins[i] = glm::dvec3(rho * std::cos(angle), rho * std::sin(angle), 0.0);
+            raw[i] = focus - origins[i];
+            const glm::dvec3 d = glm::normalize(raw[i]);
+            arrays[0][i] = origins[i].x, arrays[1][i] = origins[i].y, arrays[2][i] = origins[i].z;
+            arrays[3][i] = d.x, arrays[4][i] = d.y, arrays[5][i] = d.z;
+          }
+          const lanes_detail::RayArrays rays{arrays[0].data(), arrays[1].data(), arrays[2].data(),
+                                             arrays[3].data(), arrays[4].data(), arrays[5].data()};
+          lanes.trace_rays(rays, kRays, near, &row);
+          for (int i = 0; i < kRays; ++i) {
+            const PinholeLanes::Outcome o = row.outcome[i];
+            if (o == PinholeLanes::Outcome::Alone) continue;
+            const DropPath w =
+                trace_through_drops(origins[i], raw[i], n, k.config.tir, k.config.fresnel.enabled, accel, k.scene.glass);
+            auto where = [&] {
+              return k.name + ", level " + std::to_string(level) + ", pixel " + std::to_string(x) + "," +
+                     std::to_string(y) + ", ray " + std::to_string(i);
+            };
+            if (o == PinholeLanes::Outcome::Miss) {
+              ++misses[level];
+              EXPECT_FALSE(w.hit) << where();
+              continue;
+            }
+            ++paths[level];
+            const DropPath got = row.path(i);
+            ASSERT_TRUE(w.hit) << where();
+            EXPECT_EQ(got.first_drop, w.first_drop) << where();
+            EXPECT_EQ(got.dark, w.dark) << where();
+            EXPECT_EQ(got.escaped_in, w.escaped_in) << where();
+            EXPECT_EQ(got.events, w.events) << where();
+            EXPECT_EQ(std::memcmp(&got.transmittance, &w.transmittance, sizeof got.transmittance), 0) << where();
+            EXPECT_EQ(std::memcmp(&got.origin, &w.origin, sizeof got.origin), 0) << where();
+            ASSERT_EQ(std::memcmp(&got.dir, &w.dir, sizeof got.dir), 0) << where();
+            if (w.dark || w.escaped_in) continue;
+            const glm::dvec2 seen = background_pixel(w, cam, F);
+            EXPECT_EQ(std::memcmp(&row.seen_x[i], &seen.x, sizeof seen.x), 0) << where();
+            EXPECT_EQ(std::memcmp(&row.seen_y[i], &seen.y, sizeof seen.y), 0) << where();
+          }
+        }
+      }
+    }
+  }
+  for (int level = 0; level <= widest; ++level) {
+    EXPECT_GT(paths[level], 20000) << "level " << level;
+    EXPECT_GT(misses[level], 2000) << "level " << level;
+  }
+}
+
+// The aperture reference with its rays in the lanes renders what it renders with every ray
+// traced alone, on every register width, and the lanes do take most of the rays that meet a
+// drop on windshield glass with the dark band black.
+TEST(PinholeLanes, EveryRegisterWidthRendersTheApertureReferenceAsOneRayAtATime) {
+  SKIP_WITHOUT_LANES();
+  const Camera cam = camera(160, 80, 176);
+  const cv::Mat clean = random_frame(cam);
+  const int widest = PinholeLanes::level();
+  for (int level = 0; level <= widest; ++level) {
+    const ForcedLevel forced(level);
+    std::int64_t windshield_rays = 0, windshield_in_lanes = 0;
+    int compared = 0;
+    for (const char* preset : {"lens-cover", "lens-cover-heavy", "windshield-day", "windshield-night", "real-photo",
+                               "glass-plate"}) {
+      for (int variant = 0; variant < 3; ++variant) {
+        SceneConfig c = scene_preset(preset);
+        c.fresnel.enabled = variant != 0;
+        if (variant == 2) c.tir = TirMode::Trace;
+        Rng rng(23 + variant);
+        const SceneSample scene = sample_scene(c, cam, rng);
+        const std::vector<Drop> drops = drops_of(scene);
+        DropAccel accel(drops, c.geometry);
+        accel.set_disjoint(!c.allow_overlap && !c.trails.enabled);
+        const ApertureResult a = trace_aperture(clean, cam, c, scene, accel, 16, nullptr, TraceStrategy{});
+        const ApertureResult b = trace_aperture(clean, cam, c, scene, accel, 16, nullptr, TraceStrategy{false, false});
+        const std::string name = std::string(preset) + " variant " + std::to_string(variant) + ", level " + std::to_string(level);
+        ASSERT_GT(cv::countNonZero(b.coverage), 0) << name;
+        EXPECT_EQ(b.lane_rays, 0) << name;
+        EXPECT_TRUE(equal_bits(a.coverage, b.coverage)) << name;
+        EXPECT_TRUE(equal_bits(a.linear, b.linear)) << name;
+        if (std::string(preset) == "windshield-day" && c.tir == TirMode::Black) {
+          // The rays that met a drop: coverage is their share of the pixel's 16.
+          windshield_rays += std::llround(cv::sum(a.coverage)[0] * 16);
+          windshield_in_lanes += a.lane_rays;
+        }
+        ++compared;
+      }
+    }
+    EXPECT_EQ(compared, 18);
+    EXPECT_GT(windshield_in_lanes, windshield_rays * 9 / 10) << "level " << level;
   }
 }
 

@@ -63,6 +63,11 @@ struct DropConstants {
   double c_sq;   // dot(oc, oc) - R^2
   double hn[3];  // the base's normal, -n
 };
+// Rays o + t d of any origins (trace_rays), directions normalised; each array padded to a
+// multiple of 8 (the lanes read whole registers).
+struct RayArrays {
+  const double *ox, *oy, *oz, *dx, *dy, *dz;
+};
 }  // namespace lanes_detail
 
 class PinholeLanes {
@@ -112,12 +117,20 @@ class PinholeLanes {
   // (Outcome::Path).
   int trace_row(int y, const std::vector<DropSpan>& spans, Row* row) const;
 
+  // Rays 0..n-1 of `rays` (an aperture pixel's: any origins, directions normalised as
+  // trace_packet normalises them) against `drops`, which must hold every drop any of them can
+  // meet (ApertureReach): row->outcome[i] for each as trace_row gives it, and where it is Path
+  // the row's other arrays at i. Returns how many were traced here.
+  int trace_rays(const lanes_detail::RayArrays& rays, int n, const std::vector<int>& drops, Row* row) const;
+
   // The register width used: 2 AVX-512, 1 AVX2, 0 SSE2 (the widest the processor has,
   // unless force_level lowered it: for tests).
   static int level();
   static void force_level(int level);  // -1: the widest again
 
  private:
+  bool alone(const Row& r, int i) const;
+
   const DropAccel& accel_;
   lanes_detail::SceneConstants scene_;
   std::vector<lanes_detail::DropConstants> drops_;

@@ -90,8 +90,9 @@ struct TraceStrategy {
   // other. Off: every ray is traced alone after its first query (trace_drops still asks the
   // camera rays' first queries as Embree packets; trace_aperture asks one query per ray).
   bool lockstep = true;
-  // With lockstep, the pinhole pass's camera rays traced in SIMD lanes a drop at a time
-  // (pinhole_lanes.h; exact disjoint caps of circular outline, no dispersion).
+  // With lockstep, the pinhole pass's camera rays traced in SIMD lanes a drop at a time, and
+  // the aperture reference's rays a pixel at a time (pinhole_lanes.h; exact disjoint caps of
+  // circular outline, no dispersion).
   bool lanes = true;
   // The aperture reference's pixels and rays that cannot meet a drop (aperture_reach.h) left
   // untraced: what they would give is known. Off: every ray of every pixel near a drop traced.
@@ -147,6 +148,7 @@ struct ApertureResult {
   cv::Mat clean_linear;  // CV_32FC3 linear RGB of the street alone, focus off it; else empty
   std::int64_t lockstep_rays = 0;  // rays traced side by side (TraceStrategy::lockstep)
   std::int64_t traced_rays = 0;    // rays traced at all (the others cannot meet a drop: aperture_reach.h)
+  std::int64_t lane_rays = 0;      // of those, traced in SIMD lanes (TraceStrategy::lanes)
 };
 // `margin`: as LensTrace's.
 ApertureResult trace_aperture(const cv::Mat& clean, const Camera& camera, const SceneConfig& config,
