@@ -55,6 +55,28 @@ std::vector<NamedScene> lane_cases(const Camera& cam) {
   return cases;
 }
 
+// What the lanes gave ray i of `row` (a Path) against what trace_path gave it, `w`, to the bit.
+// Returns false where the direction differs (the caller stops: the rest would differ too).
+bool same_path(const PinholeLanes::Row& row, int i, const DropPath& w, const Camera& cam, double background_z,
+               const std::string& where) {
+  const DropPath got = row.path(i);
+  EXPECT_TRUE(w.hit) << where;
+  if (!w.hit) return false;
+  EXPECT_EQ(got.first_drop, w.first_drop) << where;
+  EXPECT_EQ(got.dark, w.dark) << where;
+  EXPECT_EQ(got.escaped_in, w.escaped_in) << where;
+  EXPECT_EQ(got.events, w.events) << where;
+  EXPECT_EQ(std::memcmp(&got.transmittance, &w.transmittance, sizeof got.transmittance), 0) << where;
+  EXPECT_EQ(std::memcmp(&got.origin, &w.origin, sizeof got.origin), 0) << where;
+  EXPECT_EQ(std::memcmp(&got.dir, &w.dir, sizeof got.dir), 0) << where;
+  if (std::memcmp(&got.dir, &w.dir, sizeof got.dir) != 0) return false;
+  if (w.dark || w.escaped_in) return true;
+  const glm::dvec2 seen = background_pixel(w, cam, background_z);
+  EXPECT_EQ(std::memcmp(&row.seen_x[i], &seen.x, sizeof seen.x), 0) << where;
+  EXPECT_EQ(std::memcmp(&row.seen_y[i], &seen.y, sizeof seen.y), 0) << where;
+  return true;
+}
+
 // For every register width the processor has, the lanes' images are the one-ray-at-a-time
 // images to the bit, and they do trace most rays that meet a drop where the dark band is
 // black (else this test would hold nothing).
@@ -160,19 +182,7 @@ TEST(PinholeLanes, EachPathIsTracePathsToTheBit) {
               continue;
             }
             ++paths[level];
-            const DropPath got = row.path(x);
-            ASSERT_TRUE(w.hit) << where();
-            EXPECT_EQ(got.first_drop, w.first_drop) << where();
-            EXPECT_EQ(got.dark, w.dark) << where();
-            EXPECT_EQ(got.escaped_in, w.escaped_in) << where();
-            EXPECT_EQ(got.events, w.events) << where();
-            EXPECT_EQ(std::memcmp(&got.transmittance, &w.transmittance, sizeof got.transmittance), 0) << where();
-            EXPECT_EQ(std::memcmp(&got.origin, &w.origin, sizeof got.origin), 0) << where();
-            ASSERT_EQ(std::memcmp(&got.dir, &w.dir, sizeof got.dir), 0) << where();
-            if (w.dark || w.escaped_in) continue;
-            const glm::dvec2 seen = background_pixel(w, cam, k.scene.background_distance_cm);
-            EXPECT_EQ(std::memcmp(&row.seen_x[x], &seen.x, sizeof seen.x), 0) << where();
-            EXPECT_EQ(std::memcmp(&row.seen_y[x], &seen.y, sizeof seen.y), 0) << where();
+            ASSERT_TRUE(same_path(row, x, w, cam, k.scene.background_distance_cm, where()));
           }
         }
       }
@@ -268,19 +278,7 @@ TEST(PinholeLanes, EachApertureRayPathIsTracePathsToTheBit) {
               continue;
             }
             ++paths[level];
-            const DropPath got = row.path(i);
-            ASSERT_TRUE(w.hit) << where();
-            EXPECT_EQ(got.first_drop, w.first_drop) << where();
-            EXPECT_EQ(got.dark, w.dark) << where();
-            EXPECT_EQ(got.escaped_in, w.escaped_in) << where();
-            EXPECT_EQ(got.events, w.events) << where();
-            EXPECT_EQ(std::memcmp(&got.transmittance, &w.transmittance, sizeof got.transmittance), 0) << where();
-            EXPECT_EQ(std::memcmp(&got.origin, &w.origin, sizeof got.origin), 0) << where();
-            ASSERT_EQ(std::memcmp(&got.dir, &w.dir, sizeof got.dir), 0) << where();
-            if (w.dark || w.escaped_in) continue;
-            const glm::dvec2 seen = background_pixel(w, cam, F);
-            EXPECT_EQ(std::memcmp(&row.seen_x[i], &seen.x, sizeof seen.x), 0) << where();
-            EXPECT_EQ(std::memcmp(&row.seen_y[i], &seen.y, sizeof seen.y), 0) << where();
+            ASSERT_TRUE(same_path(row, i, w, cam, F, where()));
           }
         }
       }
