@@ -1191,10 +1191,12 @@ ApertureResult run_aperture(const cv::Mat& clean, const Camera& camera, const Sc
             if (street) street_alone(x, y, &out_rgb[x], &out_clean[x]);
             continue;
           }
-          // The rays, and which of them can meet a drop (each tested against the few drops
-          // its pixel's cone meets; past a few, every ray goes to Embree's query).
+          // The rays, and which of them can meet a drop: in the lanes, all of them (the lanes'
+          // closed form is the test); else each tested against the few drops its pixel's cone
+          // meets (past a few, every ray goes to Embree's query).
           asked.clear();
-          const bool test_rays = strategy.cull && near.size() <= kMaxDropsTestedPerRay;
+          const bool in_lanes = lanes && near.size() <= kMaxDropsInLanes;
+          const bool test_rays = strategy.cull && !in_lanes && near.size() <= kMaxDropsTestedPerRay;
           for (int sample = 0; sample < n; ++sample) {
             const glm::dvec2 p = lens_point(x, y, sample % k, sample / k);
             origins[sample] = glm::dvec3(p.x, p.y, 0.0);
@@ -1208,7 +1210,7 @@ ApertureResult run_aperture(const cv::Mat& clean, const Camera& camera, const Sc
             }
           }
           n_traced += static_cast<std::int64_t>(asked.size());
-          if (lanes && !asked.empty() && near.size() <= kMaxDropsInLanes) {
+          if (in_lanes) {
             // In the lanes, against the drops the pixel's cone meets (every drop its rays can
             // meet); those that leave the common path go on alone below.
             const int m = static_cast<int>(asked.size());
