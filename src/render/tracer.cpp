@@ -1223,9 +1223,9 @@ ApertureResult run_aperture(const cv::Mat& clean, const Camera& camera, const Sc
             }
             const lanes_detail::RayArrays arrays{lane_rays[0].data(), lane_rays[1].data(), lane_rays[2].data(),
                                                  lane_rays[3].data(), lane_rays[4].data(), lane_rays[5].data()};
-            const int in_lanes = lanes->trace_rays(arrays, m, near, &lane_row);
-            n_lock += in_lanes;
-            n_lanes += in_lanes;
+            const int traced_in_lanes = lanes->trace_rays(arrays, m, near, &lane_row);
+            n_lock += traced_in_lanes;
+            n_lanes += traced_in_lanes;
             int left = 0;
             for (int i = 0; i < m; ++i) {
               const int ray = asked[i];
