@@ -42,6 +42,46 @@ bool ApertureReach::cone_meets(int drop, const glm::dvec3& focus) const {
   return dx * dx + dy * dy <= reach * reach;
 }
 
+std::vector<std::vector<DropSpan>> ApertureReach::candidate_boxes(const Camera& camera, const SceneSample& scene,
+                                                                  const std::vector<Drop>& drops) {
+  const double fxy = std::max(camera.fx, camera.fy);  // the circle's larger axis in pixels
+  const double frame_reach = 4.0 * (camera.width + camera.height);  // beyond it: the whole frame
+  std::vector<std::vector<DropSpan>> rows(camera.height);
+  for (size_t i = 0; i < drops.size(); ++i) {
+    glm::dvec3 lo, hi;
+    drops[i].bounds(&lo, &hi);
+    double bx0 = -frame_reach, bx1 = camera.width + frame_reach, by0 = -frame_reach, by1 = camera.height + frame_reach;
+    if (lo.z > 1e-9) {  // else it reaches behind the camera: the whole frame
+      const double reach = std::max({0.5 * scene.drop_coc_px(drops[i].shape(), fxy), 0.5 * scene.coc_px(lo.z, fxy),
+                                     0.5 * scene.coc_px(hi.z, fxy)}) + 1.0;
+      bx0 = by0 = INFINITY;
+      bx1 = by1 = -INFINITY;
+      for (int c = 0; c < 8; ++c) {
+        const glm::dvec2 p = camera.project({(c & 1) ? hi.x : lo.x, (c & 2) ? hi.y : lo.y, (c & 4) ? hi.z : lo.z});
+        bx0 = std::min(bx0, p.x), bx1 = std::max(bx1, p.x), by0 = std::min(by0, p.y), by1 = std::max(by1, p.y);
+      }
+      bx0 -= reach, by0 -= reach, bx1 += reach, by1 += reach;
+    }
+    const int x0 = static_cast<int>(std::max(0.0, std::floor(bx0)));
+    const int x1 = static_cast<int>(std::min(camera.width - 1.0, std::ceil(bx1)));
+    const int y0 = static_cast<int>(std::max(0.0, std::floor(by0)));
+    const int y1 = static_cast<int>(std::min(camera.height - 1.0, std::ceil(by1)));
+    for (int y = y0; y <= y1 && x0 <= x1; ++y) rows[y].push_back({x0, x1, static_cast<int>(i)});
+  }
+  for (auto& r : rows)
+    std::sort(r.begin(), r.end(), [](const DropSpan& a, const DropSpan& b) { return a.first < b.first; });
+  return rows;
+}
+
+void ApertureReach::near_drops(const std::vector<DropSpan>& row_boxes, int x, const glm::dvec3& focus,
+                               std::vector<int>* near) const {
+  near->clear();
+  for (const DropSpan& b : row_boxes) {
+    if (b.first > x) break;
+    if (b.last >= x && cone_meets(b.drop, focus)) near->push_back(b.drop);
+  }
+}
+
 bool ApertureReach::ray_meets(int drop, const glm::dvec3& origin, const glm::dvec3& dir) const {
   const Sphere& s = spheres_[static_cast<size_t>(drop)];
   const glm::dvec3 v = s.centre - origin;

@@ -660,6 +660,80 @@ glm::dvec3 lifted_linear(const Sample& s, const HighlightLift& lift) {
 // Label used to find edges: drop index, with dark-band pixels distinguished.
 inline int edge_class(int label, bool dark) { return label < 0 ? -1 : 2 * label + (dark ? 1 : 0); }
 
+// Past this many drops in a pixel's cone, its rays are not tested one by one against them
+// (Embree's query tests them faster).
+constexpr size_t kMaxDropsTestedPerRay = 8;
+// Past this many, a pixel's rays go to Embree's query instead of the lanes, which try every
+// drop in the cone on every ray.
+constexpr size_t kMaxDropsInLanes = 8;
+
+// Scratch for trace_pixel_rays: a pixel's rays for the lanes (origins x, y, z and directions
+// x, y, z, padded to a register) and their results.
+struct LaneScratch {
+  PinholeLanes::Row row;
+  std::vector<double> rays[6];
+};
+struct RaysTraced {
+  std::int64_t side_by_side = 0, in_lanes = 0;
+};
+
+// A pixel's rays `asked` (indices into origins and dirs, the directions unnormalised), each
+// given its Sample in seen_by[ray]: in the lanes where `lanes` is given, against `near` (every
+// drop those rays can meet), and the rays that leave the common path there, or all of them
+// without lanes, by kernel.trace_rays; to the bit what trace_rays gives each. `asked` is left
+// holding the rays traced alone.
+template <class K>
+RaysTraced trace_pixel_rays(const K& kernel, const PinholeLanes* lanes, const std::vector<int>& near,
+                            const glm::dvec3* origins, const glm::dvec3* dirs, std::vector<int>* asked,
+                            LaneScratch* scratch, Sample* seen_by) {
+  RaysTraced out;
+  const int m = static_cast<int>(asked->size());
+  if (lanes && m > 0) {
+    const int padded = (m + 7) / 8 * 8;
+    for (auto& v : scratch->rays)
+      if (v.size() < static_cast<size_t>(padded)) v.resize(static_cast<size_t>(padded));
+    auto& r = scratch->rays;
+    for (int i = 0; i < padded; ++i) {
+      const int ray = (*asked)[std::min(i, m - 1)];
+      const glm::dvec3 d = glm::normalize(dirs[ray]);  // as trace_packet normalises it
+      r[0][i] = origins[ray].x, r[1][i] = origins[ray].y, r[2][i] = origins[ray].z;
+      r[3][i] = d.x, r[4][i] = d.y, r[5][i] = d.z;
+    }
+    const lanes_detail::RayArrays arrays{r[0].data(), r[1].data(), r[2].data(), r[3].data(), r[4].data(), r[5].data()};
+    const PinholeLanes::Row& row = scratch->row;
+    out.in_lanes = lanes->trace_rays(arrays, m, near, &scratch->row);
+    out.side_by_side = out.in_lanes;
+    int left = 0;
+    for (int i = 0; i < m; ++i) {
+      const int ray = (*asked)[i];
+      switch (row.outcome[i]) {
+        case PinholeLanes::Outcome::Miss:
+          seen_by[ray] = Sample{};
+          break;
+        case PinholeLanes::Outcome::Path: {
+          // As seen_point: no background point for a dark ray or one into the car.
+          const bool black = row.dark(i), escaped = row.escaped_in(i);
+          const glm::dvec2 xy = black || escaped ? glm::dvec2(NAN, NAN) : glm::dvec2(row.seen_x[i], row.seen_y[i]);
+          seen_by[ray] = kernel.finish(typename K::PathEnd{row.drop[i], black, escaped, row.transmittance[i]}, xy);
+          break;
+        }
+        case PinholeLanes::Outcome::Alone:
+          (*asked)[left++] = ray;
+          break;
+      }
+    }
+    asked->resize(static_cast<size_t>(left));
+  }
+  out.side_by_side += kernel.trace_rays(
+      static_cast<int>(asked->size()),
+      [&](int i, glm::dvec3* origin, glm::dvec3* dir) {
+        *origin = origins[(*asked)[i]];
+        *dir = dirs[(*asked)[i]];
+      },
+      [&](int i, const glm::dvec3&, const Sample& s) { seen_by[(*asked)[i]] = s; });
+  return out;
+}
+
 template <bool kFresnel, bool kDispersion>
 TraceResult run(const cv::Mat& clean, const Camera& camera, const SceneConfig& config,
                 const SceneSample& scene, const DropAccel& accel, const EffectPlan* plan, const TraceStrategy& strategy,
@@ -973,9 +1047,22 @@ TraceResult run(const cv::Mat& clean, const Camera& camera, const SceneConfig& c
       const glm::dvec2 jitter = unit_pair(pixel_hash(x, y, static_cast<std::uint64_t>(sample) | 0x5bd1e995ULL << 20));
       return F * camera.ray_direction(x + (cell % k + jitter.x) / k - 0.5, y + (cell / k + jitter.y) / k - 0.5);
     };
+    // With one focus point per pixel (no supersampling), the rays in SIMD lanes where the
+    // pinhole pass's are (pinhole_lanes.h): the same bits.
+    const bool lens_lanes = lanes.has_value() && cells == 1;
+    std::optional<ApertureReach> lens_reach;
+    std::vector<std::vector<DropSpan>> lens_boxes;
+    if (lens_lanes) {
+      lens_reach.emplace(accel.drops(), radius, F);
+      lens_boxes = ApertureReach::candidate_boxes(camera, scene, accel.drops());
+    }
+    std::atomic<std::int64_t> lens_lane_rays{0};
     tbb::parallel_for(tbb::blocked_range<int>(0, camera.height, 4), [&](const tbb::blocked_range<int>& r) {
-      std::int64_t n_sampled = 0;
-      std::vector<int> order;
+      std::int64_t n_sampled = 0, n_lanes = 0;
+      std::vector<int> order, near, asked;
+      std::vector<glm::dvec3> origins(static_cast<size_t>(rays)), dirs(static_cast<size_t>(rays));
+      std::vector<Sample> seen_by(static_cast<size_t>(rays));
+      LaneScratch scratch;
       for (int y = r.begin(); y < r.end(); ++y) {
         int* label = out.label.ptr<int>(y);
         auto* rgb = out.color.ptr<cv::Vec3f>(y);
@@ -988,21 +1075,45 @@ TraceResult run(const cv::Mat& clean, const Camera& camera, const SceneConfig& c
             if (cells > 1) shuffle_cells(x, y, order);
             glm::dvec3 sum(0.0);
             int hits = 0, first = -1;
-            lens_kernel.trace_rays(
-                rays,
-                [&](int sample, glm::dvec3* origin, glm::dvec3* dir) {
-                  *origin = lens_origin(x, y, sample);
-                  *dir = focus_point(x, y, sample, order) - *origin;
-                },
-                [&](int, const glm::dvec3&, const Sample& s) {
-                  // Only the flagged drops' light: a ray that meets another drop counts as a miss
-                  // here (that drop's own pixels carry it; a blurred one's layer would spread it
-                  // again). Two flagged drops in one pixel share its colour under the first one's label.
-                  if (!s.hit || !lens->sampled[static_cast<size_t>(s.drop)]) return;
-                  ++hits;
-                  if (first < 0) first = s.drop;
-                  sum += lifted_linear(s, lift);  // as the reference averages its rays
-                });
+            const auto take = [&](const Sample& s) {
+              // Only the flagged drops' light: a ray that meets another drop counts as a miss
+              // here (that drop's own pixels carry it; a blurred one's layer would spread it
+              // again). Two flagged drops in one pixel share its colour under the first one's label.
+              if (!s.hit || !lens->sampled[static_cast<size_t>(s.drop)]) return;
+              ++hits;
+              if (first < 0) first = s.drop;
+              sum += lifted_linear(s, lift);  // as the reference averages its rays
+            };
+            if (lens_lanes) {
+              // One focus point per pixel: the drops its cone meets hold every drop its rays can
+              // meet (ApertureReach), in the lanes where there are few; the samples taken in the
+              // rays' order, as trace_rays hands them over.
+              const glm::dvec3 focus = focus_point(x, y, 0, order);
+              lens_reach->near_drops(lens_boxes[y], x, focus, &near);
+              if (near.empty()) {
+                label[x] = -1;  // no ray meets a drop
+                continue;
+              }
+              asked.clear();
+              for (int sample = 0; sample < rays; ++sample) {
+                origins[sample] = lens_origin(x, y, sample);
+                dirs[sample] = focus - origins[sample];
+                asked.push_back(sample);
+              }
+              const RaysTraced traced =
+                  trace_pixel_rays(lens_kernel, near.size() <= kMaxDropsInLanes ? &*lanes : nullptr, near,
+                                   origins.data(), dirs.data(), &asked, &scratch, seen_by.data());
+              n_lanes += traced.in_lanes;
+              for (int sample = 0; sample < rays; ++sample) take(seen_by[sample]);
+            } else {
+              lens_kernel.trace_rays(
+                  rays,
+                  [&](int sample, glm::dvec3* origin, glm::dvec3* dir) {
+                    *origin = lens_origin(x, y, sample);
+                    *dir = focus_point(x, y, sample, order) - *origin;
+                  },
+                  [&](int, const glm::dvec3&, const Sample& s) { take(s); });
+            }
             if (hits == 0) {
               label[x] = -1;
               continue;
@@ -1018,7 +1129,9 @@ TraceResult run(const cv::Mat& clean, const Camera& camera, const SceneConfig& c
         }
       }
       lens_sampled += n_sampled;
+      lens_lane_rays += n_lanes;
     });
+    out.stats.lens_lane_rays = lens_lane_rays;
     // Pixels next to a drop may have joined it.
     if (out.drop_box.area() > 0)
       out.drop_box = cv::Rect(out.drop_box.x - 1, out.drop_box.y - 1, out.drop_box.width + 2, out.drop_box.height + 2) &
@@ -1038,12 +1151,6 @@ TraceResult run(const cv::Mat& clean, const Camera& camera, const SceneConfig& c
   return out;
 }
 
-// Past this many drops in a pixel's cone, its rays are not tested one by one against them
-// (Embree's query tests them faster).
-constexpr size_t kMaxDropsTestedPerRay = 8;
-// Past this many, a pixel's rays go to Embree's query instead of the lanes, which try every
-// drop in the cone on every ray.
-constexpr size_t kMaxDropsInLanes = 8;
 
 // The aperture reference: every pixel near a drop averages rays from a stratified grid of
 // points on the lens disk, each aimed at the pixel's point on the plane of focus (z = F) and
@@ -1066,49 +1173,17 @@ ApertureResult run_aperture(const cv::Mat& clean, const Camera& camera, const Sc
   const int k = std::max(1, static_cast<int>(std::lround(std::sqrt(samples))));
   const double radius = 0.5 * scene.aperture_cm();
   auto lens_point = [&](int x, int y, int i, int j) { return lens_disk_point(x, y, i, j, k, radius); };
-  // Pixels whose aperture cone can meet a drop: the pinhole image of each drop's bounding box
-  // (the hull of its eight corners' images; unclipped, so that a drop just outside the frame
-  // still reaches in) widened by half the largest circle of confusion over its depths (plus a
-  // pixel). A ray from lens point o towards pixel p's point on the plane of focus crosses depth
-  // z at (1 - z/F) o off the pinhole ray of p, which the pinhole projects within half the circle
-  // at z of p; the circle is largest at one end of the drop's depth range. Each drop by its own
-  // reach, not the frame's largest: small drops far from the lens' nearest glass trace far
-  // fewer pixels. Within these boxes ApertureReach culls the pixels and rays that cannot meet.
+  // Pixels whose aperture cone can meet a drop: each drop's candidate box (ApertureReach), within
+  // which the pixels and rays that cannot meet are culled: the rest would find none, and give
+  // what an untraced pixel gives.
   const std::vector<Drop>& drops = accel.drops();
-  const double fxy = std::max(camera.fx, camera.fy);  // the circle's larger axis in pixels
-  const double frame_reach = 4.0 * (camera.width + camera.height);  // beyond it: the whole frame
-  std::vector<std::vector<Span>> rows(camera.height);
-  std::vector<std::vector<DropSpan>> row_drops(camera.height);  // the same, drop by drop
-  for (size_t i = 0; i < drops.size(); ++i) {
-    glm::dvec3 lo, hi;
-    drops[i].bounds(&lo, &hi);
-    double bx0 = -frame_reach, bx1 = camera.width + frame_reach, by0 = -frame_reach, by1 = camera.height + frame_reach;
-    if (lo.z > 1e-9) {  // else it reaches behind the camera: the whole frame
-      const double reach = std::max({0.5 * scene.drop_coc_px(drops[i].shape(), fxy), 0.5 * scene.coc_px(lo.z, fxy),
-                                     0.5 * scene.coc_px(hi.z, fxy)}) + 1.0;
-      bx0 = by0 = INFINITY;
-      bx1 = by1 = -INFINITY;
-      for (int c = 0; c < 8; ++c) {
-        const glm::dvec2 p = camera.project({(c & 1) ? hi.x : lo.x, (c & 2) ? hi.y : lo.y, (c & 4) ? hi.z : lo.z});
-        bx0 = std::min(bx0, p.x), bx1 = std::max(bx1, p.x), by0 = std::min(by0, p.y), by1 = std::max(by1, p.y);
-      }
-      bx0 -= reach, by0 -= reach, bx1 += reach, by1 += reach;
-    }
-    const int x0 = static_cast<int>(std::max(0.0, std::floor(bx0)));
-    const int x1 = static_cast<int>(std::min(camera.width - 1.0, std::ceil(bx1)));
-    const int y0 = static_cast<int>(std::max(0.0, std::floor(by0)));
-    const int y1 = static_cast<int>(std::min(camera.height - 1.0, std::ceil(by1)));
-    for (int y = y0; y <= y1 && x0 <= x1; ++y) {
-      rows[y].push_back({x0, x1});
-      row_drops[y].push_back({x0, x1, static_cast<int>(i)});
-    }
-  }
-  for (auto& r : rows) merge_spans(r);
-  for (auto& r : row_drops)
-    std::sort(r.begin(), r.end(), [](const DropSpan& a, const DropSpan& b) { return a.first < b.first; });
-  // Within those boxes, the pixels and rays that can meet a drop: the rest would find none,
-  // and give what an untraced pixel gives (aperture_reach.h).
   const ApertureReach reach(drops, radius, scene.focus_cm());
+  const std::vector<std::vector<DropSpan>> row_drops = ApertureReach::candidate_boxes(camera, scene, drops);
+  std::vector<std::vector<Span>> rows(camera.height);
+  for (int y = 0; y < camera.height; ++y) {
+    for (const DropSpan& b : row_drops[y]) rows[y].push_back({b.first, b.last});
+    merge_spans(rows[y]);
+  }
   const double T = scene.background_distance_cm;
   const double F = scene.focus_cm();
   // The street a ray from lens point o through `focus` (z = F) meets on the plane z = T: the
@@ -1145,9 +1220,7 @@ ApertureResult run_aperture(const cv::Mat& clean, const Camera& camera, const Sc
   const int n = k * k;
   tbb::parallel_for(tbb::blocked_range<int>(0, camera.height, 4), [&](const tbb::blocked_range<int>& r) {
     std::int64_t n_lock = 0, n_traced = 0, n_lanes = 0;
-    PinholeLanes::Row lane_row;
-    std::vector<double> lane_rays[6];  // origins x, y, z and directions x, y, z, padded to 8
-    for (auto& v : lane_rays) v.resize(static_cast<size_t>((n + 7) / 8 * 8));
+    LaneScratch scratch;
     std::vector<int> near;  // the drops a pixel's cone can meet
     std::vector<glm::dvec3> origins(n), dirs(n);
     std::vector<int> asked;  // the rays that can meet one of them
@@ -1182,10 +1255,12 @@ ApertureResult run_aperture(const cv::Mat& clean, const Camera& camera, const Sc
       for (const auto& [x0, x1] : rows[y]) {
         for (int x = x0; x <= x1; ++x) {
           const glm::dvec3 focus = F * camera.ray_direction(x, y);
-          near.clear();
-          for (const DropSpan& b : boxes_here) {
-            if (b.first > x) break;
-            if (b.last >= x && (!strategy.cull || reach.cone_meets(b.drop, focus))) near.push_back(b.drop);
+          if (strategy.cull) {
+            reach.near_drops(boxes_here, x, focus, &near);
+          } else {
+            near.clear();
+            for (const DropSpan& b : boxes_here)
+              if (b.first <= x && x <= b.last) near.push_back(b.drop);
           }
           if (near.empty()) {
             if (street) street_alone(x, y, &out_rgb[x], &out_clean[x]);
@@ -1210,52 +1285,10 @@ ApertureResult run_aperture(const cv::Mat& clean, const Camera& camera, const Sc
             }
           }
           n_traced += static_cast<std::int64_t>(asked.size());
-          if (in_lanes) {
-            // In the lanes, against the drops the pixel's cone meets (every drop its rays can
-            // meet); those that leave the common path go on alone below.
-            const int m = static_cast<int>(asked.size());
-            const int padded = (m + 7) / 8 * 8;
-            for (int i = 0; i < padded; ++i) {
-              const int ray = asked[std::min(i, m - 1)];
-              const glm::dvec3 d = glm::normalize(dirs[ray]);  // as trace_packet normalises it
-              lane_rays[0][i] = origins[ray].x, lane_rays[1][i] = origins[ray].y, lane_rays[2][i] = origins[ray].z;
-              lane_rays[3][i] = d.x, lane_rays[4][i] = d.y, lane_rays[5][i] = d.z;
-            }
-            const lanes_detail::RayArrays arrays{lane_rays[0].data(), lane_rays[1].data(), lane_rays[2].data(),
-                                                 lane_rays[3].data(), lane_rays[4].data(), lane_rays[5].data()};
-            const int traced_in_lanes = lanes->trace_rays(arrays, m, near, &lane_row);
-            n_lock += traced_in_lanes;
-            n_lanes += traced_in_lanes;
-            int left = 0;
-            for (int i = 0; i < m; ++i) {
-              const int ray = asked[i];
-              switch (lane_row.outcome[i]) {
-                case PinholeLanes::Outcome::Miss:
-                  seen_by[ray] = Sample{};
-                  break;
-                case PinholeLanes::Outcome::Path: {
-                  // As seen_point: no background point for a dark ray or one into the car.
-                  const bool black = lane_row.dark(i), escaped = lane_row.escaped_in(i);
-                  const glm::dvec2 xy = black || escaped ? glm::dvec2(NAN, NAN)
-                                                         : glm::dvec2(lane_row.seen_x[i], lane_row.seen_y[i]);
-                  using End = typename Kernel<kFresnel, kDispersion>::PathEnd;
-                  seen_by[ray] = kernel.finish(End{lane_row.drop[i], black, escaped, lane_row.transmittance[i]}, xy);
-                  break;
-                }
-                case PinholeLanes::Outcome::Alone:
-                  asked[left++] = ray;
-                  break;
-              }
-            }
-            asked.resize(static_cast<size_t>(left));
-          }
-          n_lock += kernel.trace_rays(
-              static_cast<int>(asked.size()),
-              [&](int i, glm::dvec3* origin, glm::dvec3* dir) {
-                *origin = origins[asked[i]];
-                *dir = dirs[asked[i]];
-              },
-              [&](int i, const glm::dvec3&, const Sample& s) { seen_by[asked[i]] = s; });
+          const RaysTraced traced = trace_pixel_rays(kernel, in_lanes ? &*lanes : nullptr, near, origins.data(),
+                                                     dirs.data(), &asked, &scratch, seen_by.data());
+          n_lock += traced.side_by_side;
+          n_lanes += traced.in_lanes;
           float own_rgb[3] = {lin[src[x][0]], lin[src[x][1]], lin[src[x][2]]};
           lift.apply(own_rgb);  // what the pixel's clipped bytes stood for (highlights.h)
           const glm::dvec3 own(own_rgb[0], own_rgb[1], own_rgb[2]);

@@ -18,7 +18,10 @@
 
 #include <glm/vec3.hpp>
 
+#include "raindrop/render/camera.h"
 #include "raindrop/render/drop.h"
+#include "raindrop/render/scene.h"
+#include "raindrop/render/spans.h"
 
 namespace raindrop {
 
@@ -32,6 +35,20 @@ class ApertureReach {
   bool cone_meets(int drop, const glm::dvec3& focus) const;
   // Whether the line through `origin` along `dir` (any length) can meet drop `drop`.
   bool ray_meets(int drop, const glm::dvec3& origin, const glm::dvec3& dir) const;
+
+  // Per image row, a box of pixels per drop whose cones can meet it, sorted by first pixel: the
+  // pinhole image of the drop's bounding box (the hull of its eight corners' images, unclipped,
+  // so that a drop just outside the frame still reaches in) widened by half the largest circle
+  // of confusion over its depths, plus a pixel. A ray from lens point o towards pixel p's point
+  // on the plane of focus crosses depth z at (1 - z/F) o off the pinhole ray of p, which the
+  // pinhole projects within half the circle at z of p; the circle is largest at one end of the
+  // drop's depth range. Each drop by its own reach: small drops far from the lens' nearest glass
+  // reach few pixels.
+  static std::vector<std::vector<DropSpan>> candidate_boxes(const Camera& camera, const SceneSample& scene,
+                                                            const std::vector<Drop>& drops);
+  // The drops of one row's candidate boxes that pixel x's cone meets (`focus`: its point on the
+  // plane of focus), into `near`.
+  void near_drops(const std::vector<DropSpan>& row_boxes, int x, const glm::dvec3& focus, std::vector<int>* near) const;
 
  private:
   struct Sphere {

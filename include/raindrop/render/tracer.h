@@ -42,6 +42,7 @@ struct TraceStats {
   std::int64_t lockstep_pixels = 0;  // camera rays traced side by side (TraceStrategy::lockstep)
   std::int64_t lane_pixels = 0;      // of those, in SIMD lanes (TraceStrategy::lanes)
   std::int64_t lens_sampled_pixels = 0;  // pixels that averaged rays from the lens disk (LensTrace)
+  std::int64_t lens_lane_rays = 0;       // of their rays, traced in SIMD lanes (TraceStrategy::lanes)
 };
 
 struct TraceResult {
