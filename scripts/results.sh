@@ -6,7 +6,7 @@
 # largedropmodels sensor mirroraverage highlights multiscale veil papermodels outline trails photos windshield
 # windshield-followup longer growth sharpness coalesce surround largewidth largedrops-all windshield2
 # errorsplit withoutvnni graphrewrites jitter windshieldscale router routed int8router droplets realismcontrol
-# droplets2 infocus realismbar windshieldday fillarea finedrops lanes glassplate platerecon
+# droplets2 infocus realismbar windshieldday fillarea finedrops lanes glassplate platerecon aperturelanes
 #
 # Sections measured before docs/RESULTS.md 4.44 run compact-windshield's detector (and the routed
 # default) with --surround-fill-area 150, the area they had then, so that they reproduce.
@@ -25,7 +25,7 @@ sections=("$@")
                                   photos windshield windshield-followup longer growth sharpness coalesce
                                   surround largewidth largedrops-all windshield2 errorsplit withoutvnni graphrewrites
                                   jitter windshieldscale router routed int8router droplets realismcontrol droplets2 infocus realismbar
-                                  windshieldday fillarea finedrops lanes glassplate platerecon)
+                                  windshieldday fillarea finedrops lanes glassplate platerecon aperturelanes)
 want() { [[ " ${sections[*]} " == *" $1 "* ]]; }
 # link_set SRC DST SPLIT [LIMIT]: the first LIMIT (default 100; 0: all) samples of data set SRC
 # (of manifest split SPLIT; "-" = all) linked into DST/rainy and DST/clean (and DST/mask, where
@@ -2318,6 +2318,69 @@ if want lanes; then
     done
   done | tee "$ln/presets.txt"
   rm -rf "$ln/run" "$ln/render-before" "$ln/render-now"
+fi
+
+if want aperturelanes; then
+  # docs/RESULTS.md 1.2, "The aperture reference in SIMD lanes, its rays culled": the build before
+  # (70fba6c, in a worktree under $al/before) and this one side by side. The same bytes with the
+  # 16-ray reference ("defocus": "aperture", the presets' files edited) wherever the reference's
+  # arithmetic did not change (step 1 and 4 alone are the same bits; steps 2 and 3 move a few
+  # values by one level: the differing values are counted), the layered presets whose drops in
+  # focus take the lanes, and the camera section in turn (four rounds) and at 2048x1024 (one).
+  al="$out/aperturelanes"
+  before="$al/before"
+  mkdir -p "$al"
+  if [[ ! -x $before/build/raindrop-bench ]]; then
+    rm -rf "$before"
+    git worktree prune
+    git worktree add --detach "$before" 70fba6c >/dev/null
+    cmake -S "$before" -B "$before/build" -G Ninja -DCMAKE_BUILD_TYPE=Release -DRAINDROP_BUILD_TESTS=OFF >/dev/null
+    cmake --build "$before/build" --target raindrop-render raindrop-bench >/dev/null
+  fi
+  city="$shared/cityscapes-mini"
+  bin_of() { if [[ $1 == before ]]; then echo "$before/build"; else echo build; fi; }
+  for p in lens-cover windshield-day windshield-night lens-cover-heavy real-photo glass-plate lens-cover-merged \
+           glass-droplets; do
+    sed 's/"defocus": "[a-z-]*"/"defocus": "aperture", "aperture_samples": 16/' "scenes/$p.json" > "$al/$p-aperture.json"
+  done
+  count_differences() {  # values that differ between two render folders, and the largest difference
+    "$py" - "$1" "$2" <<'PY'
+import sys, glob, os
+import cv2, numpy as np
+n = worst = total = 0
+for f in sorted(glob.glob(os.path.join(sys.argv[1], "*", "*.png"))):
+    a = cv2.imread(f, cv2.IMREAD_UNCHANGED).astype(int)
+    b = cv2.imread(f.replace(sys.argv[1], sys.argv[2]), cv2.IMREAD_UNCHANGED).astype(int)
+    d = np.abs(a - b)
+    n += int((d > 0).sum()); worst = max(worst, int(d.max())); total += d.size
+print(f"{n} of {total} values differ, by at most {worst}")
+PY
+  }
+  for args in "--scene $al/lens-cover-aperture.json" "--scene $al/windshield-day-aperture.json" \
+              "--scene $al/windshield-night-aperture.json" "--scene $al/lens-cover-heavy-aperture.json" \
+              "--scene $al/real-photo-aperture.json" "--scene $al/glass-plate-aperture.json" \
+              "--scene $al/lens-cover-merged-aperture.json" "--scene $al/glass-droplets-aperture.json" \
+              "--scene glass-droplets" "--scene windshield-day" "--scene paper"; do
+    for b in before now; do
+      rm -rf "$al/render-$b"
+      # shellcheck disable=SC2086
+      "$(bin_of "$b")/raindrop-render" --cityscapes "$city" --split all $args --size 512x256 --seed 5 -q -j2 \
+        --out "$al/render-$b" >/dev/null
+    done
+    echo "${args##*/}: $(count_differences "$al/render-before" "$al/render-now")"
+  done | tee "$al/same-bytes.txt"
+  for r in 1 2 3 4; do
+    for b in before now; do
+      echo "$b round $r"
+      "$(bin_of "$b")/raindrop-bench" render --sections camera 2>/dev/null | grep -E '^\| (paper|lens-cover|windshield-day|glass)'
+    done
+  done | tee "$al/camera.txt"
+  for b in before now; do
+    echo "$b, 2048x1024"
+    "$(bin_of "$b")/raindrop-bench" render --sections camera --lens-size 2048x1024 --frames 2 --repeats 2 2>/dev/null |
+      grep -E '^\| (paper|lens-cover|windshield-day|glass)'
+  done | tee "$al/camera-2048.txt"
+  rm -rf "$al/render-before" "$al/render-now"
 fi
 
 if want glassplate; then
