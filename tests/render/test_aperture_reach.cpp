@@ -89,16 +89,17 @@ TEST(ApertureReach, ARayIsCulledJustBeyondTheDropsSphereAndKeptJustInside) {
 
 // The reference renders the same bits with the culling as with every ray traced, and traces
 // fewer rays: thin-lens presets (merged drops, irregular outlines and a street out of focus
-// among them), 16 rays a pixel, with and without Fresnel.
+// among them), 16 rays a pixel, with and without Fresnel, exact caps and meshes.
 TEST(ApertureReach, TheReferenceIsTheSameBitsWithFewerRays) {
   const Camera cam = camera(160, 80, 176);
   const cv::Mat clean = random_frame(cam);
   int compared = 0;
   std::int64_t all = 0, traced = 0;
   for (const char* preset : kPresets) {
-    for (int variant = 0; variant < 2; ++variant) {
+    for (int variant = 0; variant < 3; ++variant) {
       SceneConfig c = scene_preset(preset);
       c.fresnel.enabled = variant != 0;
+      if (variant == 2) c.geometry = GeometryOptions::parse("mesh-64-smooth");  // triangles, not caps
       Rng rng(7 + variant);
       const SceneSample scene = sample_scene(c, cam, rng);
       if (!(scene.aperture_cm() > 0)) continue;
@@ -122,6 +123,6 @@ TEST(ApertureReach, TheReferenceIsTheSameBitsWithFewerRays) {
       ++compared;
     }
   }
-  EXPECT_GE(compared, 12);
+  EXPECT_GE(compared, 18);
   EXPECT_LT(traced, all * 9 / 10);
 }
