@@ -647,8 +647,9 @@ std::vector<std::vector<DropSpan>> drop_candidate_spans(const Camera& camera, co
 namespace {
 
 // A traced ray's colour in linear light, lifted where the scene lifts highlights
-// (highlights.h): what the aperture paths average. Decoded by the table (within 2e-7 of the formula: srgb.h), as the fast path decodes: a pow
-// per channel was a tenth of the reference's time.
+// (highlights.h): what the aperture paths average. Decoded by the table (within 2e-7 of the
+// formula: srgb.h), as the fast path decodes: a pow per channel was a twentieth of the
+// reference's time.
 glm::dvec3 lifted_linear(const Sample& s, const HighlightLift& lift) {
   const SrgbTables& tables = SrgbTables::get();
   double rgb[3];
