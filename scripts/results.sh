@@ -253,6 +253,17 @@ glass_droplets_435() {
                 s/"contact_angle_deg": \[20, 50\]/"contact_angle_deg": [40, 90]/' "$s438" 3
   rm -f "$s438"
 }
+# built_at COMMIT DIR: COMMIT checked out in a git worktree at DIR, its raindrop-render and
+# raindrop-bench built in DIR/build (once: kept for the next run), to run beside this build.
+built_at() {
+  [[ -x $2/build/raindrop-bench ]] && return 0
+  rm -rf "$2"
+  git worktree prune
+  git worktree add --detach "$2" "$1" >/dev/null
+  cmake -S "$2" -B "$2/build" -G Ninja -DCMAKE_BUILD_TYPE=Release -DRAINDROP_BUILD_TESTS=OFF >/dev/null
+  cmake --build "$2/build" --target raindrop-render raindrop-bench >/dev/null
+}
+
 # edited_scene SED FILE [N]: FILE edited by SED on stdout; fails (and prints nothing) unless N
 # lines (default 1) changed, so that a scene file edited since cannot silently render unchanged.
 edited_scene() {
@@ -2269,13 +2280,7 @@ if want lanes; then
   ln="$out/lanes"
   before="$ln/before"
   mkdir -p "$ln"
-  if [[ ! -x $before/build/raindrop-bench ]]; then
-    rm -rf "$before"
-    git worktree prune
-    git worktree add --detach "$before" 754a2e2 >/dev/null
-    cmake -S "$before" -B "$before/build" -G Ninja -DCMAKE_BUILD_TYPE=Release -DRAINDROP_BUILD_TESTS=OFF >/dev/null
-    cmake --build "$before/build" --target raindrop-render raindrop-bench >/dev/null
-  fi
+  built_at 754a2e2 "$before"
   city="$shared/cityscapes-mini"
   bin_of() { if [[ $1 == before ]]; then echo "$before/build"; else echo build; fi; }
   presets=(paper full-physics lens-cover lens-cover-heavy lens-cover-merged windshield-day windshield-night real-photo
@@ -2330,18 +2335,13 @@ if want aperturelanes; then
   al="$out/aperturelanes"
   before="$al/before"
   mkdir -p "$al"
-  if [[ ! -x $before/build/raindrop-bench ]]; then
-    rm -rf "$before"
-    git worktree prune
-    git worktree add --detach "$before" 70fba6c >/dev/null
-    cmake -S "$before" -B "$before/build" -G Ninja -DCMAKE_BUILD_TYPE=Release -DRAINDROP_BUILD_TESTS=OFF >/dev/null
-    cmake --build "$before/build" --target raindrop-render raindrop-bench >/dev/null
-  fi
+  built_at 70fba6c "$before"
   city="$shared/cityscapes-mini"
   bin_of() { if [[ $1 == before ]]; then echo "$before/build"; else echo build; fi; }
   for p in lens-cover windshield-day windshield-night lens-cover-heavy real-photo glass-plate lens-cover-merged \
            glass-droplets; do
-    sed 's/"defocus": "[a-z-]*"/"defocus": "aperture", "aperture_samples": 16/' "scenes/$p.json" > "$al/$p-aperture.json"
+    edited_scene 's/"defocus": "[a-z-]*"/"defocus": "aperture", "aperture_samples": 16/' "scenes/$p.json" \
+      >"$al/$p-aperture.json"
   done
   count_differences() {  # values that differ between two render folders, and the largest difference
     "$py" - "$1" "$2" <<'PY'

@@ -52,6 +52,9 @@ namespace {
 #undef LANES_LEVEL
 #pragma GCC pop_options
 
+// The kernel function `f` of register width `level` (PinholeLanes::level).
+#define LANES_AT(level, f) ((level) == 2 ? lanes_avx512::f : (level) == 1 ? lanes_avx2::f : lanes_sse2::f)
+
 #endif  // RAINDROP_PINHOLE_LANES
 
 std::atomic<int> forced_level{-1};
@@ -169,11 +172,8 @@ int PinholeLanes::trace_rays(const lanes_detail::RayArrays& rays, int n, const s
   CV_Assert(available());
   const int level = PinholeLanes::level();
 #if RAINDROP_PINHOLE_LANES
-  const auto first_hits =
-      level == 2 ? lanes_avx512::ray_first_hits : level == 1 ? lanes_avx2::ray_first_hits : lanes_sse2::ray_first_hits;
-  const auto common_paths = level == 2   ? lanes_avx512::ray_common_paths
-                            : level == 1 ? lanes_avx2::ray_common_paths
-                                         : lanes_sse2::ray_common_paths;
+  const auto first_hits = LANES_AT(level, ray_first_hits);
+  const auto common_paths = LANES_AT(level, ray_common_paths);
 #else
   const auto first_hits = [](auto&&...) {};
   const auto common_paths = [](auto&&...) {};
@@ -212,9 +212,8 @@ int PinholeLanes::trace_row(int y, const std::vector<DropSpan>& spans, Row* row)
   const double ry = (static_cast<double>(y) - scene_.cy) / scene_.fy;  // Camera::ray_direction's
   Row& r = *row;
 #if RAINDROP_PINHOLE_LANES
-  const auto first_hits = level == 2 ? lanes_avx512::first_hits : level == 1 ? lanes_avx2::first_hits : lanes_sse2::first_hits;
-  const auto common_paths =
-      level == 2 ? lanes_avx512::common_paths : level == 1 ? lanes_avx2::common_paths : lanes_sse2::common_paths;
+  const auto first_hits = LANES_AT(level, first_hits);
+  const auto common_paths = LANES_AT(level, common_paths);
 #else
   const auto first_hits = [](auto&&...) {};
   const auto common_paths = [](auto&&...) {};

@@ -1152,7 +1152,6 @@ TraceResult run(const cv::Mat& clean, const Camera& camera, const SceneConfig& c
   return out;
 }
 
-
 // The aperture reference: every pixel near a drop averages rays from a stratified grid of
 // points on the lens disk, each aimed at the pixel's point on the plane of focus (z = F) and
 // traced through the drops. Focused on the background (F = T), a ray that meets no drop lands

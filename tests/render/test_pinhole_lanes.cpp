@@ -55,25 +55,35 @@ std::vector<NamedScene> lane_cases(const Camera& cam) {
   return cases;
 }
 
-// What the lanes gave ray i of `row` (a Path) against what trace_path gave it, `w`, to the bit.
-// Returns false where the direction differs (the caller stops: the rest would differ too).
-bool same_path(const PinholeLanes::Row& row, int i, const DropPath& w, const Camera& cam, double background_z,
-               const std::string& where) {
+// What the lanes gave ray i of `row` against what trace_path gave it, `w`, to the bit: a Miss
+// meets no drop (counted in *misses), a Path ends where w ends (counted in *paths; Alone is not
+// compared). Returns false where a Path's direction differs (the caller stops: the rest would
+// differ too). `where()` names the ray in a failure's message.
+template <class Where>
+bool same_outcome(const PinholeLanes::Row& row, int i, const DropPath& w, const Camera& cam, double background_z,
+                  const Where& where, std::int64_t* paths, std::int64_t* misses) {
+  if (row.outcome[i] == PinholeLanes::Outcome::Alone) return true;
+  if (row.outcome[i] == PinholeLanes::Outcome::Miss) {
+    ++*misses;
+    EXPECT_FALSE(w.hit) << where();
+    return true;
+  }
+  ++*paths;
   const DropPath got = row.path(i);
-  EXPECT_TRUE(w.hit) << where;
+  EXPECT_TRUE(w.hit) << where();
   if (!w.hit) return false;
-  EXPECT_EQ(got.first_drop, w.first_drop) << where;
-  EXPECT_EQ(got.dark, w.dark) << where;
-  EXPECT_EQ(got.escaped_in, w.escaped_in) << where;
-  EXPECT_EQ(got.events, w.events) << where;
-  EXPECT_EQ(std::memcmp(&got.transmittance, &w.transmittance, sizeof got.transmittance), 0) << where;
-  EXPECT_EQ(std::memcmp(&got.origin, &w.origin, sizeof got.origin), 0) << where;
-  EXPECT_EQ(std::memcmp(&got.dir, &w.dir, sizeof got.dir), 0) << where;
+  EXPECT_EQ(got.first_drop, w.first_drop) << where();
+  EXPECT_EQ(got.dark, w.dark) << where();
+  EXPECT_EQ(got.escaped_in, w.escaped_in) << where();
+  EXPECT_EQ(got.events, w.events) << where();
+  EXPECT_EQ(std::memcmp(&got.transmittance, &w.transmittance, sizeof got.transmittance), 0) << where();
+  EXPECT_EQ(std::memcmp(&got.origin, &w.origin, sizeof got.origin), 0) << where();
+  EXPECT_EQ(std::memcmp(&got.dir, &w.dir, sizeof got.dir), 0) << where();
   if (std::memcmp(&got.dir, &w.dir, sizeof got.dir) != 0) return false;
   if (w.dark || w.escaped_in) return true;
   const glm::dvec2 seen = background_pixel(w, cam, background_z);
-  EXPECT_EQ(std::memcmp(&row.seen_x[i], &seen.x, sizeof seen.x), 0) << where;
-  EXPECT_EQ(std::memcmp(&row.seen_y[i], &seen.y, sizeof seen.y), 0) << where;
+  EXPECT_EQ(std::memcmp(&row.seen_x[i], &seen.x, sizeof seen.x), 0) << where();
+  EXPECT_EQ(std::memcmp(&row.seen_y[i], &seen.y, sizeof seen.y), 0) << where();
   return true;
 }
 
@@ -170,19 +180,11 @@ TEST(PinholeLanes, EachPathIsTracePathsToTheBit) {
         lanes.trace_row(y, spans[y], &row);
         for (const DropSpan& s : spans[y]) {
           for (int x = s.first; x <= s.last; ++x) {
-            const PinholeLanes::Outcome o = row.outcome[x];
-            if (o == PinholeLanes::Outcome::Alone) continue;
-            const DropPath& w = want[y * cam.width + x];
-            auto where = [&] {
+            const auto where = [&] {
               return k.name + ", level " + std::to_string(level) + ", pixel " + std::to_string(x) + "," + std::to_string(y);
             };
-            if (o == PinholeLanes::Outcome::Miss) {
-              ++misses[level];
-              EXPECT_FALSE(w.hit) << where();
-              continue;
-            }
-            ++paths[level];
-            ASSERT_TRUE(same_path(row, x, w, cam, k.scene.background_distance_cm, where()));
+            ASSERT_TRUE(same_outcome(row, x, want[y * cam.width + x], cam, k.scene.background_distance_cm, where,
+                                     &paths[level], &misses[level]));
           }
         }
       }
@@ -264,21 +266,14 @@ TEST(PinholeLanes, EachApertureRayPathIsTracePathsToTheBit) {
                                              arrays[3].data(), arrays[4].data(), arrays[5].data()};
           lanes.trace_rays(rays, kRays, near, &row);
           for (int i = 0; i < kRays; ++i) {
-            const PinholeLanes::Outcome o = row.outcome[i];
-            if (o == PinholeLanes::Outcome::Alone) continue;
+            if (row.outcome[i] == PinholeLanes::Outcome::Alone) continue;
             const DropPath w =
                 trace_through_drops(origins[i], raw[i], n, k.config.tir, k.config.fresnel.enabled, accel, k.scene.glass);
-            auto where = [&] {
+            const auto where = [&] {
               return k.name + ", level " + std::to_string(level) + ", pixel " + std::to_string(x) + "," +
                      std::to_string(y) + ", ray " + std::to_string(i);
             };
-            if (o == PinholeLanes::Outcome::Miss) {
-              ++misses[level];
-              EXPECT_FALSE(w.hit) << where();
-              continue;
-            }
-            ++paths[level];
-            ASSERT_TRUE(same_path(row, i, w, cam, F, where()));
+            ASSERT_TRUE(same_outcome(row, i, w, cam, F, where, &paths[level], &misses[level]));
           }
         }
       }
