@@ -6,7 +6,7 @@
 # largedropmodels sensor mirroraverage highlights multiscale veil papermodels outline trails photos windshield
 # windshield-followup longer growth sharpness coalesce surround largewidth largedrops-all windshield2
 # errorsplit withoutvnni graphrewrites jitter windshieldscale router routed int8router droplets realismcontrol
-# droplets2 infocus realismbar windshieldday fillarea finedrops lanes glassplate platerecon aperturelanes
+# droplets2 infocus realismbar windshieldday fillarea finedrops lanes glassplate platerecon aperturelanes headrouter
 #
 # Sections measured before docs/RESULTS.md 4.44 run compact-windshield's detector (and the routed
 # default) with --surround-fill-area 150, the area they had then, so that they reproduce.
@@ -25,7 +25,7 @@ sections=("$@")
                                   photos windshield windshield-followup longer growth sharpness coalesce
                                   surround largewidth largedrops-all windshield2 errorsplit withoutvnni graphrewrites
                                   jitter windshieldscale router routed int8router droplets realismcontrol droplets2 infocus realismbar
-                                  windshieldday fillarea finedrops lanes glassplate platerecon aperturelanes)
+                                  windshieldday fillarea finedrops lanes glassplate platerecon aperturelanes headrouter)
 want() { [[ " ${sections[*]} " == *" $1 "* ]]; }
 # link_set SRC DST SPLIT [LIMIT]: the first LIMIT (default 100; 0: all) samples of data set SRC
 # (of manifest split SPLIT; "-" = all) linked into DST/rainy and DST/clean (and DST/mask, where
@@ -1724,7 +1724,10 @@ if want routed; then
   done
   $py -m raindrop_tools.detector_router fit --models models/compact-multiscale --alternative compact-windshield \
     "${fit_sets[@]}" --out "$ro/ROUTER" | tee "$ro/fit.txt"
-  cmp "$ro/ROUTER" models/compact-multiscale/ROUTER && echo "refitted ROUTER: identical to the committed one" | tee -a "$ro/fit.txt"
+  # (Since RESULTS 4.48 the committed file names compact-windshield-head, the head that gives this
+  # detector's map: compared with that one line read as the fit writes it.)
+  cmp "$ro/ROUTER" <(sed 's/^alternative compact-windshield-head$/alternative compact-windshield/' models/compact-multiscale/ROUTER) &&
+    echo "refitted ROUTER: identical to the committed one" | tee -a "$ro/fit.txt"
   size_sets val test-size
   score_sets "$ro" cpp "-j 2 --surround-fill-area 150" real-pairs:test:0 test-sparse:-:0 test-windshield-sharp:-:0 test-size-512x288:-:0 \
     test-size-1280x720:-:0 | tee "$ro/test-scores.txt"
@@ -2487,4 +2490,80 @@ PY
     score_sets "$pr" routed "-j 2" "${sets[@]}"
     score_sets "$pr" "$run" "-j 2 --models out/models/$run" "${sets[@]}"
   } | tee "$pr/scores.txt"
+fi
+
+if want headrouter; then
+  # RESULTS 4.48: compact-windshield's detector as a head on the default's own detector
+  # (compact-windshield-head). Trained and written into the default's rdn.onnx unless the
+  # committed graphs have it; then, side by side on the same sets: without the router, routed to
+  # compact-windshield's own network (the default before: the same main graph, its ROUTER naming
+  # that folder) and routed to the head (the default now); the head's map against its teacher's;
+  # the 44 photographs; and the times of a routed and a kept photograph, alternated.
+  validation_sets
+  size_sets val test-size
+  paper_sparse_scene
+  [[ -f data/test-sparse/manifest.jsonl ]] || build/raindrop-render --input "$shared/camvid/test" \
+    --cityscapes "$shared/cityscapes-mini" --split val --size 512x256 --variants 2 --seed 2 \
+    --scene "$out/paper-sparse.json" --out data/test-sparse -q
+  [[ -f data/test-windshield-sharp/manifest.jsonl ]] || build/raindrop-render -i "$shared/camvid/test" \
+    -o data/test-windshield-sharp --scene windshield-sharp --size 512x256 --seed 2 -q
+  hr="$out/headrouter"
+  mkdir -p "$hr/models/full"
+  if ! grep -q "^alternative compact-windshield-head$" models/compact-multiscale/ROUTER; then
+    $py -m raindrop_tools.train_head --config tools/configs/compact-windshield-head.yaml --out tools/runs/compact-windshield-head
+    $py -m raindrop_tools.shared_detector --main models/compact-multiscale --head tools/runs/compact-windshield-head/head.pt \
+      --like models/compact-windshield --out models/compact-windshield-head
+    sed -i 's/^alternative compact-windshield$/alternative compact-windshield-head/' models/compact-multiscale/ROUTER
+  fi
+  full="$hr/models/full"
+  for f in rdn.onnx rrn.onnx rfn.onnx LARGE_DROPS; do ln -sfn "$PWD/models/compact-multiscale/$f" "$full/$f"; done
+  for m in compact-windshield paper-real-coarse; do ln -sfn "$PWD/models/$m" "$hr/models/$m"; done
+  sed 's/^alternative .*/alternative compact-windshield/' models/compact-multiscale/ROUTER >"$full/ROUTER"
+  tests=(real-pairs:test:0 test-sparse:-:0 test-windshield-sharp:-:0 test-size-512x288:-:0 test-size-1280x720:-:0)
+  vals=(real-pairs:train:0 val-sparse:-:0 val-windshield-sharp:-:0)
+  {
+    score_sets "$hr" norouter "-j 2 --no-router" "${tests[@]}" "${vals[@]}"
+    score_sets "$hr" full "-j 2 --models $full" "${tests[@]}" "${vals[@]}"
+    score_sets "$hr" head "-j 2" "${tests[@]}" "${vals[@]}"
+  } | tee "$hr/scores.txt"
+  # The head's mask against its teacher's where both decide (threshold 0.75, before dilation), at
+  # the working scale, on the validation sets and the photographs.
+  $py - "$shared/real-raindrop" <<'PY' | tee "$hr/agreement.txt"
+import glob, json, sys
+import numpy as np, onnxruntime as ort
+sys.path.insert(0, "tools")
+from raindrop_tools import detector_router as DR
+from raindrop_tools.imageio import read_rgb
+so = ort.SessionOptions(); so.intra_op_num_threads = 2
+main = ort.InferenceSession("models/compact-multiscale/rdn.onnx", so)
+teacher = ort.InferenceSession("models/compact-windshield/rdn.onnx", so)
+router = DR.read_router("models/compact-multiscale/ROUTER")
+rp = json.load(open("data/real-pairs/realpairs.json"))["groups"]["train"]
+sets = {"real pairs, train split": [f for f in sorted(glob.glob("data/real-pairs/rainy/*")) if any(f.split("/")[-1].startswith(g + "_") for g in rp)],
+        "val-sparse": sorted(glob.glob("data/val-sparse/rainy/*")), "val-windshield-sharp": sorted(glob.glob("data/val-windshield-sharp/rainy/*")),
+        "44 photographs": sorted(glob.glob(sys.argv[1] + "/*"))}
+for name, files in sets.items():
+    ious, routed = [], 0
+    for f in files:
+        x = DR.working_copy(read_rgb(f))
+        h, w = x.shape[:2]
+        t = np.pad(x.astype(np.float32) / 255, ((0, h % 2), (0, w % 2), (0, 0)), mode="edge").transpose(2, 0, 1)[None]
+        p0, p1 = main.run(None, {"image": t})
+        (pt,) = teacher.run(None, {"image": t})
+        a, b = p1[0, 0, :h, :w] > 0.75, pt[0, 0, :h, :w] > 0.75
+        ious.append((a & b).sum() / max(1, (a | b).sum()) if (a | b).any() else 1.0)
+        routed += router.score(DR.features(p0[0, 0, :h, :w]))[0] > 0
+    print(f"{name}: {len(files)} images, {routed} routed; mask IoU head vs compact-windshield at 0.75: mean {np.mean(ious):.3f}, median {np.median(ious):.3f}, min {np.min(ious):.3f}")
+PY
+  for m in head full; do
+    flags=()
+    [[ $m == full ]] && flags=(--models "$full")
+    rm -rf "$hr/photos-$m" && mkdir -p "$hr/photos-$m"
+    build/raindrop-remove "$shared/real-raindrop" "$hr/photos-$m/removed" --mask-dir "$hr/photos-$m/masks" -q -j 2 --time \
+      --contact-sheet "$hr/photos-$m-sheet.png" "${flags[@]}" 2>"$hr/photos-$m/time.txt"
+  done
+  grep -c "detector 'compact-windshield-head'" "$hr/photos-head/time.txt" | sed 's/$/ of 44 photographs to the head/' | tee "$hr/photos.txt"
+  photos_changed "$hr/photos-head/removed" "$hr/photos-full/removed" | tee -a "$hr/photos.txt"
+  alternate_times 15 head windshield_2.jpg attgan-fork_test_5.png -- "" "--no-router" "--models $full" >"$hr/times.txt"
+  median_times "$hr/times.txt" | tee "$hr/times-summary.txt"
 fi

@@ -2,7 +2,9 @@
 
 #include <algorithm>
 #include <cmath>
+#include <fstream>
 #include <future>
+#include <iterator>
 #include <numeric>
 #include <system_error>
 #include <thread>
@@ -18,13 +20,14 @@ struct Contract {
   std::vector<int> input_channels;
   std::string output;
   int output_channels;
+  std::string optional_output;  // a second output the graph may have (one channel), else empty
 };
 
 const Contract& contract_for(const std::string& name) {
   static const std::map<std::string, Contract> contracts = {
-      {"rdn", {{"image"}, {3}, "mask_prob", 1}},
-      {"rrn", {{"image", "edge"}, {3, 1}, "reconstruction", 3}},
-      {"rfn", {{"blend"}, {3}, "restored", 3}},
+      {"rdn", {{"image"}, {3}, "mask_prob", 1, kAlternativeOutput}},
+      {"rrn", {{"image", "edge"}, {3, 1}, "reconstruction", 3, ""}},
+      {"rfn", {{"blend"}, {3}, "restored", 3, ""}},
   };
   const auto it = contracts.find(name);
   if (it == contracts.end()) throw Error("unknown network '" + name + "' (expected rdn, rrn or rfn)");
@@ -88,6 +91,67 @@ double parse_double(const fs::path& file, const std::string& key, const std::str
   return v;
 }
 
+// One varint of a protobuf message at `p` (advanced), or false past `end` or a varint too long.
+bool read_varint(const unsigned char*& p, const unsigned char* end, uint64_t& v) {
+  v = 0;
+  for (int shift = 0; shift < 64 && p < end; shift += 7) {
+    const unsigned char b = *p++;
+    v |= static_cast<uint64_t>(b & 0x7f) << shift;
+    if (!(b & 0x80)) return true;
+  }
+  return false;
+}
+
+// The metadata_props of an ONNX file (ModelProto field 14, each a message {1: key, 2: value}),
+// read from the file's bytes without a session: a detector whose map another graph computes
+// (model.h: kAlternativeOutput) is needed for its metadata only, and a session would parse,
+// optimise and pack the whole graph for nothing (10-15 ms on a routed photograph's path).
+std::map<std::string, std::string> read_metadata_only(const fs::path& file) {
+  std::error_code ec;
+  if (!fs::is_regular_file(file, ec)) throw Error(quoted(file) + ": model file missing");
+  std::ifstream in(file, std::ios::binary);
+  std::string bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  if (!in.good() && !in.eof()) throw Error(quoted(file) + ": cannot read it");
+  if (bytes.empty()) throw Error(quoted(file) + ": model file is empty");
+  const auto* p = reinterpret_cast<const unsigned char*>(bytes.data());
+  const unsigned char* end = p + bytes.size();
+  const std::string broken = quoted(file) + ": not an ONNX model (its metadata cannot be read)";
+  std::map<std::string, std::string> meta;
+  while (p < end) {
+    uint64_t tag = 0, len = 0;
+    if (!read_varint(p, end, tag)) throw Error(broken);
+    const uint64_t field = tag >> 3, wire = tag & 7;
+    if (wire == 0) {
+      if (!read_varint(p, end, len)) throw Error(broken);
+    } else if (wire == 1 || wire == 5) {
+      const uint64_t n = wire == 1 ? 8 : 4;
+      if (static_cast<uint64_t>(end - p) < n) throw Error(broken);
+      p += n;
+    } else if (wire == 2) {
+      if (!read_varint(p, end, len) || len > static_cast<uint64_t>(end - p)) throw Error(broken);
+      if (field == 14) {
+        const unsigned char* q = p;
+        const unsigned char* entry_end = p + len;
+        std::string key, value;
+        while (q < entry_end) {
+          uint64_t t = 0, n = 0;
+          if (!read_varint(q, entry_end, t) || (t & 7) != 2 || !read_varint(q, entry_end, n) ||
+              n > static_cast<uint64_t>(entry_end - q))
+            throw Error(broken);
+          if ((t >> 3) == 1) key.assign(reinterpret_cast<const char*>(q), n);
+          if ((t >> 3) == 2) value.assign(reinterpret_cast<const char*>(q), n);
+          q += n;
+        }
+        meta[key] = value;
+      }
+      p += len;
+    } else {
+      throw Error(broken);
+    }
+  }
+  return meta;
+}
+
 }  // namespace
 
 Network::Network(const fs::path& file, const std::string& name, const SessionConfig& config)
@@ -110,15 +174,21 @@ Network::Network(const fs::path& file, const std::string& name, const SessionCon
   std::vector<std::string> sorted_in = inputs, sorted_want = c.inputs;
   std::sort(sorted_in.begin(), sorted_in.end());
   std::sort(sorted_want.begin(), sorted_want.end());
-  if (sorted_in != sorted_want || outputs != std::vector<std::string>{c.output})
+  const bool with_optional = !c.optional_output.empty() && outputs == std::vector<std::string>{c.output, c.optional_output};
+  if (sorted_in != sorted_want || (outputs != std::vector<std::string>{c.output} && !with_optional))
     throw Error(quoted(file) + ": inputs " + join(inputs) + " / outputs " + join(outputs) + ", expected " + join(c.inputs) +
-                " / [" + c.output + "] (is this the " + name + " graph?)");
+                " / [" + c.output + (c.optional_output.empty() ? "" : "] or [" + c.output + ", " + c.optional_output) +
+                "] (is this the " + name + " graph?)");
   // Check every declared shape, matching inputs by name (their order in the graph is free).
   for (size_t i = 0; i < inputs.size(); ++i) {
     const size_t k = static_cast<size_t>(std::find(c.inputs.begin(), c.inputs.end(), inputs[i]) - c.inputs.begin());
     check_tensor(file, "input '" + inputs[i] + "'", session_->GetInputTypeInfo(i), c.input_channels[k]);
   }
   check_tensor(file, "output '" + c.output + "'", session_->GetOutputTypeInfo(0), c.output_channels);
+  if (with_optional) {
+    check_tensor(file, "output '" + c.optional_output + "'", session_->GetOutputTypeInfo(1), 1);
+    alternative_output_ = c.optional_output;
+  }
   input_names_ = c.inputs;
   input_channels_ = c.input_channels;
   output_name_ = c.output;
@@ -138,7 +208,9 @@ Network::Network(const fs::path& file, const std::string& name, const SessionCon
     throw Error(quoted(file) + ": raindrop.network is '" + metadata_["raindrop.network"] + "', expected '" + name + "'");
 }
 
-void Network::run(const std::vector<const float*>& inputs, int h, int w, float* output) {
+void Network::run(const std::vector<const float*>& inputs, int h, int w, float* output, float* alternative) {
+  if (alternative && alternative_output_.empty())
+    throw Error(quoted(file_) + ": has no output '" + std::string(kAlternativeOutput) + "'");
   if (inputs.size() != input_names_.size()) throw Error(name_ + ": wrong number of inputs");
   std::vector<Ort::Value> values;
   std::vector<const char*> names;
@@ -150,10 +222,14 @@ void Network::run(const std::vector<const float*>& inputs, int h, int w, float* 
     names.push_back(input_names_[i].c_str());
   }
   const int64_t out_shape[4] = {1, out_channels_, h, w};
-  Ort::Value out = Ort::Value::CreateTensor<float>(memory_, output, static_cast<size_t>(out_channels_) * h * w, out_shape, 4);
-  const char* out_name = output_name_.c_str();
+  const int64_t alternative_shape[4] = {1, 1, h, w};
+  Ort::Value outs[2] = {
+      Ort::Value::CreateTensor<float>(memory_, output, static_cast<size_t>(out_channels_) * h * w, out_shape, 4),
+      alternative ? Ort::Value::CreateTensor<float>(memory_, alternative, static_cast<size_t>(h) * w, alternative_shape, 4)
+                  : Ort::Value(nullptr)};
+  const char* out_names[2] = {output_name_.c_str(), alternative_output_.c_str()};
   try {
-    session_->Run(Ort::RunOptions{nullptr}, names.data(), values.data(), values.size(), &out_name, &out, 1);
+    session_->Run(Ort::RunOptions{nullptr}, names.data(), values.data(), values.size(), out_names, outs, alternative ? 2 : 1);
   } catch (const Ort::Exception& e) {
     throw Error(quoted(file_) + ": inference failed on a " + std::to_string(w) + "x" + std::to_string(h) + " image (" +
                 one_line(e.what()) + ")");
@@ -181,7 +257,18 @@ Models::Models(const fs::path& dir, const SessionConfig& config, Graphs graphs) 
   // The environment first, on this thread: creating it sets the process environment
   // (turn_off_onnxruntime_telemetry), which must not race the loading thread's getenv calls.
   ort_env();
-  if (graphs == Graphs::detection) {
+  std::map<std::string, std::string> metadata_only;  // Graphs::metadata: rdn.onnx's, read without a session
+  if (graphs == Graphs::metadata) {
+    metadata_only = read_metadata_only(dir / "rdn.onnx");
+    std::vector<std::string> missing;
+    for (const char* k : kMetaKeys) {
+      if (!metadata_only.count(k)) missing.push_back(k);
+    }
+    if (!missing.empty())
+      throw Error(quoted(dir / "rdn.onnx") + ": metadata missing " + join(missing) + " (export it with raindrop_tools.export)");
+    if (metadata_only["raindrop.network"] != "rdn")
+      throw Error(quoted(dir / "rdn.onnx") + ": raindrop.network is '" + metadata_only["raindrop.network"] + "', expected 'rdn'");
+  } else if (graphs == Graphs::detection) {
     // One graph, on all the threads: a router's alternative detector runs after the first
     // detector and the 3RN beside it, when both cores are free (remover.cpp).
     rdn_ = load("rdn", config);
@@ -196,14 +283,16 @@ Models::Models(const fs::path& dir, const SessionConfig& config, Graphs graphs) 
     }
     (detector ? rdn_ : rrn_) = first.get();
   }
-  std::vector<Network*> loaded;
+  // Each graph's file and metadata (checked for the kMetaKeys already).
+  std::vector<std::pair<fs::path, const std::map<std::string, std::string>*>> loaded;
+  if (graphs == Graphs::metadata) loaded.emplace_back(dir / "rdn.onnx", &metadata_only);
   for (Network* n : {rdn_.get(), rrn_.get(), rfn_.get()})
-    if (n) loaded.push_back(n);
-  const std::string cfg = loaded.front()->metadata().at("raindrop.config");
-  for (Network* n : loaded) {
-    if (n->metadata().at("raindrop.config") != cfg)
+    if (n) loaded.emplace_back(n->file(), &n->metadata());
+  const std::string cfg = loaded.front().second->at("raindrop.config");
+  for (const auto& [file, meta] : loaded) {
+    if (meta->at("raindrop.config") != cfg)
       throw Error("model folder " + quoted(dir) + ": the graphs come from different configurations ('" + cfg + "' and '" +
-                  n->metadata().at("raindrop.config") + "')");
+                  meta->at("raindrop.config") + "')");
   }
   info_.config = cfg;
   // At least 2, whatever the graphs say: the RDN and 3RN run their blocks at half resolution
@@ -217,46 +306,63 @@ Models::Models(const fs::path& dir, const SessionConfig& config, Graphs graphs) 
   // Replicate-padding to even size removes that (tests/remove/test_trained_models.cpp,
   // TrainedModels.OddSizesAreRestoredAsWellAtTheirBorders).
   int multiple = 2;
-  for (Network* n : loaded) {
-    const int m = parse_int(n->file(), "raindrop.pad_multiple", n->metadata().at("raindrop.pad_multiple"));
-    if (m < 1 || m > 1024) throw Error(quoted(n->file()) + ": raindrop.pad_multiple must be between 1 and 1024");
+  for (const auto& [file, meta] : loaded) {
+    const int m = parse_int(file, "raindrop.pad_multiple", meta->at("raindrop.pad_multiple"));
+    if (m < 1 || m > 1024) throw Error(quoted(file) + ": raindrop.pad_multiple must be between 1 and 1024");
     multiple = std::lcm(multiple, m);
   }
   info_.pad_multiple = multiple;
-  if (!rdn_) return;  // reconstruction only: threshold, dilation and working size are the detector's
+  if (!detector) return;  // reconstruction only: threshold, dilation and working size are the detector's
+  const fs::path& rdn_file = loaded.front().first;
+  const std::map<std::string, std::string>& rdn_meta = *loaded.front().second;
   // Checked here, against the same ranges as --threshold and --dilation, so that a bad value
   // is blamed on the model file rather than on an option the user did not give.
-  const std::string threshold = rdn_->metadata().at("raindrop.threshold");
-  info_.threshold = parse_double(rdn_->file(), "raindrop.threshold", threshold);
+  const std::string threshold = rdn_meta.at("raindrop.threshold");
+  info_.threshold = parse_double(rdn_file, "raindrop.threshold", threshold);
   if (!(info_.threshold > 0 && info_.threshold < 1))
-    throw Error(quoted(rdn_->file()) + ": metadata raindrop.threshold = " + threshold +
+    throw Error(quoted(rdn_file) + ": metadata raindrop.threshold = " + threshold +
                 " is not a probability strictly between 0 and 1");
-  const std::string dilation = rdn_->metadata().at("raindrop.dilation");
-  info_.dilation = parse_int(rdn_->file(), "raindrop.dilation", dilation);
+  const std::string dilation = rdn_meta.at("raindrop.dilation");
+  info_.dilation = parse_int(rdn_file, "raindrop.dilation", dilation);
   if (info_.dilation < 1 || info_.dilation > kMaxDilation)
-    throw Error(quoted(rdn_->file()) + ": metadata raindrop.dilation = " + dilation + " must be between 1 and " +
+    throw Error(quoted(rdn_file) + ": metadata raindrop.dilation = " + dilation + " must be between 1 and " +
                 std::to_string(kMaxDilation));
-  if (const auto it = rdn_->metadata().find("raindrop.large_drop_growth"); it != rdn_->metadata().end()) {
-    info_.large_drop_growth = parse_double(rdn_->file(), "raindrop.large_drop_growth", it->second);
+  if (const auto it = rdn_meta.find("raindrop.large_drop_growth"); it != rdn_meta.end()) {
+    info_.large_drop_growth = parse_double(rdn_file, "raindrop.large_drop_growth", it->second);
     if (!(info_.large_drop_growth >= 0 && info_.large_drop_growth <= kMaxLargeDropGrowth))
-      throw Error(quoted(rdn_->file()) + ": metadata raindrop.large_drop_growth = " + it->second +
+      throw Error(quoted(rdn_file) + ": metadata raindrop.large_drop_growth = " + it->second +
                   " must be between 0 and " + std::to_string(static_cast<int>(kMaxLargeDropGrowth)));
   }
-  if (const auto it = rdn_->metadata().find("raindrop.surround_fill_area"); it != rdn_->metadata().end()) {
-    info_.surround_fill_area = parse_int(rdn_->file(), "raindrop.surround_fill_area", it->second);
+  if (const auto it = rdn_meta.find("raindrop.surround_fill_area"); it != rdn_meta.end()) {
+    info_.surround_fill_area = parse_int(rdn_file, "raindrop.surround_fill_area", it->second);
     if (info_.surround_fill_area < 0)
-      throw Error(quoted(rdn_->file()) + ": metadata raindrop.surround_fill_area = " + it->second +
+      throw Error(quoted(rdn_file) + ": metadata raindrop.surround_fill_area = " + it->second +
                   " must be a whole number >= 0 (0: off)");
   }
-  if (const auto it = rdn_->metadata().find("raindrop.working_size"); it != rdn_->metadata().end()) {
-    info_.working_size = parse_int(rdn_->file(), "raindrop.working_size", it->second);
+  // A second head's map must say whose it is; the name alone is no map.
+  const auto alternative = rdn_meta.find("raindrop.alternative_detector");
+  const bool named = alternative != rdn_meta.end();
+  // (Without a session the outputs are not known: a detector loaded for its metadata is not run.)
+  if (rdn_ && named != rdn_->has_alternative_output())
+    throw Error(quoted(rdn_file) + (named ? ": metadata raindrop.alternative_detector without the output '"
+                                              : ": the output '") +
+                kAlternativeOutput + (named ? "'" : "' without metadata raindrop.alternative_detector"));
+  if (named) {
+    const std::string& folder = alternative->second;
+    if (folder.empty() || folder == "." || folder == ".." || folder.find('/') != std::string::npos)
+      throw Error(quoted(rdn_file) + ": metadata raindrop.alternative_detector = '" + folder +
+                  "' must name one sibling model folder");
+    info_.alternative_detector = folder;
+  }
+  if (const auto it = rdn_meta.find("raindrop.working_size"); it != rdn_meta.end()) {
+    info_.working_size = parse_int(rdn_file, "raindrop.working_size", it->second);
     if (info_.working_size < 16 || info_.working_size > 65536)
-      throw Error(quoted(rdn_->file()) + ": metadata raindrop.working_size must be between 16 and 65536");
+      throw Error(quoted(rdn_file) + ": metadata raindrop.working_size must be between 16 and 65536");
   }
 }
 
 Network& Models::rdn_beside() {
-  if (!rdn_) throw Error("model folder " + quoted(dir_) + " was loaded for reconstruction only (no detector)");
+  if (!rdn_) throw Error("model folder " + quoted(dir_) + " was loaded without its detector's graph");
   return *rdn_;
 }
 

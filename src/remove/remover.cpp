@@ -102,15 +102,19 @@ void run_side_by_side(const std::vector<std::function<void()>>& jobs) {
 
 // RDN on one tile's inputs, thresholded into `dst`: the part of the whole-image mask that the
 // tile owns, at `owned` within the tile. `prob_dst` (when not empty) gets the probabilities there.
+// `alternative_dst` (when not empty) gets the graph's second head's map there (model.h:
+// kAlternativeOutput).
 void detect(Network& rdn, const TileInputs& in, const cv::Rect& owned, double threshold, cv::Mat dst, StageTimes& t,
-            cv::Mat prob_dst = {}) {
+            cv::Mat prob_dst = {}, cv::Mat alternative_dst = {}) {
   auto clock = Clock::now();
-  std::vector<float> prob(static_cast<size_t>(in.h) * in.w);
-  rdn.run({in.r.data()}, in.h, in.w, prob.data());
+  const size_t n = static_cast<size_t>(in.h) * in.w;
+  std::vector<float> prob(alternative_dst.empty() ? n : 2 * n);
+  rdn.run({in.r.data()}, in.h, in.w, prob.data(), alternative_dst.empty() ? nullptr : prob.data() + n);
   t.rdn += lap_ms(clock);
   const cv::Mat owned_prob = cv::Mat(in.h, in.w, CV_32F, prob.data())(owned);
   threshold_mask(owned_prob, threshold, dst);
   if (!prob_dst.empty()) owned_prob.copyTo(prob_dst);
+  if (!alternative_dst.empty()) cv::Mat(in.h, in.w, CV_32F, prob.data() + n)(owned).copyTo(alternative_dst);
   t.mask += lap_ms(clock);
 }
 
@@ -162,6 +166,11 @@ Remover::Remover(const std::filesystem::path& model_dir, const SessionConfig& co
     router_ = read_detector_router(model_dir);
     if (router_) {
       alternative_dir_ = sibling_model_folder(model_dir, router_->alternative);
+      // The main detector's graph computes the alternative's map too (model.h): no second run.
+      alternative_in_main_graph_ = models_.info().alternative_detector == router_->alternative;
+      // Then its own graph never runs (every pass takes the map from the main graph): its
+      // metadata (threshold, dilation, growth, fill area) is all that is read of it.
+      if (alternative_in_main_graph_) alternative_.set_graphs(Models::Graphs::metadata);
       try {
         check_model_files(alternative_dir_, /*detector=*/true, /*reconstruction=*/false);
       } catch (const Error& e) {
@@ -264,7 +273,7 @@ RemoveResult Remover::run(const cv::Mat& image, const RemoveOptions& opt) {
   }
   const auto working_pass = [&] {
     try {
-      res = small == image.size() ? run_native(image, opt, {}, {}, 0, detection)
+      res = small == image.size() ? run_native(image, opt, {}, {}, false, detection)
                                   : run_scaled(image, working, opt, scale, detection);
     } catch (...) {
       decision.fail(std::current_exception());  // a coarse pass waiting for the decision stops too
@@ -304,9 +313,12 @@ void Remover::fine_pass(const cv::Mat& image, const RemoveOptions& opt, double s
   // threshold and dilation (or the options'); it stops at its mask: no 3RN at this scale, so
   // of the options only those of detection (threshold, dilation, tiles) count.
   Detection detection;
-  detection.models = res.alternative_detector() ? &alternative_detector() : &models_;
+  detection.models = res.alternative_detector() && !alternative_in_main_graph_ ? &alternative_detector() : &models_;
+  // The alternative's map from the main graph's second output (model.h), as the passes before.
+  if (res.alternative_detector() && alternative_in_main_graph_)
+    detection.route = [this](const cv::Mat&) { return &alternative_detector(); };
   detection.all_threads = true;
-  const RemoveResult found = run_native(input_fine, opt, [](const cv::Mat&) { return false; }, {}, 0.0, detection);
+  const RemoveResult found = run_native(input_fine, opt, [](const cv::Mat&) { return false; }, {}, false, detection);
   res.times += found.times;
   res.network_pixels += found.network_pixels;
   clock = Clock::now();
@@ -413,7 +425,7 @@ RemoveResult Remover::run_scaled(const cv::Mat& image, const cv::Mat& small, con
   RemoveOptions sub = opt;
   sub.scale = 1.0;
   sub.keep_float = true;
-  RemoveResult res = run_native(small, sub, {}, {}, 0, detection);
+  RemoveResult res = run_native(small, sub, {}, {}, false, detection);
   res.scale = scale;
   StageTimes& t = res.times;
 
@@ -453,51 +465,30 @@ Remover::CoarsePass Remover::coarse_pass(const cv::Mat& image, const cv::Mat& wo
   // of two; other fine-tuned detectors took flat road for large drops.
   //
   // With a router, the main detector runs at once, beside the working pass, as without one; the
-  // choice is waited for only at its mask (the working pass's detector, on 9 times the pixels,
-  // is then nearly done), and where the router chose the other detector the pass runs again
-  // with it. A photograph the router keeps so costs no more than without the router.
-  bool rerun = false;
-  double waited_ms = 0;  // for the router's choice, inside the mask stage's time: moved to its own
-  const auto run_with = [&](Models& chosen, bool speculative) {
-    Detection detection;
-    detection.models = &chosen;
-    const double growth = opt.large_drop_growth.value_or(chosen.info().large_drop_growth);  // checked by run()
-    // Most photographs have no large drop: the coarse copy's detector decides before its 3RN
-    // and RFN run, which are about two thirds of its cost.
-    const MaskGate only_with_large_drops = [&](const cv::Mat& mask) {
-      if (speculative) {
-        auto waiting = Clock::now();
-        const Models& decided = route->wait();
-        waited_ms += lap_ms(waiting);
-        if (&decided != &chosen) {
-          rerun = true;
-          return false;
-        }
-      }
-      cp.large = large_drop_mask(mask, &cp.large_drops);
-      // Only smooth regions: a sharp one is no defocused drop, and the coarse fill would blur it.
-      if (cp.large_drops > 0 && std::isfinite(opt.large_drop_max_sharpness)) {
-        const int found = cp.large_drops;
-        cp.large = smooth_large_drops(cp.large, sharpness_map(working), opt.large_drop_max_sharpness, &cp.large_drops);
-        cp.sharp_large_drops = found - cp.large_drops;
-      }
-      return cp.large_drops > 0;
-    };
-    return run_native(coarse_native, sub, only_with_large_drops,
-                      [this]() -> Models& { return large_drop_models(); }, growth, detection);
+  // choice is waited for only after it (the working pass's detector, on 9 times the pixels, is
+  // then nearly done), and where the router chose the other detector its map decides: from the
+  // main graph's second output where it has one, else from a second run. A photograph the
+  // router keeps so costs no more than without the router.
+  Detection detection;
+  // Decided already (one thread: the working pass ran first): no speculation, unless the choice's
+  // map comes from the main graph, which then runs in any case.
+  const bool speculative = route && (!route->ready() || alternative_in_main_graph_);
+  detection.models = route && !speculative ? &route->wait() : &models_;
+  if (speculative) detection.route = [route](const cv::Mat&) { return &route->wait(); };
+  // Most photographs have no large drop: the coarse copy's detector decides before its 3RN
+  // and RFN run, which are about two thirds of its cost.
+  const MaskGate only_with_large_drops = [&](const cv::Mat& mask) {
+    cp.large = large_drop_mask(mask, &cp.large_drops);
+    // Only smooth regions: a sharp one is no defocused drop, and the coarse fill would blur it.
+    if (cp.large_drops > 0 && std::isfinite(opt.large_drop_max_sharpness)) {
+      const int found = cp.large_drops;
+      cp.large = smooth_large_drops(cp.large, sharpness_map(working), opt.large_drop_max_sharpness, &cp.large_drops);
+      cp.sharp_large_drops = found - cp.large_drops;
+    }
+    return cp.large_drops > 0;
   };
-  // Decided already (one thread: the working pass ran first): no speculation.
-  const bool speculative = route && !route->ready();
-  cp.result = run_with(route && !speculative ? route->wait() : models_, speculative);
-  if (rerun) {
-    const StageTimes first = cp.result.times;  // the main detector's run counts too
-    const double first_pixels = cp.result.network_pixels;
-    cp.result = run_with(route->wait(), false);
-    cp.result.times += first;
-    cp.result.network_pixels += first_pixels;
-  }
-  cp.result.times.mask -= waited_ms;
-  cp.result.times.router += waited_ms;
+  cp.result = run_native(coarse_native, sub, only_with_large_drops, [this]() -> Models& { return large_drop_models(); },
+                         /*grow_large_drops=*/true, detection);
   return cp;
 }
 
@@ -529,7 +520,7 @@ void Remover::composite_large_drops(const CoarsePass& cp, const RemoveOptions& o
 }
 
 RemoveResult Remover::run_native(const cv::Mat& image, const RemoveOptions& opt, const MaskGate& gate,
-                                 const std::function<Models&()>& reconstruction, double growth,
+                                 const std::function<Models&()>& reconstruction, bool grow_large_drops,
                                  const Detection& detection) {
   Models* detector = detection.models ? detection.models : &models_;
   double threshold = opt.threshold.value_or(detector->info().threshold);
@@ -559,7 +550,11 @@ RemoveResult Remover::run_native(const cv::Mat& image, const RemoveOptions& opt,
   const int branches = single && !gate && !reconstruction ? models_.branches() : 1;
   cv::Mat mask0(Hp, Wp, CV_8U, cv::Scalar(0));
   cv::Mat prob;                   // the first detector's probabilities, for a router
-  if (detection.route) prob.create(Hp, Wp, CV_32F);
+  cv::Mat alternative_prob;       // and the alternative's, where the first's graph computes them
+  if (detection.route) {
+    prob.create(Hp, Wp, CV_32F);
+    if (alternative_in_main_graph_ && detector == &models_) alternative_prob.create(Hp, Wp, CV_32F);
+  }
   TileInputs kept;                // the single tile's inputs, reused by pass 2
   std::vector<float> kept_ihat;   // and its 3RN output when it ran beside the RDN
   std::vector<StageTimes> worker_times(branches);
@@ -573,7 +568,7 @@ RemoveResult Remover::run_native(const cv::Mat& image, const RemoveOptions& opt,
     if (single) {
       // rdn_beside() is the all-thread session when branches == 1.
       detect(detection.all_threads ? models.rdn() : models.rdn_beside(), kept, cv::Rect(0, 0, kept.w, kept.h), threshold,
-             mask0, times, prob);
+             mask0, times, prob, alternative_prob);
       return;
     }
     for (int iy = 0; iy < ly.count(); ++iy) {
@@ -583,7 +578,7 @@ RemoveResult Remover::run_native(const cv::Mat& image, const RemoveOptions& opt,
         const cv::Rect owned(lx.owned_begin(ix), ly.owned_begin(iy), lx.owned_end(ix) - lx.owned_begin(ix),
                              ly.owned_end(iy) - ly.owned_begin(iy));
         detect(models.rdn(), in, owned - cv::Point(x0, y0), threshold, mask0(owned), times,
-               prob.empty() ? cv::Mat() : prob(owned));
+               prob.empty() ? cv::Mat() : prob(owned), alternative_prob.empty() ? cv::Mat() : alternative_prob(owned));
       }
     }
   };
@@ -607,9 +602,18 @@ RemoveResult Remover::run_native(const cv::Mat& image, const RemoveOptions& opt,
     if (chosen != detector) {
       detector = chosen;
       threshold = opt.threshold.value_or(detector->info().threshold);
-      mask0.setTo(0);
-      detect_canvas(*detector, t);
+      if (!alternative_prob.empty()) {
+        // The first detector's graph computed the alternative's map beside its own, bit for bit
+        // what the alternative's graph computes (model.h): thresholded, not run again.
+        clock = Clock::now();
+        threshold_mask(alternative_prob, threshold, mask0);
+        t.mask += lap_ms(clock);
+      } else {
+        mask0.setTo(0);
+        detect_canvas(*detector, t);
+      }
     }
+    alternative_prob.release();
   }
   const int k = opt.dilation.value_or(detector->info().dilation);
   // The fill's area is the deciding detector's (a routed image: the alternative's), at this scale.
@@ -618,6 +622,8 @@ RemoveResult Remover::run_native(const cv::Mat& image, const RemoveOptions& opt,
                             ? surround_fill_area_at_scale(fill_area_given, detection.image_size, detection.scale)
                             : fill_area_given;
   auto clock = Clock::now();
+  // The deciding detector's growth (checked by run()), or the option's.
+  const double growth = grow_large_drops ? opt.large_drop_growth.value_or(detector->info().large_drop_growth) : 0.0;
   const cv::Mat mask = dilate_mask_by_size(mask0, k, growth);
   mask0.release();
   const bool reconstruct_now = !gate || gate(mask(cv::Rect(0, 0, W, H)));

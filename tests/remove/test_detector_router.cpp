@@ -121,34 +121,40 @@ TEST(DetectorRouter, RefusesADamagedFileNamingIt) {
   }
 }
 
-// Model folders in tmp/models, linked to the committed ones: main (the default's graphs), alt
-// (compact-windshield's), and paper-real-coarse for their large drops.
+// Model folders in tmp/models, linked to the committed ones: main (the default's graphs, whose
+// detector computes compact-windshield-head's map as its second output), alt (compact-windshield's,
+// a network of its own), head (compact-windshield-head, under its own name, which the main graph's
+// metadata gives), and paper-real-coarse for their large drops.
 struct RoutedModels {
-  fs::path main, alt;
+  fs::path main, alt, head;
 };
 
 std::optional<RoutedModels> link_models(const TempDir& tmp) {
   const fs::path src = source_dir() / "models";
-  for (const char* name : {"compact-multiscale", "compact-windshield", "paper-real-coarse"}) {
+  for (const char* name : {"compact-multiscale", "compact-windshield", "compact-windshield-head", "paper-real-coarse"}) {
     if (!fs::exists(src / name / "rrn.onnx")) return std::nullopt;
   }
   const fs::path root = tmp / "models";
   for (const auto& [from, to] : std::vector<std::pair<std::string, std::string>>{
-           {"compact-multiscale", "main"}, {"compact-windshield", "alt"}, {"paper-real-coarse", "paper-real-coarse"}}) {
+           {"compact-multiscale", "main"},
+           {"compact-windshield", "alt"},
+           {"compact-windshield-head", "compact-windshield-head"},
+           {"paper-real-coarse", "paper-real-coarse"}}) {
     fs::create_directories(root / to);
     for (const char* file : {"rdn.onnx", "rrn.onnx", "rfn.onnx", "LARGE_DROPS"}) {
       if (fs::exists(src / from / file)) fs::create_symlink(src / from / file, root / to / file);
     }
   }
-  return RoutedModels{root / "main", root / "alt"};
+  return RoutedModels{root / "main", root / "alt", root / "compact-windshield-head"};
 }
 
-// The demo street at 700x400 (seed 4) with `scene`'s drops, rendered into tmp/set: its rainy frame.
+// The demo street at 700x400 (seed 4) with `scene`'s drops, rendered into tmp/set-<scene>: its rainy frame.
 cv::Mat render_demo(const TempDir& tmp, const std::string& scene) {
-  const RunResult rendered = run_command(RAINDROP_RENDER_BIN, {"--demo", "--size", "700x400", "--seed", "4", "--out", "set",
+  const std::string set = "set-" + scene;
+  const RunResult rendered = run_command(RAINDROP_RENDER_BIN, {"--demo", "--size", "700x400", "--seed", "4", "--out", set,
                                                                "--scene", scene, "-q", "-j", "1"}, tmp.path());
   EXPECT_EQ(rendered.code, 0) << rendered.describe();
-  const auto read = read_image(tmp / "set/rainy/street_v00.png");
+  const auto read = read_image(tmp / set / "rainy/street_v00.png");
   EXPECT_TRUE(read.has_value());
   return read ? read->pixels : cv::Mat();
 }
@@ -203,6 +209,33 @@ TEST(DetectorRouter, ARoutedImageIsExactlyTheAlternativesAndAKeptOneExactlyTheMa
   const auto alone_1 = run(m->alt, false), routed_1 = run(m->main, true), main_1 = run(m->main, false);
   EXPECT_EQ(max_abs_diff(routed_1.image, alone_1.image), 0);
   EXPECT_EQ(routed_1.network_pixels - main_1.network_pixels, 512.0 * 294) << "the coarse pass's detector ran once";
+  session.threads = 2;
+
+  // The alternative whose map the main graph computes as its second output (model.h): the same
+  // outputs as its own folder's, on one and two threads, with no detector run twice. On sharp
+  // windshield drops, where the head's map differs from the main detector's.
+  const cv::Mat sharp = render_demo(tmp, "windshield-sharp");
+  ASSERT_FALSE(sharp.empty());
+  const auto run_sharp = [&](const fs::path& dir, bool use_router) {
+    Remover r(dir, session, std::nullopt, use_router);
+    return r.run(sharp);
+  };
+  const std::string head = m->head.filename().string();
+  write_file(m->main / "ROUTER", router_text(head, +1.0));
+  for (const int threads : {2, 1}) {
+    SCOPED_TRACE(threads);
+    session.threads = threads;
+    const auto head_alone = run_sharp(m->head, false), via_head = run_sharp(m->main, true),
+               main_t = run_sharp(m->main, false);
+    ASSERT_GT(max_abs_diff(head_alone.image, main_t.image), 0) << "the head must differ from the main detector here";
+    EXPECT_TRUE(via_head.alternative_detector());
+    EXPECT_EQ(max_abs_diff(via_head.image, head_alone.image), 0);
+    EXPECT_EQ(max_abs_diff(via_head.mask, head_alone.mask), 0);
+    EXPECT_EQ(via_head.large_drops, head_alone.large_drops);
+    // On two threads nothing runs again; on one the coarse pass, after the choice, runs the
+    // head's own folder's graph (the same bits), whose pixels count as the main detector's.
+    EXPECT_EQ(via_head.network_pixels, main_t.network_pixels);
+  }
   session.threads = 2;
 
   write_file(m->main / "ROUTER", router_text("alt", -1.0));  // z = -1: the main detector

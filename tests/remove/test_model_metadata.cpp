@@ -39,11 +39,12 @@ class ModelMetadata : public ::testing::Test {
   void add(const std::string& key, const std::string& value) {
     write_file(tmp / "models" / "rdn.onnx", with_added_metadata(read_file(smoke_models() / "rdn.onnx"), key, value));
   }
-  std::string load_error() {
+  std::string load_error() { return load_error_of(Models::Graphs::all); }
+  std::string load_error_of(Models::Graphs graphs) {
     try {
       SessionConfig config;
       config.threads = 1;
-      Models m(tmp / "models", config);
+      Models m(tmp / "models", config, graphs);
     } catch (const raindrop::Error& e) {
       return e.what();
     }
@@ -115,6 +116,75 @@ TEST_F(ModelMetadata, ThresholdOutsideZeroOneIsRefused) {
     SCOPED_TRACE(v);
     set("raindrop.threshold", v);
     expect_load_blames("raindrop.threshold");
+  }
+}
+
+// A second head's map (model.h: kAlternativeOutput) and the metadata that says whose it is come
+// together: either alone is refused, naming the file; both are read.
+TEST_F(ModelMetadata, AnAlternativeOutputAndItsNameComeTogether) {
+  add("raindrop.alternative_detector", "compact-windshield-head");
+  EXPECT_NE(expect_load_blames("raindrop.alternative_detector").find("alternative_mask_prob"), std::string::npos);
+
+  const fs::path committed = source_dir() / "models" / "compact-multiscale" / "rdn.onnx";
+  if (!fs::exists(committed)) GTEST_SKIP() << "the committed models are not in " << source_dir() / "models";
+  const std::string graph = read_file(committed);
+  SessionConfig config;
+  config.threads = 1;
+  fs::create_directories(tmp / "main");
+  write_file(tmp / "main" / "rdn.onnx", graph);
+  raindrop::removal::Network rdn(tmp / "main" / "rdn.onnx", "rdn", config);
+  ASSERT_TRUE(rdn.has_alternative_output()) << "the default's detector carries compact-windshield-head's map";
+  for (const char* f : {"rrn.onnx", "rfn.onnx"}) fs::copy_file(committed.parent_path() / f, tmp / "main" / f);
+  EXPECT_EQ(Models(tmp / "main", config).info().alternative_detector, "compact-windshield-head");
+  // Both maps in one run: the first is what the graph gives without the second.
+  const int h = 24, w = 32;
+  std::vector<float> image(3 * h * w), alone(h * w), both(2 * h * w);
+  for (size_t i = 0; i < image.size(); ++i) image[i] = static_cast<float>((i * 7919) % 256) / 255.0f;
+  rdn.run({image.data()}, h, w, alone.data());
+  rdn.run({image.data()}, h, w, both.data(), both.data() + h * w);
+  EXPECT_TRUE(std::equal(alone.begin(), alone.end(), both.begin()));
+  EXPECT_FALSE(std::equal(alone.begin(), alone.end(), both.begin() + h * w)) << "two heads, two maps";
+
+  // The name's key changed (same length): an output without its name.
+  std::string unnamed = graph;
+  const size_t at = unnamed.find("raindrop.alternative_detector");
+  ASSERT_NE(at, std::string::npos);
+  unnamed.replace(at, 8, "raindrox");
+  write_file(tmp / "main" / "rdn.onnx", unnamed);
+  try {
+    Models m(tmp / "main", config);
+    ADD_FAILURE() << "a second output without its name was accepted";
+  } catch (const raindrop::Error& e) {
+    const std::string msg = e.what();
+    EXPECT_NE(msg.find("rdn.onnx"), std::string::npos) << msg;
+    EXPECT_NE(msg.find("raindrop.alternative_detector"), std::string::npos) << msg;
+  }
+  // A graph without the second output is refused a request for it.
+  raindrop::removal::Network smoke(smoke_models() / "rdn.onnx", "rdn", config);
+  EXPECT_FALSE(smoke.has_alternative_output());
+  EXPECT_THROW(smoke.run({image.data()}, h, w, alone.data(), both.data()), raindrop::Error);
+}
+
+// A detector loaded for its metadata only (a router's alternative whose map the main graph
+// computes) gives what a session gives, and refuses a file that is not a model, naming it.
+TEST_F(ModelMetadata, MetadataWithoutASessionIsTheSessionsMetadata) {
+  add("raindrop.surround_fill_area", "1500");
+  SessionConfig config;
+  config.threads = 1;
+  const Models session(tmp / "models", config, Models::Graphs::detection);
+  const Models meta(tmp / "models", config, Models::Graphs::metadata);
+  EXPECT_EQ(meta.info().config, session.info().config);
+  EXPECT_EQ(meta.info().threshold, session.info().threshold);
+  EXPECT_EQ(meta.info().dilation, session.info().dilation);
+  EXPECT_EQ(meta.info().pad_multiple, session.info().pad_multiple);
+  EXPECT_EQ(meta.info().surround_fill_area, 1500);
+  EXPECT_THROW(const_cast<Models&>(meta).rdn_beside(), raindrop::Error) << "no graph to run";
+  set("raindrop.dilation", "99999");
+  EXPECT_NE(std::string(load_error_of(Models::Graphs::metadata)).find("raindrop.dilation"), std::string::npos);
+  for (const std::string& bad : {std::string("not a model"), std::string("\x72\x7f", 2)}) {
+    write_file(tmp / "models" / "rdn.onnx", bad);
+    const std::string e = load_error_of(Models::Graphs::metadata);
+    EXPECT_NE(e.find("rdn.onnx"), std::string::npos) << e;
   }
 }
 

@@ -30,6 +30,14 @@ META_SURROUND_FILL_AREA = "raindrop.surround_fill_area"
 DEFAULT_SURROUND_FILL_AREA = 150
 MAX_SURROUND_FILL_AREA = 2**31 - 1  # raindrop-remove reads it as a C int
 
+# Optional second output of rdn.onnx: another detector's map from a head on this RDN's layers
+# (shared_detector.py; include/raindrop/remove/model.h), with the metadata naming that detector's
+# folder. The head's nodes are named with HEAD_NODE_PREFIX, so that the RDN itself can be read
+# back from the graph (onnx_weights.py).
+ALTERNATIVE_OUTPUT = "alternative_mask_prob"
+META_ALTERNATIVE_DETECTOR = "raindrop.alternative_detector"
+HEAD_NODE_PREFIX = "alternative/"
+
 # The small JSON the exporter writes next to the graphs (not part of the contract).
 EXPORT_INFO = "export.json"
 

@@ -110,6 +110,43 @@ class RDN(nn.Module):
         return torch.sigmoid(self.forward(image))
 
 
+def rdn_taps(rdn: "RDN", image: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
+    """What an ``AlternativeHead`` reads of a trained RDN: conv2's output (after ReLU; width
+    channels at half resolution), the blocks' output (expanded channels, half resolution) and the
+    RDN's own logits (N,1,H,W)."""
+    b = rdn.body
+    h, w = image.shape[-2], image.shape[-1]
+    f2 = b.conv2(b.conv1(image))
+    f4 = b.blocks(b.conv3(f2))
+    return f2, f4, b.conv5(b.conv4(f4))[:, :, :h, :w]
+
+
+class AlternativeHead(nn.Module):
+    """A second detector's logits computed from a trained RDN's own layers (``rdn_taps``): the
+    RDN's logits plus a correction from its half-resolution features. A router that sends an
+    image to this detector then pays for the head only, about a sixth of a compact RDN, instead
+    of a second network (tools/raindrop_tools/shared_detector.py, docs/RESULTS.md 4.48).
+
+    1x1 (width + expanded -> mid) -> ReLU -> 3x3 (mid -> mid) -> ReLU -> transposed 4x4 stride 2
+    (mid -> up) -> ReLU -> 3x3 (up -> 1), cropped to the logits' size and added to them. Biases,
+    no BatchNorm (trained alone, on a frozen RDN). The last convolution starts at zero: the head
+    starts as the RDN it reads."""
+
+    def __init__(self, width: int, expanded: int, mid: int = 24, up: int = 16):
+        super().__init__()
+        self.mix = nn.Conv2d(width + expanded, mid, 1)
+        self.conv = nn.Conv2d(mid, mid, 3, padding=1)
+        self.up = nn.ConvTranspose2d(mid, up, 4, stride=2, padding=1)
+        self.out = nn.Conv2d(up, 1, 3, padding=1)
+        nn.init.zeros_(self.out.weight)
+        nn.init.zeros_(self.out.bias)
+
+    def forward(self, f2: torch.Tensor, f4: torch.Tensor, logits: torch.Tensor) -> torch.Tensor:
+        h = F.relu(self.conv(F.relu(self.mix(torch.cat([f2, f4], dim=1)))))
+        correction = self.out(F.relu(self.up(h)))
+        return logits + correction[:, :, : logits.shape[-2], : logits.shape[-1]]
+
+
 class RRN(nn.Module):
     """Raindrop region reconstruction network (the paper's 3RN): RGB + edge map ->
     RGB (N,3,H,W), linear (unclamped)."""

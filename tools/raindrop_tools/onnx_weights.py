@@ -39,6 +39,18 @@ class OnnxWeightsError(ValueError):
 
 def _graph_convs(model: onnx.ModelProto) -> list[tuple[str, np.ndarray, np.ndarray | None]]:
     """(op, weight, bias or None) of every convolution node, in graph order."""
+    # A second detector's head on the RDN (shared_detector.py) is not the RDN's: left out,
+    # unless the graph's own map is the head's (that folder's detector is a head, not an RDN).
+    head = [n for n in model.graph.node if n.name.startswith(C.HEAD_NODE_PREFIX)]
+    if head:
+        if any(C.OUTPUTS["rdn"] in n.output for n in head):
+            raise OnnxWeightsError("this detector is a head on another model's RDN (shared_detector.py), not an RDN: "
+                                   "start from that model's folder (export.json names it)")
+        without = onnx.ModelProto()
+        without.CopyFrom(model)
+        del without.graph.node[:]
+        without.graph.node.extend(n for n in model.graph.node if not n.name.startswith(C.HEAD_NODE_PREFIX))
+        model = without
     tensors = {t.name: numpy_helper.to_array(t) for t in model.graph.initializer}
     for node in model.graph.node:
         if node.op_type == "Constant":

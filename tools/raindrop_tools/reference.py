@@ -101,7 +101,10 @@ class RaindropRemover:
                 raise ModelError(f"{path}: ONNX Runtime cannot load it: {e}") from None
             inputs = [i.name for i in sess.get_inputs()]
             outputs = [o.name for o in sess.get_outputs()]
-            if sorted(inputs) != sorted(C.INPUTS[name]) or outputs != [C.OUTPUTS[name]]:
+            # rdn.onnx may also give another detector's map (shared_detector.py); this pipeline,
+            # without a router, reads the first output only.
+            allowed = [[C.OUTPUTS[name]]] + ([[C.OUTPUTS[name], C.ALTERNATIVE_OUTPUT]] if name == "rdn" else [])
+            if sorted(inputs) != sorted(C.INPUTS[name]) or outputs not in allowed:
                 want = f"{list(C.INPUTS[name])} / {[C.OUTPUTS[name]]}"
                 raise ModelError(f"{path}: inputs {inputs} / outputs {outputs}, expected {want}")
             meta = sess.get_modelmeta().custom_metadata_map
@@ -129,7 +132,7 @@ class RaindropRemover:
     # ------------------------------------------------------------------ steps
 
     def _run(self, name: str, **feeds: np.ndarray) -> np.ndarray:
-        out = self.sessions[name].run(None, feeds)[0]
+        out = self.sessions[name].run([C.OUTPUTS[name]], feeds)[0]
         return out
 
     def _pad(self, x: np.ndarray) -> np.ndarray:

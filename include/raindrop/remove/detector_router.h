@@ -12,7 +12,10 @@
 //
 // The router reads what the main detector already computed, its probability map P at the
 // automatic working scale (working_scale.h), so an image it keeps costs only the features (a few
-// ms); one it sends away costs the alternative detector's run. Ten features of P (router_features), then a
+// ms); one it sends away costs the alternative detector's run, unless the main detector's graph
+// computes the alternative's map beside its own (model.h: kAlternativeOutput; the default's
+// does, a head on its layers that gives compact-windshield-head's map: docs/RESULTS.md 4.48),
+// which is then thresholded instead. Ten features of P (router_features), then a
 // logistic regression fitted on validation images by tools/raindrop_tools/detector_router.py:
 //   z = bias + sum_i weight_i (f_i - mean_i) / std_i;  z > 0: the alternative decides the mask.
 // The file (docs/CONTRACTS.md, "Detector router"):

@@ -4,6 +4,7 @@
 // one-line raindrop::Error that names the file, not a crash in the middle of a batch.
 //
 //   rdn.onnx  image [N,3,H,W]                 -> mask_prob [N,1,H,W]
+//                                                [, alternative_mask_prob [N,1,H,W]]
 //   rrn.onnx  image [N,3,H,W], edge [N,1,H,W] -> reconstruction [N,3,H,W]
 //   rfn.onnx  blend [N,3,H,W]                 -> restored [N,3,H,W]
 //
@@ -31,6 +32,12 @@ inline constexpr int kMaxDilation = 1023;
 // raindrop.large_drop_growth alike: at 10 a drop's mask grows by five diameters all round.
 inline constexpr double kMaxLargeDropGrowth = 10.0;
 
+// The optional second output of rdn.onnx: another detector's map, computed by the same graph
+// (a second head on the same layers), so that a router's alternative costs one convolution
+// instead of a second network (detector_router.h). rdn.onnx then names that detector's folder
+// in raindrop.alternative_detector.
+inline constexpr const char* kAlternativeOutput = "alternative_mask_prob";
+
 // The raindrop.* metadata the three graphs agree on.
 struct ModelInfo {
   std::string config;     // raindrop.config, e.g. "compact"
@@ -49,6 +56,10 @@ struct ModelInfo {
   // Optional raindrop.working_size of rdn.onnx: the long side, in pixels, of the frames the
   // networks were trained on (working_scale.h); 512 when absent (the committed models).
   int working_size = 512;
+  // raindrop.alternative_detector of an rdn.onnx with the output kAlternativeOutput: the sibling
+  // model folder whose rdn.onnx computes that output's map as its own mask_prob (the same bits,
+  // tools/raindrop_tools/shared_detector.py); empty for a graph without it.
+  std::string alternative_detector;
 };
 
 // One graph and its session. Inputs and outputs are single images (N = 1) in NCHW float32.
@@ -58,13 +69,15 @@ class Network {
   Network(const std::filesystem::path& file, const std::string& name, const SessionConfig& config);
 
   // inputs: one pointer per contract input, in contract order (rrn: image, edge), each
-  // holding channels x h x w floats; output: out_channels x h x w floats, written in place.
-  void run(const std::vector<const float*>& inputs, int h, int w, float* output);
+  // holding channels x h x w floats; output: out_channels x h x w floats, written in place;
+  // alternative (only for a graph with has_alternative_output()): h x w floats, that output's.
+  void run(const std::vector<const float*>& inputs, int h, int w, float* output, float* alternative = nullptr);
 
   const std::string& name() const { return name_; }
   const std::filesystem::path& file() const { return file_; }
   const std::map<std::string, std::string>& metadata() const { return metadata_; }
   int output_channels() const { return out_channels_; }
+  bool has_alternative_output() const { return !alternative_output_.empty(); }
 
  private:
   std::string name_;
@@ -73,6 +86,7 @@ class Network {
   std::vector<std::string> input_names_;  // contract order
   std::vector<int> input_channels_;
   std::string output_name_;
+  std::string alternative_output_;  // kAlternativeOutput where the graph has it, else empty
   int out_channels_ = 0;
   std::map<std::string, std::string> metadata_;
   Ort::MemoryInfo memory_;
@@ -95,7 +109,9 @@ class Models {
   // detector that decides another model's mask: detector_router.h). Without a detector,
   // info() holds the config name and pad multiple only, and rdn()/rdn_beside() throw; without
   // the reconstruction, rrn()/rrn_beside()/rfn() throw.
-  enum class Graphs { all, reconstruction, detection };
+  // Or the RDN's metadata only, read from the file without a session (info() as for detection;
+  // no graph runs): a router's alternative whose map the main graph computes (kAlternativeOutput).
+  enum class Graphs { all, reconstruction, detection, metadata };
   Models(const std::filesystem::path& dir, const SessionConfig& config, Graphs graphs = Graphs::all);
   // 2 when RDN and 3RN run side by side (CPU, two or more threads), else 1.
   int branches() const { return branches_; }

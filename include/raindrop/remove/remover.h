@@ -162,10 +162,14 @@ class Remover {
   // only (image empty), and the 3RN does not run beside the RDN (it might be wasted): a single
   // tile then runs both, one after the other, on the half-thread sessions.
   // `reconstruction` names the models whose 3RN and RFN run after the detector (default: the
-  // main ones); `detection` which detector decides the mask. `growth`: the mask's dilation grows
-  // with each drop (mask.h: dilate_mask_by_size), the coarse pass's only.
+  // main ones); `detection` which detector decides the mask, and its `route` (after the first
+  // detector's run: the working pass's router, or the coarse pass waiting for its choice) which
+  // one replaces it. `grow_large_drops`: the mask's dilation grows with each drop by the deciding
+  // detector's large-drop growth or the option's (mask.h: dilate_mask_by_size), the coarse
+  // pass's only.
   RemoveResult run_native(const cv::Mat& image, const RemoveOptions& options, const MaskGate& gate,
-                          const std::function<Models&()>& reconstruction, double growth, const Detection& detection);
+                          const std::function<Models&()>& reconstruction, bool grow_large_drops,
+                          const Detection& detection);
   // The models for the coarse pass's large drops (made on first use), or models_.
   Models& large_drop_models();
   // The router's alternative detector (made on first use).
@@ -204,6 +208,8 @@ class Remover {
         : graphs_(graphs), role_(std::move(role)), hint_(std::move(hint)) {}
     // The models of `dir`, loaded with `config`; they must accept `main`'s padded canvas.
     Models& get(const std::filesystem::path& dir, const SessionConfig& config, const Models& main);
+    // Before the first get(): which graphs it loads.
+    void set_graphs(Models::Graphs graphs) { graphs_ = graphs; }
 
    private:
     Models::Graphs graphs_;
@@ -221,6 +227,8 @@ class Remover {
                            "choose others with --large-drop-models DIR, or run without the coarse pass: --no-large-drops"};
   std::optional<DetectorRouter> router_;
   std::filesystem::path alternative_dir_;
+  // The main detector's graph has the alternative's map as its second output (model.h).
+  bool alternative_in_main_graph_ = false;
   LazyModels alternative_{Models::Graphs::detection, "the router's detector models", "run without the router: --no-router"};
 };
 

@@ -1,0 +1,321 @@
+"""One detector graph, two maps: a router's alternative detector as a head on the main detector.
+
+The default's router (include/raindrop/remove/detector_router.h) sends most photographs to a
+second detector, which used to be a whole second network: on a routed 1280x720 photograph a
+third of the program's time. Here the second detector is an ``AlternativeHead`` (networks.py) on
+the main RDN's own layers, trained to give the old alternative's map (train_head.py), and this
+tool writes it out in two forms:
+
+* the main folder's ``rdn.onnx`` gets a second output, ``alternative_mask_prob``: the head's
+  nodes appended to the main graph, which is otherwise kept node for node (so its ``mask_prob``
+  keeps its bits), and the metadata ``raindrop.alternative_detector`` naming the head's folder;
+* the head's own folder (``--out``) gets the same nodes as a standalone detector: the main
+  graph with the head's map as ``mask_prob``, so that ``--model-config <out>`` and a routed image
+  give the same mask. Its 3RN and RFN and its pipeline metadata (threshold, dilation, growth,
+  fill area) are copied from ``--like``, the detector the head was trained to reproduce.
+
+Both are checked with ONNX Runtime before anything is replaced: the main graph's first output
+bit for bit as before, the second bit for bit the standalone graph's output, and both against
+PyTorch to 1e-4. raindrop-remove reads the second output only where the folder's ROUTER names
+``--out``'s folder as its alternative (model.h, kAlternativeOutput).
+
+    python -m raindrop_tools.shared_detector --main models/compact-multiscale \\
+        --head tools/runs/compact-windshield-head/head.pt --like models/compact-windshield \\
+        --out models/compact-windshield-head
+"""
+
+from __future__ import annotations
+
+import argparse
+import contextlib
+import copy
+import hashlib
+import io
+import json
+import logging
+import os
+import shutil
+import sys
+import warnings
+from pathlib import Path
+
+import numpy as np
+import onnx
+import torch
+from onnx import helper
+
+from . import contract as C
+from . import graph_rewrite
+from .config import HalfResConfig
+from .networks import RDN, AlternativeHead, rdn_taps
+from .onnx_weights import load_network
+from .phase_conv import phase_groups, split_transposed_convs
+from .phase_final_conv import fold_final_convs
+from .read_only import refuse_read_only
+
+ALTERNATIVE_OUTPUT = C.ALTERNATIVE_OUTPUT  # include/raindrop/remove/model.h: kAlternativeOutput
+META_ALTERNATIVE = C.META_ALTERNATIVE_DETECTOR
+PREFIX = C.HEAD_NODE_PREFIX
+MAX_ABS_DIFF = 1e-4
+CHECK_SIZES = ((37, 53), (64, 96), (288, 512))
+
+
+class SharedDetectorError(RuntimeError):
+    pass
+
+
+def rdn_config(folder: Path) -> HalfResConfig:
+    """The RDN's shape from the folder's export.json (network.rdn)."""
+    info = json.loads((Path(folder) / C.EXPORT_INFO).read_text())
+    r = info["network"]["rdn"]
+    return HalfResConfig(width=int(r["width"]), expanded=int(r["expanded"]), blocks=int(r["blocks"]))
+
+
+def load_rdn(folder: Path) -> RDN:
+    """The folder's detector as a frozen PyTorch RDN (eval mode: exactly the graph's function)."""
+    net = RDN(rdn_config(folder))
+    load_network(net, "rdn", Path(folder) / C.FILES["rdn"])
+    net.eval()
+    for p in net.parameters():
+        p.requires_grad_(False)
+    return net
+
+
+def find_taps(model: onnx.ModelProto) -> tuple[str, str, str]:
+    """The main graph's tensors that ``rdn_taps`` names: conv2's output after its ReLU, the
+    blocks' output (what conv4's phase convolutions read) and the logits (the final Sigmoid's
+    input)."""
+    g = model.graph
+    producer = {o: n for n in g.node for o in n.output}
+    consumers = graph_rewrite.consumers(model)
+    convs = [n for n in g.node if n.op_type == "Conv"]
+    if len(convs) < 2:
+        raise SharedDetectorError("the main graph has fewer than two convolutions: not an RDN")
+    relu = graph_rewrite.only_consumer(consumers, convs[1].output[0], "Relu")
+    groups = list(phase_groups(model).values())
+    sigmoid = producer.get(C.OUTPUTS["rdn"])
+    if relu is None or len(groups) != 1 or sigmoid is None or sigmoid.op_type != "Sigmoid":
+        raise SharedDetectorError("the main graph is not an exported RDN (conv2 -> Relu, one split conv4, a final Sigmoid)")
+    conv4 = {n.name: n for n in g.node}[groups[0][0]]
+    return relu.output[0], conv4.input[0], sigmoid.input[0]
+
+
+def export_head(head: AlternativeHead, width: int, expanded: int) -> onnx.ModelProto:
+    """The head alone as a graph: inputs f2, f4, logits; output logits (the corrected ones), with
+    its transposed convolution split into phases and its last convolution folded onto them, as
+    the exporter does for the networks (phase_conv.py, phase_final_conv.py)."""
+    head = head.eval()
+    g = torch.Generator().manual_seed(0)
+    inputs = (torch.rand(2, width, 19, 27, generator=g), torch.rand(2, expanded, 19, 27, generator=g),
+              torch.randn(2, 1, 37, 53, generator=g))
+    N, h, w = torch.export.Dim("N", min=1), torch.export.Dim("h", min=1), torch.export.Dim("w", min=1)
+    H, W = torch.export.Dim("H", min=1), torch.export.Dim("W", min=1)
+    logging.getLogger("torch.onnx").setLevel(logging.ERROR)
+    with warnings.catch_warnings(), torch.no_grad(), contextlib.redirect_stdout(io.StringIO()):
+        warnings.simplefilter("ignore")
+        program = torch.onnx.export(head, inputs, None, input_names=["f2", "f4", "logits"], output_names=["head_logits"],
+                                     opset_version=18, dynamic_shapes=({0: N, 2: h, 3: w}, {0: N, 2: h, 3: w}, {0: N, 2: H, 3: W}),
+                                     dynamo=True, external_data=False, verbose=False)
+    model = program.model_proto
+    for node in model.graph.node:
+        del node.metadata_props[:]
+        node.doc_string = ""
+    for t in [*model.graph.initializer, *model.graph.value_info, *model.graph.input, *model.graph.output]:
+        del t.metadata_props[:]
+    if split_transposed_convs(model) != 1 or fold_final_convs(model) != 1:
+        raise SharedDetectorError("the head's graph did not take the phase rewrites (one transposed convolution, one final conv)")
+    return model
+
+
+def splice(main: onnx.ModelProto, head: onnx.ModelProto, alternative: str) -> onnx.ModelProto:
+    """The main graph with the head's nodes appended, reading the main graph's taps, and a second
+    output ``alternative_mask_prob`` (the head's logits through a Sigmoid). The main graph's nodes,
+    initializers and first output are kept as they are."""
+    f2, f4, logits = find_taps(main)
+    merged = copy.deepcopy(main)
+    outer = {"f2": f2, "f4": f4, "logits": logits}
+    names = {t.name for t in merged.graph.initializer} | {o for n in merged.graph.node for o in n.output}
+
+    def rename(name: str) -> str:
+        if not name:
+            return name
+        if name in outer:
+            return outer[name]
+        new = PREFIX + name
+        if new in names:
+            raise SharedDetectorError(f"the main graph already has a tensor named {new!r}")
+        return new
+
+    for t in head.graph.initializer:
+        t2 = copy.deepcopy(t)
+        t2.name = rename(t.name)
+        merged.graph.initializer.append(t2)
+    for n in head.graph.node:
+        n2 = copy.deepcopy(n)
+        n2.input[:] = [rename(x) for x in n.input]
+        n2.output[:] = [rename(x) for x in n.output]
+        n2.name = PREFIX + (n.name or n.output[0])
+        merged.graph.node.append(n2)
+    head_out = rename(head.graph.output[0].name)
+    merged.graph.node.append(helper.make_node("Sigmoid", [head_out], [ALTERNATIVE_OUTPUT], name=PREFIX + "sigmoid"))
+    out = copy.deepcopy(merged.graph.output[0])
+    out.name = ALTERNATIVE_OUTPUT
+    merged.graph.output.append(out)
+    props = {p.key: p.value for p in main.metadata_props}
+    props[META_ALTERNATIVE] = alternative
+    del merged.metadata_props[:]
+    helper.set_model_props(merged, props)
+    onnx.checker.check_model(merged, full_check=True)
+    return merged
+
+
+def standalone(merged: onnx.ModelProto, metadata: dict[str, str]) -> onnx.ModelProto:
+    """The merged graph as the head's own detector: its second output renamed ``mask_prob``, the
+    main detector's Sigmoid and first output gone, ``metadata`` as the graph's."""
+    model = copy.deepcopy(merged)
+    g = model.graph
+    kept = [n for n in g.node if C.OUTPUTS["rdn"] not in n.output]
+    del g.node[:]
+    g.node.extend(kept)
+    for n in g.node:
+        n.output[:] = [C.OUTPUTS["rdn"] if o == ALTERNATIVE_OUTPUT else o for o in n.output]
+    first = copy.deepcopy(g.output[0])
+    del g.output[:]
+    g.output.append(first)
+    graph_rewrite.prune(model)
+    del model.metadata_props[:]
+    helper.set_model_props(model, {k: v for k, v in metadata.items() if k != META_ALTERNATIVE})
+    onnx.checker.check_model(model, full_check=True)
+    return model
+
+
+def check(main: onnx.ModelProto, merged: onnx.ModelProto, alone: onnx.ModelProto, rdn: RDN, head: AlternativeHead,
+          threads: int = 1) -> dict[str, float]:
+    """ONNX Runtime on random images: the merged graph's first output bit for bit the main
+    graph's, its second bit for bit the standalone graph's, and that against PyTorch (1e-4)."""
+    import onnxruntime as ort
+
+    so = ort.SessionOptions()
+    so.intra_op_num_threads = threads
+    run = {k: ort.InferenceSession(m.SerializeToString(), so, providers=["CPUExecutionProvider"])
+           for k, m in (("main", main), ("merged", merged), ("alone", alone))}
+    worst = 0.0
+    gen = torch.Generator().manual_seed(1)
+    for h, w in CHECK_SIZES:
+        x = torch.rand(1, 3, h, w, generator=gen)
+        feed = {"image": x.numpy()}
+        (p_main,) = run["main"].run(None, feed)
+        p0, p1 = run["merged"].run(None, feed)
+        (p_alone,) = run["alone"].run(None, feed)
+        if not np.array_equal(p0, p_main):
+            raise SharedDetectorError(f"at {w}x{h} the merged graph's {C.OUTPUTS['rdn']} differs from the main graph's "
+                                      f"(max {np.abs(p0 - p_main).max():.3g})")
+        if not np.array_equal(p1, p_alone):
+            raise SharedDetectorError(f"at {w}x{h} the merged graph's {ALTERNATIVE_OUTPUT} differs from the standalone "
+                                      f"graph's (max {np.abs(p1 - p_alone).max():.3g})")
+        with torch.no_grad():
+            want = torch.sigmoid(head(*rdn_taps(rdn, x))).numpy()
+        if not (np.isfinite(p1).all() and np.isfinite(want).all()):
+            raise SharedDetectorError("the head's outputs are not finite (NaN or Inf weights?)")
+        worst = max(worst, float(np.abs(p1 - want).max()))
+    if worst > MAX_ABS_DIFF:
+        raise SharedDetectorError(f"the head's graph differs from PyTorch by {worst:.3g} (> {MAX_ABS_DIFF})")
+    return {"parity_max_abs_diff": worst}
+
+
+def head_gflops(cfg: HalfResConfig, head: AlternativeHead, h: int = 256, w: int = 512) -> float:
+    """Multiply-adds x 2 of the head at h x w (its share of a routed image's detection)."""
+    hh, hw = (h + 1) // 2, (w + 1) // 2
+    mid, up = head.mix.out_channels, head.up.out_channels
+    macs = hh * hw * (head.mix.in_channels * mid + 9 * mid * mid) + h * w * (4 * mid * up + 9 * up)
+    return 2 * macs / 1e9
+
+
+def _sha(data: bytes) -> str:
+    return hashlib.sha256(data).hexdigest()
+
+
+def write(main_dir: Path, like_dir: Path, out_dir: Path, head_path: Path) -> dict:
+    """Builds, checks and writes both graphs (nothing is replaced unless every check passes)."""
+    main_dir, like_dir, out_dir = Path(main_dir), Path(like_dir), Path(out_dir)
+    # A read-only file is kept (read_only.py): refused before any work.
+    refuse_read_only(main_dir / C.FILES["rdn"], main_dir / C.EXPORT_INFO, out_dir / C.EXPORT_INFO, out_dir / "LARGE_DROPS",
+                     *(out_dir / C.FILES[n] for n in C.NETWORKS), follow_links=False)
+    cfg = rdn_config(main_dir)
+    rdn = load_rdn(main_dir)
+    state = torch.load(head_path, map_location="cpu", weights_only=True)
+    head = AlternativeHead(cfg.width, cfg.expanded, mid=state["mix.weight"].shape[0], up=state["up.weight"].shape[1])
+    head.load_state_dict(state)
+    head.eval()
+    main_file = main_dir / C.FILES["rdn"]
+    main = onnx.load(str(main_file))
+    if any(o.name == ALTERNATIVE_OUTPUT for o in main.graph.output):
+        raise SharedDetectorError(f"{main_file} has a head already; take the graph without it (git) first")
+    merged = splice(main, export_head(head, cfg.width, cfg.expanded), out_dir.name)
+    like = {p.key: p.value for p in onnx.load(str(like_dir / C.FILES["rdn"])).metadata_props}
+    like[C.META_CONFIG] = out_dir.name
+    alone = standalone(merged, like)
+    report = check(main, merged, alone, rdn, head)
+    report.update(head_gflops_256x512=head_gflops(cfg, head), head_params=sum(p.numel() for p in head.parameters()))
+
+    out_dir.mkdir(parents=True, exist_ok=True)
+    files = {}
+    for name in ("rrn", "rfn"):
+        m = onnx.load(str(like_dir / C.FILES[name]))
+        props = {p.key: p.value for p in m.metadata_props}
+        props[C.META_CONFIG] = out_dir.name
+        del m.metadata_props[:]
+        helper.set_model_props(m, props)
+        files[C.FILES[name]] = m.SerializeToString()
+    files[C.FILES["rdn"]] = alone.SerializeToString()
+    merged_bytes = merged.SerializeToString()
+    info = {
+        "config": out_dir.name,
+        "made_by": "python -m raindrop_tools.shared_detector",
+        "detector": f"{main_dir.name}'s RDN with an AlternativeHead (tools/raindrop_tools/networks.py) trained to give "
+                    f"{like_dir.name}'s map; its 3RN and RFN are {like_dir.name}'s",
+        "head": {"checkpoint_sha256": _sha(Path(head_path).read_bytes()), **report},
+        "network": {**json.loads((like_dir / C.EXPORT_INFO).read_text())["network"],
+                    "rdn_head": {"on": main_dir.name, "mid": head.mix.out_channels, "up": head.up.out_channels}},
+        "pipeline": json.loads((like_dir / C.EXPORT_INFO).read_text()).get("pipeline", {}),
+        "files": {k: {"sha256": _sha(v), "bytes": len(v)} for k, v in sorted(files.items())},
+    }
+    for name, data in files.items():
+        tmp = out_dir / f".tmp-{name}.{os.getpid()}"
+        tmp.write_bytes(data)
+        os.replace(tmp, out_dir / name)
+    (out_dir / C.EXPORT_INFO).write_text(json.dumps(info, indent=2) + "\n")
+    for extra in ("LARGE_DROPS",):
+        if (like_dir / extra).exists():
+            shutil.copyfile(like_dir / extra, out_dir / extra)
+    tmp = main_dir / f".tmp-rdn.onnx.{os.getpid()}"
+    tmp.write_bytes(merged_bytes)
+    os.replace(tmp, main_file)
+    main_info_path = main_dir / C.EXPORT_INFO
+    main_info = json.loads(main_info_path.read_text())
+    main_info.setdefault("files", {})[C.FILES["rdn"]] = {"sha256": _sha(merged_bytes), "bytes": len(merged_bytes)}
+    main_info["alternative_head"] = {"folder": out_dir.name, "checkpoint_sha256": info["head"]["checkpoint_sha256"]}
+    main_info_path.write_text(json.dumps(main_info, indent=2) + "\n")
+    return report
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(prog="python -m raindrop_tools.shared_detector", description=__doc__.split("\n\n")[0])
+    ap.add_argument("--main", type=Path, required=True, help="the main model folder (its rdn.onnx gets the second output)")
+    ap.add_argument("--head", type=Path, required=True, help="the head's weights (train_head.py's head.pt)")
+    ap.add_argument("--like", type=Path, required=True, help="the detector the head reproduces: its pipeline metadata, 3RN and RFN")
+    ap.add_argument("--out", type=Path, required=True, help="the head's own model folder")
+    args = ap.parse_args(argv)
+    try:
+        report = write(args.main, args.like, args.out, args.head)
+    except (SharedDetectorError, OSError, KeyError) as e:  # ReadOnlyFileError is an OSError
+        print(f"error: {e}", file=sys.stderr)
+        return 1
+    print(f"{args.main}/rdn.onnx: second output {ALTERNATIVE_OUTPUT} ({args.out.name}); {args.out}: its own detector; "
+          f"head {report['head_gflops_256x512']:.2f} GFLOP at 256x512, {report['head_params']} parameters, "
+          f"max |ONNX - PyTorch| {report['parity_max_abs_diff']:.2g}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,193 @@
+"""Train an ``AlternativeHead`` (networks.py): a router's second detector as a light head on the
+main detector's own layers, taught to give a committed detector's map (distillation: the
+teacher's probabilities are the targets, so no masks are needed and real photographs without
+clean partners could serve as inputs too).
+
+    python -m raindrop_tools.train_head --config tools/configs/compact-windshield-head.yaml \\
+        --out tools/runs/compact-windshield-head
+
+The main RDN is frozen (its map, and so the router's features and every image it keeps, stay
+bit for bit as they were); only the head learns. Loss per pixel: the binary cross-entropy of
+the head's logits against the teacher's probability, less the teacher's own entropy (so a
+perfect head scores 0), plus the absolute difference of the probabilities (the masks are the
+probabilities thresholded, at 0.75 for compact-windshield). Inputs: random crops of the sources'
+rainy images as the working pass sees them, and a share of them at a third of that scale, as
+the coarse pass sees them. Writes ``head.pt`` (the head's state dict), ``log.jsonl`` and the
+config beside them; then ``shared_detector`` builds the graphs. No resume: a run is minutes to
+an hour on two CPU cores.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import random
+import sys
+import time
+from dataclasses import dataclass
+from pathlib import Path
+
+import cv2
+import numpy as np
+import torch
+import torch.nn.functional as F
+import yaml
+
+from .networks import AlternativeHead, rdn_taps
+from .read_only import refuse_read_only
+from .shared_detector import load_rdn, rdn_config
+
+
+@dataclass
+class Source:
+    path: str
+    weight: float
+    scale: float = 1.0  # area-averaged on loading (data/train-hi: 1280x640 -> 512x256)
+    split: str | None = None  # only the manifest's samples of this split (real pairs: never the test split)
+    working_size: int | None = None  # long side brought down to this, as raindrop-remove's working pass does
+
+
+@dataclass
+class HeadConfig:
+    name: str
+    main: str
+    teacher: str
+    sources: list[Source]
+    seed: int = 0
+    mid: int = 24
+    up: int = 16
+    images_per_source: int = 700
+    crop: int = 128
+    coarse_share: float = 0.2
+    batch_size: int = 16
+    steps: int = 3000
+    lr: float = 1e-3
+    lr_end: float = 5e-5
+    log_every: int = 50
+
+
+def read_config(path: Path) -> HeadConfig:
+    raw = yaml.safe_load(Path(path).read_text())
+    try:
+        sources = [Source(**s) for s in raw.pop("sources")]
+        cfg = HeadConfig(sources=sources, **raw)
+    except TypeError as e:
+        raise SystemExit(f"error: {path}: {e}") from None
+    if not sources or any(s.weight <= 0 for s in sources):
+        raise SystemExit(f"error: {path}: every source needs a weight > 0")
+    return cfg
+
+
+def _rainy_files(source: Source) -> list[Path]:
+    root = Path(source.path)
+    manifest = root / "manifest.jsonl"
+    if source.split is not None:
+        rows = [json.loads(line) for line in manifest.read_text().splitlines() if line.strip()]
+        return sorted(root / r["rainy"] for r in rows if r.get("split") == source.split)
+    return sorted((root / "rainy").glob("*.png"))
+
+
+def load_images(source: Source, n: int, rng: random.Random) -> list[np.ndarray]:
+    files = _rainy_files(source)
+    if not files:
+        raise SystemExit(f"error: no rainy images in {source.path}" + (f" (split {source.split})" if source.split else ""))
+    rng.shuffle(files)
+    images = []
+    for f in files[:n]:
+        im = cv2.imread(str(f), cv2.IMREAD_COLOR)
+        if im is None:
+            raise SystemExit(f"error: cannot read {f}")
+        im = im[:, :, ::-1]
+        s = source.scale
+        if source.working_size:
+            s = min(s, source.working_size / max(im.shape[:2]))
+        if s < 1:
+            im = cv2.resize(im, None, fx=s, fy=s, interpolation=cv2.INTER_AREA)
+        images.append(np.ascontiguousarray(im))
+    return images
+
+
+def crops(pools, weights, cfg: HeadConfig, rng: random.Random) -> torch.Tensor:
+    out = []
+    for _ in range(cfg.batch_size):
+        pool = pools[rng.choices(range(len(pools)), weights=weights)[0]]
+        im = pool[rng.randrange(len(pool))]
+        if rng.random() < cfg.coarse_share:  # the coarse pass sees a third of the working scale
+            im = cv2.resize(im, None, fx=1 / 3, fy=1 / 3, interpolation=cv2.INTER_AREA)
+        h, w = im.shape[:2]
+        c = min(cfg.crop, h - h % 2, w - w % 2)
+        y, x = rng.randrange(h - c + 1), rng.randrange(w - c + 1)
+        crop = im[y : y + c, x : x + c]
+        if rng.random() < 0.5:
+            crop = crop[:, ::-1]
+        if c < cfg.crop:
+            crop = cv2.resize(np.ascontiguousarray(crop), (cfg.crop, cfg.crop), interpolation=cv2.INTER_LINEAR)
+        out.append(torch.from_numpy(np.ascontiguousarray(crop)).permute(2, 0, 1).float() / 255)
+    return torch.stack(out)
+
+
+def distillation_loss(logits: torch.Tensor, target: torch.Tensor) -> torch.Tensor:
+    t = target.clamp(1e-6, 1 - 1e-6)
+    entropy = F.binary_cross_entropy(t, t)
+    return F.binary_cross_entropy_with_logits(logits, target) - entropy + (torch.sigmoid(logits) - target).abs().mean()
+
+
+def train(cfg: HeadConfig, out: Path) -> Path:
+    torch.manual_seed(cfg.seed)
+    rng = random.Random(cfg.seed)
+    # A read-only file is kept (read_only.py): refused before any work.
+    refuse_read_only(out / "config.json", out / "log.jsonl", out / "head.pt", follow_links=False)
+    out.mkdir(parents=True, exist_ok=True)
+    (out / "config.json").write_text(json.dumps(cfg.__dict__, default=lambda o: o.__dict__, indent=2) + "\n")
+    main, teacher = load_rdn(Path(cfg.main)), load_rdn(Path(cfg.teacher))
+    rc = rdn_config(Path(cfg.main))
+    head = AlternativeHead(rc.width, rc.expanded, mid=cfg.mid, up=cfg.up)
+    t0 = time.time()
+    pools = [load_images(s, cfg.images_per_source, rng) for s in cfg.sources]
+    weights = [s.weight for s in cfg.sources]
+    print(f"{cfg.name}: {sum(map(len, pools))} images from {len(pools)} sources in {time.time() - t0:.0f} s", flush=True)
+    opt = torch.optim.Adam(head.parameters(), lr=cfg.lr)
+    sched = torch.optim.lr_scheduler.CosineAnnealingLR(opt, cfg.steps, eta_min=cfg.lr_end)
+    t0, running = time.time(), None
+    with open(out / "log.jsonl", "w") as log:
+        for step in range(1, cfg.steps + 1):
+            x = crops(pools, weights, cfg, rng)
+            with torch.no_grad():
+                taps = rdn_taps(main, x)
+                target = torch.sigmoid(teacher(x))
+            loss = distillation_loss(head(*taps), target)
+            if not math.isfinite(loss.item()):
+                raise SystemExit(f"error: step {step}: the loss is not finite")
+            opt.zero_grad()
+            loss.backward()
+            opt.step()
+            sched.step()
+            running = loss.item() if running is None else 0.95 * running + 0.05 * loss.item()
+            if step % cfg.log_every == 0 or step == cfg.steps:
+                rec = {"step": step, "loss": round(running, 6), "lr": sched.get_last_lr()[0], "s": round(time.time() - t0, 1)}
+                log.write(json.dumps(rec) + "\n")
+                log.flush()
+                print(rec, flush=True)
+            if step % 500 == 0 or step == cfg.steps:
+                tmp = out / ".head.pt.tmp"
+                torch.save(head.state_dict(), tmp)
+                tmp.replace(out / "head.pt")
+    return out / "head.pt"
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(prog="python -m raindrop_tools.train_head", description=__doc__.split("\n\n")[0])
+    ap.add_argument("--config", type=Path, required=True)
+    ap.add_argument("--out", type=Path, required=True, help="run folder (head.pt, log.jsonl, config.json)")
+    ap.add_argument("--threads", type=int, default=0, help="torch threads (0: torch's default)")
+    args = ap.parse_args(argv)
+    if args.threads > 0:
+        torch.set_num_threads(args.threads)
+    path = train(read_config(args.config), args.out)
+    print(f"wrote {path}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,143 @@
+"""A second detector as a head on the main RDN (shared_detector.py, train_head.py): the main
+graph keeps its map bit for bit, the head's map is bit for bit its standalone graph's and
+PyTorch's to float rounding, the RDN reads back from the merged graph and the head's own graph
+is refused as an RDN, and the reference pipeline reads the merged graph's first output."""
+import json
+import shutil
+
+import numpy as np
+import onnx
+import pytest
+
+pytestmark = pytest.mark.torch
+torch = pytest.importorskip("torch")
+
+from helpers import FIXTURE_MODELS, REPO, quiet_session  # noqa: E402
+from raindrop_tools import contract as C  # noqa: E402
+from raindrop_tools import inner_padding, phase_conv, phase_final_conv  # noqa: E402
+from raindrop_tools import onnx_weights as OW  # noqa: E402
+from raindrop_tools import shared_detector as SD  # noqa: E402
+from raindrop_tools import train_head  # noqa: E402
+from raindrop_tools.networks import AlternativeHead, rdn_taps  # noqa: E402
+from raindrop_tools.reference import RaindropRemover  # noqa: E402
+
+
+def _current_folder(tmp_path, name):
+    """The fixture folder with the graph rewrites every export now makes."""
+    folder = tmp_path / name
+    shutil.copytree(FIXTURE_MODELS, folder)
+    phase_conv.rewrite_folder(folder)
+    inner_padding.rewrite_folder(folder)
+    phase_final_conv.rewrite_folder(folder)
+    return folder
+
+
+def _random_head(folder, path, seed=0):
+    cfg = SD.rdn_config(folder)
+    torch.manual_seed(seed)
+    head = AlternativeHead(cfg.width, cfg.expanded, mid=6, up=4)
+    with torch.no_grad():
+        head.out.weight.normal_(0, 0.5)  # it starts at zero: the RDN's own map
+        head.out.bias.fill_(0.3)
+    torch.save(head.state_dict(), path)
+    return head
+
+
+def _outputs(path, image):
+    sess = quiet_session(path)
+    return sess.run(None, {"image": image})
+
+
+def test_the_main_map_keeps_its_bits_and_the_head_is_its_own_graph(tmp_path):
+    main, like = _current_folder(tmp_path, "main"), _current_folder(tmp_path, "like")
+    before = (main / "rdn.onnx").read_bytes()
+    head = _random_head(main, tmp_path / "head.pt")
+    out = tmp_path / "the-head"
+    report = SD.write(main, like, out, tmp_path / "head.pt")
+    assert report["parity_max_abs_diff"] < 1e-4
+
+    merged = onnx.load(str(main / "rdn.onnx"))
+    assert [o.name for o in merged.graph.output] == [C.OUTPUTS["rdn"], C.ALTERNATIVE_OUTPUT]
+    meta = {p.key: p.value for p in merged.metadata_props}
+    assert meta[C.META_ALTERNATIVE_DETECTOR] == "the-head"
+    alone_meta = {p.key: p.value for p in onnx.load(str(out / "rdn.onnx")).metadata_props}
+    assert alone_meta[C.META_CONFIG] == "the-head" and C.META_ALTERNATIVE_DETECTOR not in alone_meta
+
+    old = tmp_path / "old.onnx"
+    old.write_bytes(before)
+    rng = np.random.default_rng(3)
+    for h, w in ((30, 44), (31, 45)):
+        x = rng.random((1, 3, h, w), dtype=np.float32)
+        (p_old,) = _outputs(old, x)
+        p0, p1 = _outputs(main / "rdn.onnx", x)
+        (p_alone,) = _outputs(out / "rdn.onnx", x)
+        assert np.array_equal(p0, p_old)
+        assert np.array_equal(p1, p_alone)
+        assert not np.allclose(p1, p0, atol=1e-3), "the head changes the map"
+        rdn = SD.load_rdn(like)
+        with torch.no_grad():
+            want = torch.sigmoid(head.eval()(*rdn_taps(rdn, torch.from_numpy(x)))).numpy()
+        assert np.abs(p1 - want).max() < 1e-4
+
+    # Each folder's files and export.json agree (the main one's rdn.onnx digest updated).
+    for folder in (main, out):
+        info = json.loads((folder / "export.json").read_text())
+        for name, entry in info["files"].items():
+            assert (folder / name).stat().st_size == entry["bytes"], (folder, name)
+    # The head folder's 3RN and RFN are the like folder's, under its own configuration name.
+    for name in ("rrn.onnx", "rfn.onnx"):
+        meta = {p.key: p.value for p in onnx.load(str(out / name)).metadata_props}
+        assert meta[C.META_CONFIG] == "the-head"
+
+
+def test_the_rdn_reads_back_from_the_merged_graph_and_the_head_is_no_rdn(tmp_path):
+    main, like = _current_folder(tmp_path, "main"), _current_folder(tmp_path, "like")
+    _random_head(main, tmp_path / "head.pt")
+    SD.write(main, like, tmp_path / "h", tmp_path / "head.pt")
+    assert OW.check_against_onnxruntime(SD.load_rdn(main), "rdn", main / "rdn.onnx") < 1e-4
+    with pytest.raises(OW.OnnxWeightsError, match="head on another model's RDN"):
+        SD.load_rdn(tmp_path / "h")
+    with pytest.raises(SD.SharedDetectorError, match="has a head already"):
+        SD.write(main, like, tmp_path / "h2", tmp_path / "head.pt")
+
+
+def test_the_reference_pipeline_reads_the_first_map(tmp_path):
+    main, like = _current_folder(tmp_path, "main"), _current_folder(tmp_path, "like")
+    plain = RaindropRemover(main)
+    image = (np.random.default_rng(5).random((40, 56, 3)) * 255).astype(np.uint8)
+    before = plain.remove(image, keep_intermediates=True)
+    _random_head(main, tmp_path / "head.pt")
+    SD.write(main, like, tmp_path / "h", tmp_path / "head.pt")
+    after = RaindropRemover(main).remove(image, keep_intermediates=True)
+    assert np.array_equal(before.prob, after.prob)
+    assert np.array_equal(before.output, after.output)
+
+
+def test_the_distillation_loss_is_zero_at_the_teacher_and_grows_away_from_it():
+    p = torch.rand(2, 1, 8, 8) * 0.98 + 0.01
+    logits = torch.log(p / (1 - p))
+    assert abs(train_head.distillation_loss(logits, p).item()) < 1e-5
+    assert train_head.distillation_loss(logits + 0.5, p).item() > 0.01
+
+
+def test_the_committed_head_config_reads():
+    cfg = train_head.read_config(REPO / "tools" / "configs" / "compact-windshield-head.yaml")
+    assert cfg.teacher == "models/compact-windshield" and cfg.main == "models/compact-multiscale"
+    assert any(s.split == "train" for s in cfg.sources), "the real pairs' train split, never the test split"
+    assert all(s.split != "test" for s in cfg.sources)
+
+
+def test_a_read_only_graph_is_kept(tmp_path, capsys):
+    from raindrop_tools.read_only import ReadOnlyFileError
+
+    main, like = _current_folder(tmp_path, "main"), _current_folder(tmp_path, "like")
+    _random_head(main, tmp_path / "head.pt")
+    graph = main / "rdn.onnx"
+    before = graph.read_bytes()
+    graph.chmod(0o444)
+    with pytest.raises(ReadOnlyFileError):
+        SD.write(main, like, tmp_path / "h", tmp_path / "head.pt")
+    assert graph.read_bytes() == before and not (tmp_path / "h").exists(), "refused before anything was written"
+    assert SD.main(["--main", str(main), "--head", str(tmp_path / "head.pt"), "--like", str(like), "--out",
+                    str(tmp_path / "h")]) == 1
+    assert "read-only" in capsys.readouterr().err
