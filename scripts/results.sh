@@ -263,6 +263,9 @@ built_at() {
   cmake -S "$2" -B "$2/build" -G Ninja -DCMAKE_BUILD_TYPE=Release -DRAINDROP_BUILD_TESTS=OFF >/dev/null
   cmake --build "$2/build" --target raindrop-render raindrop-bench >/dev/null
 }
+# bin_of before|now: the build folder of the section's older build ($before, the DIR it gave
+# built_at) or of this one.
+bin_of() { if [[ $1 == before ]]; then echo "$before/build"; else echo build; fi; }
 
 # edited_scene SED FILE [N]: FILE edited by SED on stdout; fails (and prints nothing) unless N
 # lines (default 1) changed, so that a scene file edited since cannot silently render unchanged.
@@ -2285,7 +2288,6 @@ if want lanes; then
   mkdir -p "$ln"
   built_at 754a2e2 "$before"
   city="$shared/cityscapes-mini"
-  bin_of() { if [[ $1 == before ]]; then echo "$before/build"; else echo build; fi; }
   presets=(paper full-physics lens-cover lens-cover-heavy lens-cover-merged windshield-day windshield-night real-photo
            windshield-sharp glass-droplets)
   for args in "${presets[@]/#/--scene }" "--scene paper --size 512x256 -j1" \
@@ -2340,7 +2342,6 @@ if want aperturelanes; then
   mkdir -p "$al"
   built_at 70fba6c "$before"
   city="$shared/cityscapes-mini"
-  bin_of() { if [[ $1 == before ]]; then echo "$before/build"; else echo build; fi; }
   for p in lens-cover windshield-day windshield-night lens-cover-heavy real-photo glass-plate lens-cover-merged \
            glass-droplets; do
     edited_scene 's/"defocus": "[a-z-]*"/"defocus": "aperture", "aperture_samples": 16/' "scenes/$p.json" \
@@ -2564,6 +2565,32 @@ PY
   done
   grep -c "detector 'compact-windshield-head'" "$hr/photos-head/time.txt" | sed 's/$/ of 44 photographs to the head/' | tee "$hr/photos.txt"
   photos_changed "$hr/photos-head/removed" "$hr/photos-full/removed" | tee -a "$hr/photos.txt"
-  alternate_times 15 head windshield_2.jpg attgan-fork_test_5.png -- "" "--no-router" "--models $full" >"$hr/times.txt"
+  # Their final masks against each other, and eight photographs side by side (input | full
+  # detector's mask | head's mask | full detector's output | head's output) in compare-head-full.png.
+  $py - "$hr" "$shared/real-raindrop" <<'PY' | tee -a "$hr/photos.txt"
+import glob, os, sys
+import cv2, numpy as np
+hr, photos = sys.argv[1:]
+rs = []
+for n in sorted(os.listdir(f"{hr}/photos-head/masks")):
+    a, b = cv2.imread(f"{hr}/photos-full/masks/{n}", 0) > 0, cv2.imread(f"{hr}/photos-head/masks/{n}", 0) > 0
+    rs.append((a.mean(), b.mean(), (a & b).sum() / max(1, (a | b).sum())))
+f, h, iou = (np.array(c) for c in zip(*rs))
+print(f"final masks: mean coverage full detector {f.mean():.3f}, head {h.mean():.3f}; head / full coverage median "
+      f"{np.median(h / np.maximum(f, 1e-6)):.2f}; IoU mean {iou.mean():.2f}, median {np.median(iou):.2f}")
+rows = []
+for key in ("windshield_1", "windshield_2", "webcam_20181202", "qian_demo_case1", "clarity_00020", "maxim_0",
+            "attgan_test_1", "clarity_00221"):
+    stem = os.path.splitext(os.path.basename(glob.glob(f"{photos}/{key}*")[0]))[0]
+    out = os.path.basename(glob.glob(f"{hr}/photos-head/removed/{stem}.*")[0])
+    im = cv2.imread(glob.glob(f"{photos}/{stem}.*")[0])
+    size = (int(im.shape[1] * 200 / im.shape[0]), 200)
+    parts = [im, cv2.imread(f"{hr}/photos-full/masks/{stem}.png"), cv2.imread(f"{hr}/photos-head/masks/{stem}.png"),
+             cv2.imread(f"{hr}/photos-full/removed/{out}"), cv2.imread(f"{hr}/photos-head/removed/{out}")]
+    rows.append(np.hstack([cv2.resize(p, size, interpolation=cv2.INTER_AREA) for p in parts]))
+w = max(r.shape[1] for r in rows)
+cv2.imwrite(f"{hr}/compare-head-full.png", np.vstack([np.pad(r, ((0, 4), (0, w - r.shape[1]), (0, 0))) for r in rows]))
+PY
+  alternate_times 25 head windshield_2.jpg attgan-fork_test_5.png -- "" "--no-router" "--models $full" >"$hr/times.txt"
   median_times "$hr/times.txt" | tee "$hr/times-summary.txt"
 fi

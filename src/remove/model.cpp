@@ -91,6 +91,17 @@ double parse_double(const fs::path& file, const std::string& key, const std::str
   return v;
 }
 
+// A graph's metadata holds every kMetaKeys entry and names the network `name`.
+void check_metadata(const fs::path& file, const std::map<std::string, std::string>& metadata, const std::string& name) {
+  std::vector<std::string> missing;
+  for (const char* k : kMetaKeys) {
+    if (!metadata.count(k)) missing.push_back(k);
+  }
+  if (!missing.empty()) throw Error(quoted(file) + ": metadata missing " + join(missing) + " (export it with raindrop_tools.export)");
+  if (metadata.at("raindrop.network") != name)
+    throw Error(quoted(file) + ": raindrop.network is '" + metadata.at("raindrop.network") + "', expected '" + name + "'");
+}
+
 // One varint of a protobuf message at `p` (advanced), or false past `end` or a varint too long.
 bool read_varint(const unsigned char*& p, const unsigned char* end, uint64_t& v) {
   v = 0;
@@ -199,13 +210,7 @@ Network::Network(const fs::path& file, const std::string& name, const SessionCon
     const std::string k = key.get();
     metadata_[k] = meta.LookupCustomMetadataMapAllocated(k.c_str(), alloc).get();
   }
-  std::vector<std::string> missing;
-  for (const char* k : kMetaKeys) {
-    if (!metadata_.count(k)) missing.push_back(k);
-  }
-  if (!missing.empty()) throw Error(quoted(file) + ": metadata missing " + join(missing) + " (export it with raindrop_tools.export)");
-  if (metadata_["raindrop.network"] != name)
-    throw Error(quoted(file) + ": raindrop.network is '" + metadata_["raindrop.network"] + "', expected '" + name + "'");
+  check_metadata(file, metadata_, name);
 }
 
 void Network::run(const std::vector<const float*>& inputs, int h, int w, float* output, float* alternative) {
@@ -260,14 +265,7 @@ Models::Models(const fs::path& dir, const SessionConfig& config, Graphs graphs) 
   std::map<std::string, std::string> metadata_only;  // Graphs::metadata: rdn.onnx's, read without a session
   if (graphs == Graphs::metadata) {
     metadata_only = read_metadata_only(dir / "rdn.onnx");
-    std::vector<std::string> missing;
-    for (const char* k : kMetaKeys) {
-      if (!metadata_only.count(k)) missing.push_back(k);
-    }
-    if (!missing.empty())
-      throw Error(quoted(dir / "rdn.onnx") + ": metadata missing " + join(missing) + " (export it with raindrop_tools.export)");
-    if (metadata_only["raindrop.network"] != "rdn")
-      throw Error(quoted(dir / "rdn.onnx") + ": raindrop.network is '" + metadata_only["raindrop.network"] + "', expected 'rdn'");
+    check_metadata(dir / "rdn.onnx", metadata_only, "rdn");
   } else if (graphs == Graphs::detection) {
     // One graph, on all the threads: a router's alternative detector runs after the first
     // detector and the 3RN beside it, when both cores are free (remover.cpp).

@@ -144,9 +144,7 @@ RenderedFrame render_frame(const cv::Mat& input, const Camera& camera, const Sce
   drops.reserve(scene.drops.size());
   for (const DropShape& shape : rendered_shapes(scene, frame.effects)) drops.emplace_back(shape, scene.glass);
   DropAccel accel(drops, config.geometry);
-  // Non-overlapping footprints mean non-overlapping caps (a cap never reaches past its
-  // footprint for contact angles up to 90 degrees). A trail overlaps its drop.
-  accel.set_disjoint(!config.allow_overlap && !config.trails.enabled);
+  accel.set_disjoint(config.drops_disjoint());
   frame.timings.accel_ms = ms_since(t0);
 
   // Drops in focus: a circle under half a pixel leaves a drop's outline where the pinhole puts

@@ -148,6 +148,13 @@ std::optional<RoutedModels> link_models(const TempDir& tmp) {
   return RoutedModels{root / "main", root / "alt", root / "compact-windshield-head"};
 }
 
+// `image` through a Remover of the models in `dir`, with or without their router.
+raindrop::removal::RemoveResult remove_with(const fs::path& dir, const raindrop::removal::SessionConfig& session,
+                                            bool use_router, const cv::Mat& image, const RemoveOptions& opt = {}) {
+  Remover r(dir, session, std::nullopt, use_router);
+  return r.run(image, opt);
+}
+
 // The demo street at 700x400 (seed 4) with `scene`'s drops, rendered into tmp/set-<scene>: its rainy frame.
 cv::Mat render_demo(const TempDir& tmp, const std::string& scene) {
   const std::string set = "set-" + scene;
@@ -173,8 +180,7 @@ TEST(DetectorRouter, ARoutedImageIsExactlyTheAlternativesAndAKeptOneExactlyTheMa
   const cv::Mat image = render_demo(tmp, "lens-cover");
   ASSERT_FALSE(image.empty());
   const auto run = [&](const fs::path& dir, bool use_router, const RemoveOptions& opt = {}) {
-    Remover r(dir, session, std::nullopt, use_router);
-    return r.run(image, opt);
+    return remove_with(dir, session, use_router, image, opt);
   };
   const auto alone = run(m->alt, false), main_alone = run(m->main, false);
   ASSERT_GT(max_abs_diff(alone.image, main_alone.image), 0) << "the two detectors must differ here for the test to mean anything";
@@ -216,17 +222,13 @@ TEST(DetectorRouter, ARoutedImageIsExactlyTheAlternativesAndAKeptOneExactlyTheMa
   // windshield drops, where the head's map differs from the main detector's.
   const cv::Mat sharp = render_demo(tmp, "windshield-sharp");
   ASSERT_FALSE(sharp.empty());
-  const auto run_sharp = [&](const fs::path& dir, bool use_router) {
-    Remover r(dir, session, std::nullopt, use_router);
-    return r.run(sharp);
-  };
   const std::string head = m->head.filename().string();
   write_file(m->main / "ROUTER", router_text(head, +1.0));
   for (const int threads : {2, 1}) {
     SCOPED_TRACE(threads);
     session.threads = threads;
-    const auto head_alone = run_sharp(m->head, false), via_head = run_sharp(m->main, true),
-               main_t = run_sharp(m->main, false);
+    const auto head_alone = remove_with(m->head, session, false, sharp),
+               via_head = remove_with(m->main, session, true, sharp), main_t = remove_with(m->main, session, false, sharp);
     ASSERT_GT(max_abs_diff(head_alone.image, main_t.image), 0) << "the head must differ from the main detector here";
     EXPECT_TRUE(via_head.alternative_detector());
     EXPECT_EQ(max_abs_diff(via_head.image, head_alone.image), 0);
@@ -264,8 +266,7 @@ TEST(DetectorRouter, TheFillAreaIsTheDecidingDetectors) {
   const cv::Mat image = render_demo(tmp, "windshield-sharp");
   ASSERT_FALSE(image.empty());
   const auto run = [&](const fs::path& dir, bool use_router, const RemoveOptions& opt = {}) {
-    Remover r(dir, session, std::nullopt, use_router);
-    return r.run(image, opt);
+    return remove_with(dir, session, use_router, image, opt);
   };
   RemoveOptions area_150;
   area_150.surround_fill_area = 150;

@@ -105,7 +105,7 @@ TEST(ApertureReach, TheReferenceIsTheSameBitsWithFewerRays) {
       if (!(scene.aperture_cm() > 0)) continue;
       const std::vector<Drop> drops = drops_of(scene);
       DropAccel accel(drops, c.geometry);
-      accel.set_disjoint(!c.allow_overlap && !c.trails.enabled);
+      accel.set_disjoint(c.drops_disjoint());
       TraceStrategy every_ray;
       every_ray.cull = false;
       const ApertureResult a = trace_aperture(clean, cam, c, scene, accel, 16, nullptr, TraceStrategy{});

@@ -90,8 +90,8 @@ TEST(ExitSkip, TracedImagesAreTheSameBitForBit) {
       }
       const std::vector<Drop> drops = drops_of(scene);
       DropAccel with(drops, c.geometry), without(drops, c.geometry);
-      with.set_disjoint(!c.allow_overlap && !c.trails.enabled);
-      without.set_disjoint(!c.allow_overlap && !c.trails.enabled);
+      with.set_disjoint(c.drops_disjoint());
+      without.set_disjoint(c.drops_disjoint());
       without.set_exit_skip(false);
       const TraceResult a = trace_drops(clean, cam, c, scene, with);
       const TraceResult b = trace_drops(clean, cam, c, scene, without);

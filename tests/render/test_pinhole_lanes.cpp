@@ -87,6 +87,15 @@ bool same_outcome(const PinholeLanes::Row& row, int i, const DropPath& w, const 
   return true;
 }
 
+// same_outcome's counts per register width: on every width both a Path and a Miss were
+// compared often enough for the comparison to hold something.
+void expect_many_of_each(const std::vector<std::int64_t>& paths, const std::vector<std::int64_t>& misses) {
+  for (size_t level = 0; level < paths.size(); ++level) {
+    EXPECT_GT(paths[level], 20000) << "level " << level;
+    EXPECT_GT(misses[level], 2000) << "level " << level;
+  }
+}
+
 // For every register width the processor has, the lanes' images are the one-ray-at-a-time
 // images to the bit, and they do trace most rays that meet a drop where the dark band is
 // black (else this test would hold nothing).
@@ -105,7 +114,7 @@ TEST(PinholeLanes, EveryRegisterWidthTracesWhatOneRayAtATimeTraces) {
     for (const NamedScene& k : cases) {
       const std::vector<Drop> drops = drops_of(k.scene);
       DropAccel accel(drops, k.config.geometry);
-      accel.set_disjoint(!k.config.allow_overlap && !k.config.trails.enabled);
+      accel.set_disjoint(k.config.drops_disjoint());
       // The lanes take the kernels without dispersion.
       if (!PinholeLanes::applies(accel) || k.config.dispersion.enabled) continue;
       ++applied;
@@ -150,7 +159,7 @@ TEST(PinholeLanes, EachPathIsTracePathsToTheBit) {
   for (const NamedScene& k : cases) {
     const std::vector<Drop> drops = drops_of(k.scene);
     DropAccel accel(drops, k.config.geometry);
-    accel.set_disjoint(!k.config.allow_overlap && !k.config.trails.enabled);
+    accel.set_disjoint(k.config.drops_disjoint());
     if (!PinholeLanes::applies(accel)) continue;
     const double n = k.config.channel_indices().y;
     std::vector<DropPath> want(static_cast<size_t>(cam.width * cam.height));
@@ -191,10 +200,7 @@ TEST(PinholeLanes, EachPathIsTracePathsToTheBit) {
     }
   }
   EXPECT_GT(outside, 100000);
-  for (int level = 0; level <= widest; ++level) {
-    EXPECT_GT(paths[level], 20000) << "level " << level;
-    EXPECT_GT(misses[level], 2000) << "level " << level;
-  }
+  expect_many_of_each(paths, misses);
 }
 
 // The lanes and the side-by-side path without them agree too (the lanes replace both the
@@ -235,7 +241,7 @@ TEST(PinholeLanes, EachApertureRayPathIsTracePathsToTheBit) {
   for (const NamedScene& k : cases) {
     const std::vector<Drop> drops = drops_of(k.scene);
     DropAccel accel(drops, k.config.geometry);
-    accel.set_disjoint(!k.config.allow_overlap && !k.config.trails.enabled);
+    accel.set_disjoint(k.config.drops_disjoint());
     if (!PinholeLanes::applies(accel)) continue;
     const double n = k.config.channel_indices().y, F = k.scene.background_distance_cm;
     const ApertureReach reach(drops, kRadius, F);
@@ -279,10 +285,7 @@ TEST(PinholeLanes, EachApertureRayPathIsTracePathsToTheBit) {
       }
     }
   }
-  for (int level = 0; level <= widest; ++level) {
-    EXPECT_GT(paths[level], 20000) << "level " << level;
-    EXPECT_GT(misses[level], 2000) << "level " << level;
-  }
+  expect_many_of_each(paths, misses);
 }
 
 // The aperture reference with its rays in the lanes renders what it renders with every ray
@@ -307,7 +310,7 @@ TEST(PinholeLanes, EveryRegisterWidthRendersTheApertureReferenceAsOneRayAtATime)
         const SceneSample scene = sample_scene(c, cam, rng);
         const std::vector<Drop> drops = drops_of(scene);
         DropAccel accel(drops, c.geometry);
-        accel.set_disjoint(!c.allow_overlap && !c.trails.enabled);
+        accel.set_disjoint(c.drops_disjoint());
         const ApertureResult a = trace_aperture(clean, cam, c, scene, accel, 16, nullptr, TraceStrategy{});
         const ApertureResult b = trace_aperture(clean, cam, c, scene, accel, 16, nullptr, TraceStrategy{false, false});
         const std::string name = std::string(preset) + " variant " + std::to_string(variant) + ", level " + std::to_string(level);
@@ -347,7 +350,7 @@ TEST(PinholeLanes, EveryRegisterWidthTracesTheDropsInFocusAsOneRayAtATime) {
       const SceneSample scene = sample_scene(c, cam, rng);
       const std::vector<Drop> drops = drops_of(scene);
       DropAccel accel(drops, c.geometry);
-      accel.set_disjoint(!c.allow_overlap && !c.trails.enabled);
+      accel.set_disjoint(c.drops_disjoint());
       ASSERT_TRUE(PinholeLanes::applies(accel));
       LensTrace lens;
       lens.samples = variant < 2 ? 16 : 9;

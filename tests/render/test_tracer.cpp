@@ -357,7 +357,7 @@ TEST(Lockstep, TracesTheSameImagesAsOneRayAtATime) {
   for (const NamedScene& k : cases) {
     const std::vector<Drop> drops = drops_of(k.scene);
     DropAccel accel(drops, k.config.geometry);
-    const bool disjoint = !k.config.allow_overlap && !k.config.trails.enabled;
+    const bool disjoint = k.config.drops_disjoint();
     accel.set_disjoint(disjoint);
     // Side by side without the SIMD lanes (test_pinhole_lanes.cpp holds those).
     const TraceResult a = trace_drops(clean, cam, k.config, k.scene, accel, nullptr, TraceStrategy{true, false});
@@ -400,7 +400,7 @@ TEST(Lockstep, ApertureRaysTraceTheSameAsOneAtATime) {
       if (!(scene.aperture_cm() > 0)) continue;
       const std::vector<Drop> drops = drops_of(scene);
       DropAccel accel(drops, c.geometry);
-      accel.set_disjoint(!c.allow_overlap && !c.trails.enabled);
+      accel.set_disjoint(c.drops_disjoint());
       for (int samples : {9, 16, variant == 0 ? 36 : 25}) {
         const ApertureResult a = trace_aperture(clean, cam, c, scene, accel, samples, nullptr, TraceStrategy{true});
         const ApertureResult b = trace_aperture(clean, cam, c, scene, accel, samples, nullptr, TraceStrategy{false});

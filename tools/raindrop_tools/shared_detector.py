@@ -33,7 +33,6 @@ import hashlib
 import io
 import json
 import logging
-import os
 import shutil
 import sys
 import warnings
@@ -47,15 +46,15 @@ from onnx import helper
 from . import contract as C
 from . import graph_rewrite
 from .config import HalfResConfig
+from .export import OPSET, _strip_debug_info
+from .flops import count_macs, parameter_count
 from .networks import RDN, AlternativeHead, rdn_taps
 from .onnx_weights import load_network
 from .phase_conv import phase_groups, split_transposed_convs
 from .phase_final_conv import fold_final_convs
 from .read_only import refuse_read_only
+from .staging import staged_model_files
 
-ALTERNATIVE_OUTPUT = C.ALTERNATIVE_OUTPUT  # include/raindrop/remove/model.h: kAlternativeOutput
-META_ALTERNATIVE = C.META_ALTERNATIVE_DETECTOR
-PREFIX = C.HEAD_NODE_PREFIX
 MAX_ABS_DIFF = 1e-4
 CHECK_SIZES = ((37, 53), (64, 96), (288, 512))
 
@@ -114,14 +113,12 @@ def export_head(head: AlternativeHead, width: int, expanded: int) -> onnx.ModelP
     with warnings.catch_warnings(), torch.no_grad(), contextlib.redirect_stdout(io.StringIO()):
         warnings.simplefilter("ignore")
         program = torch.onnx.export(head, inputs, None, input_names=["f2", "f4", "logits"], output_names=["head_logits"],
-                                     opset_version=18, dynamic_shapes=({0: N, 2: h, 3: w}, {0: N, 2: h, 3: w}, {0: N, 2: H, 3: W}),
+                                     opset_version=OPSET, dynamic_shapes=({0: N, 2: h, 3: w}, {0: N, 2: h, 3: w}, {0: N, 2: H, 3: W}),
                                      dynamo=True, external_data=False, verbose=False)
     model = program.model_proto
-    for node in model.graph.node:
-        del node.metadata_props[:]
-        node.doc_string = ""
-    for t in [*model.graph.initializer, *model.graph.value_info, *model.graph.input, *model.graph.output]:
-        del t.metadata_props[:]
+    _strip_debug_info(model)
+    for value in [*model.graph.input, *model.graph.output]:
+        del value.metadata_props[:]
     if split_transposed_convs(model) != 1 or fold_final_convs(model) != 1:
         raise SharedDetectorError("the head's graph did not take the phase rewrites (one transposed convolution, one final conv)")
     return model
@@ -141,7 +138,7 @@ def splice(main: onnx.ModelProto, head: onnx.ModelProto, alternative: str) -> on
             return name
         if name in outer:
             return outer[name]
-        new = PREFIX + name
+        new = C.HEAD_NODE_PREFIX + name
         if new in names:
             raise SharedDetectorError(f"the main graph already has a tensor named {new!r}")
         return new
@@ -154,15 +151,16 @@ def splice(main: onnx.ModelProto, head: onnx.ModelProto, alternative: str) -> on
         n2 = copy.deepcopy(n)
         n2.input[:] = [rename(x) for x in n.input]
         n2.output[:] = [rename(x) for x in n.output]
-        n2.name = PREFIX + (n.name or n.output[0])
+        n2.name = C.HEAD_NODE_PREFIX + (n.name or n.output[0])
         merged.graph.node.append(n2)
     head_out = rename(head.graph.output[0].name)
-    merged.graph.node.append(helper.make_node("Sigmoid", [head_out], [ALTERNATIVE_OUTPUT], name=PREFIX + "sigmoid"))
+    merged.graph.node.append(
+        helper.make_node("Sigmoid", [head_out], [C.ALTERNATIVE_OUTPUT], name=C.HEAD_NODE_PREFIX + "sigmoid"))
     out = copy.deepcopy(merged.graph.output[0])
-    out.name = ALTERNATIVE_OUTPUT
+    out.name = C.ALTERNATIVE_OUTPUT
     merged.graph.output.append(out)
     props = {p.key: p.value for p in main.metadata_props}
-    props[META_ALTERNATIVE] = alternative
+    props[C.META_ALTERNATIVE_DETECTOR] = alternative
     del merged.metadata_props[:]
     helper.set_model_props(merged, props)
     onnx.checker.check_model(merged, full_check=True)
@@ -178,13 +176,13 @@ def standalone(merged: onnx.ModelProto, metadata: dict[str, str]) -> onnx.ModelP
     del g.node[:]
     g.node.extend(kept)
     for n in g.node:
-        n.output[:] = [C.OUTPUTS["rdn"] if o == ALTERNATIVE_OUTPUT else o for o in n.output]
+        n.output[:] = [C.OUTPUTS["rdn"] if o == C.ALTERNATIVE_OUTPUT else o for o in n.output]
     first = copy.deepcopy(g.output[0])
     del g.output[:]
     g.output.append(first)
     graph_rewrite.prune(model)
     del model.metadata_props[:]
-    helper.set_model_props(model, {k: v for k, v in metadata.items() if k != META_ALTERNATIVE})
+    helper.set_model_props(model, {k: v for k, v in metadata.items() if k != C.META_ALTERNATIVE_DETECTOR})
     onnx.checker.check_model(model, full_check=True)
     return model
 
@@ -211,7 +209,7 @@ def check(main: onnx.ModelProto, merged: onnx.ModelProto, alone: onnx.ModelProto
             raise SharedDetectorError(f"at {w}x{h} the merged graph's {C.OUTPUTS['rdn']} differs from the main graph's "
                                       f"(max {np.abs(p0 - p_main).max():.3g})")
         if not np.array_equal(p1, p_alone):
-            raise SharedDetectorError(f"at {w}x{h} the merged graph's {ALTERNATIVE_OUTPUT} differs from the standalone "
+            raise SharedDetectorError(f"at {w}x{h} the merged graph's {C.ALTERNATIVE_OUTPUT} differs from the standalone "
                                       f"graph's (max {np.abs(p1 - p_alone).max():.3g})")
         with torch.no_grad():
             want = torch.sigmoid(head(*rdn_taps(rdn, x))).numpy()
@@ -224,15 +222,11 @@ def check(main: onnx.ModelProto, merged: onnx.ModelProto, alone: onnx.ModelProto
 
 
 def head_gflops(cfg: HalfResConfig, head: AlternativeHead, h: int = 256, w: int = 512) -> float:
-    """Multiply-adds x 2 of the head at h x w (its share of a routed image's detection)."""
+    """GFLOPs (2 x MACs, flops.py's count) of the head at h x w: its share of a routed image's
+    detection."""
     hh, hw = (h + 1) // 2, (w + 1) // 2
-    mid, up = head.mix.out_channels, head.up.out_channels
-    macs = hh * hw * (head.mix.in_channels * mid + 9 * mid * mid) + h * w * (4 * mid * up + 9 * up)
-    return 2 * macs / 1e9
-
-
-def _sha(data: bytes) -> str:
-    return hashlib.sha256(data).hexdigest()
+    taps = (torch.zeros(1, cfg.width, hh, hw), torch.zeros(1, cfg.expanded, hh, hw), torch.zeros(1, 1, h, w))
+    return 2 * count_macs(head, taps) / 1e9
 
 
 def write(main_dir: Path, like_dir: Path, out_dir: Path, head_path: Path) -> dict:
@@ -249,53 +243,51 @@ def write(main_dir: Path, like_dir: Path, out_dir: Path, head_path: Path) -> dic
     head.eval()
     main_file = main_dir / C.FILES["rdn"]
     main = onnx.load(str(main_file))
-    if any(o.name == ALTERNATIVE_OUTPUT for o in main.graph.output):
+    if any(o.name == C.ALTERNATIVE_OUTPUT for o in main.graph.output):
         raise SharedDetectorError(f"{main_file} has a head already; take the graph without it (git) first")
     merged = splice(main, export_head(head, cfg.width, cfg.expanded), out_dir.name)
     like = {p.key: p.value for p in onnx.load(str(like_dir / C.FILES["rdn"])).metadata_props}
     like[C.META_CONFIG] = out_dir.name
     alone = standalone(merged, like)
     report = check(main, merged, alone, rdn, head)
-    report.update(head_gflops_256x512=head_gflops(cfg, head), head_params=sum(p.numel() for p in head.parameters()))
+    report.update(head_gflops_256x512=head_gflops(cfg, head), head_params=parameter_count(head))
 
     out_dir.mkdir(parents=True, exist_ok=True)
-    files = {}
-    for name in ("rrn", "rfn"):
-        m = onnx.load(str(like_dir / C.FILES[name]))
-        props = {p.key: p.value for p in m.metadata_props}
-        props[C.META_CONFIG] = out_dir.name
-        del m.metadata_props[:]
-        helper.set_model_props(m, props)
-        files[C.FILES[name]] = m.SerializeToString()
-    files[C.FILES["rdn"]] = alone.SerializeToString()
-    merged_bytes = merged.SerializeToString()
-    info = {
-        "config": out_dir.name,
-        "made_by": "python -m raindrop_tools.shared_detector",
-        "detector": f"{main_dir.name}'s RDN with an AlternativeHead (tools/raindrop_tools/networks.py) trained to give "
-                    f"{like_dir.name}'s map; its 3RN and RFN are {like_dir.name}'s",
-        "head": {"checkpoint_sha256": _sha(Path(head_path).read_bytes()), **report},
-        "network": {**json.loads((like_dir / C.EXPORT_INFO).read_text())["network"],
-                    "rdn_head": {"on": main_dir.name, "mid": head.mix.out_channels, "up": head.up.out_channels}},
-        "pipeline": json.loads((like_dir / C.EXPORT_INFO).read_text()).get("pipeline", {}),
-        "files": {k: {"sha256": _sha(v), "bytes": len(v)} for k, v in sorted(files.items())},
-    }
-    for name, data in files.items():
-        tmp = out_dir / f".tmp-{name}.{os.getpid()}"
-        tmp.write_bytes(data)
-        os.replace(tmp, out_dir / name)
-    (out_dir / C.EXPORT_INFO).write_text(json.dumps(info, indent=2) + "\n")
-    for extra in ("LARGE_DROPS",):
-        if (like_dir / extra).exists():
-            shutil.copyfile(like_dir / extra, out_dir / extra)
-    tmp = main_dir / f".tmp-rdn.onnx.{os.getpid()}"
-    tmp.write_bytes(merged_bytes)
-    os.replace(tmp, main_file)
-    main_info_path = main_dir / C.EXPORT_INFO
-    main_info = json.loads(main_info_path.read_text())
-    main_info.setdefault("files", {})[C.FILES["rdn"]] = {"sha256": _sha(merged_bytes), "bytes": len(merged_bytes)}
-    main_info["alternative_head"] = {"folder": out_dir.name, "checkpoint_sha256": info["head"]["checkpoint_sha256"]}
-    main_info_path.write_text(json.dumps(main_info, indent=2) + "\n")
+    like_info = json.loads((like_dir / C.EXPORT_INFO).read_text())
+    checkpoint_sha256 = hashlib.sha256(Path(head_path).read_bytes()).hexdigest()
+    out_dir.mkdir(parents=True, exist_ok=True)
+    # Each folder's graphs and export.json replaced whole or not at all (staging.py); the main
+    # folder's export.json after its rdn.onnx, with every graph's digest, as detector_metadata does.
+    with staged_model_files(out_dir, "shared-detector") as stage:
+        for name in ("rrn", "rfn"):
+            m = onnx.load(str(like_dir / C.FILES[name]))
+            props = {p.key: p.value for p in m.metadata_props}
+            props[C.META_CONFIG] = out_dir.name
+            del m.metadata_props[:]
+            helper.set_model_props(m, props)
+            onnx.save(m, str(stage / C.FILES[name]))
+        onnx.save(alone, str(stage / C.FILES["rdn"]))
+        info = {
+            "config": out_dir.name,
+            "made_by": "python -m raindrop_tools.shared_detector",
+            "detector": f"{main_dir.name}'s RDN with an AlternativeHead (tools/raindrop_tools/networks.py) trained to "
+                        f"give {like_dir.name}'s map; its 3RN and RFN are {like_dir.name}'s",
+            "head": {"checkpoint_sha256": checkpoint_sha256, **report},
+            "network": {**like_info["network"],
+                        "rdn_head": {"on": main_dir.name, "mid": head.mix.out_channels, "up": head.up.out_channels}},
+            "pipeline": like_info.get("pipeline", {}),
+            "files": dict(sorted(C.graph_files(stage).items())),
+        }
+        (stage / C.EXPORT_INFO).write_text(json.dumps(info, indent=2) + "\n")
+    if (like_dir / "LARGE_DROPS").exists():
+        shutil.copyfile(like_dir / "LARGE_DROPS", out_dir / "LARGE_DROPS")
+    with staged_model_files(main_dir, "shared-detector") as stage:
+        onnx.save(merged, str(stage / C.FILES["rdn"]))
+    main_info = json.loads((main_dir / C.EXPORT_INFO).read_text())
+    main_info["files"] = C.graph_files(main_dir)
+    main_info["alternative_head"] = {"folder": out_dir.name, "checkpoint_sha256": checkpoint_sha256}
+    with staged_model_files(main_dir, "shared-detector") as stage:
+        (stage / C.EXPORT_INFO).write_text(json.dumps(main_info, indent=2) + "\n")
     return report
 
 
@@ -311,7 +303,7 @@ def main(argv: list[str] | None = None) -> int:
     except (SharedDetectorError, OSError, KeyError) as e:  # ReadOnlyFileError is an OSError
         print(f"error: {e}", file=sys.stderr)
         return 1
-    print(f"{args.main}/rdn.onnx: second output {ALTERNATIVE_OUTPUT} ({args.out.name}); {args.out}: its own detector; "
+    print(f"{args.main}/rdn.onnx: second output {C.ALTERNATIVE_OUTPUT} ({args.out.name}); {args.out}: its own detector; "
           f"head {report['head_gflops_256x512']:.2f} GFLOP at 256x512, {report['head_params']} parameters, "
           f"max |ONNX - PyTorch| {report['parity_max_abs_diff']:.2g}")
     return 0

@@ -34,6 +34,7 @@ import torch
 import torch.nn.functional as F
 import yaml
 
+from .imageio import ImageError, read_rgb
 from .networks import AlternativeHead, rdn_taps
 from .read_only import refuse_read_only
 from .shared_detector import load_rdn, rdn_config
@@ -95,10 +96,10 @@ def load_images(source: Source, n: int, rng: random.Random) -> list[np.ndarray]:
     rng.shuffle(files)
     images = []
     for f in files[:n]:
-        im = cv2.imread(str(f), cv2.IMREAD_COLOR)
-        if im is None:
-            raise SystemExit(f"error: cannot read {f}")
-        im = im[:, :, ::-1]
+        try:
+            im = read_rgb(f)
+        except ImageError as e:
+            raise SystemExit(f"error: {e}") from None
         s = source.scale
         if source.working_size:
             s = min(s, source.working_size / max(im.shape[:2]))

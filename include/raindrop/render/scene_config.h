@@ -204,6 +204,10 @@ struct SceneConfig {
   // Effects that will run, in a fixed order, for the manifest and logs.
   std::vector<std::string> effect_names() const;
   glm::dvec3 channel_indices() const;  // refractive index per colour channel
+  // Whether no two drops' caps can meet (DropAccel::set_disjoint): footprints kept apart mean
+  // caps kept apart (a cap never reaches past its footprint for contact angles up to 90
+  // degrees); a trail overlaps its drop.
+  bool drops_disjoint() const { return !allow_overlap && !trails.enabled; }
 };
 
 // Built-in presets: "paper", "real-photo", "full-physics". Throws raindrop::Error otherwise.
