@@ -6,7 +6,7 @@
 # largedropmodels sensor mirroraverage highlights multiscale veil papermodels outline trails photos windshield
 # windshield-followup longer growth sharpness coalesce surround largewidth largedrops-all windshield2
 # errorsplit withoutvnni graphrewrites jitter windshieldscale router routed int8router droplets realismcontrol
-# droplets2 infocus realismbar windshieldday fillarea finedrops lanes glassplate platerecon aperturelanes headrouter
+# droplets2 infocus realismbar windshieldday fillarea finedrops lanes glassplate platerecon aperturelanes headrouter int8head
 #
 # Sections measured before docs/RESULTS.md 4.44 run compact-windshield's detector (and the routed
 # default) with --surround-fill-area 150, the area they had then, so that they reproduce.
@@ -25,7 +25,7 @@ sections=("$@")
                                   photos windshield windshield-followup longer growth sharpness coalesce
                                   surround largewidth largedrops-all windshield2 errorsplit withoutvnni graphrewrites
                                   jitter windshieldscale router routed int8router droplets realismcontrol droplets2 infocus realismbar
-                                  windshieldday fillarea finedrops lanes glassplate platerecon aperturelanes headrouter)
+                                  windshieldday fillarea finedrops lanes glassplate platerecon aperturelanes headrouter int8head)
 want() { [[ " ${sections[*]} " == *" $1 "* ]]; }
 # link_set SRC DST SPLIT [LIMIT]: the first LIMIT (default 100; 0: all) samples of data set SRC
 # (of manifest split SPLIT; "-" = all) linked into DST/rainy and DST/clean (and DST/mask, where
@@ -2493,13 +2493,9 @@ PY
   } | tee "$pr/scores.txt"
 fi
 
-if want headrouter; then
-  # RESULTS 4.48: compact-windshield's detector as a head on the default's own detector
-  # (compact-windshield-head). Trained and written into the default's rdn.onnx unless the
-  # committed graphs have it; then, side by side on the same sets: without the router, routed to
-  # compact-windshield's own network (the default before: the same main graph, its ROUTER naming
-  # that folder) and routed to the head (the default now); the head's map against its teacher's;
-  # the 44 photographs; and the times of a routed and a kept photograph, alternated.
+# router_sets: the held-out and validation sets a detector router is scored on (docs/RESULTS.md
+# 4.48, 4.49), rendered unless there; their score_sets arguments in router_tests and router_vals.
+router_sets() {
   validation_sets
   size_sets val test-size
   paper_sparse_scene
@@ -2508,6 +2504,27 @@ if want headrouter; then
     --scene "$out/paper-sparse.json" --out data/test-sparse -q
   [[ -f data/test-windshield-sharp/manifest.jsonl ]] || build/raindrop-render -i "$shared/camvid/test" \
     -o data/test-windshield-sharp --scene windshield-sharp --size 512x256 --seed 2 -q
+  router_tests=(real-pairs:test:0 test-sparse:-:0 test-windshield-sharp:-:0 test-size-512x288:-:0 test-size-1280x720:-:0)
+  router_vals=(real-pairs:train:0 val-sparse:-:0 val-windshield-sharp:-:0)
+}
+# router_photos DIR NAME FLAGS...: the 44 photographs through raindrop-remove FLAGS into
+# DIR/photos-NAME (outputs, masks, --time's lines) and its contact sheet DIR/photos-NAME-sheet.png.
+router_photos() {
+  local dir="$1" name="$2"
+  shift 2
+  rm -rf "$dir/photos-$name" && mkdir -p "$dir/photos-$name"
+  build/raindrop-remove "$shared/real-raindrop" "$dir/photos-$name/removed" --mask-dir "$dir/photos-$name/masks" -q -j 2 \
+    --time --contact-sheet "$dir/photos-$name-sheet.png" "$@" 2>"$dir/photos-$name/time.txt"
+}
+
+if want headrouter; then
+  # RESULTS 4.48: compact-windshield's detector as a head on the default's own detector
+  # (compact-windshield-head). Trained and written into the default's rdn.onnx unless the
+  # committed graphs have it; then, side by side on the same sets: without the router, routed to
+  # compact-windshield's own network (the default before: the same main graph, its ROUTER naming
+  # that folder) and routed to the head (the default now); the head's map against its teacher's;
+  # the 44 photographs; and the times of a routed and a kept photograph, alternated.
+  router_sets
   hr="$out/headrouter"
   mkdir -p "$hr/models/full"
   if ! grep -q "^alternative compact-windshield-head$" models/compact-multiscale/ROUTER; then
@@ -2520,12 +2537,10 @@ if want headrouter; then
   for f in rdn.onnx rrn.onnx rfn.onnx LARGE_DROPS; do ln -sfn "$PWD/models/compact-multiscale/$f" "$full/$f"; done
   for m in compact-windshield paper-real-coarse; do ln -sfn "$PWD/models/$m" "$hr/models/$m"; done
   sed 's/^alternative .*/alternative compact-windshield/' models/compact-multiscale/ROUTER >"$full/ROUTER"
-  tests=(real-pairs:test:0 test-sparse:-:0 test-windshield-sharp:-:0 test-size-512x288:-:0 test-size-1280x720:-:0)
-  vals=(real-pairs:train:0 val-sparse:-:0 val-windshield-sharp:-:0)
   {
-    score_sets "$hr" norouter "-j 2 --no-router" "${tests[@]}" "${vals[@]}"
-    score_sets "$hr" full "-j 2 --models $full" "${tests[@]}" "${vals[@]}"
-    score_sets "$hr" head "-j 2" "${tests[@]}" "${vals[@]}"
+    score_sets "$hr" norouter "-j 2 --no-router" "${router_tests[@]}" "${router_vals[@]}"
+    score_sets "$hr" full "-j 2 --models $full" "${router_tests[@]}" "${router_vals[@]}"
+    score_sets "$hr" head "-j 2" "${router_tests[@]}" "${router_vals[@]}"
   } | tee "$hr/scores.txt"
   # The head's mask against its teacher's where both decide (threshold 0.75, before dilation), at
   # the working scale, on the validation sets and the photographs.
@@ -2556,13 +2571,8 @@ for name, files in sets.items():
         routed += router.score(DR.features(p0[0, 0, :h, :w]))[0] > 0
     print(f"{name}: {len(files)} images, {routed} routed; mask IoU head vs compact-windshield at 0.75: mean {np.mean(ious):.3f}, median {np.median(ious):.3f}, min {np.min(ious):.3f}")
 PY
-  for m in head full; do
-    flags=()
-    [[ $m == full ]] && flags=(--models "$full")
-    rm -rf "$hr/photos-$m" && mkdir -p "$hr/photos-$m"
-    build/raindrop-remove "$shared/real-raindrop" "$hr/photos-$m/removed" --mask-dir "$hr/photos-$m/masks" -q -j 2 --time \
-      --contact-sheet "$hr/photos-$m-sheet.png" "${flags[@]}" 2>"$hr/photos-$m/time.txt"
-  done
+  router_photos "$hr" head
+  router_photos "$hr" full --models "$full"
   grep -c "detector 'compact-windshield-head'" "$hr/photos-head/time.txt" | sed 's/$/ of 44 photographs to the head/' | tee "$hr/photos.txt"
   photos_changed "$hr/photos-head/removed" "$hr/photos-full/removed" | tee -a "$hr/photos.txt"
   # Their final masks against each other, and eight photographs side by side (input | full
@@ -2593,4 +2603,54 @@ cv2.imwrite(f"{hr}/compare-head-full.png", np.vstack([np.pad(r, ((0, 4), (0, w -
 PY
   alternate_times 25 head windshield_2.jpg attgan-fork_test_5.png -- "" "--no-router" "--models $full" >"$hr/times.txt"
   median_times "$hr/times.txt" | tee "$hr/times-summary.txt"
+fi
+
+if want int8head; then
+  # RESULTS 4.49: the int8 default (compact-multiscale-int8) with its router's alternative as a
+  # head too: the merged fp32 graph quantized whole (quantize.py; its first map is the plain int8
+  # graph's, bit for bit) and compact-windshield-head quantized into compact-windshield-head-int8
+  # the same way. Side by side on the sets of 4.48: without the router, routed to
+  # compact-windshield's own fp32 network (the int8 default before: the same main graph, its
+  # ROUTER naming that folder) and routed to the int8 head (now); the 44 photographs; times.
+  router_sets
+  ih="$out/int8head"
+  if ! grep -q "^alternative compact-windshield-head-int8$" models/compact-multiscale-int8/ROUTER; then
+    $py -m raindrop_tools.quantize --models models/compact-multiscale --data data/train --out models/compact-multiscale-int8 --count 16
+    $py -m raindrop_tools.quantize --models models/compact-windshield-head --data data/train \
+      --out models/compact-windshield-head-int8 --count 16 --reuse-reconstruction models/compact-multiscale-int8
+    echo paper-real-coarse-int8 >models/compact-windshield-head-int8/LARGE_DROPS
+    sed -i 's/^alternative compact-windshield$/alternative compact-windshield-head-int8/' models/compact-multiscale-int8/ROUTER
+  fi
+  full="$ih/models/full"
+  mkdir -p "$full"
+  for f in rdn.onnx rrn.onnx rfn.onnx LARGE_DROPS; do ln -sfn "$PWD/models/compact-multiscale-int8/$f" "$full/$f"; done
+  for m in compact-windshield paper-real-coarse-int8; do ln -sfn "$PWD/models/$m" "$ih/models/$m"; done
+  sed 's/^alternative .*/alternative compact-windshield/' models/compact-multiscale-int8/ROUTER >"$full/ROUTER"
+  int8="--models models/compact-multiscale-int8"
+  {
+    score_sets "$ih" norouter "-j 2 --no-router $int8" "${router_tests[@]}" "${router_vals[@]}"
+    score_sets "$ih" full "-j 2 --models $full" "${router_tests[@]}" "${router_vals[@]}"
+    score_sets "$ih" head "-j 2 $int8" "${router_tests[@]}" "${router_vals[@]}"
+  } | tee "$ih/scores.txt"
+  router_photos "$ih" head --models models/compact-multiscale-int8
+  router_photos "$ih" full --models "$full"
+  grep -c "detector 'compact-windshield-head-int8'" "$ih/photos-head/time.txt" | sed 's/$/ of 44 photographs to the head/' | tee "$ih/photos.txt"
+  photos_changed "$ih/photos-head/removed" "$ih/photos-full/removed" | tee -a "$ih/photos.txt"
+  # The int8 head's final masks against the fp32 head's (the default, 4.48) and the full detector's.
+  $py - "$ih" "$out/headrouter" <<'PY' | tee -a "$ih/photos.txt"
+import os, sys
+import cv2, numpy as np
+ih, hr = sys.argv[1:]
+for name, other in (("int8 routed to compact-windshield", f"{ih}/photos-full/masks"), ("fp32 default (head)", f"{hr}/photos-head/masks")):
+    if not os.path.isdir(other):
+        continue
+    rs = []
+    for n in sorted(os.listdir(f"{ih}/photos-head/masks")):
+        a, b = cv2.imread(f"{other}/{n}", 0) > 0, cv2.imread(f"{ih}/photos-head/masks/{n}", 0) > 0
+        rs.append((a.mean(), b.mean(), (a & b).sum() / max(1, (a | b).sum())))
+    f, h, iou = (np.array(c) for c in zip(*rs))
+    print(f"int8 head's final masks vs {name}: mean coverage {h.mean():.3f} vs {f.mean():.3f}; IoU mean {iou.mean():.2f}, median {np.median(iou):.2f}")
+PY
+  alternate_times 15 int8-head windshield_2.jpg attgan-fork_test_5.png -- "$int8" "--no-router $int8" "--models $full" >"$ih/times.txt"
+  median_times "$ih/times.txt" | tee "$ih/times-summary.txt"
 fi

@@ -248,6 +248,46 @@ TEST(DetectorRouter, ARoutedImageIsExactlyTheAlternativesAndAKeptOneExactlyTheMa
   EXPECT_EQ(max_abs_diff(kept.mask, main_alone.mask), 0);
 }
 
+// The int8 default's router names an int8 head (compact-windshield-head-int8, models/README.md):
+// its detector's second output. A routed image is then exactly what that folder gives under its
+// own name, on one and two threads, with no detector run beside the main one; and the int8
+// folder's main map is untouched by the head (the same output as routing nowhere).
+TEST(DetectorRouter, TheInt8DefaultsHeadIsItsOwnInt8FoldersDetector) {
+  REQUIRE_RENDER();
+  TempDir tmp;
+  const fs::path src = source_dir() / "models";
+  const std::vector<std::string> names = {"compact-multiscale-int8", "compact-windshield-head-int8", "paper-real-coarse-int8"};
+  for (const auto& name : names) {
+    if (!fs::exists(src / name / "rrn.onnx")) GTEST_SKIP() << "the committed int8 models are not in " << src;
+  }
+  for (const auto& name : names) {
+    fs::create_directories(tmp / "models" / name);
+    for (const char* file : {"rdn.onnx", "rrn.onnx", "rfn.onnx", "LARGE_DROPS"}) {
+      if (fs::exists(src / name / file)) fs::create_symlink(src / name / file, tmp / "models" / name / file);
+    }
+  }
+  const fs::path main = tmp / "models" / names[0], head = tmp / "models" / names[1];
+  const cv::Mat sharp = render_demo(tmp, "windshield-sharp");
+  ASSERT_FALSE(sharp.empty());
+  raindrop::removal::SessionConfig session;
+  for (const int threads : {2, 1}) {
+    SCOPED_TRACE(threads);
+    session.threads = threads;
+    write_file(main / "ROUTER", router_text(names[1], +1.0));  // every image to the head
+    const auto head_alone = remove_with(head, session, false, sharp), via_head = remove_with(main, session, true, sharp),
+               main_t = remove_with(main, session, false, sharp);
+    ASSERT_GT(max_abs_diff(head_alone.image, main_t.image), 0) << "the head must differ from the main detector here";
+    EXPECT_TRUE(via_head.alternative_detector());
+    EXPECT_EQ(max_abs_diff(via_head.image, head_alone.image), 0);
+    EXPECT_EQ(max_abs_diff(via_head.mask, head_alone.mask), 0);
+    EXPECT_EQ(via_head.network_pixels, main_t.network_pixels) << "no detector ran beside the main one";
+    write_file(main / "ROUTER", router_text(names[1], -1.0));  // every image kept
+    const auto kept = remove_with(main, session, true, sharp);
+    EXPECT_FALSE(kept.alternative_detector());
+    EXPECT_EQ(max_abs_diff(kept.image, main_t.image), 0);
+  }
+}
+
 // The area of the parts filled from their surroundings is the deciding detector's
 // (raindrop.surround_fill_area of its rdn.onnx): a routed image takes the alternative's, a kept
 // one the main's, and --surround-fill-area overrides both. Here the main folder's detector says 0

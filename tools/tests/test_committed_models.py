@@ -11,7 +11,8 @@ from pathlib import Path
 import onnx
 import pytest
 
-from raindrop_tools.contract import FILES, META_CONFIG, META_DILATION, META_THRESHOLD, NETWORKS
+from raindrop_tools.contract import (ALTERNATIVE_OUTPUT, FILES, META_ALTERNATIVE_DETECTOR, META_CONFIG, META_DILATION,
+                                     META_THRESHOLD, NETWORKS)
 
 MODELS = Path(__file__).resolve().parents[2] / "models"
 FOLDERS = sorted(p for p in MODELS.iterdir() if p.is_dir() and (p / "export.json").is_file()) if MODELS.is_dir() else []
@@ -36,6 +37,27 @@ def test_large_drop_models_are_other_committed_models():
         if file.exists():
             name = file.read_text().strip()
             assert name in names and name != folder.name, f"{file} names {name!r}"
+
+
+def test_routers_name_committed_detectors_and_a_head_its_own_graphs_map():
+    """Every ROUTER's alternative is a committed folder; where the folder's detector computes a
+    head's map (a second output), its metadata names the same folder as the ROUTER, or
+    raindrop-remove would run the alternative's own network beside it (correct, but the cost the
+    head exists to save). An int8 folder's head is an int8 folder."""
+    if not FOLDERS:
+        pytest.skip(f"no trained models in {MODELS}")
+    names = {p.name for p in FOLDERS}
+    routers = [f for f in FOLDERS if (f / "ROUTER").exists()]
+    assert routers, "the default has a ROUTER"
+    for folder in routers:
+        words = [line.split() for line in (folder / "ROUTER").read_text().splitlines()]
+        (alternative,) = [w[1] for w in words if w and w[0] == "alternative"]
+        assert alternative in names, f"{folder / 'ROUTER'} names {alternative!r}"
+        rdn = onnx.load(str(folder / FILES["rdn"]), load_external_data=False)
+        meta = {p.key: p.value for p in rdn.metadata_props}
+        if any(o.name == ALTERNATIVE_OUTPUT for o in rdn.graph.output):
+            assert meta.get(META_ALTERNATIVE_DETECTOR) == alternative, folder
+            assert folder.name.endswith("-int8") == alternative.endswith("-int8"), folder
 
 
 @pytest.mark.parametrize("folder", FOLDERS, ids=[p.name for p in FOLDERS])

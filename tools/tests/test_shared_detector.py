@@ -43,6 +43,14 @@ def _random_head(folder, path, seed=0):
     return head
 
 
+def _int8_folder_quantized_from(folder, source):
+    """An int8 folder's record of the fp32 folder it was quantized from (all --reuse-reconstruction
+    reads before it refuses)."""
+    folder.mkdir()
+    (folder / "export.json").write_text(json.dumps({"quantized_from": str(source)}))
+    return folder
+
+
 def _outputs(path, image):
     sess = quiet_session(path)
     return sess.run(None, {"image": image})
@@ -141,3 +149,46 @@ def test_a_read_only_graph_is_kept(tmp_path, capsys):
     assert SD.main(["--main", str(main), "--head", str(tmp_path / "head.pt"), "--like", str(like), "--out",
                     str(tmp_path / "h")]) == 1
     assert "read-only" in capsys.readouterr().err
+
+
+def test_quantized_with_its_head_the_main_map_is_the_plain_int8_one_and_the_head_map_its_folders(tmp_path, tiny_dataset,
+                                                                                                  capsys):
+    """The int8 default's head: quantizing the merged graph gives the same first map as
+    quantizing the graph without the head, and the same second map as quantizing the head's own
+    folder; the metadata names that int8 folder, and the tool says when it is missing."""
+    from raindrop_tools import quantize as Q
+
+    main, like = _current_folder(tmp_path, "main"), _current_folder(tmp_path, "like")
+    Q.quantize_models(main, tiny_dataset, tmp_path / "plain-int8", count=3)
+    _random_head(main, tmp_path / "head.pt")
+    SD.write(main, like, tmp_path / "h", tmp_path / "head.pt")
+    assert Q.main(["--models", str(main), "--data", str(tiny_dataset), "--out", str(tmp_path / "main-int8"),
+                   "--count", "3"]) == 0
+    assert "h-int8, which does not exist yet" in capsys.readouterr().err
+    # The fixture before the graph rewrites has other initializers than the head folder's 3RN.
+    with pytest.raises(Q.QuantizeError, match="other weights"):
+        Q.quantize_models(tmp_path / "h", tiny_dataset, tmp_path / "h-int8", count=3,
+                          reuse_dir=_int8_folder_quantized_from(tmp_path / "unrewritten-int8", FIXTURE_MODELS))
+    Q.quantize_models(tmp_path / "h", tiny_dataset, tmp_path / "h-int8", count=3, reuse_dir=tmp_path / "main-int8")
+    assert Q.alternative_head_folder(tmp_path / "main-int8") == tmp_path / "h-int8"
+    assert Q.alternative_head_folder(tmp_path / "h-int8") is None
+
+    rng = np.random.default_rng(4)
+    for h, w in ((30, 44), (48, 64)):
+        x = rng.random((1, 3, h, w), dtype=np.float32)
+        (plain,) = _outputs(tmp_path / "plain-int8" / "rdn.onnx", x)
+        p0, p1 = _outputs(tmp_path / "main-int8" / "rdn.onnx", x)
+        (alone,) = _outputs(tmp_path / "h-int8" / "rdn.onnx", x)
+        assert np.array_equal(p0, plain)
+        assert np.array_equal(p1, alone)
+        assert not np.array_equal(p0, p1)
+    # The head's folder reconstructs with the main int8 folder's own 3RN and RFN (--reuse-reconstruction).
+    for name in ("rrn.onnx", "rfn.onnx"):
+        a, b = (onnx.load(str(tmp_path / f / name)) for f in ("main-int8", "h-int8"))
+        assert a.graph == b.graph
+        meta = {p.key: p.value for p in b.metadata_props}
+        fp32 = {p.key: p.value for p in onnx.load(str(tmp_path / "h" / name)).metadata_props}
+        assert meta == {**fp32, C.META_CONFIG: "h-int8", "raindrop.quantization": meta["raindrop.quantization"]}
+    assert "taken from" in json.loads((tmp_path / "h-int8" / "export.json").read_text())["quantization"]["reconstruction"]
+    info = json.loads((tmp_path / "main-int8" / "export.json").read_text())
+    assert info["alternative_head"]["folder"] == "h-int8"
