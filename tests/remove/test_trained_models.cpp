@@ -306,8 +306,11 @@ TEST(TrainedModels, DefaultGainsAsMuchOnLargeStreetFrames) {
 
 // --fine-drops (fine_drops.h) on the default: sharp windshield drops rendered at 1280x720 on the
 // demo street (working scale 0.4, many drops 2-4 px there) come out closer to the clean frame
-// (measured +0.20 dB), the checkerboard no further from it; every pixel it changes is within a
-// pixel of the written mask; at 512x256 (the networks see every pixel) it changes nothing.
+// (measured +0.20 dB), the checkerboard hardly further from it (-0.002 dB with the router's head
+// at its first threshold, 0.75; -0.028 dB since it is 0.5, docs/RESULTS.md 4.50: the pass fills
+// 73 parts of the checkerboard instead of 47, its mask 8.5% of it instead of 6.2%); every pixel it changes
+// is within a pixel of the written mask; at 512x256 (the networks see every pixel) it changes
+// nothing.
 TEST(TrainedModels, FineDropsTakeSmallWindshieldDropsOutAndTouchNothingElse) {
   REQUIRE_RENDER();
   const fs::path models = default_models();
@@ -340,7 +343,7 @@ TEST(TrainedModels, FineDropsTakeSmallWindshieldDropsOutAndTouchNothingElse) {
       if (n == "street_v00.png") {
         EXPECT_GE(after - before, 0.05) << n;
       }
-      EXPECT_GE(after - before, -0.02) << n;
+      EXPECT_GE(after - before, -0.05) << n;
       cv::Mat diff;
       cv::absdiff(base, fine, diff);
       std::vector<cv::Mat> channels;
