@@ -2731,4 +2731,8 @@ PY
       --out models/compact-windshield-head-int8 --count 16 --reuse-reconstruction models/compact-multiscale-int8
   fi
   score_sets "$ht" int8 "-j 2 --models models/compact-multiscale-int8" "${router_tests[@]}" | tee "$ht/scores-int8.txt"
+  # What the lower threshold costs in time: the default (now), its 0.75 copy and --no-router, alternated.
+  alternate_times 25 "t$chosen" windshield_2.jpg attgan-fork_test_7.png -- "" "--models $ht/models/t0.75/main" "--no-router" \
+    >"$ht/times.txt"
+  median_times "$ht/times.txt" | tee "$ht/times-summary.txt"
 fi
