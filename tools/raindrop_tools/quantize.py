@@ -10,7 +10,12 @@ A detector with a router's alternative head (shared_detector.py: a second output
 ``alternative_mask_prob``) is quantized head and all, and its metadata then names the head
 folder's int8 copy (``<head folder>-int8``), made by quantizing the head's own folder with the
 same data: the two int8 maps are then the same bits (min-max ranges depend only on the tensors
-and the calibration images, which both graphs share), as they are in fp32.
+and the calibration images, which both graphs share), as they are in fp32. That folder
+reconstructs with the main folder's networks, so it takes the main int8 folder's 3RN and RFN
+(``--reuse-reconstruction models/<main>-int8``) instead of quantizing its own:
+
+    python -m raindrop_tools.quantize --models models/compact-windshield-head --data data/train \
+        --out models/compact-windshield-head-int8 --reuse-reconstruction models/compact-multiscale-int8
 
     python -m raindrop_tools.quantize --models models/compact --data data/train --out models/compact-int8
 
