@@ -34,6 +34,7 @@ import torch
 import torch.nn.functional as F
 import yaml
 
+from .config import ConfigError, _from_dict
 from .imageio import ImageError, read_rgb
 from .networks import AlternativeHead, rdn_taps
 from .read_only import refuse_read_only
@@ -70,11 +71,12 @@ class HeadConfig:
 
 def read_config(path: Path) -> HeadConfig:
     raw = yaml.safe_load(Path(path).read_text())
+    # The training configs' reader (config.py): unknown keys named, values coerced to their types.
     try:
-        sources = [Source(**s) for s in raw.pop("sources")]
-        cfg = HeadConfig(sources=sources, **raw)
-    except TypeError as e:
+        cfg = _from_dict(HeadConfig, raw if isinstance(raw, dict) else {})
+    except (ConfigError, TypeError) as e:  # TypeError: a required key missing
         raise SystemExit(f"error: {path}: {e}") from None
+    sources = cfg.sources
     if not sources or any(s.weight <= 0 for s in sources):
         raise SystemExit(f"error: {path}: every source needs a weight > 0")
     return cfg

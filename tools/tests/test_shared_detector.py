@@ -135,6 +135,17 @@ def test_the_committed_head_config_reads():
     assert all(s.split != "test" for s in cfg.sources)
 
 
+def test_a_head_config_is_read_as_the_training_configs_are(tmp_path):
+    """train_head.read_config takes config.py's reader: unknown keys named, numbers coerced
+    (YAML reads 1e-3, without a dot, as a string)."""
+    path = tmp_path / "head.yaml"
+    path.write_text("name: h\nmain: a\nteacher: b\nlr: 1e-3\nsources: [{path: p, weight: 1}]\n")
+    assert train_head.read_config(path).lr == 1e-3
+    path.write_text("name: h\nmain: a\nteacher: b\nsources: [{path: p, weight: 1, wieght: 2}]\n")
+    with pytest.raises(SystemExit, match=r"sources\[0\]\.wieght"):
+        train_head.read_config(path)
+
+
 def test_a_read_only_graph_is_kept(tmp_path, capsys):
     from raindrop_tools.read_only import ReadOnlyFileError
 
