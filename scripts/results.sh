@@ -2493,6 +2493,11 @@ PY
   } | tee "$pr/scores.txt"
 fi
 
+# set_threshold FOLDER THRESHOLD: the detector threshold of a model folder, in each of its graphs
+# and its export.json (detector_metadata.set_threshold).
+set_threshold() {
+  $py -c 'import sys; from raindrop_tools.detector_metadata import set_threshold; set_threshold(sys.argv[1], float(sys.argv[2]))' "$1" "$2"
+}
 # router_sets: the held-out and validation sets a detector router is scored on (docs/RESULTS.md
 # 4.48, 4.49), rendered unless there; their score_sets arguments in router_tests and router_vals.
 router_sets() {
@@ -2671,18 +2676,10 @@ if want headthreshold; then
       root="$ht/models/t$thr"
       mkdir -p "$root/main" "$root/compact-windshield-head"
       for f in rdn.onnx rrn.onnx rfn.onnx LARGE_DROPS ROUTER; do ln -sfn "$PWD/models/compact-multiscale/$f" "$root/main/$f"; done
-      for f in rrn.onnx rfn.onnx LARGE_DROPS; do ln -sfn "$PWD/models/compact-windshield-head/$f" "$root/compact-windshield-head/$f"; done
+      rm -f "$root/compact-windshield-head/"*
+      cp models/compact-windshield-head/{rdn.onnx,rrn.onnx,rfn.onnx,LARGE_DROPS} "$root/compact-windshield-head/"
       ln -sfn "$PWD/models/paper-real-coarse" "$root/paper-real-coarse"
-      $py - models/compact-windshield-head/rdn.onnx "$root/compact-windshield-head/rdn.onnx" "$thr" <<'PY'
-import sys
-import onnx
-src, dst, thr = sys.argv[1:]
-m = onnx.load(src)
-for p in m.metadata_props:
-    if p.key == "raindrop.threshold":
-        p.value = thr
-onnx.save(m, dst)
-PY
+      set_threshold "$root/compact-windshield-head" "$thr"
       score_sets "$ht" "t$thr" "-j 2 --models $root/main" "${router_vals[@]}"
     done
   } | tee "$ht/scores.txt"
@@ -2710,23 +2707,7 @@ PY
   # routed, on the test sets.
   if [[ $chosen != 0.75 ]] && ! $py -c 'import onnx, sys; m = onnx.load(sys.argv[1]); sys.exit(0 if {p.key: p.value for p in m.metadata_props}["raindrop.threshold"] == sys.argv[2] else 1)' \
       models/compact-windshield-head/rdn.onnx "$chosen"; then
-    $py - models/compact-windshield-head "$chosen" <<'PY'
-import json, sys
-from pathlib import Path
-import onnx
-sys.path.insert(0, "tools")
-from raindrop_tools import contract as C
-folder, thr = Path(sys.argv[1]), sys.argv[2]
-for name in ("rrn", "rfn"):  # set_detector_metadata below rewrites rdn.onnx and export.json
-    path = folder / C.FILES[name]
-    m = onnx.load_from_string(path.read_bytes())
-    for p in m.metadata_props:
-        if p.key == C.META_THRESHOLD:
-            p.value = thr
-    path.write_bytes(m.SerializeToString())
-from raindrop_tools.detector_metadata import set_detector_metadata
-set_detector_metadata(folder, C.META_THRESHOLD, "threshold", float(thr))
-PY
+    set_threshold models/compact-windshield-head "$chosen"
     $py -m raindrop_tools.quantize --models models/compact-windshield-head --data data/train \
       --out models/compact-windshield-head-int8 --count 16 --reuse-reconstruction models/compact-multiscale-int8
   fi

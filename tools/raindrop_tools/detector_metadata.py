@@ -1,6 +1,6 @@
 """Optional metadata of a model folder's detector, written in place: rdn.onnx's raindrop.* entry and
 export.json's pipeline key, for the tools that set such values after training
-(``large_drop_growth``, ``surround_fill_area``).
+(``large_drop_growth``, ``surround_fill_area``, and the threshold, which every graph carries).
 
 Nothing else in the graph changes: the file is rewritten from its own parsed bytes, which ONNX
 serialises back byte for byte, and removing the entry gives the file back as it was. Every input
@@ -32,10 +32,15 @@ def _replace(path: Path, data: bytes) -> None:
     os.replace(tmp, path)
 
 
-def set_detector_metadata(folder: Path, key: str, pipeline_key: str, value: float | int | None) -> dict:
+def set_detector_metadata(folder: Path, key: str, pipeline_key: str, value: float | int | None,
+                          every_graph: bool = False) -> dict:
     """Record `value` as rdn.onnx's metadata `key` and export.json's pipeline.`pipeline_key` in
     `folder` (None: removes both, giving the graph back as it was); returns export.json's new
-    content (or {} without one). Refusals raise MetadataError and change nothing."""
+    content (or {} without one). `every_graph`: a key export writes into all three graphs (the
+    threshold) is also rewritten in place in the 3RN and RFN that carry it. Refusals raise
+    MetadataError and change nothing."""
+    if every_graph and value is None:
+        raise MetadataError(f"{key} is in every graph: it can be changed, not removed")
     folder = Path(folder)
     rdn = folder / C.FILES["rdn"]
     if not rdn.is_file():
@@ -63,7 +68,19 @@ def set_detector_metadata(folder: Path, key: str, pipeline_key: str, value: floa
         for name in ("rrn", "rfn"):
             if not (folder / C.FILES[name]).is_file():
                 raise MetadataError(f"{folder / C.FILES[name]}: no such file (export.json lists every graph)")
-    refuse_read_only(rdn, info_path, follow_links=False)  # both kept, not the graph replaced and export.json refused
+    others = {}
+    for name in ("rrn", "rfn") if every_graph else ():
+        path = folder / C.FILES[name]
+        if path.is_file():  # a detector-only folder has none
+            other = onnx.load_from_string(path.read_bytes())
+            for p in other.metadata_props:
+                if p.key == key:
+                    p.value = repr(value)
+            others[path] = other.SerializeToString()
+    # every file kept, not some replaced and another refused
+    refuse_read_only(rdn, info_path, *others, follow_links=False)
+    for path, other_data in others.items():
+        _replace(path, other_data)
     _replace(rdn, data)
     if not info_path.is_file():
         return {}
@@ -75,6 +92,14 @@ def set_detector_metadata(folder: Path, key: str, pipeline_key: str, value: floa
     info["files"] = C.graph_files(folder)
     _replace(info_path, (json.dumps(info, indent=2) + "\n").encode())
     return info
+
+
+def set_threshold(folder: Path, threshold: float) -> dict:
+    """Record `threshold` as the folder's detector threshold (``raindrop.threshold``, which export
+    writes into every graph, and export.json's ``pipeline.threshold``). Refusals change nothing."""
+    if isinstance(threshold, bool) or not isinstance(threshold, float) or not 0 < threshold < 1:
+        raise MetadataError(f"the threshold must be a float strictly between 0 and 1, got {threshold!r}")
+    return set_detector_metadata(folder, C.META_THRESHOLD, "threshold", threshold, every_graph=True)
 
 
 def run_tool(folder: Path, change, what: str) -> int:

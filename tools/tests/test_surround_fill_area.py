@@ -64,3 +64,24 @@ def test_set_then_default_round_trips(folder, area):
     set_surround_fill_area(folder, area)
     set_surround_fill_area(folder, None)
     assert (folder / "rdn.onnx").read_bytes() == before
+
+
+def test_the_threshold_is_recorded_in_every_graph_and_refusals_change_nothing(folder):
+    """detector_metadata.set_threshold: a threshold set after export (docs/RESULTS.md 4.50) is in
+    all three graphs, as export writes it, and export.json, which lists the new digests."""
+    from raindrop_tools.detector_metadata import set_detector_metadata, set_threshold
+
+    before = {n: (folder / f).read_bytes() for n, f in C.FILES.items()}
+    for bad in (0.0, 1.0, 1, True, "0.5"):
+        with pytest.raises(MetadataError):
+            set_threshold(folder, bad)
+    with pytest.raises(MetadataError):
+        set_detector_metadata(folder, C.META_THRESHOLD, "threshold", None, every_graph=True)
+    assert {n: (folder / f).read_bytes() for n, f in C.FILES.items()} == before
+    info = set_threshold(folder, 0.5)
+    for n, f in C.FILES.items():
+        assert _meta(folder / f)[C.META_THRESHOLD] == "0.5", n
+        old = onnx.load_from_string(before[n])
+        assert onnx.load(str(folder / f)).graph.SerializeToString() == old.graph.SerializeToString(), n
+    assert info["pipeline"]["threshold"] == 0.5
+    assert json.loads((folder / C.EXPORT_INFO).read_text())["files"] == C.graph_files(folder)
