@@ -1,6 +1,7 @@
 """Optional metadata of a model folder's detector, written in place: rdn.onnx's raindrop.* entry and
 export.json's pipeline key, for the tools that set such values after training
-(``large_drop_growth``, ``surround_fill_area``, and the threshold, which every graph carries).
+(``large_drop_growth``, ``surround_fill_area``, and the threshold and dilation, which every graph
+carries).
 
 Nothing else in the graph changes: the file is rewritten from its own parsed bytes, which ONNX
 serialises back byte for byte, and removing the entry gives the file back as it was. Every input
@@ -100,6 +101,15 @@ def set_threshold(folder: Path, threshold: float) -> dict:
     if isinstance(threshold, bool) or not isinstance(threshold, float) or not 0 < threshold < 1:
         raise MetadataError(f"the threshold must be a float strictly between 0 and 1, got {threshold!r}")
     return set_detector_metadata(folder, C.META_THRESHOLD, "threshold", threshold, every_graph=True)
+
+
+def set_dilation(folder: Path, dilation: int) -> dict:
+    """Record `dilation` (k: the mask's elliptical k x k dilation, odd, 1 to 1023 as
+    raindrop-remove's --dilation) as the folder's (``raindrop.dilation``, which export writes into
+    every graph, and export.json's ``pipeline.dilation``). Refusals change nothing."""
+    if isinstance(dilation, bool) or not isinstance(dilation, int) or not 1 <= dilation <= 1023 or dilation % 2 == 0:
+        raise MetadataError(f"the dilation must be an odd whole number from 1 to 1023, got {dilation!r}")
+    return set_detector_metadata(folder, C.META_DILATION, "dilation", dilation, every_graph=True)
 
 
 def run_tool(folder: Path, change, what: str) -> int:

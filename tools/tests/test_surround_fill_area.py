@@ -66,22 +66,34 @@ def test_set_then_default_round_trips(folder, area):
     assert (folder / "rdn.onnx").read_bytes() == before
 
 
-def test_the_threshold_is_recorded_in_every_graph_and_refusals_change_nothing(folder):
-    """detector_metadata.set_threshold: a threshold set after export (docs/RESULTS.md 4.50) is in
-    all three graphs, as export writes it, and export.json, which lists the new digests."""
-    from raindrop_tools.detector_metadata import set_detector_metadata, set_threshold
+@pytest.mark.parametrize(
+    "setter, key, pipeline_key, good, written, bads",
+    [
+        # docs/RESULTS.md 4.50: a threshold, strictly between 0 and 1, a float
+        ("set_threshold", C.META_THRESHOLD, "threshold", 0.5, "0.5", (0.0, 1.0, 1, True, "0.5")),
+        # 4.51: a dilation, odd, 1 to 1023, a whole number
+        ("set_dilation", C.META_DILATION, "dilation", 7, "7", (0, 4, 1025, 5.0, True, "5")),
+    ],
+)
+def test_a_value_every_graph_carries_is_recorded_in_all_three_and_refusals_change_nothing(
+        folder, setter, key, pipeline_key, good, written, bads):
+    """detector_metadata.set_threshold / set_dilation: a value set after export is in all three
+    graphs, as export writes it, and in export.json, which lists the new digests; the graphs' nodes
+    are unchanged; bad values, and removing such a key, are refused and change nothing."""
+    from raindrop_tools import detector_metadata
 
+    set_value = getattr(detector_metadata, setter)
     before = {n: (folder / f).read_bytes() for n, f in C.FILES.items()}
-    for bad in (0.0, 1.0, 1, True, "0.5"):
+    for bad in bads:
         with pytest.raises(MetadataError):
-            set_threshold(folder, bad)
+            set_value(folder, bad)
     with pytest.raises(MetadataError):
-        set_detector_metadata(folder, C.META_THRESHOLD, "threshold", None, every_graph=True)
+        detector_metadata.set_detector_metadata(folder, key, pipeline_key, None, every_graph=True)
     assert {n: (folder / f).read_bytes() for n, f in C.FILES.items()} == before
-    info = set_threshold(folder, 0.5)
+    info = set_value(folder, good)
     for n, f in C.FILES.items():
-        assert _meta(folder / f)[C.META_THRESHOLD] == "0.5", n
+        assert _meta(folder / f)[key] == written, n
         old = onnx.load_from_string(before[n])
         assert onnx.load(str(folder / f)).graph.SerializeToString() == old.graph.SerializeToString(), n
-    assert info["pipeline"]["threshold"] == 0.5
+    assert info["pipeline"][pipeline_key] == good
     assert json.loads((folder / C.EXPORT_INFO).read_text())["files"] == C.graph_files(folder)
