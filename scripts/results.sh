@@ -6,7 +6,7 @@
 # largedropmodels sensor mirroraverage highlights multiscale veil papermodels outline trails photos windshield
 # windshield-followup longer growth sharpness coalesce surround largewidth largedrops-all windshield2
 # errorsplit withoutvnni graphrewrites jitter windshieldscale router routed int8router droplets realismcontrol
-# droplets2 infocus realismbar windshieldday fillarea finedrops lanes glassplate platerecon aperturelanes headrouter int8head headthreshold dilation coarsescales
+# droplets2 infocus realismbar windshieldday fillarea finedrops lanes glassplate platerecon aperturelanes headrouter int8head headthreshold dilation coarsescales mainthreshold
 #
 # Sections measured before docs/RESULTS.md 4.44 run compact-windshield's detector (and the routed
 # default) with --surround-fill-area 150, the area they had then, so that they reproduce.
@@ -25,7 +25,7 @@ sections=("$@")
                                   photos windshield windshield-followup longer growth sharpness coalesce
                                   surround largewidth largedrops-all windshield2 errorsplit withoutvnni graphrewrites
                                   jitter windshieldscale router routed int8router droplets realismcontrol droplets2 infocus realismbar
-                                  windshieldday fillarea finedrops lanes glassplate platerecon aperturelanes headrouter int8head headthreshold dilation coarsescales)
+                                  windshieldday fillarea finedrops lanes glassplate platerecon aperturelanes headrouter int8head headthreshold dilation coarsescales mainthreshold)
 want() { [[ " ${sections[*]} " == *" $1 "* ]]; }
 # link_set SRC DST SPLIT [LIMIT]: the first LIMIT (default 100; 0: all) samples of data set SRC
 # (of manifest split SPLIT; "-" = all) linked into DST/rainy and DST/clean (and DST/mask, where
@@ -2838,4 +2838,20 @@ if want coarsescales; then
     score_sets "$cs" scales "-j 2 --large-drop-models out/models/paper-real-coarse-scales" "${router_vals[@]}"
     score_sets "$cs" control "-j 2 --large-drop-models out/models/paper-real-coarse-control" "${router_vals[@]}"
   } | tee "$cs/scores-val.txt"
+fi
+
+if want mainthreshold; then
+  # RESULTS 4.51, last paragraph: the main detector's threshold (0.3 since the first models),
+  # swept as 4.50 swept the head's, with the same rule (dilation_rule reads the "k..." labels, so
+  # the labels here are "k<threshold>").
+  router_sets
+  mt="$out/mainthreshold"
+  mkdir -p "$mt"
+  for thr in 0.3 0.2 0.25 0.35 0.4; do
+    root="$mt/models/t$thr"
+    dilation_copy "$root" 3 3
+    set_threshold "$root/main" "$thr"
+    score_sets "$mt" "k$thr" "-j 2 --models $root/main" "${router_vals[@]}"
+  done | tee "$mt/scores.txt"
+  echo "chosen threshold: $(dilation_rule "$mt/scores.txt" k0.3)" | tee -a "$mt/scores.txt"
 fi
