@@ -43,7 +43,8 @@ class BackgroundSampler {
 
   // RGB in [0, 1]. Finite for any finite input; non-finite coordinates give the nearest
   // corner's colour.
-  glm::dvec3 sample(double x, double y) const {
+  // Inlined: one call per traced ray, whose call and register spills were a tenth of its cost.
+  __attribute__((always_inline)) glm::dvec3 sample(double x, double y) const {
     const glm::dvec3 c = sample_frame(x, y);
     const double w = sky_weight(y);
     return w > 0 ? c + w * (sky_ - c) : c;
@@ -91,7 +92,7 @@ class BackgroundSampler {
 
  private:
   // The frame and its border-mode continuation, bilinear.
-  glm::dvec3 sample_frame(double x, double y) const {
+  __attribute__((always_inline)) glm::dvec3 sample_frame(double x, double y) const {
     x = fold(x, img_.cols);
     y = fold(y, img_.rows);
     const int x0 = static_cast<int>(std::floor(x)), y0 = static_cast<int>(std::floor(y));
