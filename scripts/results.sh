@@ -502,6 +502,27 @@ score_sets() {
 # split_sets DIR LABEL FLAGS SET...: score_sets with the detected masks written too, and the
 # error left split by the set's masks x the detected ones (score_outputs --masks).
 split_sets() { SPLIT_ERROR=1 score_sets "$@"; }
+# sweep_rule SCORES BASE: of the labels (first words) of score_sets lines in SCORES, the one the
+# rule of docs/RESULTS.md 4.50 chooses over the label BASE: the mean of their gains up by at least
+# 0.05 dB and no set down by more than 0.1 dB; of several, the highest mean; else BASE. Each
+# label's mean on stderr.
+sweep_rule() {
+  $py - "$1" "$2" <<'PY'
+import collections, re, sys
+gains = collections.defaultdict(dict)
+for line in open(sys.argv[1]):
+    m = re.match(r"(\S+) (\S+ \S+): .*\(gain ([-+][0-9.]+)\)", line)
+    if m:
+        gains[m.group(1)][m.group(2)] = float(m.group(3))
+base = gains[sys.argv[2]]
+mean = {t: sum(g.values()) / len(g) for t, g in gains.items()}
+for t in gains:
+    print(f"# {t}: mean {mean[t]:.3f}", file=sys.stderr)
+ok = [t for t, g in gains.items() if t != sys.argv[2] and mean[t] >= mean[sys.argv[2]] + 0.05
+      and all(g[k] >= base[k] - 0.1 for k in base)]
+print(max(ok, key=mean.get) if ok else sys.argv[2])
+PY
+}
 # timed LABEL CMD...: runs CMD and prints "LABEL: <wall seconds> s".
 timed() {
   local label="$1" s0
@@ -2684,19 +2705,8 @@ if want headthreshold; then
     done
   } | tee "$ht/scores.txt"
   # The rule above, over every threshold tried: of those that pass it, the highest mean.
-  chosen=$($py - "$ht/scores.txt" <<'PY'
-import collections, re, sys
-gains = collections.defaultdict(dict)
-for line in open(sys.argv[1]):
-    m = re.match(r"t(\S+) (\S+ \S+): .*\(gain ([-+][0-9.]+)\)", line)
-    if m:
-        gains[m.group(1)][m.group(2)] = float(m.group(3))
-base = gains["0.75"]
-mean = {t: sum(g.values()) / len(g) for t, g in gains.items()}
-ok = [t for t, g in gains.items() if t != "0.75" and mean[t] >= mean["0.75"] + 0.05 and all(g[k] >= base[k] - 0.1 for k in base)]
-print(max(ok, key=mean.get) if ok else "0.75")
-PY
-)
+  chosen=$(sweep_rule "$ht/scores.txt" t0.75)
+  chosen=${chosen#t}
   echo "chosen threshold: $chosen" | tee -a "$ht/scores.txt"
   if [[ $chosen != 0.75 ]]; then
     score_sets "$ht" "test-t$chosen" "-j 2 --models $ht/models/t$chosen/main" "${router_tests[@]}" | tee "$ht/scores-test.txt"
@@ -2718,10 +2728,11 @@ PY
   median_times "$ht/times.txt" | tee "$ht/times-summary.txt"
 fi
 
-# dilation_copy ROOT MAIN_K HEAD_K: the default (ROOT/main) and its head
+# default_copies ROOT MAIN_K HEAD_K: the default (ROOT/main) and its head
 # (ROOT/compact-windshield-head) as copies whose graphs carry the mask dilations MAIN_K and HEAD_K
-# (detector_metadata.set_dilation; the graphs' nodes unchanged), the large-drop models linked.
-dilation_copy() {
+# (detector_metadata.set_dilation; the graphs' nodes unchanged), the large-drop models linked: a
+# sweep changes other metadata of the copies.
+default_copies() {
   local root="$1" f
   mkdir -p "$root/main" "$root/compact-windshield-head"
   rm -f "$root/main/"* "$root/compact-windshield-head/"*
@@ -2733,32 +2744,12 @@ dilation_copy() {
       "$root/${f%%:*}" "${f##*:}"
   done
 }
-# dilation_rule SCORES BASE: of the labels "kM-H" in SCORES (score_sets lines), the one the rule of
-# docs/RESULTS.md 4.51 chooses over BASE: the mean of the validation gains up by at least 0.05 dB and
-# no set down by more than 0.1 dB; of several, the highest mean; else BASE.
-dilation_rule() {
-  $py - "$1" "$2" <<'PY'
-import collections, re, sys
-gains = collections.defaultdict(dict)
-for line in open(sys.argv[1]):
-    m = re.match(r"(k\S+) (\S+ \S+): .*\(gain ([-+][0-9.]+)\)", line)
-    if m:
-        gains[m.group(1)][m.group(2)] = float(m.group(3))
-base = gains[sys.argv[2]]
-mean = {t: sum(g.values()) / len(g) for t, g in gains.items()}
-for t in gains:
-    print(f"# {t}: mean {mean[t]:.3f}", file=sys.stderr)
-ok = [t for t, g in gains.items() if t != sys.argv[2] and mean[t] >= mean[sys.argv[2]] + 0.05
-      and all(g[k] >= base[k] - 0.1 for k in base)]
-print(max(ok, key=mean.get) if ok else sys.argv[2])
-PY
-}
 
 # dilation_extra: the part of the dilation section beside its rule (RESULTS 4.51).
 dilation_extra() {
   local dl="$out/dilation" l
   # --dilation 7 (both detectors) on the validation sets, for the README's figures.
-  dilation_copy "$dl/models/k7-7" 7 7
+  default_copies "$dl/models/k7-7" 7 7
   score_sets "$dl" "k7-7" "-j 2 --models $dl/models/k7-7/main" "${router_vals[@]}" | tee "$dl/scores-k7-7.txt"
   for l in k3-3 k3-7 k3-9; do score_sets "$dl" "gp-$l" "-j 2 --models $dl/models/$l/main" val-glass-plate:-:0; done \
     | tee "$dl/scores-glass-plate.txt"
@@ -2771,28 +2762,28 @@ if want dilation; then
   # RESULTS 4.51: the mask dilation k of the default's two detectors, 3 since the first models. The
   # photographs' outputs keep the rims and halos of drops whose cores the masks cover. The head's
   # (which decides 42 of the 44 photographs) first, with the main detector's at 3; then the main
-  # detector's, with the head's chosen. Each on the validation sets, the rule of dilation_rule fixed
+  # detector's, with the head's chosen. Each on the validation sets, the rule of sweep_rule fixed
   # before scoring; the test sets and the photographs only for a k that the rule chooses.
   router_sets
   dl="$out/dilation"
   mkdir -p "$dl"
   {
     for hk in 3 5 7 9; do
-      dilation_copy "$dl/models/k3-$hk" 3 "$hk"
+      default_copies "$dl/models/k3-$hk" 3 "$hk"
       score_sets "$dl" "k3-$hk" "-j 2 --models $dl/models/k3-$hk/main" "${router_vals[@]}"
     done
   } | tee "$dl/scores-head.txt"
-  head_label=$(dilation_rule "$dl/scores-head.txt" k3-3)
+  head_label=$(sweep_rule "$dl/scores-head.txt" k3-3)
   hk=${head_label#k3-}
   echo "chosen head dilation: $hk" | tee -a "$dl/scores-head.txt"
   {
     grep "^k3-$hk " "$dl/scores-head.txt"
     for mk in 5 7; do
-      dilation_copy "$dl/models/k$mk-$hk" "$mk" "$hk"
+      default_copies "$dl/models/k$mk-$hk" "$mk" "$hk"
       score_sets "$dl" "k$mk-$hk" "-j 2 --models $dl/models/k$mk-$hk/main" "${router_vals[@]}"
     done
   } | tee "$dl/scores-main.txt"
-  chosen=$(dilation_rule "$dl/scores-main.txt" "k3-$hk")
+  chosen=$(sweep_rule "$dl/scores-main.txt" "k3-$hk")
   echo "chosen: $chosen (main-head)" | tee -a "$dl/scores-main.txt"
   if [[ $chosen != k3-3 ]]; then
     for label in k3-3 "$chosen"; do
@@ -2842,16 +2833,15 @@ fi
 
 if want mainthreshold; then
   # RESULTS 4.51, last paragraph: the main detector's threshold (0.3 since the first models),
-  # swept as 4.50 swept the head's, with the same rule (dilation_rule reads the "k..." labels, so
-  # the labels here are "k<threshold>").
+  # swept as 4.50 swept the head's, with the same rule.
   router_sets
   mt="$out/mainthreshold"
   mkdir -p "$mt"
   for thr in 0.3 0.2 0.25 0.35 0.4; do
     root="$mt/models/t$thr"
-    dilation_copy "$root" 3 3
+    default_copies "$root" 3 3
     set_threshold "$root/main" "$thr"
-    score_sets "$mt" "k$thr" "-j 2 --models $root/main" "${router_vals[@]}"
+    score_sets "$mt" "t$thr" "-j 2 --models $root/main" "${router_vals[@]}"
   done | tee "$mt/scores.txt"
-  echo "chosen threshold: $(dilation_rule "$mt/scores.txt" k0.3)" | tee -a "$mt/scores.txt"
+  echo "chosen threshold: $(sweep_rule "$mt/scores.txt" t0.3)" | tee -a "$mt/scores.txt"
 fi

@@ -19,6 +19,9 @@ META_NETWORK = "raindrop.network"
 META_THRESHOLD = "raindrop.threshold"
 META_DILATION = "raindrop.dilation"
 META_KEYS = (META_PAD_MULTIPLE, META_CONFIG, META_NETWORK, META_THRESHOLD, META_DILATION)
+# The largest dilation raindrop-remove accepts, in --dilation and in raindrop.dilation
+# (kMaxDilation, include/raindrop/remove/model.h).
+MAX_DILATION = 1023
 # Optional on rdn.onnx: in raindrop-remove's coarse pass for large drops, each drop's mask
 # dilation grows with its size (include/raindrop/remove/large_drops.h); absent means 0, the
 # fixed k there too. The reference pipeline has no coarse pass and does not read it.

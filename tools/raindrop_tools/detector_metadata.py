@@ -104,11 +104,12 @@ def set_threshold(folder: Path, threshold: float) -> dict:
 
 
 def set_dilation(folder: Path, dilation: int) -> dict:
-    """Record `dilation` (k: the mask's elliptical k x k dilation, odd, 1 to 1023 as
+    """Record `dilation` (k: the mask's elliptical k x k dilation, odd, 1 to C.MAX_DILATION as
     raindrop-remove's --dilation) as the folder's (``raindrop.dilation``, which export writes into
     every graph, and export.json's ``pipeline.dilation``). Refusals change nothing."""
-    if isinstance(dilation, bool) or not isinstance(dilation, int) or not 1 <= dilation <= 1023 or dilation % 2 == 0:
-        raise MetadataError(f"the dilation must be an odd whole number from 1 to 1023, got {dilation!r}")
+    if (isinstance(dilation, bool) or not isinstance(dilation, int) or not 1 <= dilation <= C.MAX_DILATION
+            or dilation % 2 == 0):
+        raise MetadataError(f"the dilation must be an odd whole number from 1 to {C.MAX_DILATION}, got {dilation!r}")
     return set_detector_metadata(folder, C.META_DILATION, "dilation", dilation, every_graph=True)
 
 
