@@ -2753,6 +2753,10 @@ dilation_extra() {
   score_sets "$dl" "k7-7" "-j 2 --models $dl/models/k7-7/main" "${router_vals[@]}" | tee "$dl/scores-k7-7.txt"
   for l in k3-3 k3-7 k3-9; do score_sets "$dl" "gp-$l" "-j 2 --models $dl/models/$l/main" val-glass-plate:-:0; done \
     | tee "$dl/scores-glass-plate.txt"
+  # The held-out real pairs once with --dilation 7, after the rule had decided (nothing is chosen on them).
+  for l in default:"" dilation7:"--dilation 7"; do
+    score_sets "$dl" "test-${l%%:*}" "-j 2 ${l#*:}" real-pairs:test:0
+  done | tee "$dl/scores-test-dilation7.txt"
   router_photos "$dl" default
   router_photos "$dl" dilation7 --dilation 7
   photos_changed "$dl/photos-dilation7/removed" "$dl/photos-default/removed" | tee "$dl/photos-changed-dilation7.txt"
