@@ -7,9 +7,13 @@
 # windshield-followup longer growth sharpness coalesce surround largewidth largedrops-all windshield2
 # errorsplit withoutvnni graphrewrites jitter windshieldscale router routed int8router droplets realismcontrol
 # droplets2 infocus realismbar windshieldday fillarea finedrops lanes glassplate platerecon aperturelanes headrouter int8head headthreshold dilation coarsescales mainthreshold
+# rim
 #
 # Sections measured before docs/RESULTS.md 4.44 run compact-windshield's detector (and the routed
 # default) with --surround-fill-area 150, the area they had then, so that they reproduce.
+# Sections measured before 4.54 ran without the fill's growth into rims (now on by default); run
+# now, the default's rows there may differ by the few hundredths of a dB 4.54 measured (pass
+# --surround-fill-rim 0 to raindrop-remove for the figures as they were).
 #
 # Nothing here is committed automatically: images derived from Cityscapes, CamVid or the
 # real raindrop photographs stay under out/ (their licences forbid redistribution).
@@ -25,7 +29,8 @@ sections=("$@")
                                   photos windshield windshield-followup longer growth sharpness coalesce
                                   surround largewidth largedrops-all windshield2 errorsplit withoutvnni graphrewrites
                                   jitter windshieldscale router routed int8router droplets realismcontrol droplets2 infocus realismbar
-                                  windshieldday fillarea finedrops lanes glassplate platerecon aperturelanes headrouter int8head headthreshold dilation coarsescales mainthreshold)
+                                  windshieldday fillarea finedrops lanes glassplate platerecon aperturelanes headrouter int8head headthreshold dilation coarsescales mainthreshold
+                                  rim)
 want() { [[ " ${sections[*]} " == *" $1 "* ]]; }
 # link_set SRC DST SPLIT [LIMIT]: the first LIMIT (default 100; 0: all) samples of data set SRC
 # (of manifest split SPLIT; "-" = all) linked into DST/rainy and DST/clean (and DST/mask, where
@@ -402,6 +407,23 @@ alternative_scored() {
   done
 }
 
+# windshield_1280_sets: windshield-sharp and windshield-day drops at 1280x720, over the 100 CamVid
+# val frames (seed 11: data/val-ws-1280x720, data/val-wsday-1280x720) and the 233 test frames
+# (seed 2: data/test-ws-1280x720, data/test-wsday-1280x720); each rendered once.
+windshield_1280_sets() {
+  local p scene set
+  link_cv100
+  for p in windshield-sharp:val-ws-1280x720 windshield-day:val-wsday-1280x720; do
+    IFS=: read -r scene set <<<"$p"
+    [[ -f data/$set/manifest.jsonl ]] || build/raindrop-render -i "$out/cv100" -o "data/$set" --scene "$scene" \
+      --size 1280x720 --seed 11 -q
+  done
+  for p in windshield-sharp:test-ws-1280x720 windshield-day:test-wsday-1280x720; do
+    IFS=: read -r scene set <<<"$p"
+    [[ -f data/$set/manifest.jsonl ]] || build/raindrop-render -i "$shared/camvid/test" -o "data/$set" --scene "$scene" \
+      --size 1280x720 --seed 2 -q
+  done
+}
 # link_cv100: the first 100 CamVid val frames of 4.2, linked into out/results/cv100.
 link_cv100() {
   mkdir -p "$out/cv100"
@@ -2272,16 +2294,7 @@ if want finedrops; then
   mkdir -p "$fd"
   link_cv100
   size_sets val test-size
-  for p in windshield-sharp:val-ws-1280x720 windshield-day:val-wsday-1280x720; do
-    IFS=: read -r scene set <<<"$p"
-    [[ -f data/$set/manifest.jsonl ]] || build/raindrop-render -i "$out/cv100" -o "data/$set" --scene "$scene" \
-      --size 1280x720 --seed 11 -q
-  done
-  for p in windshield-sharp:test-ws-1280x720 windshield-day:test-wsday-1280x720; do
-    IFS=: read -r scene set <<<"$p"
-    [[ -f data/$set/manifest.jsonl ]] || build/raindrop-render -i "$shared/camvid/test" -o "data/$set" --scene "$scene" \
-      --size 1280x720 --seed 2 -q
-  done
+  windshield_1280_sets
   # with_and_without SET...: the default's outputs without --fine-drops and with it, scored.
   with_and_without() {
     score_sets "$fd" base "-j 2" "$@"
@@ -2848,4 +2861,30 @@ if want mainthreshold; then
     score_sets "$mt" "t$thr" "-j 2 --models $root/main" "${router_vals[@]}"
   done | tee "$mt/scores.txt"
   echo "chosen threshold: $(sweep_rule "$mt/scores.txt" t0.3)" | tee -a "$mt/scores.txt"
+fi
+
+if want rim; then
+  # RESULTS 4.54: the parts the surround fills grown into their rims first (--surround-fill-rim,
+  # 3 by default since). The validation sets (router_vals, windshield drops at 1280x720 over the
+  # 100 CamVid val frames, the Cityscapes 1280x720 frames, glass-plate) for reaches 0, 2, 3 and 5;
+  # the 44 photographs with 0 and 3; the times of two photographs, alternated; the test sets once.
+  router_sets
+  rm_="$out/rim"
+  mkdir -p "$rm_"
+  windshield_1280_sets
+  [[ -f data/val-glass-plate/manifest.jsonl ]] || build/raindrop-render -i "$out/cv100" -o data/val-glass-plate \
+    --scene glass-plate --size 512x256 --seed 11 -q
+  for r in 0 2 3 5; do
+    score_sets "$rm_" "rim$r" "-j 2 --surround-fill-rim $r" "${router_vals[@]}" val-ws-1280x720:-:0 \
+      val-wsday-1280x720:-:0 val-size-1280x720:-:0 val-glass-plate:-:0
+  done | tee "$rm_/scores.txt"
+  router_photos "$rm_" rim0 --surround-fill-rim 0
+  router_photos "$rm_" rim3 --surround-fill-rim 3
+  photos_changed "$rm_/photos-rim3/removed" "$rm_/photos-rim0/removed" | tee "$rm_/photos-changed-rim3.txt"
+  alternate_times 10 default windshield_2.jpg clarity_00309.png -- "--surround-fill-rim 0" "--surround-fill-rim 3" \
+    >"$rm_/times.txt"
+  median_times "$rm_/times.txt" | tee "$rm_/times-summary.txt"
+  for l in rim0:"--surround-fill-rim 0" rim3:""; do
+    score_sets "$rm_" "test-${l%%:*}" "-j 2 ${l#*:}" "${router_tests[@]}" test-ws-1280x720:-:0 test-wsday-1280x720:-:0
+  done | tee "$rm_/test.txt"
 fi

@@ -621,6 +621,9 @@ RemoveResult Remover::run_native(const cv::Mat& image, const RemoveOptions& opt,
   const int fill_area = detection.scale > 0
                             ? surround_fill_area_at_scale(fill_area_given, detection.image_size, detection.scale)
                             : fill_area_given;
+  const int fill_rim = detection.scale > 0
+                           ? surround_fill_rim_at_scale(opt.surround_fill_rim, detection.image_size, detection.scale)
+                           : opt.surround_fill_rim;
   auto clock = Clock::now();
   // The deciding detector's growth (checked by run()), or the option's.
   const double growth = grow_large_drops ? opt.large_drop_growth.value_or(detector->info().large_drop_growth) : 0.0;
@@ -672,7 +675,8 @@ RemoveResult Remover::run_native(const cv::Mat& image, const RemoveOptions& opt,
       // (as in numpy: 1 * a + 0 * b == a for finite values).
       std::vector<float>& blend = ihat;
       res.surround_filled += fill_small_drops_from_surround(in.r.data(), mask(cv::Rect(x0, y0, in.w, in.h)),
-                                                            fill_area, opt.surround_fill_mad, ihat);
+                                                            fill_area, opt.surround_fill_mad, ihat, nullptr,
+                                                            fill_rim);
       for (int y = 0; y < in.h; ++y) {
         const unsigned char* mrow = mask.ptr<unsigned char>(y0 + y) + x0;
         for (int c = 0; c < 3; ++c) {

@@ -71,6 +71,7 @@ struct ChosenParts {
   cv::Mat labels;
   std::vector<int> ids;
   std::vector<cv::Rect> boxes;
+  std::vector<float> medians;  // each part's surround median luma (8-bit levels)
 };
 
 ChosenParts choose_parts(const cv::Mat& mask, const float* rgb, int max_area, double max_mad) {
@@ -106,9 +107,64 @@ ChosenParts choose_parts(const cv::Mat& mask, const float* rgb, int max_area, do
     if (*mid <= max_mad) {
       out.ids.push_back(k);
       out.boxes.push_back(box);
+      out.medians.push_back(median);
     }
   }
   return out;
+}
+
+// Grows each chosen part into its rim (surround_fill.h, grow_into_rims): step by step, the
+// 8-neighbours outside `mask` whose luma lies more than kRimLevels from the part's surround
+// median, at most `rim` steps; kept only where that structure ends there (the next step would
+// add at most kRimContinuation times what the last one took: a ring thins out to nothing, a
+// pole or an edge adds as much at every step). The pixels taken join the part's label
+// and `mask`. Parts are grown in turn, so a pixel between two goes to the first.
+void grow_into_rims(ChosenParts& chosen, const float* rgb, cv::Mat& mask, int rim) {
+  if (rim <= 0 || chosen.ids.empty()) return;
+  const int h = mask.rows, w = mask.cols;
+  const size_t plane = static_cast<size_t>(h) * w;
+  const cv::Mat kernel = cv::getStructuringElement(cv::MORPH_RECT, cv::Size(3, 3));
+  for (size_t i = 0; i < chosen.ids.size(); ++i) {
+    const cv::Rect box = chosen.boxes[i];
+    const int reach = rim + 2;
+    const cv::Rect win = cv::Rect(box.x - reach, box.y - reach, box.width + 2 * reach, box.height + 2 * reach) &
+                         cv::Rect(0, 0, w, h);
+    // Pixels of the window that may be taken: outside the mask, and off the part's surround
+    // median by more than kRimLevels.
+    cv::Mat off(win.size(), CV_8U, cv::Scalar(0));
+    for (int y = 0; y < win.height; ++y) {
+      const unsigned char* m = mask.ptr<unsigned char>(win.y + y) + win.x;
+      unsigned char* o = off.ptr<unsigned char>(y);
+      for (int x = 0; x < win.width; ++x) {
+        if (m[x]) continue;
+        const size_t p = static_cast<size_t>(win.y + y) * w + win.x + x;
+        o[x] = std::abs(255.0f * luma(rgb[p], rgb[plane + p], rgb[2 * plane + p]) - chosen.medians[i]) > kRimLevels;
+      }
+    }
+    cv::Mat grown = chosen.labels(win) == chosen.ids[i];  // 0/255
+    cv::Mat taken(win.size(), CV_8U, cv::Scalar(0)), ring;
+    int last = 0, next = 0;  // the pixels the last step took, and those the next one would
+    for (int step = 0; step <= rim; ++step) {
+      cv::dilate(grown, ring, kernel);
+      ring &= off;
+      ring.setTo(0, taken);
+      const int n = cv::countNonZero(ring);
+      if (step == rim || n == 0) {
+        next = n;
+        break;
+      }
+      taken |= ring;
+      grown |= ring;
+      last = n;
+    }
+    if (last == 0 || next > kRimContinuation * last) continue;  // no rim, or scenery that goes on
+    chosen.labels(win).setTo(chosen.ids[i], taken);
+    mask(win).setTo(1, taken);
+    cv::Rect taken_box = cv::boundingRect(taken);
+    taken_box.x += win.x;
+    taken_box.y += win.y;
+    chosen.boxes[i] = box | taken_box;
+  }
 }
 
 // The chosen parts as one CV_8U 0/255 mask.
@@ -198,11 +254,15 @@ cv::Mat surround_fill_mask(const cv::Mat& mask, const float* rgb, int max_area, 
 }
 
 int fill_small_drops_from_surround(const float* rgb, const cv::Mat& mask, int max_area, double max_mad,
-                                   std::vector<float>& ihat, cv::Mat* filled_parts) {
+                                   std::vector<float>& ihat, cv::Mat* filled_parts, int rim) {
   const int h = mask.rows, w = mask.cols;
   const size_t plane = static_cast<size_t>(h) * w;
   CV_Assert(ihat.size() == 3 * plane);
-  const ChosenParts chosen = choose_parts(mask, rgb, max_area, max_mad);
+  ChosenParts chosen = choose_parts(mask, rgb, max_area, max_mad);
+  if (rim > 0) {
+    cv::Mat writable = mask;  // the same pixels: the caller's mask grows with the parts
+    grow_into_rims(chosen, rgb, writable, rim);
+  }
   if (filled_parts) *filled_parts = chosen_mask(chosen, mask.size());
   if (chosen.ids.empty()) return 0;
   // Each part is filled from a window around it (its box grown by kSurroundWindow times its
@@ -259,6 +319,13 @@ int surround_fill_area_at_scale(int area, cv::Size image_size, double scale) {
   const double limit = std::floor(area * r * r + 0.5 + 1e-9);
   return limit >= static_cast<double>(std::numeric_limits<int>::max()) ? std::numeric_limits<int>::max()
                                                                         : static_cast<int>(limit);
+}
+
+int surround_fill_rim_at_scale(int rim, cv::Size image_size, double scale) {
+  const double reference = auto_working_scale(image_size, kDefaultWorkingSize);
+  if (rim <= 0 || scale == reference) return rim;
+  // At least one step: a rim given stays on at any scale.
+  return std::max(1, static_cast<int>(std::lround(rim * scale / reference)));
 }
 
 }  // namespace raindrop::removal

@@ -96,11 +96,16 @@ void check_parity(const TempDir& tmp, const fs::path& models, const std::vector<
   // The reference is the contract's single pass; the coarse pass for large drops is ours alone
   // (large_drops.h) and is tested on its own (test_large_drops.cpp), as is the detector router
   // (test_detector_router.cpp). The fill of small drops from their surround is off in the
-  // reference unless asked for (Parity.SurroundFill asks).
+  // reference unless asked for (Parity.SurroundFill asks), and so is its growth into rims.
   std::vector<std::string> args = {in.string(), cpp.string(), "--models", models.string(), "--mask",
                                    cpp_mask.string(), "-q", "--threads", "2", "--no-large-drops", "--no-router"};
   if (std::find(extra.begin(), extra.end(), "--surround-fill-area") == extra.end()) {
     args.push_back("--surround-fill-area");
+    args.push_back("0");
+  }
+  // The rims' growth likewise (on by default here, off in the reference unless asked for).
+  if (std::find(extra.begin(), extra.end(), "--surround-fill-rim") == extra.end()) {
+    args.push_back("--surround-fill-rim");
     args.push_back("0");
   }
   args.insert(args.end(), extra.begin(), extra.end());
@@ -212,11 +217,22 @@ TEST(Parity, SurroundFill) {
     for (int x = 0; x < img.cols; ++x)
       img.at<cv::Vec3b>(y, x) = cv::Vec3b(static_cast<unsigned char>(100 + x / 2), static_cast<unsigned char>(140 + y / 4), 170);
   for (int k = 0; k < 6; ++k) cv::circle(img, {15 + 20 * k, 20 + 10 * k}, 2, cv::Scalar(20, 20, 20), cv::FILLED);
+  // Three of them with a ring that the fill's rim growth (--surround-fill-rim) takes in.
+  for (int k = 0; k < 3; ++k) cv::circle(img, {25 + 40 * k, 70}, 5, cv::Scalar(60, 60, 60), cv::FILLED);
+  for (int k = 0; k < 3; ++k) cv::circle(img, {25 + 40 * k, 70}, 2, cv::Scalar(20, 20, 20), cv::FILLED);
   const std::vector<Case> cases = {{"dots.png", img}};
   for (const char* mad : {"4", "255"}) {
     SCOPED_TRACE(std::string("--surround-fill-mad ") + mad);
     check_parity(tmp, smoke_models(), cases,
                  {"--threshold", "0.25", "--surround-fill-area", "150", "--surround-fill-mad", mad});
+    // The rim growth alike on both sides, and not a no-op here: the output moves against rim 0.
+    TempDir rim_tmp;
+    check_parity(rim_tmp, smoke_models(), cases,
+                 {"--threshold", "0.25", "--surround-fill-area", "150", "--surround-fill-mad", mad,
+                  "--surround-fill-rim", "3"});
+    const auto rim0 = read_image(tmp / "cpp" / "dots.png"), rim3 = read_image(rim_tmp / "cpp" / "dots.png");
+    ASSERT_TRUE(rim0 && rim3);
+    EXPECT_GT(max_abs_diff(rim0->pixels, rim3->pixels), 1) << "the rims must change the output beyond the tolerance";
     const RunResult r = run_remove({(tmp / "in" / "dots.png").string(), (tmp / "off.png").string(), "--models",
                                     smoke_models().string(), "--threshold", "0.25", "--no-large-drops",
                                     "--surround-fill-area", "0"},

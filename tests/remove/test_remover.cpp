@@ -156,6 +156,7 @@ TEST(Remover, SmallPartsOverSmoothSurroundingsAreFilledBeforeTheRfn) {
   RemoveOptions o = with_float();
   o.threshold = sorted[sorted.size() * 98 / 100];
   o.surround_fill_mad = 255.0;  // the dots may sit in any part's surround: the wiring is what is checked
+  o.surround_fill_rim = 0;      // the parts as found (their growth into rims: below)
   const RemoveResult on = smoke().run(img, o);
   ASSERT_GT(on.surround_filled, 0) << "mask " << cv::countNonZero(on.mask) << " px";
   ASSERT_LT(cv::countNonZero(on.mask), h * w / 4);
@@ -179,6 +180,13 @@ TEST(Remover, SmallPartsOverSmoothSurroundingsAreFilledBeforeTheRfn) {
   EXPECT_EQ(without.surround_filled, 0);
   EXPECT_EQ(cv::countNonZero(without.mask != on.mask), 0);
   EXPECT_GT(max_float_diff(on.rgb, without.rgb), 1e-4f) << "the fill must make a difference";
+
+  // Grown into their rims, the filled parts only add to the mask (surround_fill.h).
+  RemoveOptions rims = o;
+  rims.surround_fill_rim = kSurroundFillRim;
+  const RemoveResult grown = smoke().run(img, rims);
+  EXPECT_EQ(cv::countNonZero(on.mask & ~grown.mask), 0);
+  EXPECT_EQ(grown.surround_filled, on.surround_filled);
 }
 
 // The fill's area limit is given with the long side at 512 (surround_fill.h): an image of long
@@ -192,6 +200,12 @@ TEST(Remover, TheFillLimitFollowsTheScale) {
   EXPECT_EQ(surround_fill_area_at_scale(150, {256, 256}, 1.0), 150);   // never enlarged: scale 1 is 512's
   EXPECT_EQ(surround_fill_area_at_scale(150, {256, 256}, 0.5), 38);
   EXPECT_EQ(surround_fill_area_at_scale(0, {1280, 720}, 1.0), 0);      // off stays off
+  // The rims' reach scales with the width of a drop, not its area.
+  EXPECT_EQ(surround_fill_rim_at_scale(3, {1280, 720}, 0.4), 3);  // the default scale: as given
+  EXPECT_EQ(surround_fill_rim_at_scale(3, {1280, 720}, 1.0), 8);  // 2.5 x 3 = 7.5 rounds up
+  EXPECT_EQ(surround_fill_rim_at_scale(3, {1280, 720}, 0.1), 1);  // 0.75: at least one step while on
+  EXPECT_EQ(surround_fill_rim_at_scale(3, {256, 256}, 1.0), 3);   // never enlarged: scale 1 is 512's
+  EXPECT_EQ(surround_fill_rim_at_scale(0, {1280, 720}, 1.0), 0);  // off stays off
 
   const int h = 64, w = 768;
   cv::Mat img(h, w, CV_8UC3);
@@ -212,6 +226,7 @@ TEST(Remover, TheFillLimitFollowsTheScale) {
   o.threshold = sorted[sorted.size() * 97 / 100];
   o.surround_fill_mad = 255.0;  // every surround counts as smooth: the limit is what is checked
   o.surround_fill_area = 0;
+  o.surround_fill_rim = 0;  // parts as found, so the masks with and without the fill are one
   const RemoveResult off = smoke().run(img, o);
   cv::Mat labels, stats, centroids;
   const int n = cv::connectedComponentsWithStats(off.mask, labels, stats, centroids, 8) - 1;

@@ -4,6 +4,7 @@
 #include <algorithm>
 #include <cmath>
 #include <random>
+#include <string>
 #include <vector>
 
 #include <opencv2/imgproc.hpp>
@@ -306,6 +307,67 @@ TEST(SurroundFill, ManyThinPartsAreFilledFromOneWholeImageFill) {
     }
   }
   EXPECT_GT(largest, 0.0f);
+}
+
+// A drop's rim just past its mask: a dark ring 2 px wide around a disk the detector found
+// (grey 0.6 around), and, beside another found disk, a dark pole that goes on past any rim.
+struct RimScene {
+  int h = 60, w = 120;
+  std::vector<float> rgb = flat_planes(h, w, 0.6f, 0.6f, 0.6f);
+  cv::Mat mask = cv::Mat(h, w, CV_8U, cv::Scalar(0));
+  cv::Mat ring = cv::Mat(h, w, CV_8U, cv::Scalar(0)), pole = cv::Mat(h, w, CV_8U, cv::Scalar(0));
+  RimScene() {
+    cv::circle(mask, {30, 30}, 6, cv::Scalar(255), cv::FILLED);
+    cv::circle(ring, {30, 30}, 8, cv::Scalar(255), cv::FILLED);
+    ring.setTo(0, mask);  // the 2 px outside the disk
+    cv::circle(mask, {90, 30}, 5, cv::Scalar(255), cv::FILLED);
+    pole.colRange(96, 98).setTo(255);  // touches the second disk's 1-px surround, runs the frame's height
+    pole.setTo(0, mask);
+    const size_t plane = static_cast<size_t>(h) * w;
+    for (int y = 0; y < h; ++y)
+      for (int x = 0; x < w; ++x)
+        if (ring.at<unsigned char>(y, x) || pole.at<unsigned char>(y, x))
+          for (int c = 0; c < 3; ++c) rgb[c * plane + static_cast<size_t>(y) * w + x] = 0.1f;
+  }
+};
+
+TEST(SurroundFill, ARimThatEndsJoinsItsPartAndAPoleThatGoesOnDoesNot) {
+  for (const int rim : {0, 1, 2, 3, 4}) {
+    SCOPED_TRACE("rim " + std::to_string(rim));
+    RimScene s;
+    const cv::Mat mask_before = s.mask.clone();
+    const size_t plane = static_cast<size_t>(s.h) * s.w;
+    std::vector<float> ihat(3 * plane, 0.25f);
+    cv::Mat filled;
+    ASSERT_EQ(fill_small_drops_from_surround(s.rgb.data(), s.mask, kSurroundFillArea, kSurroundFillMad, ihat, &filled, rim),
+              2);
+    // The ring is 2 px wide: taken whole from 2 steps on; 1 step would leave half of it, so the
+    // growth is refused (the next step would add as much again).
+    cv::Mat expected = mask_before.clone();
+    if (rim >= 2) expected.setTo(255, s.ring);
+    EXPECT_EQ(cv::countNonZero((s.mask != 0) != (expected != 0)), 0) << "the mask grows by the ring exactly";
+    EXPECT_EQ(cv::countNonZero((filled != 0) != (expected != 0)), 0) << "the filled parts are the grown ones";
+    EXPECT_EQ(cv::countNonZero((s.mask != 0) & s.pole), 0) << "the pole is scenery";
+    // Grown, the drop and its rim are filled with the grey around them; not grown, the drop's
+    // fill takes in the dark ring around it (what the growth is for), and the ring stays.
+    double darkest = 1.0;
+    for (int y = 0; y < s.h; ++y)
+      for (int x = 0; x < s.w; ++x)
+        for (int c = 0; c < 3; ++c) {
+          const float v = ihat[c * plane + static_cast<size_t>(y) * s.w + x];
+          if (expected.at<unsigned char>(y, x) && x < 60) {
+            if (rim >= 2) {
+              ASSERT_NEAR(v, 0.6f, 1e-5f);
+            }
+            darkest = std::min(darkest, static_cast<double>(v));
+          } else if (!expected.at<unsigned char>(y, x)) {
+            ASSERT_EQ(v, 0.25f) << "outside the parts, the 3RN's output untouched";
+          }
+        }
+    if (rim < 2) {
+      EXPECT_LT(darkest, 0.5) << "the ring's dark bleeds into the drop's fill";
+    }
+  }
 }
 
 }  // namespace

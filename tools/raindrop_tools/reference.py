@@ -23,7 +23,8 @@ Exactly, in float32:
 With ``--surround-fill-area N`` (N > 0; default 0, the steps above exactly), step 5's ``Ihat`` is
 then replaced in the small parts of ``M`` over smooth surroundings by their push-pull fill, as
 ``raindrop-remove`` does by default (CONTRACTS.md, "Small drops filled from their surround";
-``surround_fill.py``); the padded image is one window.
+``surround_fill.py``); the padded image is one window. ``--surround-fill-rim N`` first grows
+those parts, and ``M`` with them, into their rims by up to N pixels (``grow_into_rims``).
 
 Threshold and dilation default to the ``raindrop.threshold`` / ``raindrop.dilation``
 metadata of the graphs. ``--mask`` writes the final mask M (after dilation) as a 0/255 PNG.
@@ -200,6 +201,7 @@ class RaindropRemover:
         keep_intermediates: bool = False,
         surround_fill_area: int = 0,
         surround_fill_mad: float = 4.0,
+        surround_fill_rim: int = 0,
     ) -> Removal:
         """The full pipeline (steps 1-7) on an HxWx3 uint8 RGB image."""
         thr = self.threshold if threshold is None else float(threshold)
@@ -218,7 +220,7 @@ class RaindropRemover:
         ihat = self.reconstruct(R, E)
         tm["rrn"] = time.perf_counter() - t
         t = time.perf_counter()
-        fill_small_drops_from_surround(R[0], M, surround_fill_area, surround_fill_mad, ihat[0])
+        fill_small_drops_from_surround(R[0], M, surround_fill_area, surround_fill_mad, ihat[0], surround_fill_rim)
         B = self.blend(M, ihat, R)
         tm["blend"] = time.perf_counter() - t
         t = time.perf_counter()
@@ -261,6 +263,8 @@ def main(argv: list[str] | None = None) -> int:
                     help="fill parts of the mask of at most N px over smooth surroundings from them (0: off)")
     ap.add_argument("--surround-fill-mad", type=float, default=4.0,
                     help="smoothness limit of --surround-fill-area, in 8-bit levels")
+    ap.add_argument("--surround-fill-rim", type=int, default=0,
+                    help="grow each part --surround-fill-area fills into its rim by up to N px (0: off)")
     ap.add_argument("-v", "--verbose", action="store_true", help="print timings and mask coverage")
     args = ap.parse_args(argv)
     try:
@@ -268,10 +272,10 @@ def main(argv: list[str] | None = None) -> int:
             check_writable(dest)
         remover = RaindropRemover(args.models, threads=args.threads)
         img = read_rgb(args.input)
-        if args.surround_fill_area < 0 or not args.surround_fill_mad >= 0:
-            raise ValueError("--surround-fill-area must be >= 0 and --surround-fill-mad a number >= 0")
+        if args.surround_fill_area < 0 or not args.surround_fill_mad >= 0 or args.surround_fill_rim < 0:
+            raise ValueError("--surround-fill-area and --surround-fill-rim must be >= 0 and --surround-fill-mad a number >= 0")
         res = remover.remove(img, args.threshold, args.dilation, surround_fill_area=args.surround_fill_area,
-                             surround_fill_mad=args.surround_fill_mad)
+                             surround_fill_mad=args.surround_fill_mad, surround_fill_rim=args.surround_fill_rim)
         write_rgb(args.output, res.output)
         if args.mask:
             write_grey(args.mask, res.mask * np.uint8(255))

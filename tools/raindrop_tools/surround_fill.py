@@ -5,6 +5,11 @@ pixels whose surround (unmasked pixels in its bounding box grown by 4) has an up
 absolute deviation of its luma of at most ``max_mad`` levels takes a push-pull interpolation of
 the image from outside the mask, over its bounding box grown by max(8, 2 x its larger side), or
 over the whole image when those rectangles add up to more than 4 times its pixels.
+
+With ``rim`` > 0 each chosen part first grows into its rim (``grow_into_rims``): up to ``rim``
+steps of 3x3 dilation into the pixels outside the mask whose luma is more than 12 levels from the
+part's surround median, kept only when the next step would take at most 0.25 times what the last
+one took (a ring ends; a pole or an edge goes on). The mask grows with the parts.
 """
 
 from __future__ import annotations
@@ -15,6 +20,8 @@ import numpy as np
 SURROUND_RING = 4
 SURROUND_WINDOW = 2
 SURROUND_WINDOW_BUDGET = 4.0
+RIM_LEVELS = np.float32(12.0)
+RIM_CONTINUATION = 0.25
 
 
 def _push(n: np.ndarray, w: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -90,12 +97,66 @@ def choose_parts(mask: np.ndarray, rgb: np.ndarray, max_area: int, max_mad: floa
     return labels, chosen
 
 
+def _luma(rgb: np.ndarray) -> np.ndarray:
+    return ((np.float32(0.299) * rgb[0] + np.float32(0.587) * rgb[1]) + np.float32(0.114) * rgb[2]) * np.float32(255.0)
+
+
+def _surround_median(luma: np.ndarray, m: np.ndarray, x: int, y: int, bw: int, bh: int) -> np.float32:
+    """The upper median of the luma outside the mask ``m`` in a part's box grown by SURROUND_RING."""
+    h, w = m.shape
+    x0, y0 = max(0, x - SURROUND_RING), max(0, y - SURROUND_RING)
+    x1, y1 = min(w, x + bw + SURROUND_RING), min(h, y + bh + SURROUND_RING)
+    ring = luma[y0:y1, x0:x1][m[y0:y1, x0:x1] == 0]
+    return np.partition(ring, ring.size // 2)[ring.size // 2]
+
+
+def grow_into_rims(labels: np.ndarray, chosen: list, rgb: np.ndarray, mask: np.ndarray, rim: int) -> list:
+    """Each chosen part grown into its rim, in turn: ``labels`` and ``mask`` written in place (the
+    mask's new pixels set to 1); returns the parts with their grown bounding boxes."""
+    if rim <= 0 or not chosen:
+        return chosen
+    h, w = mask.shape
+    luma = _luma(rgb)
+    medians = [_surround_median(luma, mask, x, y, bw, bh) for _, x, y, bw, bh in chosen]  # before any growth
+    kernel = np.ones((3, 3), np.uint8)
+    out = []
+    for (k, x, y, bw, bh), median in zip(chosen, medians):
+        reach = rim + 2
+        x0, y0 = max(0, x - reach), max(0, y - reach)
+        x1, y1 = min(w, x + bw + reach), min(h, y + bh + reach)
+        off = (mask[y0:y1, x0:x1] == 0) & (np.abs(luma[y0:y1, x0:x1] - median) > RIM_LEVELS)
+        grown = (labels[y0:y1, x0:x1] == k).astype(np.uint8)
+        taken = np.zeros_like(grown, dtype=bool)
+        last, nxt = 0, 0
+        for step in range(rim + 1):
+            ring = (cv2.dilate(grown, kernel) != 0) & off & ~taken
+            n = int(ring.sum())
+            if step == rim or n == 0:
+                nxt = n
+                break
+            taken |= ring
+            grown[ring] = 1
+            last = n
+        if last == 0 or nxt > RIM_CONTINUATION * last:
+            out.append((k, x, y, bw, bh))
+            continue
+        labels[y0:y1, x0:x1][taken] = k
+        mask[y0:y1, x0:x1][taken] = 1
+        ys, xs = np.nonzero(taken)
+        gx0, gy0 = min(x, x0 + int(xs.min())), min(y, y0 + int(ys.min()))
+        gx1, gy1 = max(x + bw, x0 + int(xs.max()) + 1), max(y + bh, y0 + int(ys.max()) + 1)
+        out.append((k, gx0, gy0, gx1 - gx0, gy1 - gy0))
+    return out
+
+
 def fill_small_drops_from_surround(rgb: np.ndarray, mask: np.ndarray, max_area: int, max_mad: float,
-                                   ihat: np.ndarray) -> int:
-    """Replaces ``ihat`` (3xhxw, in place) by the fill in the chosen parts; returns their number."""
+                                   ihat: np.ndarray, rim: int = 0) -> int:
+    """Replaces ``ihat`` (3xhxw, in place) by the fill in the chosen parts; returns their number.
+    With ``rim``, the parts first grow into their rims and ``mask`` (written in place) with them."""
     labels, chosen = choose_parts(mask, rgb, max_area, max_mad)
     if not chosen:
         return 0
+    chosen = grow_into_rims(labels, chosen, rgb, mask, rim)
     h, w = mask.shape
     windows = []
     for _, x, y, bw, bh in chosen:

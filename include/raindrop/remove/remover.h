@@ -73,6 +73,11 @@ struct RemoveOptions {
   // may choose per image; docs/RESULTS.md 4.44).
   std::optional<int> surround_fill_area;
   double surround_fill_mad = kSurroundFillMad;
+  // Each part the surround fills first grows into its rim by up to this many pixels (given at
+  // the scale that brings the long side to 512, scaled like surround_fill_area:
+  // surround_fill_rim_at_scale): the dark rims and bright halos just past a real drop's mask
+  // (surround_fill.h); 0: the parts as the detector found them.
+  int surround_fill_rim = kSurroundFillRim;
   // Where the models have a detector router (detector_router.h) and the networks see the image
   // at the automatic working scale (no `scale`, or the one auto_working_scale gives: the scale
   // the router was fitted at), it chooses which detector decides the mask, for both passes.

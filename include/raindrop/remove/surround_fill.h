@@ -75,7 +75,24 @@ cv::Mat surround_fill_mask(const cv::Mat& mask, const float* rgb, int max_area, 
 // (kSurroundWindow; the whole image past kSurroundWindowBudget); the rest of `ihat` is left bit
 // for bit. Returns the number of parts filled. `filled_parts`, when given, receives them as
 // surround_fill_mask gives them (CV_8U 0/255).
+//
+// With `rim` > 0, each chosen part first grows into its rim (grow_into_rims in surround_fill.cpp):
+// a real drop's dark rim or bright halo often lies just past the detector's mask, and the fill
+// of the part alone leaves it as a ring. Up to `rim` steps outward, the pixels outside the mask
+// whose luma is more than kRimLevels from the part's surround median join the part, unless that
+// structure goes on past them (the next step would add more than kRimContinuation times what the
+// last step took: a ring thins out to nothing past its width, while a pole, a kerb or an edge of
+// the scenery adds about as much at every step). `mask` (0/1 or 0/255) is written there:
+// its pixels grow with the parts (set to 1), so the blend and the final mask include them.
+// The default reach (RemoveOptions::surround_fill_rim), at the reference scale of
+// surround_fill_area_at_scale; surround_fill_rim_at_scale gives it at another (rounded, at least 1
+// where it is on): a rim is as many pixels wide as the scale makes it. Chosen on validation sets
+// and the photographs (docs/RESULTS.md 4.54).
+inline constexpr int kSurroundFillRim = 3;
+int surround_fill_rim_at_scale(int rim, cv::Size image_size, double scale);
+inline constexpr float kRimLevels = 12.0f;
+inline constexpr double kRimContinuation = 0.25;
 int fill_small_drops_from_surround(const float* rgb, const cv::Mat& mask, int max_area, double max_mad,
-                                   std::vector<float>& ihat, cv::Mat* filled_parts = nullptr);
+                                   std::vector<float>& ihat, cv::Mat* filled_parts = nullptr, int rim = 0);
 
 }  // namespace raindrop::removal
