@@ -2868,6 +2868,7 @@ if want rim; then
   # 3 by default since). The validation sets (router_vals, windshield drops at 1280x720 over the
   # 100 CamVid val frames, the Cityscapes 1280x720 frames, glass-plate) for reaches 0, 2, 3 and 5;
   # the 44 photographs with 0 and 3; the times of two photographs, alternated; the test sets once.
+  # (Run with today's build these are the mended figures of 4.54's last paragraphs.)
   router_sets
   rm_="$out/rim"
   mkdir -p "$rm_"

@@ -367,7 +367,7 @@ int run(int argc, char** argv) {
                  "rims and bright halos real drops show past the detector's mask, not a pole or an edge); 0: off "
                  "(docs/RESULTS.md 4.54)")
       ->capture_default_str()
-      ->check(CLI::Range(0, 16));
+      ->check(CLI::Range(0, kMaxSurroundFillRim));
   app.add_flag("--mirror-average", mirror_average,
                "Also at the working scale, run the 3RN and RFN on the image and on its mirror image and average the two "
                "(the coarse pass for large drops always does): about twice the time of the networks' pass, for "

@@ -32,7 +32,8 @@ cv::Mat fill_fine_drops(const cv::Mat& rgb, const cv::Mat& mask, int max_area, d
   CV_Assert(planes[0].ptr<float>() == planar.data());  // written in place, not reallocated
   std::vector<float> filled = planar;
   cv::Mat chosen;
-  *parts = fill_small_drops_from_surround(planar.data(), mask, max_area, max_mad, filled, &chosen);
+  cv::Mat parts_mask = mask;  // a header: with rim 0 (no growth into rims here) nothing is written
+  *parts = fill_small_drops_from_surround(planar.data(), parts_mask, max_area, max_mad, filled, &chosen, 0);
   chosen.convertTo(*weight, CV_32F, 1.0 / 255.0);
   if (*parts == 0) return rgb.clone();
   cv::Mat out;

@@ -242,6 +242,9 @@ RemoveResult Remover::run(const cv::Mat& image, const RemoveOptions& opt) {
   if (opt.surround_fill_area && *opt.surround_fill_area < 0)
     throw Error("--surround-fill-area must be a whole number >= 0 (0: off)");
   if (!(opt.surround_fill_mad >= 0)) throw Error("--surround-fill-mad must be a number >= 0");
+  if (opt.surround_fill_rim < 0 || opt.surround_fill_rim > kMaxSurroundFillRim)
+    throw Error("--surround-fill-rim must be between 0 and " + std::to_string(kMaxSurroundFillRim) + ", got " +
+                std::to_string(opt.surround_fill_rim));
   const double auto_scale = auto_working_scale(image.size(), info().working_size);
   const double scale = opt.scale.value_or(auto_scale);
   const cv::Size small = scaled_size(image.size(), scale);
@@ -627,7 +630,7 @@ RemoveResult Remover::run_native(const cv::Mat& image, const RemoveOptions& opt,
   auto clock = Clock::now();
   // The deciding detector's growth (checked by run()), or the option's.
   const double growth = grow_large_drops ? opt.large_drop_growth.value_or(detector->info().large_drop_growth) : 0.0;
-  const cv::Mat mask = dilate_mask_by_size(mask0, k, growth);
+  cv::Mat mask = dilate_mask_by_size(mask0, k, growth);
   mask0.release();
   const bool reconstruct_now = !gate || gate(mask(cv::Rect(0, 0, W, H)));
   t.mask += lap_ms(clock);
@@ -644,6 +647,8 @@ RemoveResult Remover::run_native(const cv::Mat& image, const RemoveOptions& opt,
   if (opt.keep_float) res.rgb.create(H, W, CV_32FC3);
   cv::Mat strip;  // rows [strip_y0, strip_y0 + strip.rows) of the padded canvas
   int strip_y0 = 0;
+  // Tiled, the mask as the detector found it, which each tile's fill starts from (below).
+  const cv::Mat found_mask = single ? cv::Mat() : mask.clone();
   for (int iy = 0; iy < ly.count(); ++iy) {
     const int y0 = ly.begin[iy], y1 = ly.end[iy];
     {
@@ -674,11 +679,20 @@ RemoveResult Remover::run_native(const cv::Mat& image, const RemoveOptions& opt,
       // B = M * Ihat + (1 - M) * R with M in {0, 1} is exactly a choice between the two
       // (as in numpy: 1 * a + 0 * b == a for finite values).
       std::vector<float>& blend = ihat;
-      res.surround_filled += fill_small_drops_from_surround(in.r.data(), mask(cv::Rect(x0, y0, in.w, in.h)),
-                                                            fill_area, opt.surround_fill_mad, ihat, nullptr,
-                                                            fill_rim);
+      // The tile's own copy of the detector's mask in its window: the fill's parts grow into their
+      // rims there (surround_fill.h), each tile from the mask as found, so that no tile sees
+      // another's growth; the final mask takes the growth of the tile that owns each pixel.
+      const cv::Rect window(x0, y0, in.w, in.h);
+      cv::Mat tile_mask = single ? mask : found_mask(window).clone();
+      res.surround_filled += fill_small_drops_from_surround(in.r.data(), tile_mask, fill_area, opt.surround_fill_mad,
+                                                            ihat, nullptr, fill_rim);
+      if (!single) {
+        const cv::Rect owned(lx.owned_begin(ix), ly.owned_begin(iy), lx.owned_end(ix) - lx.owned_begin(ix),
+                             ly.owned_end(iy) - ly.owned_begin(iy));
+        tile_mask(owned - window.tl()).copyTo(mask(owned));
+      }
       for (int y = 0; y < in.h; ++y) {
-        const unsigned char* mrow = mask.ptr<unsigned char>(y0 + y) + x0;
+        const unsigned char* mrow = tile_mask.ptr<unsigned char>(y);
         for (int c = 0; c < 3; ++c) {
           float* b = blend.data() + c * plane + static_cast<size_t>(y) * in.w;
           const float* r = in.r.data() + c * plane + static_cast<size_t>(y) * in.w;

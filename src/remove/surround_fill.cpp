@@ -158,6 +158,20 @@ void grow_into_rims(ChosenParts& chosen, const float* rgb, cv::Mat& mask, int ri
       last = n;
     }
     if (last == 0 || next > kRimContinuation * last) continue;  // no rim, or scenery that goes on
+    // A band that reaches the edge of the mask given (the image's, or a tile's window) may go on
+    // past it: it cannot be told from a rim, so it is left alone.
+    bool at_edge = false;
+    for (int y = 0; y < win.height && !at_edge; ++y) {
+      const unsigned char* t = taken.ptr<unsigned char>(y);
+      const bool edge_row = win.y + y == 0 || win.y + y == h - 1;
+      for (int x = 0; x < win.width; ++x) {
+        if (t[x] && (edge_row || win.x + x == 0 || win.x + x == w - 1)) {
+          at_edge = true;
+          break;
+        }
+      }
+    }
+    if (at_edge) continue;
     chosen.labels(win).setTo(chosen.ids[i], taken);
     mask(win).setTo(1, taken);
     cv::Rect taken_box = cv::boundingRect(taken);
@@ -253,16 +267,13 @@ cv::Mat surround_fill_mask(const cv::Mat& mask, const float* rgb, int max_area, 
   return chosen_mask(chosen, mask.size());
 }
 
-int fill_small_drops_from_surround(const float* rgb, const cv::Mat& mask, int max_area, double max_mad,
+int fill_small_drops_from_surround(const float* rgb, cv::Mat& mask, int max_area, double max_mad,
                                    std::vector<float>& ihat, cv::Mat* filled_parts, int rim) {
   const int h = mask.rows, w = mask.cols;
   const size_t plane = static_cast<size_t>(h) * w;
   CV_Assert(ihat.size() == 3 * plane);
   ChosenParts chosen = choose_parts(mask, rgb, max_area, max_mad);
-  if (rim > 0) {
-    cv::Mat writable = mask;  // the same pixels: the caller's mask grows with the parts
-    grow_into_rims(chosen, rgb, writable, rim);
-  }
+  if (rim > 0) grow_into_rims(chosen, rgb, mask, rim);  // the caller's mask grows with the parts
   if (filled_parts) *filled_parts = chosen_mask(chosen, mask.size());
   if (chosen.ids.empty()) return 0;
   // Each part is filled from a window around it (its box grown by kSurroundWindow times its
@@ -324,8 +335,9 @@ int surround_fill_area_at_scale(int area, cv::Size image_size, double scale) {
 int surround_fill_rim_at_scale(int rim, cv::Size image_size, double scale) {
   const double reference = auto_working_scale(image_size, kDefaultWorkingSize);
   if (rim <= 0 || scale == reference) return rim;
-  // At least one step: a rim given stays on at any scale.
-  return std::max(1, static_cast<int>(std::lround(rim * scale / reference)));
+  // Halves round up, with surround_fill_area_at_scale's guard (3 x 0.6 / 0.4 is 4.4999999999999991);
+  // at least one step: a rim given stays on at any scale.
+  return std::max(1, static_cast<int>(std::floor(rim * scale / reference + 0.5 + 1e-9)));
 }
 
 }  // namespace raindrop::removal

@@ -165,7 +165,8 @@ TEST(Remover, SmallPartsOverSmoothSurroundingsAreFilledBeforeTheRfn) {
   models.rrn().run({r.data(), e.data()}, h, w, ihat.data());
   for (float& v : ihat) v = clamp01(v);
   // The smoke models carry no raindrop.surround_fill_area: the default area.
-  EXPECT_EQ(fill_small_drops_from_surround(r.data(), on.mask, kSurroundFillArea, o.surround_fill_mad, ihat),
+  cv::Mat found = on.mask.clone();
+  EXPECT_EQ(fill_small_drops_from_surround(r.data(), found, kSurroundFillArea, o.surround_fill_mad, ihat),
             on.surround_filled);
   const size_t plane = static_cast<size_t>(h) * w;
   for (int c = 0; c < 3; ++c)
@@ -203,6 +204,8 @@ TEST(Remover, TheFillLimitFollowsTheScale) {
   // The rims' reach scales with the width of a drop, not its area.
   EXPECT_EQ(surround_fill_rim_at_scale(3, {1280, 720}, 0.4), 3);  // the default scale: as given
   EXPECT_EQ(surround_fill_rim_at_scale(3, {1280, 720}, 1.0), 8);  // 2.5 x 3 = 7.5 rounds up
+  EXPECT_EQ(surround_fill_rim_at_scale(3, {1280, 720}, 0.6), 5);  // 4.5 (4.4999999999999991 in doubles) rounds up
+  EXPECT_EQ(surround_fill_rim_at_scale(1, {1280, 720}, 0.6), 2);  // 1.5 likewise
   EXPECT_EQ(surround_fill_rim_at_scale(3, {1280, 720}, 0.1), 1);  // 0.75: at least one step while on
   EXPECT_EQ(surround_fill_rim_at_scale(3, {256, 256}, 1.0), 3);   // never enlarged: scale 1 is 512's
   EXPECT_EQ(surround_fill_rim_at_scale(0, {1280, 720}, 1.0), 0);  // off stays off
@@ -336,6 +339,44 @@ TEST(Remover, TiledEqualsWholeWhenTheOverlapCoversTheReceptiveField) {
   EXPECT_EQ(cv::countNonZero(t.mask != ref.mask), 0);
   EXPECT_LE(max_float_diff(t.rgb, ref.rgb), 1e-4f);
   EXPECT_LE(max_abs_diff(t.image, ref.image), 1);
+}
+
+// The fill's parts grow into their rims (surround_fill.h) in every tile from the mask as the
+// detector found it, not from another tile's growth: dark dots with lighter rings on a smooth
+// gradient, where the rings join the parts, give the same mask tiled as whole, and outputs no
+// further apart than without the rims.
+TEST(Remover, RimsGrowTheSameTiledAsWhole) {
+  cv::Mat img(211, 300, CV_8UC3);
+  for (int y = 0; y < img.rows; ++y)
+    for (int x = 0; x < img.cols; ++x)
+      img.at<cv::Vec3b>(y, x) = cv::Vec3b(static_cast<unsigned char>(100 + x / 4), static_cast<unsigned char>(140 + y / 4), 170);
+  for (int i = 0; i < 5; ++i)
+    for (int j = 0; j < 3; ++j) {
+      const cv::Point c(30 + 60 * i, 35 + 70 * j);
+      cv::circle(img, c, 3, cv::Scalar(60, 60, 60), cv::FILLED);
+      cv::circle(img, c, 2, cv::Scalar(20, 20, 20), cv::FILLED);
+    }
+  RemoveOptions whole = with_float(0, 48);
+  whole.threshold = 0.25;
+  // Parts of 12-62 px as found and 38-87 grown: a limit between the two fills every one as found
+  // and refuses the larger ones grown, as a tile that saw another tile's growth would.
+  whole.surround_fill_area = 65;
+  whole.surround_fill_rim = 5;  // the fixture detector's parts sit a few pixels off its dots
+  RemoveOptions found = whole;
+  found.surround_fill_rim = 0;
+  const RemoveResult as_found = smoke().run(img, found);
+  const RemoveResult ref = smoke().run(img, whole);
+  ASSERT_GT(ref.surround_filled, 0);
+  EXPECT_EQ(cv::countNonZero(as_found.mask & ~ref.mask), 0) << "growth only adds";
+  ASSERT_GT(cv::countNonZero(ref.mask != as_found.mask), 0) << "the rings must join the parts here";
+  RemoveOptions tiled = whole, tiled_found = found;
+  tiled.tile = tiled_found.tile = 128;
+  const RemoveResult t = smoke().run(img, tiled), t_found = smoke().run(img, tiled_found);
+  EXPECT_GE(t.tiles_x * t.tiles_y, 4);
+  EXPECT_EQ(cv::countNonZero(t.mask != ref.mask), 0);
+  // The fill itself is decided per tile (a part a window's edge cuts is judged by its piece), so
+  // tiled and whole outputs differ with it on; the rims add nothing to that.
+  EXPECT_LE(max_float_diff(t.rgb, ref.rgb), max_float_diff(t_found.rgb, as_found.rgb) + 1e-4f);
 }
 
 // With two threads a single tile's RDN and 3RN run side by side on one thread each, and tiled

@@ -249,7 +249,7 @@ TEST(SurroundFill, AWindowOfALargerMaskIsFilledAsItsCopy) {
     cv::circle(canvas, {static_cast<int>(rng() % 160), static_cast<int>(rng() % 90)}, 2 + static_cast<int>(rng() % 6),
                cv::Scalar(255), cv::FILLED);
   const cv::Rect win(17, 9, 101, 67);
-  const cv::Mat roi = canvas(win), copy = roi.clone();
+  cv::Mat roi = canvas(win), copy = roi.clone();
   ASSERT_FALSE(roi.isContinuous());
   const size_t plane = static_cast<size_t>(win.area());
   std::vector<float> rgb(3 * plane), ihat(3 * plane);
@@ -368,6 +368,35 @@ TEST(SurroundFill, ARimThatEndsJoinsItsPartAndAPoleThatGoesOnDoesNot) {
       EXPECT_LT(darkest, 0.5) << "the ring's dark bleeds into the drop's fill";
     }
   }
+}
+
+// What counts as a rim: pixels more than kRimLevels off the surround median, darker or brighter
+// (a bright halo is taken as a dark rim is); a band that reaches the edge of the mask given (the
+// image's, or a tile's window) may go on past it and is left alone.
+TEST(SurroundFill, ARimIsMoreThanTwelveLevelsOffAndEndsInsideTheFrame) {
+  const int h = 40, w = 40;
+  const auto grown_by = [&](float ring_offset_levels, cv::Point centre) {
+    std::vector<float> rgb = flat_planes(h, w, 0.6f, 0.6f, 0.6f);  // luma 153
+    cv::Mat mask(h, w, CV_8U, cv::Scalar(0)), ring(h, w, CV_8U, cv::Scalar(0));
+    cv::circle(mask, centre, 5, cv::Scalar(255), cv::FILLED);
+    cv::circle(ring, centre, 7, cv::Scalar(255), cv::FILLED);
+    ring.setTo(0, mask);
+    const size_t plane = static_cast<size_t>(h) * w;
+    const float v = 0.6f + ring_offset_levels / 255.0f;
+    for (int y = 0; y < h; ++y)
+      for (int x = 0; x < w; ++x)
+        if (ring.at<unsigned char>(y, x))
+          for (int c = 0; c < 3; ++c) rgb[c * plane + static_cast<size_t>(y) * w + x] = v;
+    const int before = cv::countNonZero(mask);
+    std::vector<float> ihat(3 * plane, 0.0f);
+    EXPECT_EQ(fill_small_drops_from_surround(rgb.data(), mask, kSurroundFillArea, kSurroundFillMad, ihat, nullptr, 3), 1);
+    return cv::countNonZero(mask) - before;
+  };
+  const cv::Point middle(20, 20);
+  EXPECT_EQ(grown_by(11.0f, middle), 0) << "11 levels off: not a rim";
+  EXPECT_GT(grown_by(13.0f, middle), 0) << "13 levels brighter: a halo";
+  EXPECT_GT(grown_by(-13.0f, middle), 0) << "13 levels darker: a rim";
+  EXPECT_EQ(grown_by(-60.0f, {6, 20}), 0) << "a ring cut by the frame's edge";
 }
 
 }  // namespace

@@ -9,7 +9,8 @@ over the whole image when those rectangles add up to more than 4 times its pixel
 With ``rim`` > 0 each chosen part first grows into its rim (``grow_into_rims``): up to ``rim``
 steps of 3x3 dilation into the pixels outside the mask whose luma is more than 12 levels from the
 part's surround median, kept only when the next step would take at most 0.25 times what the last
-one took (a ring ends; a pole or an edge goes on). The mask grows with the parts.
+one took (a ring ends; a pole or an edge goes on) and none of it touches the mask's edge (where a
+band may go on unseen). The mask grows with the parts.
 """
 
 from __future__ import annotations
@@ -137,12 +138,14 @@ def grow_into_rims(labels: np.ndarray, chosen: list, rgb: np.ndarray, mask: np.n
             taken |= ring
             grown[ring] = 1
             last = n
-        if last == 0 or nxt > RIM_CONTINUATION * last:
+        ys, xs = np.nonzero(taken)
+        at_edge = bool(ys.size) and (y0 + ys.min() == 0 or y0 + ys.max() == h - 1 or x0 + xs.min() == 0
+                                     or x0 + xs.max() == w - 1)
+        if last == 0 or nxt > RIM_CONTINUATION * last or at_edge:  # no rim, scenery going on, or the edge
             out.append((k, x, y, bw, bh))
             continue
         labels[y0:y1, x0:x1][taken] = k
         mask[y0:y1, x0:x1][taken] = 1
-        ys, xs = np.nonzero(taken)
         gx0, gy0 = min(x, x0 + int(xs.min())), min(y, y0 + int(ys.min()))
         gx1, gy1 = max(x + bw, x0 + int(xs.max()) + 1), max(y + bh, y0 + int(ys.max()) + 1)
         out.append((k, gx0, gy0, gx1 - gx0, gy1 - gy0))

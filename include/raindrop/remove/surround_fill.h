@@ -83,16 +83,20 @@ cv::Mat surround_fill_mask(const cv::Mat& mask, const float* rgb, int max_area, 
 // structure goes on past them (the next step would add more than kRimContinuation times what the
 // last step took: a ring thins out to nothing past its width, while a pole, a kerb or an edge of
 // the scenery adds about as much at every step). `mask` (0/1 or 0/255) is written there:
-// its pixels grow with the parts (set to 1), so the blend and the final mask include them.
+// its pixels grow with the parts (set to 1), so the blend and the final mask include them. A
+// band that reaches the edge of `mask` (the image's, or a tile's window) may go on past it and is
+// left alone. `filled_parts` then holds the grown parts (surround_fill_mask gives them as found).
+// The working-scale pass grows them; the fine pass (fine_drops.h) does not (rim 0).
 // The default reach (RemoveOptions::surround_fill_rim), at the reference scale of
 // surround_fill_area_at_scale; surround_fill_rim_at_scale gives it at another (rounded, at least 1
 // where it is on): a rim is as many pixels wide as the scale makes it. Chosen on validation sets
 // and the photographs (docs/RESULTS.md 4.54).
 inline constexpr int kSurroundFillRim = 3;
+inline constexpr int kMaxSurroundFillRim = 16;  // RemoveOptions and --surround-fill-rim refuse more
 int surround_fill_rim_at_scale(int rim, cv::Size image_size, double scale);
 inline constexpr float kRimLevels = 12.0f;
 inline constexpr double kRimContinuation = 0.25;
-int fill_small_drops_from_surround(const float* rgb, const cv::Mat& mask, int max_area, double max_mad,
+int fill_small_drops_from_surround(const float* rgb, cv::Mat& mask, int max_area, double max_mad,
                                    std::vector<float>& ihat, cv::Mat* filled_parts = nullptr, int rim = 0);
 
 }  // namespace raindrop::removal
