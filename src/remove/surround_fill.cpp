@@ -158,25 +158,14 @@ void grow_into_rims(ChosenParts& chosen, const float* rgb, cv::Mat& mask, int ri
       last = n;
     }
     if (last == 0 || next > kRimContinuation * last) continue;  // no rim, or scenery that goes on
-    // A band that reaches the edge of the mask given (the image's, or a tile's window) may go on
-    // past it: it cannot be told from a rim, so it is left alone.
-    bool at_edge = false;
-    for (int y = 0; y < win.height && !at_edge; ++y) {
-      const unsigned char* t = taken.ptr<unsigned char>(y);
-      const bool edge_row = win.y + y == 0 || win.y + y == h - 1;
-      for (int x = 0; x < win.width; ++x) {
-        if (t[x] && (edge_row || win.x + x == 0 || win.x + x == w - 1)) {
-          at_edge = true;
-          break;
-        }
-      }
-    }
-    if (at_edge) continue;
-    chosen.labels(win).setTo(chosen.ids[i], taken);
-    mask(win).setTo(1, taken);
     cv::Rect taken_box = cv::boundingRect(taken);
     taken_box.x += win.x;
     taken_box.y += win.y;
+    // A band that reaches the edge of the mask given (the image's, or a tile's window) may go on
+    // past it: it cannot be told from a rim, so it is left alone.
+    if (taken_box.x == 0 || taken_box.y == 0 || taken_box.br().x == w || taken_box.br().y == h) continue;
+    chosen.labels(win).setTo(chosen.ids[i], taken);
+    mask(win).setTo(1, taken);
     chosen.boxes[i] = box | taken_box;
   }
 }

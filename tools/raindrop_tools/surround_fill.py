@@ -72,15 +72,19 @@ def push_pull_fill(rgb: np.ndarray, hole: np.ndarray) -> np.ndarray | None:
     return np.where(hole[None] != 0, v, rgb).astype(np.float32)
 
 
-def choose_parts(mask: np.ndarray, rgb: np.ndarray, max_area: int, max_mad: float):
-    """Labels (hxw int32) and the chosen parts as (label, x, y, width, height)."""
+def _luma(rgb: np.ndarray) -> np.ndarray:
+    return ((np.float32(0.299) * rgb[0] + np.float32(0.587) * rgb[1]) + np.float32(0.114) * rgb[2]) * np.float32(255.0)
+
+
+def _choose_parts(mask: np.ndarray, rgb: np.ndarray, max_area: int, max_mad: float):
+    """``choose_parts``, with each chosen part's surround median (the upper one) beside it."""
     if max_area <= 0:
-        return None, []
+        return None, [], []
     m = (mask != 0).astype(np.uint8)
     count, labels, stats, _ = cv2.connectedComponentsWithStats(m, connectivity=8, ltype=cv2.CV_32S)
     h, w = m.shape
-    luma = ((np.float32(0.299) * rgb[0] + np.float32(0.587) * rgb[1]) + np.float32(0.114) * rgb[2]) * np.float32(255.0)
-    chosen = []
+    luma = _luma(rgb)
+    chosen, medians = [], []
     for k in range(1, count):
         x, y, bw, bh, area = (int(v) for v in stats[k])
         if area > max_area:
@@ -95,30 +99,25 @@ def choose_parts(mask: np.ndarray, rgb: np.ndarray, max_area: int, max_mad: floa
         mad = np.partition(np.abs(ring - median), mid)[mid]
         if float(mad) <= max_mad:
             chosen.append((k, x, y, bw, bh))
+            medians.append(median)
+    return labels, chosen, medians
+
+
+def choose_parts(mask: np.ndarray, rgb: np.ndarray, max_area: int, max_mad: float):
+    """Labels (hxw int32) and the chosen parts as (label, x, y, width, height)."""
+    labels, chosen, _ = _choose_parts(mask, rgb, max_area, max_mad)
     return labels, chosen
 
 
-def _luma(rgb: np.ndarray) -> np.ndarray:
-    return ((np.float32(0.299) * rgb[0] + np.float32(0.587) * rgb[1]) + np.float32(0.114) * rgb[2]) * np.float32(255.0)
-
-
-def _surround_median(luma: np.ndarray, m: np.ndarray, x: int, y: int, bw: int, bh: int) -> np.float32:
-    """The upper median of the luma outside the mask ``m`` in a part's box grown by SURROUND_RING."""
-    h, w = m.shape
-    x0, y0 = max(0, x - SURROUND_RING), max(0, y - SURROUND_RING)
-    x1, y1 = min(w, x + bw + SURROUND_RING), min(h, y + bh + SURROUND_RING)
-    ring = luma[y0:y1, x0:x1][m[y0:y1, x0:x1] == 0]
-    return np.partition(ring, ring.size // 2)[ring.size // 2]
-
-
-def grow_into_rims(labels: np.ndarray, chosen: list, rgb: np.ndarray, mask: np.ndarray, rim: int) -> list:
-    """Each chosen part grown into its rim, in turn: ``labels`` and ``mask`` written in place (the
-    mask's new pixels set to 1); returns the parts with their grown bounding boxes."""
+def grow_into_rims(labels: np.ndarray, chosen: list, medians: list, rgb: np.ndarray, mask: np.ndarray,
+                   rim: int) -> list:
+    """Each chosen part grown into its rim, in turn, from its surround median as chosen (before any
+    growth): ``labels`` and ``mask`` written in place (the mask's new pixels set to 1); returns the
+    parts with their grown bounding boxes."""
     if rim <= 0 or not chosen:
         return chosen
     h, w = mask.shape
     luma = _luma(rgb)
-    medians = [_surround_median(luma, mask, x, y, bw, bh) for _, x, y, bw, bh in chosen]  # before any growth
     kernel = np.ones((3, 3), np.uint8)
     out = []
     for (k, x, y, bw, bh), median in zip(chosen, medians):
@@ -156,10 +155,10 @@ def fill_small_drops_from_surround(rgb: np.ndarray, mask: np.ndarray, max_area: 
                                    ihat: np.ndarray, rim: int = 0) -> int:
     """Replaces ``ihat`` (3xhxw, in place) by the fill in the chosen parts; returns their number.
     With ``rim``, the parts first grow into their rims and ``mask`` (written in place) with them."""
-    labels, chosen = choose_parts(mask, rgb, max_area, max_mad)
+    labels, chosen, medians = _choose_parts(mask, rgb, max_area, max_mad)
     if not chosen:
         return 0
-    chosen = grow_into_rims(labels, chosen, rgb, mask, rim)
+    chosen = grow_into_rims(labels, chosen, medians, rgb, mask, rim)
     h, w = mask.shape
     windows = []
     for _, x, y, bw, bh in chosen:
