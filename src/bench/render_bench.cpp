@@ -790,22 +790,55 @@ void camera_table(const Input& input, int frames, int repeats, int threads, cons
     SceneConfig config;
     std::vector<SceneSample> scenes;
     std::vector<double> ms;
+    int same_drops = -1;  // the row of the same drops through a pinhole, if any
   };
   std::vector<Row> rows;
   const SceneConfig paper = paper_with_70_drops();
   rows.push_back(
       {"paper (70 drops)", "pinhole + disk blur (the yardstick)", "-", paper, scenes_for(paper, frame.camera, frames), {}});
-  for (const char* preset : {"lens-cover", "windshield-day", "glass-droplets"}) {
-    const SceneConfig fast = scene_preset(preset);
-    const std::vector<SceneSample> scenes = scenes_for(fast, frame.camera, frames);
+  // The issue's own camera, f/2 with the glass at 10 cm. First the yardstick's 70 paper drops,
+  // the glass moved to 10 cm, through a pinhole with the disk blur and then, the same drops,
+  // through a 5 mm lens focused on the street (no disk blur: the lens defocuses them); then
+  // windshield-day's drops (the preset draws f/1.8-5.6 and 5-30 cm).
+  SceneConfig paper_near = paper;
+  paper_near.glass_distance_cm = {10, 10};
+  const int near_row = static_cast<int>(rows.size());
+  rows.push_back({"paper (70 drops), glass 10 cm", "pinhole + disk blur", "-", paper_near,
+                  scenes_for(paper_near, frame.camera, frames), {}});
+  const auto with_camera = [](SceneConfig c) {
+    c.lens.enabled = true;
+    c.blur.enabled = false;
+    c.lens.f_number = {2, 2};
+    c.glass_distance_cm = {10, 10};
+    return c;
+  };
+  const std::string paper_camera = "paper (70 drops) at f/2, glass 10 cm";
+  const std::string windshield_camera = "windshield-day at f/2, glass 10 cm";
+  for (const std::string& preset : {std::string("lens-cover"), std::string("windshield-day"), paper_camera,
+                                    windshield_camera, std::string("glass-droplets")}) {
+    const SceneConfig fast = preset == paper_camera        ? with_camera(paper)
+                             : preset == windshield_camera ? with_camera(scene_preset("windshield-day"))
+                                                           : scene_preset(preset);
+    std::vector<SceneSample> scenes;
+    if (preset == paper_camera) {
+      // The pinhole row's drops: its samples with the lens' (fixed) draws filled in.
+      scenes = rows[near_row].scenes;
+      for (SceneSample& s : scenes) {
+        s.f_number = fast.lens.f_number.lo;
+        s.focal_length_mm = fast.lens.focal_length_mm.lo;
+      }
+    } else {
+      scenes = scenes_for(fast, frame.camera, frames);
+    }
+    const int same_drops = preset == paper_camera ? near_row : -1;
     // glass-droplets traces its street's defocus and its drops in focus: shown, not a target's row.
-    const bool targeted = std::string(preset) != "glass-droplets";
-    rows.push_back({preset, "layered (fast path)", targeted ? "2x" : "-", fast, scenes, {}});
+    const bool targeted = preset != "glass-droplets";
+    rows.push_back({preset, "layered (fast path)", targeted ? "2x" : "-", fast, scenes, {}, same_drops});
     if (!targeted) continue;
     SceneConfig reference = fast;
     reference.lens.method = DefocusMethod::Aperture;
     reference.lens.aperture_samples = 16;
-    rows.push_back({preset, "aperture, 16 rays", "10x", reference, scenes, {}});
+    rows.push_back({preset, "aperture, 16 rays", "10x", reference, scenes, {}, same_drops});
   }
   std::cerr << "bench render: camera targets\n";
   with_threads(threads, [&] {
@@ -823,10 +856,13 @@ void camera_table(const Input& input, int frames, int repeats, int threads, cons
             << "Targets: the layered fast path within 2x the paper preset's core, the 16-ray aperture reference "
                "within 10x (glass-droplets traces its drops in focus and its street through the aperture: shown, "
                "not a target's row).\n\n"
-            << "| preset | method | core ms | x paper | target |\n|---|---|---|---|---|\n";
+            << "| preset | method | core ms | x paper | x the same drops through a pinhole | target |\n"
+               "|---|---|---|---|---|---|\n";
   for (const Row& r : rows) {
     const double ms = median(r.ms);
-    std::printf("| %s | %s | %.2f | %.2f | %s |\n", r.preset.c_str(), r.method.c_str(), ms, ms / paper_ms,
+    char same[32] = "-";
+    if (r.same_drops >= 0) std::snprintf(same, sizeof same, "%.2f", ms / median(rows[static_cast<size_t>(r.same_drops)].ms));
+    std::printf("| %s | %s | %.2f | %.2f | %s | %s |\n", r.preset.c_str(), r.method.c_str(), ms, ms / paper_ms, same,
                 r.target.c_str());
   }
   std::fflush(stdout);

@@ -1070,6 +1070,7 @@ TraceResult run(const cv::Mat& clean, const Camera& camera, const SceneConfig& c
       std::vector<int> order, near, asked;
       std::vector<glm::dvec3> origins(static_cast<size_t>(rays)), dirs(static_cast<size_t>(rays));
       std::vector<Sample> seen_by(static_cast<size_t>(rays));
+      std::vector<glm::dvec2> lens_points(static_cast<size_t>(kl * kl));
       LaneScratch scratch;
       for (int y = r.begin(); y < r.end(); ++y) {
         int* label = out.label.ptr<int>(y);
@@ -1103,8 +1104,9 @@ TraceResult run(const cv::Mat& clean, const Camera& camera, const SceneConfig& c
                 continue;
               }
               asked.clear();
+              lens_disk_points(x, y, kl, radius, lens_points.data());  // rays == kl^2 here
               for (int sample = 0; sample < rays; ++sample) {
-                origins[sample] = lens_origin(x, y, sample);
+                origins[sample] = glm::dvec3(lens_points[sample].x, lens_points[sample].y, 0.0);
                 dirs[sample] = focus - origins[sample];
                 asked.push_back(sample);
               }
@@ -1179,7 +1181,6 @@ ApertureResult run_aperture(const cv::Mat& clean, const Camera& camera, const Sc
   const HighlightLift& lift = scene.highlights;
   const int k = std::max(1, static_cast<int>(std::lround(std::sqrt(samples))));
   const double radius = 0.5 * scene.aperture_cm();
-  auto lens_point = [&](int x, int y, int i, int j) { return lens_disk_point(x, y, i, j, k, radius); };
   // Pixels whose aperture cone can meet a drop: each drop's candidate box (ApertureReach), within
   // which the pixels and rays that cannot meet are culled: the rest would find none, and give
   // what an untraced pixel gives.
@@ -1232,15 +1233,14 @@ ApertureResult run_aperture(const cv::Mat& clean, const Camera& camera, const Sc
     std::vector<glm::dvec3> origins(n), dirs(n);
     std::vector<int> asked;  // the rays that can meet one of them
     std::vector<Sample> seen_by(n);
+    std::vector<glm::dvec2> lens(n);  // a pixel's lens points, sample = j k + i
     // A pixel none of whose rays meets a drop, off the background's focus: the street its rays
     // see, averaged (the rays' street, as a traced pixel averages it).
     const auto street_alone = [&](int x, int y, cv::Vec3f* rgb, cv::Vec3f* clean_rgb) {
       const glm::dvec3 focus = F * camera.ray_direction(x, y);
       glm::dvec3 sum(0.0);
-      for (int sample = 0; sample < n; ++sample) {
-        const glm::dvec2 p = lens_point(x, y, sample % k, sample / k);
-        sum += street_seen(glm::dvec3(p.x, p.y, 0.0), focus);
-      }
+      lens_disk_points(x, y, k, radius, lens.data());
+      for (int sample = 0; sample < n; ++sample) sum += street_seen(glm::dvec3(lens[sample].x, lens[sample].y, 0.0), focus);
       *rgb = *clean_rgb = to_vec3f(sum / static_cast<double>(n));
     };
     for (int y = r.begin(); y < r.end(); ++y) {
@@ -1279,9 +1279,9 @@ ApertureResult run_aperture(const cv::Mat& clean, const Camera& camera, const Sc
           asked.clear();
           const bool in_lanes = lanes && near.size() <= kMaxDropsInLanes;
           const bool test_rays = strategy.cull && !in_lanes && near.size() <= kMaxDropsTestedPerRay;
+          lens_disk_points(x, y, k, radius, lens.data());
           for (int sample = 0; sample < n; ++sample) {
-            const glm::dvec2 p = lens_point(x, y, sample % k, sample / k);
-            origins[sample] = glm::dvec3(p.x, p.y, 0.0);
+            origins[sample] = glm::dvec3(lens[sample].x, lens[sample].y, 0.0);
             dirs[sample] = focus - origins[sample];
             bool can = !test_rays;
             for (size_t j = 0; j < near.size() && !can; ++j) can = reach.ray_meets(near[j], origins[sample], dirs[sample]);

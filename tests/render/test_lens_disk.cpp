@@ -1,12 +1,15 @@
 // The lens disk's points (lens_disk.h): the fast sine and cosine against the library's, and
 // the points against the concentric map computed with them.
 #include <cmath>
+#include <cstring>
+#include <vector>
 
 #include <glm/geometric.hpp>
 #include <gtest/gtest.h>
 
 #include "raindrop/common/rng.h"
 #include "raindrop/render/lens_disk.h"
+#include "raindrop/render/pinhole_lanes.h"
 
 using namespace raindrop;
 
@@ -62,4 +65,41 @@ TEST(LensDisk, PointsAreTheConcentricMapOfTheirStrata) {
   EXPECT_NEAR(sum_x / n, 0.0, 0.01 * radius);
   EXPECT_NEAR(sum_y / n, 0.0, 0.01 * radius);
   EXPECT_NEAR(sum_r2 / n, 0.5 * radius * radius, 0.01 * radius * radius);
+}
+
+// A pixel's points at once (lens_disk_points, in SIMD lanes) are lens_disk_point's one at a
+// time to the bit, on every register width the processor has: grids whose strata fill the
+// widths exactly (4 x 4), leave partial registers (3 x 3, 5 x 5) and span several of its
+// chunks of 64 (9 x 9, 16 x 16), one stratum (1 x 1), far pixels, and radii from tiny to large.
+// Fails if one operation is reordered (the radius multiplied in last, tried).
+TEST(LensDisk, PointsAtOnceAreEachPointToTheBit) {
+  struct ForcedLevel {
+    explicit ForcedLevel(int level) { PinholeLanes::force_level(level); }
+    ~ForcedLevel() { PinholeLanes::force_level(-1); }
+  };
+  Rng rng(11);
+  int compared = 0;
+  for (int level = 0; level <= PinholeLanes::level(); ++level) {
+    const ForcedLevel forced(level);
+    for (const int k : {1, 3, 4, 5, 9, 16}) {
+      std::vector<glm::dvec2> points(static_cast<size_t>(k * k));
+      for (int trial = 0; trial < 200; ++trial) {
+        const int x = trial < 2 ? 65535 * trial : static_cast<int>(rng.uniform(0, 8192));
+        const int y = trial < 2 ? 65535 * trial : static_cast<int>(rng.uniform(0, 8192));
+        const double radius = std::exp(rng.uniform(std::log(1e-4), std::log(10.0)));
+        lens_disk_points(x, y, k, radius, points.data());
+        for (int j = 0; j < k; ++j) {
+          for (int i = 0; i < k; ++i) {
+            const glm::dvec2 one = lens_disk_point(x, y, i, j, k, radius);
+            const glm::dvec2& all = points[static_cast<size_t>(j * k + i)];
+            ASSERT_EQ(std::memcmp(&one, &all, sizeof one), 0)
+                << "width level " << level << ", k " << k << ", pixel " << x << "," << y << ", stratum " << i << ","
+                << j << ": " << one.x << "," << one.y << " one at a time, " << all.x << "," << all.y << " at once";
+            ++compared;
+          }
+        }
+      }
+    }
+  }
+  EXPECT_GT(compared, 60000);
 }
