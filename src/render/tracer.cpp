@@ -181,6 +181,16 @@ struct Sample {
   glm::dvec3 rgb{0};
   glm::dvec2 xy{NAN, NAN};  // the background point seen (the green path's); NaN: none
 };
+// *s = Sample{}, field by field (the aperture paths set millions a frame; the compiler made
+// the assignment a string store, slow to start for 56 bytes).
+inline void set_miss(Sample* s) {
+  s->hit = false;
+  s->drop = -1;
+  s->dark = false;
+  s->off_frame = false;
+  s->rgb = glm::dvec3(0.0);
+  s->xy = glm::dvec2(NAN, NAN);
+}
 
 template <bool kFresnel, bool kDispersion>
 class Kernel {
@@ -315,6 +325,7 @@ class Kernel {
   // gives it, to the bit. Returns how many were traced side by side.
   template <class Ray, class Use>
   std::int64_t trace_rays(int n, const Ray& ray, const Use& use) const {
+    if (n <= 0) return 0;  // (an aperture pixel's rays all taken by the lanes: no packet to make)
     if (kDispersion || !lockstep_) {
       for (int i = 0; i < n; ++i) {
         glm::dvec3 origin, dir;
@@ -463,11 +474,18 @@ class Kernel {
   Sample finish(const DropPath& p, const glm::dvec2& xy) const { return p.hit ? finish(end_of(p), xy) : Sample{}; }
   Sample finish(const PathEnd& p, const glm::dvec2& xy) const {
     Sample s;
-    s.hit = true;
-    s.drop = p.drop;
-    s.dark = p.dark;
-    s.rgb = shade_at(p, xy, &s.off_frame, &s.xy);
+    finish_into(p, xy, &s);
     return s;
+  }
+  // The same written into *s field by field: a Sample built on the stack and copied stalled
+  // every aperture ray on a store its copy's wider loads could not forward.
+  void finish_into(const PathEnd& p, const glm::dvec2& xy, Sample* s) const {
+    s->hit = true;
+    s->drop = p.drop;
+    s->dark = p.dark;
+    s->off_frame = false;
+    s->xy = glm::dvec2(NAN, NAN);
+    s->rgb = shade_at(p, xy, &s->off_frame, &s->xy);
   }
 
   glm::dvec3 clean_pixel(int x, int y) const { return bg_.pixel(x, y); }
@@ -709,13 +727,13 @@ RaysTraced trace_pixel_rays(const K& kernel, const PinholeLanes* lanes, const st
       const int ray = (*asked)[i];
       switch (row.outcome[i]) {
         case PinholeLanes::Outcome::Miss:
-          seen_by[ray] = Sample{};
+          set_miss(&seen_by[ray]);
           break;
         case PinholeLanes::Outcome::Path: {
           // As seen_point: no background point for a dark ray or one into the car.
           const bool black = row.dark(i), escaped = row.escaped_in(i);
           const glm::dvec2 xy = black || escaped ? glm::dvec2(NAN, NAN) : glm::dvec2(row.seen_x[i], row.seen_y[i]);
-          seen_by[ray] = kernel.finish(typename K::PathEnd{row.drop[i], black, escaped, row.transmittance[i]}, xy);
+          kernel.finish_into(typename K::PathEnd{row.drop[i], black, escaped, row.transmittance[i]}, xy, &seen_by[ray]);
           break;
         }
         case PinholeLanes::Outcome::Alone:
@@ -1288,7 +1306,7 @@ ApertureResult run_aperture(const cv::Mat& clean, const Camera& camera, const Sc
             if (can) {
               asked.push_back(sample);
             } else {
-              seen_by[sample] = Sample{};
+              set_miss(&seen_by[sample]);
             }
           }
           n_traced += static_cast<std::int64_t>(asked.size());
