@@ -167,6 +167,28 @@ def splice(main: onnx.ModelProto, head: onnx.ModelProto, alternative: str) -> on
     return merged
 
 
+def strip_head(merged: onnx.ModelProto) -> onnx.ModelProto:
+    """A merged graph without its head: what ``splice`` was given (the head's nodes and
+    initializers, all named with HEAD_NODE_PREFIX, its second output and the metadata naming it
+    taken out), so that a fine-tuned head can replace the one a committed graph carries."""
+    model = copy.deepcopy(merged)
+    g = model.graph
+    kept = [n for n in g.node if not n.name.startswith(C.HEAD_NODE_PREFIX)]
+    del g.node[:]
+    g.node.extend(kept)
+    inits = [t for t in g.initializer if not t.name.startswith(C.HEAD_NODE_PREFIX)]
+    del g.initializer[:]
+    g.initializer.extend(inits)
+    outputs = [o for o in g.output if o.name != C.ALTERNATIVE_OUTPUT]
+    del g.output[:]
+    g.output.extend(outputs)
+    props = {p.key: p.value for p in merged.metadata_props if p.key != C.META_ALTERNATIVE_DETECTOR}
+    del model.metadata_props[:]
+    helper.set_model_props(model, props)
+    onnx.checker.check_model(model, full_check=True)
+    return model
+
+
 def standalone(merged: onnx.ModelProto, metadata: dict[str, str]) -> onnx.ModelProto:
     """The merged graph as the head's own detector: its second output renamed ``mask_prob``, the
     main detector's Sigmoid and first output gone, ``metadata`` as the graph's."""
@@ -229,8 +251,9 @@ def head_gflops(cfg: HalfResConfig, head: AlternativeHead, h: int = 256, w: int 
     return 2 * count_macs(head, taps) / 1e9
 
 
-def write(main_dir: Path, like_dir: Path, out_dir: Path, head_path: Path) -> dict:
-    """Builds, checks and writes both graphs (nothing is replaced unless every check passes)."""
+def write(main_dir: Path, like_dir: Path, out_dir: Path, head_path: Path, replace: bool = False) -> dict:
+    """Builds, checks and writes both graphs (nothing is replaced unless every check passes).
+    ``replace``: a main graph with a head already has it taken out first (strip_head)."""
     main_dir, like_dir, out_dir = Path(main_dir), Path(like_dir), Path(out_dir)
     # A read-only file is kept (read_only.py): refused before any work.
     refuse_read_only(main_dir / C.FILES["rdn"], main_dir / C.EXPORT_INFO, out_dir / C.EXPORT_INFO, out_dir / "LARGE_DROPS",
@@ -244,7 +267,11 @@ def write(main_dir: Path, like_dir: Path, out_dir: Path, head_path: Path) -> dic
     main_file = main_dir / C.FILES["rdn"]
     main = onnx.load(str(main_file))
     if any(o.name == C.ALTERNATIVE_OUTPUT for o in main.graph.output):
-        raise SharedDetectorError(f"{main_file} has a head already; take the graph without it (git) first")
+        if not replace:
+            raise SharedDetectorError(f"{main_file} has a head already: --replace takes it out first (or take the "
+                                      "graph without it from git)")
+        # check() then holds the new graph's first output bit for bit to the graph without the old head.
+        main = strip_head(main)
     merged = splice(main, export_head(head, cfg.width, cfg.expanded), out_dir.name)
     like = {p.key: p.value for p in onnx.load(str(like_dir / C.FILES["rdn"])).metadata_props}
     like[C.META_CONFIG] = out_dir.name
@@ -297,9 +324,11 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--head", type=Path, required=True, help="the head's weights (train_head.py's head.pt)")
     ap.add_argument("--like", type=Path, required=True, help="the detector the head reproduces: its pipeline metadata, 3RN and RFN")
     ap.add_argument("--out", type=Path, required=True, help="the head's own model folder")
+    ap.add_argument("--replace", action="store_true",
+                    help="the main graph carries a head already (a fine-tuned head's predecessor): take it out first")
     args = ap.parse_args(argv)
     try:
-        report = write(args.main, args.like, args.out, args.head)
+        report = write(args.main, args.like, args.out, args.head, replace=args.replace)
     except (SharedDetectorError, OSError, KeyError) as e:  # ReadOnlyFileError is an OSError
         print(f"error: {e}", file=sys.stderr)
         return 1

@@ -39,6 +39,7 @@ from .imageio import ImageError, read_rgb
 from .networks import AlternativeHead, rdn_taps
 from .read_only import refuse_read_only
 from .shared_detector import load_rdn, rdn_config
+from .text_negatives import draw_text
 
 
 @dataclass
@@ -48,6 +49,7 @@ class Source:
     scale: float = 1.0  # area-averaged on loading (data/train-hi: 1280x640 -> 512x256)
     split: str | None = None  # only the manifest's samples of this split (real pairs: never the test split)
     working_size: int | None = None  # long side brought down to this, as raindrop-remove's working pass does
+    images: str = "rainy"  # the folder of the data set to read: rainy, or clean (text negatives)
 
 
 @dataclass
@@ -67,6 +69,11 @@ class HeadConfig:
     lr: float = 1e-3
     lr_end: float = 5e-5
     log_every: int = 50
+    # Negatives with lettering (text_negatives.py): this share of each batch's crops comes from
+    # text_sources' images (clean: no drops) with lettering drawn on, and its target is no drop.
+    text_share: float = 0.0
+    text_sources: list[Source] | None = None
+    init: str | None = None  # a head.pt to start from (a fine-tune), else a new head
 
 
 def read_config(path: Path) -> HeadConfig:
@@ -79,6 +86,10 @@ def read_config(path: Path) -> HeadConfig:
     sources = cfg.sources
     if not sources or any(s.weight <= 0 for s in sources):
         raise SystemExit(f"error: {path}: every source needs a weight > 0")
+    if not 0 <= cfg.text_share < 1:
+        raise SystemExit(f"error: {path}: text_share must be in [0, 1)")
+    if cfg.text_share > 0 and not cfg.text_sources:
+        raise SystemExit(f"error: {path}: text_share needs text_sources (clean images to draw lettering on)")
     return cfg
 
 
@@ -87,14 +98,14 @@ def _rainy_files(source: Source) -> list[Path]:
     manifest = root / "manifest.jsonl"
     if source.split is not None:
         rows = [json.loads(line) for line in manifest.read_text().splitlines() if line.strip()]
-        return sorted(root / r["rainy"] for r in rows if r.get("split") == source.split)
-    return sorted((root / "rainy").glob("*.png"))
+        return sorted(root / r[source.images] for r in rows if r.get("split") == source.split)
+    return sorted((root / source.images).glob("*.png"))
 
 
 def load_images(source: Source, n: int, rng: random.Random) -> list[np.ndarray]:
     files = _rainy_files(source)
     if not files:
-        raise SystemExit(f"error: no rainy images in {source.path}" + (f" (split {source.split})" if source.split else ""))
+        raise SystemExit(f"error: no {source.images} images in {source.path}" + (f" (split {source.split})" if source.split else ""))
     rng.shuffle(files)
     images = []
     for f in files[:n]:
@@ -111,10 +122,16 @@ def load_images(source: Source, n: int, rng: random.Random) -> list[np.ndarray]:
     return images
 
 
-def crops(pools, weights, cfg: HeadConfig, rng: random.Random) -> torch.Tensor:
-    out = []
+def crops(pools, weights, cfg: HeadConfig, rng: random.Random, text_pools=None, text_weights=None):
+    """A batch of crops, and which of them are text negatives (a bool per crop)."""
+    out, negative = [], []
     for _ in range(cfg.batch_size):
-        pool = pools[rng.choices(range(len(pools)), weights=weights)[0]]
+        text = text_pools is not None and rng.random() < cfg.text_share
+        if text:
+            pool = text_pools[rng.choices(range(len(text_pools)), weights=text_weights)[0]]
+        else:
+            pool = pools[rng.choices(range(len(pools)), weights=weights)[0]]
+        negative.append(text)
         im = pool[rng.randrange(len(pool))]
         if rng.random() < cfg.coarse_share:  # the coarse pass sees a third of the working scale
             im = cv2.resize(im, None, fx=1 / 3, fy=1 / 3, interpolation=cv2.INTER_AREA)
@@ -126,8 +143,10 @@ def crops(pools, weights, cfg: HeadConfig, rng: random.Random) -> torch.Tensor:
             crop = crop[:, ::-1]
         if c < cfg.crop:
             crop = cv2.resize(np.ascontiguousarray(crop), (cfg.crop, cfg.crop), interpolation=cv2.INTER_LINEAR)
+        if text:
+            crop = draw_text(np.ascontiguousarray(crop), rng)
         out.append(torch.from_numpy(np.ascontiguousarray(crop)).permute(2, 0, 1).float() / 255)
-    return torch.stack(out)
+    return torch.stack(out), torch.tensor(negative)
 
 
 def distillation_loss(logits: torch.Tensor, target: torch.Tensor) -> torch.Tensor:
@@ -146,19 +165,28 @@ def train(cfg: HeadConfig, out: Path) -> Path:
     main, teacher = load_rdn(Path(cfg.main)), load_rdn(Path(cfg.teacher))
     rc = rdn_config(Path(cfg.main))
     head = AlternativeHead(rc.width, rc.expanded, mid=cfg.mid, up=cfg.up)
+    if cfg.init:
+        head.load_state_dict(torch.load(cfg.init, map_location="cpu"))
     t0 = time.time()
     pools = [load_images(s, cfg.images_per_source, rng) for s in cfg.sources]
     weights = [s.weight for s in cfg.sources]
-    print(f"{cfg.name}: {sum(map(len, pools))} images from {len(pools)} sources in {time.time() - t0:.0f} s", flush=True)
+    text_pools = text_weights = None
+    if cfg.text_share > 0:
+        text_pools = [load_images(s, cfg.images_per_source, rng) for s in cfg.text_sources]
+        text_weights = [s.weight for s in cfg.text_sources]
+    n_text = sum(map(len, text_pools)) if text_pools else 0
+    print(f"{cfg.name}: {sum(map(len, pools))} images from {len(pools)} sources, {n_text} for text negatives, "
+          f"in {time.time() - t0:.0f} s", flush=True)
     opt = torch.optim.Adam(head.parameters(), lr=cfg.lr)
     sched = torch.optim.lr_scheduler.CosineAnnealingLR(opt, cfg.steps, eta_min=cfg.lr_end)
     t0, running = time.time(), None
     with open(out / "log.jsonl", "w") as log:
         for step in range(1, cfg.steps + 1):
-            x = crops(pools, weights, cfg, rng)
+            x, negative = crops(pools, weights, cfg, rng, text_pools, text_weights)
             with torch.no_grad():
                 taps = rdn_taps(main, x)
                 target = torch.sigmoid(teacher(x))
+                target[negative] = 0.0  # lettering on a clean image: no drop, whatever the teacher says
             loss = distillation_loss(head(*taps), target)
             if not math.isfinite(loss.item()):
                 raise SystemExit(f"error: step {step}: the loss is not finite")

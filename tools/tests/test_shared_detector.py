@@ -109,6 +109,24 @@ def test_the_rdn_reads_back_from_the_merged_graph_and_the_head_is_no_rdn(tmp_pat
         SD.write(main, like, tmp_path / "h2", tmp_path / "head.pt")
 
 
+def test_a_head_replaced_is_the_new_head_spliced_onto_the_graph_without_one(tmp_path):
+    # Splicing head A, then replacing it by head B (--replace) gives the graph that splicing B
+    # onto the original gives, byte for byte; the stripped graph is the original's, node for node.
+    main, like = _current_folder(tmp_path, "main"), _current_folder(tmp_path, "like")
+    original = onnx.load(str(main / "rdn.onnx"))
+    fresh = _current_folder(tmp_path, "fresh")
+    _random_head(main, tmp_path / "a.pt", seed=0)
+    _random_head(main, tmp_path / "b.pt", seed=1)
+    SD.write(main, like, tmp_path / "h", tmp_path / "a.pt")
+    stripped = SD.strip_head(onnx.load(str(main / "rdn.onnx")))
+    assert [n.SerializeToString() for n in stripped.graph.node] == [n.SerializeToString() for n in original.graph.node]
+    assert [o.name for o in stripped.graph.output] == [o.name for o in original.graph.output]
+    SD.write(main, like, tmp_path / "h", tmp_path / "b.pt", replace=True)
+    SD.write(fresh, like, tmp_path / "other" / "h", tmp_path / "b.pt")  # the same folder name: the same metadata
+    assert (main / "rdn.onnx").read_bytes() == (fresh / "rdn.onnx").read_bytes()
+    assert (tmp_path / "h" / "rdn.onnx").read_bytes() == (tmp_path / "other" / "h" / "rdn.onnx").read_bytes()
+
+
 def test_the_reference_pipeline_reads_the_first_map(tmp_path):
     main, like = _current_folder(tmp_path, "main"), _current_folder(tmp_path, "like")
     plain = RaindropRemover(main)
@@ -144,6 +162,30 @@ def test_a_head_config_is_read_as_the_training_configs_are(tmp_path):
     path.write_text("name: h\nmain: a\nteacher: b\nsources: [{path: p, weight: 1, wieght: 2}]\n")
     with pytest.raises(SystemExit, match=r"sources\[0\]\.wieght"):
         train_head.read_config(path)
+
+
+def test_the_text_negatives_config_reads_and_a_share_without_sources_is_refused(tmp_path):
+    cfg = train_head.read_config(REPO / "tools" / "configs" / "compact-windshield-head-text.yaml")
+    assert cfg.text_share == 0.2 and cfg.init.endswith("compact-windshield-head/head.pt")
+    assert [s.images for s in cfg.text_sources] == ["clean"] * 3
+    path = tmp_path / "head.yaml"
+    path.write_text("name: h\nmain: a\nteacher: b\ntext_share: 0.2\nsources: [{path: p, weight: 1}]\n")
+    with pytest.raises(SystemExit, match="text_share needs text_sources"):
+        train_head.read_config(path)
+
+
+def test_text_negative_crops_have_lettering_and_no_drop_as_their_target(tmp_path):
+    # A batch from a pool of flat grey images: the crops flagged negative carry lettering (they
+    # differ from the grey), the others are the grey itself.
+    import random
+
+    cfg = train_head.HeadConfig(name="h", main="a", teacher="b", sources=[], batch_size=32, crop=64,
+                                coarse_share=0.0, text_share=0.5)
+    grey = [np.full((96, 128, 3), 128, np.uint8)]
+    x, negative = train_head.crops([grey], [1.0], cfg, random.Random(0), [grey], [1.0])
+    assert x.shape == (32, 3, 64, 64) and 4 < int(negative.sum()) < 28
+    flat = (x - 128 / 255).abs().flatten(1).amax(1) < 1e-6
+    assert torch.equal(flat, ~negative)
 
 
 def test_a_read_only_graph_is_kept(tmp_path, capsys):

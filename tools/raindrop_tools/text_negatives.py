@@ -1,0 +1,171 @@
+"""Lettering drawn onto clean images: negatives for a detector that takes text for drops.
+
+Dark strokes on a bright sign, slightly out of focus, look to a detector trained on sharp
+windshield drops much like the drops' dark bands: the default's windshield head marked a word of
+a sign in one of the real photographs, and the fill that follows wiped it out (docs/RESULTS.md
+4.54, 4.56). Street scenes are full of lettering (signs, shop fronts, number plates, road
+markings), and wiping it is worse than leaving a drop. ``draw_text`` draws one or two blocks of random
+letters onto an image (a crop of a clean frame), each on a plate of uniform colour or straight onto
+the scene, in a contrasting colour, with OpenCV's stroke fonts at heights from a few pixels to
+tens, and blurred a little as a lens focused elsewhere would: what a drop-free crop of a street
+with signs looks like at the working scale. The detector's target there is no drop at all.
+"""
+
+from __future__ import annotations
+
+import random
+import string
+
+import cv2
+import numpy as np
+
+FONTS = (
+    cv2.FONT_HERSHEY_SIMPLEX,
+    cv2.FONT_HERSHEY_DUPLEX,
+    cv2.FONT_HERSHEY_COMPLEX,
+    cv2.FONT_HERSHEY_TRIPLEX,
+    cv2.FONT_HERSHEY_PLAIN,
+)
+
+
+def _word(rng: random.Random) -> str:
+    letters = string.ascii_letters + string.digits if rng.random() < 0.2 else string.ascii_letters
+    text = "".join(rng.choice(letters) for _ in range(rng.randint(2, 9)))
+    return text.upper() if rng.random() < 0.4 else text
+
+
+def draw_text(image: np.ndarray, rng: random.Random, blocks: tuple[int, int] = (1, 2)) -> np.ndarray:
+    """A copy of ``image`` (uint8, H x W x 3) with ``blocks`` (a range) blocks of lettering drawn on it."""
+    out = image.copy()
+    h, w = out.shape[:2]
+    for _ in range(rng.randint(*blocks)):
+        font = rng.choice(FONTS)
+        height = rng.uniform(4.0, min(24.0, h / 4))  # letter height in pixels
+        base = cv2.getTextSize("Hg", font, 1.0, 1)[0][1]
+        scale = height / max(base, 1)
+        thickness = max(1, int(round(height * rng.uniform(0.06, 0.16))))
+        lines = [" ".join(_word(rng) for _ in range(rng.randint(1, 3))) for _ in range(rng.randint(1, 3))]
+        sizes = [cv2.getTextSize(line, font, scale, thickness)[0] for line in lines]
+        block_w = max(s[0] for s in sizes)
+        line_h = int(height * 1.6) + thickness
+        block_h = line_h * len(lines)
+        margin = int(height * rng.uniform(0.3, 1.0))
+        x0 = rng.randint(-block_w // 2, max(-block_w // 2, w - block_w // 2))
+        y0 = rng.randint(-block_h // 2, max(-block_h // 2, h - block_h // 2))
+        # Drawn on a layer of its own, then blurred and laid over the image where it is drawn.
+        layer = np.zeros_like(out)
+        cover = np.zeros((h, w), np.uint8)
+        light = rng.random() < 0.7  # most signs: dark letters on a light plate
+        plate = np.array([rng.randint(170, 255) if light else rng.randint(0, 90) for _ in range(3)], np.uint8)
+        ink = np.array([rng.randint(0, 80) if light else rng.randint(180, 255) for _ in range(3)], np.uint8)
+        if rng.random() < 0.6:
+            cv2.rectangle(layer, (x0 - margin, y0 - margin), (x0 + block_w + margin, y0 + block_h + margin),
+                          tuple(int(c) for c in plate), -1)
+            cv2.rectangle(cover, (x0 - margin, y0 - margin), (x0 + block_w + margin, y0 + block_h + margin), 255, -1)
+        for i, line in enumerate(lines):
+            org = (x0, y0 + i * line_h + int(height))
+            cv2.putText(layer, line, org, font, scale, tuple(int(c) for c in ink), thickness, cv2.LINE_AA)
+            cv2.putText(cover, line, org, font, scale, 255, thickness, cv2.LINE_AA)
+        sigma = rng.uniform(0.0, 1.5)
+        if sigma > 0.3:
+            layer = cv2.GaussianBlur(layer, (0, 0), sigma)
+            cover = cv2.GaussianBlur(cover, (0, 0), sigma)
+        a = cover.astype(np.float32)[..., None] / 255
+        # The layer was blurred premultiplied by its cover (zero outside): divide it back out.
+        colour = layer.astype(np.float32) / np.maximum(a, 1e-3)
+        out = np.clip(out.astype(np.float32) * (1 - a) + colour * a, 0, 255).astype(np.uint8)
+    return out
+
+
+def make_set(images: list, out, seed: int = 0, size: tuple[int, int] | None = (512, 256)) -> int:
+    """Lettering drawn onto each image (resized to ``size`` first), written to ``out`` as PNG:
+    photographs without drops in which every change a remover makes is damage. Returns the count."""
+    from pathlib import Path
+
+    from .imageio import read_rgb
+    from .read_only import refuse_read_only
+
+    out = Path(out)
+    # A read-only file is kept (read_only.py): refused before anything is written.
+    refuse_read_only(*(out / (Path(p).stem + ".png") for p in images), follow_links=False)
+    out.mkdir(parents=True, exist_ok=True)
+    rng = random.Random(seed)
+    for path in images:
+        im = read_rgb(path)
+        if size:
+            im = cv2.resize(im, size, interpolation=cv2.INTER_AREA)
+        lettered = draw_text(np.ascontiguousarray(im), rng, blocks=(2, 4))
+        cv2.imwrite(str(out / (Path(path).stem + ".png")), cv2.cvtColor(lettered, cv2.COLOR_RGB2BGR))
+    return len(images)
+
+
+def damage(inputs, outputs, masks=None) -> dict:
+    """What a remover changed in drop-free images: PSNR-Y of each output against its input (the
+    mean over images, each capped as the metrics cap it), the share of images it changed at all,
+    and, with ``masks`` (its mask folder), the mean share of pixels it marked."""
+    from pathlib import Path
+
+    from .metrics import PSNR_CAP_DB, luma, psnr
+
+    inputs, outputs = Path(inputs), Path(outputs)
+    names = sorted(p.name for p in inputs.glob("*.png"))
+    if not names:
+        raise SystemExit(f"error: no PNG images in {inputs}")
+    psnrs, changed, marked = [], 0, []
+    for name in names:
+        a, b = cv2.imread(str(inputs / name)), cv2.imread(str(outputs / name))
+        if b is None:
+            raise SystemExit(f"error: no output for {name} in {outputs}")
+        p = psnr(luma(np.ascontiguousarray(b[..., ::-1])), luma(np.ascontiguousarray(a[..., ::-1])))
+        psnrs.append(p)
+        changed += int(p < PSNR_CAP_DB)
+        if masks is not None:
+            m = cv2.imread(str(Path(masks) / name), cv2.IMREAD_GRAYSCALE)
+            marked.append(float((m > 0).mean()))
+    out = {"images": len(names), "psnr_y": float(np.mean(psnrs)), "changed": changed / len(names)}
+    if marked:
+        out["marked"] = float(np.mean(marked))
+    return out
+
+
+def main(argv: list[str] | None = None) -> int:
+    import argparse
+    from pathlib import Path
+
+    ap = argparse.ArgumentParser(prog="python -m raindrop_tools.text_negatives", description=__doc__.split("\n\n")[0])
+    sub = ap.add_subparsers(dest="command", required=True)
+    mk = sub.add_parser("make", help="draw lettering onto drop-free images (a set for `damage`)")
+    mk.add_argument("--images", type=Path, required=True, help="folder of drop-free images (its first --count, sorted)")
+    mk.add_argument("--out", type=Path, required=True)
+    mk.add_argument("--count", type=int, default=100)
+    mk.add_argument("--seed", type=int, default=0)
+    dm = sub.add_parser("damage", help="what a remover changed in them")
+    dm.add_argument("--inputs", type=Path, required=True)
+    dm.add_argument("--outputs", type=Path, required=True)
+    dm.add_argument("--masks", type=Path, help="the remover's mask folder (--mask-dir)")
+    dm.add_argument("--label", default="")
+    args = ap.parse_args(argv)
+    if args.command == "make":
+        from .imageio import ImageError
+
+        if not args.images.is_dir():
+            raise SystemExit(f"error: {args.images}: not a folder")
+        files = sorted(p for p in args.images.iterdir() if p.suffix.lower() in (".png", ".jpg", ".jpeg"))[: args.count]
+        if not files:
+            raise SystemExit(f"error: {args.images}: no PNG or JPEG images")
+        try:
+            print(f"{make_set(files, args.out, args.seed)} images with lettering in {args.out}")
+        except (ImageError, OSError) as e:  # ReadOnlyFileError is an OSError
+            raise SystemExit(f"error: {e}") from None
+    else:
+        r = damage(args.inputs, args.outputs, args.masks)
+        marked = f", {100 * r['marked']:.2f}% of the pixels marked" if "marked" in r else ""
+        print(f"{args.label}: {r['images']} drop-free images with lettering, output against input PSNR-Y "
+              f"{r['psnr_y']:.2f} dB, {100 * r['changed']:.0f}% of them changed{marked}")
+    return 0
+
+
+if __name__ == "__main__":
+    import sys
+
+    sys.exit(main())
