@@ -2904,9 +2904,12 @@ if want headtext; then
     --scene glass-plate --size 512x256 --seed 11 -q
   ht="$out/headtext"
   mkdir -p "$ht/models/compact-multiscale"
-  [[ -f tools/runs/compact-windshield-head/head.pt ]] ||
+  # A run folder counts as trained when its log reached the configured last step (head.pt is
+  # also written every 500 steps on the way).
+  trained() { grep -q "\"step\": $2," "$1/log.jsonl" 2>/dev/null; }
+  trained tools/runs/compact-windshield-head 3000 ||
     $py -m raindrop_tools.train_head --config tools/configs/compact-windshield-head.yaml --out tools/runs/compact-windshield-head
-  [[ -f tools/runs/compact-windshield-head-text/head.pt ]] || $py -m raindrop_tools.train_head \
+  trained tools/runs/compact-windshield-head-text 1000 || $py -m raindrop_tools.train_head \
     --config tools/configs/compact-windshield-head-text.yaml --out tools/runs/compact-windshield-head-text
   # The default's folder with the new head in place of its own (--replace), beside the others.
   cp models/compact-multiscale/* "$ht/models/compact-multiscale/"
@@ -2920,6 +2923,12 @@ if want headtext; then
     "$($py -c 'import json, sys; print(json.load(open(sys.argv[1]))["pipeline"]["threshold"])' models/compact-windshield-head/export.json)"
   [[ -d data/text-camvid-test ]] || $py -m raindrop_tools.text_negatives make --images "$shared/camvid/test" \
     --out data/text-camvid-test --count 100 --seed 3
+  # The baseline: the same frames without lettering, through the default.
+  $py -m raindrop_tools.text_negatives make --images "$shared/camvid/test" --out "$ht/plain" --count 100 --no-lettering
+  rm -rf "$ht/plain-default"
+  build/raindrop-remove "$ht/plain" "$ht/plain-default/out" --mask-dir "$ht/plain-default/masks" -q -j 2
+  $py -m raindrop_tools.text_negatives damage --inputs "$ht/plain" --outputs "$ht/plain-default/out" \
+    --masks "$ht/plain-default/masks" --label "default, the frames without lettering" | tee "$ht/plain.txt"
   for l in default:"" text:"--models $ht/models/compact-multiscale"; do
     rm -rf "$ht/lettering-${l%%:*}"
     # shellcheck disable=SC2086

@@ -1076,6 +1076,9 @@ TraceResult run(const cv::Mat& clean, const Camera& camera, const SceneConfig& c
     // With one focus point per pixel (no supersampling), the rays in SIMD lanes where the
     // pinhole pass's are (pinhole_lanes.h): the same bits.
     const bool lens_lanes = lanes.has_value() && cells == 1;
+    // The lanes' path takes a pixel's lens points all at once (lens_disk_points), one per ray:
+    // it needs one ray per lens stratum, which one focus point per pixel gives.
+    CV_Assert(!lens_lanes || rays == kl * kl);
     std::optional<ApertureReach> lens_reach;
     std::vector<std::vector<DropSpan>> lens_boxes;
     if (lens_lanes) {

@@ -77,9 +77,10 @@ def draw_text(image: np.ndarray, rng: random.Random, blocks: tuple[int, int] = (
     return out
 
 
-def make_set(images: list, out, seed: int = 0, size: tuple[int, int] | None = (512, 256)) -> int:
+def make_set(images: list, out, seed: int = 0, size: tuple[int, int] | None = (512, 256), lettering: bool = True) -> int:
     """Lettering drawn onto each image (resized to ``size`` first), written to ``out`` as PNG:
-    photographs without drops in which every change a remover makes is damage. Returns the count."""
+    photographs without drops in which every change a remover makes is damage. Without
+    ``lettering``, the resized images alone (the baseline). Returns the count."""
     from pathlib import Path
 
     from .imageio import read_rgb
@@ -87,15 +88,17 @@ def make_set(images: list, out, seed: int = 0, size: tuple[int, int] | None = (5
 
     out = Path(out)
     # A read-only file is kept (read_only.py): refused before anything is written.
-    refuse_read_only(*(out / (Path(p).stem + ".png") for p in images), follow_links=False)
+    refuse_read_only(*(out / (Path(p).stem + ".png") for p in images))  # written through the name
     out.mkdir(parents=True, exist_ok=True)
     rng = random.Random(seed)
     for path in images:
         im = read_rgb(path)
         if size:
             im = cv2.resize(im, size, interpolation=cv2.INTER_AREA)
-        lettered = draw_text(np.ascontiguousarray(im), rng, blocks=(2, 4))
-        cv2.imwrite(str(out / (Path(path).stem + ".png")), cv2.cvtColor(lettered, cv2.COLOR_RGB2BGR))
+        lettered = draw_text(np.ascontiguousarray(im), rng, blocks=(2, 4)) if lettering else im
+        target = out / (Path(path).stem + ".png")
+        if not cv2.imwrite(str(target), cv2.cvtColor(lettered, cv2.COLOR_RGB2BGR)):
+            raise OSError(f"{target}: could not be written")
     return len(images)
 
 
@@ -116,11 +119,15 @@ def damage(inputs, outputs, masks=None) -> dict:
         a, b = cv2.imread(str(inputs / name)), cv2.imread(str(outputs / name))
         if b is None:
             raise SystemExit(f"error: no output for {name} in {outputs}")
+        if a is None or a.shape != b.shape:
+            raise SystemExit(f"error: {name}: the input and output differ in size or cannot be read")
         p = psnr(luma(np.ascontiguousarray(b[..., ::-1])), luma(np.ascontiguousarray(a[..., ::-1])))
         psnrs.append(p)
         changed += int(p < PSNR_CAP_DB)
         if masks is not None:
             m = cv2.imread(str(Path(masks) / name), cv2.IMREAD_GRAYSCALE)
+            if m is None:
+                raise SystemExit(f"error: no mask for {name} in {masks}")
             marked.append(float((m > 0).mean()))
     out = {"images": len(names), "psnr_y": float(np.mean(psnrs)), "changed": changed / len(names)}
     if marked:
@@ -139,6 +146,7 @@ def main(argv: list[str] | None = None) -> int:
     mk.add_argument("--out", type=Path, required=True)
     mk.add_argument("--count", type=int, default=100)
     mk.add_argument("--seed", type=int, default=0)
+    mk.add_argument("--no-lettering", action="store_true", help="the resized images alone (the measure's baseline)")
     dm = sub.add_parser("damage", help="what a remover changed in them")
     dm.add_argument("--inputs", type=Path, required=True)
     dm.add_argument("--outputs", type=Path, required=True)
@@ -154,13 +162,14 @@ def main(argv: list[str] | None = None) -> int:
         if not files:
             raise SystemExit(f"error: {args.images}: no PNG or JPEG images")
         try:
-            print(f"{make_set(files, args.out, args.seed)} images with lettering in {args.out}")
+            n = make_set(files, args.out, args.seed, lettering=not args.no_lettering)
+            print(f"{n} images{'' if args.no_lettering else ' with lettering'} in {args.out}")
         except (ImageError, OSError) as e:  # ReadOnlyFileError is an OSError
             raise SystemExit(f"error: {e}") from None
     else:
         r = damage(args.inputs, args.outputs, args.masks)
         marked = f", {100 * r['marked']:.2f}% of the pixels marked" if "marked" in r else ""
-        print(f"{args.label}: {r['images']} drop-free images with lettering, output against input PSNR-Y "
+        print(f"{args.label}: {r['images']} drop-free images, output against input PSNR-Y "
               f"{r['psnr_y']:.2f} dB, {100 * r['changed']:.0f}% of them changed{marked}")
     return 0
 

@@ -90,6 +90,10 @@ def read_config(path: Path) -> HeadConfig:
         raise SystemExit(f"error: {path}: text_share must be in [0, 1)")
     if cfg.text_share > 0 and not cfg.text_sources:
         raise SystemExit(f"error: {path}: text_share needs text_sources (clean images to draw lettering on)")
+    if cfg.text_sources and cfg.text_share == 0:
+        raise SystemExit(f"error: {path}: text_sources are given but text_share is 0 (they would not be used)")
+    if cfg.text_sources and any(s.weight <= 0 for s in cfg.text_sources):
+        raise SystemExit(f"error: {path}: every text source needs a weight > 0")
     return cfg
 
 
@@ -160,13 +164,18 @@ def train(cfg: HeadConfig, out: Path) -> Path:
     rng = random.Random(cfg.seed)
     # A read-only file is kept (read_only.py): refused before any work.
     refuse_read_only(out / "config.json", out / "log.jsonl", out / "head.pt", follow_links=False)
+    if cfg.init and not Path(cfg.init).is_file():
+        raise SystemExit(f"error: init {cfg.init}: no such file (train that head first)")
     out.mkdir(parents=True, exist_ok=True)
     (out / "config.json").write_text(json.dumps(cfg.__dict__, default=lambda o: o.__dict__, indent=2) + "\n")
     main, teacher = load_rdn(Path(cfg.main)), load_rdn(Path(cfg.teacher))
     rc = rdn_config(Path(cfg.main))
     head = AlternativeHead(rc.width, rc.expanded, mid=cfg.mid, up=cfg.up)
     if cfg.init:
-        head.load_state_dict(torch.load(cfg.init, map_location="cpu"))
+        try:
+            head.load_state_dict(torch.load(cfg.init, map_location="cpu", weights_only=True))
+        except (RuntimeError, OSError, KeyError) as e:  # another head's shape, or not a state dict
+            raise SystemExit(f"error: init {cfg.init}: not a head of this configuration ({str(e).splitlines()[0]})") from None
     t0 = time.time()
     pools = [load_images(s, cfg.images_per_source, rng) for s in cfg.sources]
     weights = [s.weight for s in cfg.sources]

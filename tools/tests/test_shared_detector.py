@@ -172,6 +172,10 @@ def test_the_text_negatives_config_reads_and_a_share_without_sources_is_refused(
     path.write_text("name: h\nmain: a\nteacher: b\ntext_share: 0.2\nsources: [{path: p, weight: 1}]\n")
     with pytest.raises(SystemExit, match="text_share needs text_sources"):
         train_head.read_config(path)
+    path.write_text("name: h\nmain: a\nteacher: b\nsources: [{path: p, weight: 1}]\n"
+                    "text_sources: [{path: p, weight: 1, images: clean}]\n")
+    with pytest.raises(SystemExit, match="text_share is 0"):
+        train_head.read_config(path)
 
 
 def test_text_negative_crops_have_lettering_and_no_drop_as_their_target(tmp_path):
