@@ -820,13 +820,12 @@ void camera_table(const Input& input, int frames, int repeats, int threads, cons
   const int near_row = static_cast<int>(rows.size());
   rows.push_back({"paper (70 drops), glass 10 cm", "pinhole + disk blur", "-", paper_near,
                   scenes_for(paper_near, frame.camera, frames), {}});
-  const auto with_camera = at_issue_camera;
   const std::string paper_camera = kPaperAtIssueCamera;
   const std::string windshield_camera = "windshield-day at f/2, glass 10 cm";
   for (const std::string& preset : {std::string("lens-cover"), std::string("windshield-day"), paper_camera,
                                     windshield_camera, std::string("glass-droplets")}) {
-    const SceneConfig fast = preset == paper_camera        ? with_camera(paper)
-                             : preset == windshield_camera ? with_camera(scene_preset("windshield-day"))
+    const SceneConfig fast = preset == paper_camera        ? at_issue_camera(paper)
+                             : preset == windshield_camera ? at_issue_camera(scene_preset("windshield-day"))
                                                            : scene_preset(preset);
     std::vector<SceneSample> scenes;
     if (preset == paper_camera) {

@@ -180,6 +180,7 @@ struct Sample {
   bool off_frame = false;
   glm::dvec3 rgb{0};
   glm::dvec2 xy{NAN, NAN};  // the background point seen (the green path's); NaN: none
+  // (set_miss and Kernel::finish_into write these defaults field by field: keep them alike.)
 };
 // *s = Sample{}, field by field (the aperture paths set millions a frame; the compiler made
 // the assignment a string store, slow to start for 56 bytes).

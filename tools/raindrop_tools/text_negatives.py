@@ -13,11 +13,18 @@ with signs looks like at the working scale. The detector's target there is no dr
 
 from __future__ import annotations
 
+import argparse
 import random
 import string
+import sys
+from pathlib import Path
 
 import cv2
 import numpy as np
+
+from .imageio import IMAGE_SUFFIXES, ImageError, read_rgb
+from .metrics import PSNR_CAP_DB, luma, psnr
+from .read_only import refuse_read_only
 
 FONTS = (
     cv2.FONT_HERSHEY_SIMPLEX,
@@ -81,22 +88,17 @@ def make_set(images: list, out, seed: int = 0, size: tuple[int, int] | None = (5
     """Lettering drawn onto each image (resized to ``size`` first), written to ``out`` as PNG:
     photographs without drops in which every change a remover makes is damage. Without
     ``lettering``, the resized images alone (the baseline). Returns the count."""
-    from pathlib import Path
-
-    from .imageio import read_rgb
-    from .read_only import refuse_read_only
-
     out = Path(out)
+    targets = [out / (Path(p).stem + ".png") for p in images]
     # A read-only file is kept (read_only.py): refused before anything is written.
-    refuse_read_only(*(out / (Path(p).stem + ".png") for p in images))  # written through the name
+    refuse_read_only(*targets)  # written through the name
     out.mkdir(parents=True, exist_ok=True)
     rng = random.Random(seed)
-    for path in images:
+    for path, target in zip(images, targets):
         im = read_rgb(path)
         if size:
             im = cv2.resize(im, size, interpolation=cv2.INTER_AREA)
         lettered = draw_text(np.ascontiguousarray(im), rng, blocks=(2, 4)) if lettering else im
-        target = out / (Path(path).stem + ".png")
         if not cv2.imwrite(str(target), cv2.cvtColor(lettered, cv2.COLOR_RGB2BGR)):
             raise OSError(f"{target}: could not be written")
     return len(images)
@@ -106,10 +108,6 @@ def damage(inputs, outputs, masks=None) -> dict:
     """What a remover changed in drop-free images: PSNR-Y of each output against its input (the
     mean over images, each capped as the metrics cap it), the share of images it changed at all,
     and, with ``masks`` (its mask folder), the mean share of pixels it marked."""
-    from pathlib import Path
-
-    from .metrics import PSNR_CAP_DB, luma, psnr
-
     inputs, outputs = Path(inputs), Path(outputs)
     names = sorted(p.name for p in inputs.glob("*.png"))
     if not names:
@@ -136,9 +134,6 @@ def damage(inputs, outputs, masks=None) -> dict:
 
 
 def main(argv: list[str] | None = None) -> int:
-    import argparse
-    from pathlib import Path
-
     ap = argparse.ArgumentParser(prog="python -m raindrop_tools.text_negatives", description=__doc__.split("\n\n")[0])
     sub = ap.add_subparsers(dest="command", required=True)
     mk = sub.add_parser("make", help="draw lettering onto drop-free images (a set for `damage`)")
@@ -154,13 +149,11 @@ def main(argv: list[str] | None = None) -> int:
     dm.add_argument("--label", default="")
     args = ap.parse_args(argv)
     if args.command == "make":
-        from .imageio import ImageError
-
         if not args.images.is_dir():
             raise SystemExit(f"error: {args.images}: not a folder")
-        files = sorted(p for p in args.images.iterdir() if p.suffix.lower() in (".png", ".jpg", ".jpeg"))[: args.count]
+        files = sorted(p for p in args.images.iterdir() if p.suffix.lower() in IMAGE_SUFFIXES)[: args.count]
         if not files:
-            raise SystemExit(f"error: {args.images}: no PNG or JPEG images")
+            raise SystemExit(f"error: {args.images}: no images ({', '.join(sorted(IMAGE_SUFFIXES))})")
         try:
             n = make_set(files, args.out, args.seed, lettering=not args.no_lettering)
             print(f"{n} images{'' if args.no_lettering else ' with lettering'} in {args.out}")
@@ -175,6 +168,4 @@ def main(argv: list[str] | None = None) -> int:
 
 
 if __name__ == "__main__":
-    import sys
-
     sys.exit(main())

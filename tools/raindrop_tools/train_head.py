@@ -97,7 +97,7 @@ def read_config(path: Path) -> HeadConfig:
     return cfg
 
 
-def _rainy_files(source: Source) -> list[Path]:
+def _image_files(source: Source) -> list[Path]:
     root = Path(source.path)
     manifest = root / "manifest.jsonl"
     if source.split is not None:
@@ -107,7 +107,7 @@ def _rainy_files(source: Source) -> list[Path]:
 
 
 def load_images(source: Source, n: int, rng: random.Random) -> list[np.ndarray]:
-    files = _rainy_files(source)
+    files = _image_files(source)
     if not files:
         raise SystemExit(f"error: no {source.images} images in {source.path}" + (f" (split {source.split})" if source.split else ""))
     rng.shuffle(files)
