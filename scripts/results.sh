@@ -7,7 +7,7 @@
 # windshield-followup longer growth sharpness coalesce surround largewidth largedrops-all windshield2
 # errorsplit withoutvnni graphrewrites jitter windshieldscale router routed int8router droplets realismcontrol
 # droplets2 infocus realismbar windshieldday fillarea finedrops lanes glassplate platerecon aperturelanes headrouter int8head headthreshold dilation coarsescales mainthreshold
-# rim headtext
+# rim headtext headnight
 #
 # Sections measured before docs/RESULTS.md 4.44 run compact-windshield's detector (and the routed
 # default) with --surround-fill-area 150, the area they had then, so that they reproduce.
@@ -30,7 +30,7 @@ sections=("$@")
                                   surround largewidth largedrops-all windshield2 errorsplit withoutvnni graphrewrites
                                   jitter windshieldscale router routed int8router droplets realismcontrol droplets2 infocus realismbar
                                   windshieldday fillarea finedrops lanes glassplate platerecon aperturelanes headrouter int8head headthreshold dilation coarsescales mainthreshold
-                                  rim headtext)
+                                  rim headtext headnight)
 want() { [[ " ${sections[*]} " == *" $1 "* ]]; }
 # link_set SRC DST SPLIT [LIMIT]: the first LIMIT (default 100; 0: all) samples of data set SRC
 # (of manifest split SPLIT; "-" = all) linked into DST/rainy and DST/clean (and DST/mask, where
@@ -2532,6 +2532,43 @@ fi
 set_threshold() {
   $py -c 'import sys; from raindrop_tools.detector_metadata import set_threshold; set_threshold(sys.argv[1], float(sys.argv[2]))' "$1" "$2"
 }
+# trained_head RUN STEPS CONFIG: trains the head of CONFIG into tools/runs/RUN unless its log
+# reached STEPS (head.pt is also written every 500 steps on the way, so its presence says nothing).
+trained_head() {
+  grep -q "\"step\": $2," "tools/runs/$1/log.jsonl" 2>/dev/null ||
+    $py -m raindrop_tools.train_head --config "$3" --out "tools/runs/$1"
+}
+# default_with_head HEAD DIR: the default's folder in DIR/models/compact-multiscale with the
+# head HEAD (a train_head head.pt) in place of its own (shared_detector --replace), beside the
+# other folders it names, at the committed head's threshold (shared_detector takes the
+# teacher's pipeline, threshold 0.75; the committed head's since 4.50 is the one to compare at).
+default_with_head() {
+  local dir="$2/models"
+  mkdir -p "$dir/compact-multiscale"
+  cp models/compact-multiscale/* "$dir/compact-multiscale/"
+  for m in compact-windshield paper-real-coarse; do ln -sfn "$PWD/models/$m" "$dir/$m"; done
+  $py -m raindrop_tools.shared_detector --main "$dir/compact-multiscale" --replace \
+    --head "$1" --like models/compact-windshield --out "$dir/compact-windshield-head"
+  set_threshold "$dir/compact-windshield-head" \
+    "$($py -c 'import json, sys; print(json.load(open(sys.argv[1]))["pipeline"]["threshold"])' models/compact-windshield-head/export.json)"
+}
+# lettering_damage DIR LABEL:FLAGS...: raindrop-remove FLAGS on the lettered drop-free frames
+# (data/text-camvid-test, made unless there) into DIR/lettering-LABEL, and text_negatives damage's
+# line for each.
+lettering_damage() {
+  local dir="$1" l
+  shift
+  [[ -d data/text-camvid-test ]] || $py -m raindrop_tools.text_negatives make --images "$shared/camvid/test" \
+    --out data/text-camvid-test --count 100 --seed 3
+  for l in "$@"; do
+    rm -rf "$dir/lettering-${l%%:*}"
+    # shellcheck disable=SC2086
+    build/raindrop-remove data/text-camvid-test "$dir/lettering-${l%%:*}/out" --mask-dir "$dir/lettering-${l%%:*}/masks" \
+      -q -j 2 ${l#*:}
+    $py -m raindrop_tools.text_negatives damage --inputs data/text-camvid-test --outputs "$dir/lettering-${l%%:*}/out" \
+      --masks "$dir/lettering-${l%%:*}/masks" --label "${l%%:*}"
+  done
+}
 # router_sets: the held-out and validation sets a detector router is scored on (docs/RESULTS.md
 # 4.48, 4.49), rendered unless there; their score_sets arguments in router_tests and router_vals.
 router_sets() {
@@ -2903,40 +2940,16 @@ if want headtext; then
   [[ -f data/val-glass-plate/manifest.jsonl ]] || build/raindrop-render -i "$out/cv100" -o data/val-glass-plate \
     --scene glass-plate --size 512x256 --seed 11 -q
   ht="$out/headtext"
-  mkdir -p "$ht/models/compact-multiscale"
-  # A run folder counts as trained when its log reached the configured last step (head.pt is
-  # also written every 500 steps on the way).
-  trained() { grep -q "\"step\": $2," "$1/log.jsonl" 2>/dev/null; }
-  trained tools/runs/compact-windshield-head 3000 ||
-    $py -m raindrop_tools.train_head --config tools/configs/compact-windshield-head.yaml --out tools/runs/compact-windshield-head
-  trained tools/runs/compact-windshield-head-text 1000 || $py -m raindrop_tools.train_head \
-    --config tools/configs/compact-windshield-head-text.yaml --out tools/runs/compact-windshield-head-text
-  # The default's folder with the new head in place of its own (--replace), beside the others.
-  cp models/compact-multiscale/* "$ht/models/compact-multiscale/"
-  for m in compact-windshield paper-real-coarse; do ln -sfn "$PWD/models/$m" "$ht/models/$m"; done
-  $py -m raindrop_tools.shared_detector --main "$ht/models/compact-multiscale" --replace \
-    --head tools/runs/compact-windshield-head-text/head.pt --like models/compact-windshield \
-    --out "$ht/models/compact-windshield-head"
-  # shared_detector takes the teacher's pipeline (threshold 0.75); the committed head's threshold
-  # since 4.50 is the one to compare at.
-  set_threshold "$ht/models/compact-windshield-head" \
-    "$($py -c 'import json, sys; print(json.load(open(sys.argv[1]))["pipeline"]["threshold"])' models/compact-windshield-head/export.json)"
-  [[ -d data/text-camvid-test ]] || $py -m raindrop_tools.text_negatives make --images "$shared/camvid/test" \
-    --out data/text-camvid-test --count 100 --seed 3
+  trained_head compact-windshield-head 3000 tools/configs/compact-windshield-head.yaml
+  trained_head compact-windshield-head-text 1000 tools/configs/compact-windshield-head-text.yaml
+  default_with_head tools/runs/compact-windshield-head-text/head.pt "$ht"
   # The baseline: the same frames without lettering, through the default.
   $py -m raindrop_tools.text_negatives make --images "$shared/camvid/test" --out "$ht/plain" --count 100 --no-lettering
   rm -rf "$ht/plain-default"
   build/raindrop-remove "$ht/plain" "$ht/plain-default/out" --mask-dir "$ht/plain-default/masks" -q -j 2
   $py -m raindrop_tools.text_negatives damage --inputs "$ht/plain" --outputs "$ht/plain-default/out" \
     --masks "$ht/plain-default/masks" --label "default, the frames without lettering" | tee "$ht/plain.txt"
-  for l in default:"" text:"--models $ht/models/compact-multiscale"; do
-    rm -rf "$ht/lettering-${l%%:*}"
-    # shellcheck disable=SC2086
-    build/raindrop-remove data/text-camvid-test "$ht/lettering-${l%%:*}/out" --mask-dir "$ht/lettering-${l%%:*}/masks" \
-      -q -j 2 ${l#*:}
-    $py -m raindrop_tools.text_negatives damage --inputs data/text-camvid-test --outputs "$ht/lettering-${l%%:*}/out" \
-      --masks "$ht/lettering-${l%%:*}/masks" --label "${l%%:*}"
-  done | tee "$ht/lettering.txt"
+  lettering_damage "$ht" default:"" text:"--models $ht/models/compact-multiscale" | tee "$ht/lettering.txt"
   score_sets "$ht" text "-j 2 --models $ht/models/compact-multiscale" "${router_vals[@]}" val-ws-1280x720:-:0 \
     val-wsday-1280x720:-:0 val-size-1280x720:-:0 val-glass-plate:-:0 | tee "$ht/scores.txt"
   score_sets "$ht" default "-j 2" "${router_vals[@]}" val-ws-1280x720:-:0 val-wsday-1280x720:-:0 \
@@ -2944,4 +2957,31 @@ if want headtext; then
   router_photos "$ht" default
   router_photos "$ht" text --models "$ht/models/compact-multiscale"
   photos_changed "$ht/photos-text/removed" "$ht/photos-default/removed" | tee "$ht/photos-changed.txt"
+fi
+if want headnight; then
+  # RESULTS 4.57: the default's windshield head fine-tuned with night drops, taught by the
+  # renderer's masks where the teacher never saw such drops
+  # (tools/configs/compact-windshield-head-night.yaml, which states the rule fixed before scoring).
+  router_sets
+  windshield_1280_sets
+  link_cv100
+  [[ -f data/val-glass-plate/manifest.jsonl ]] || build/raindrop-render -i "$out/cv100" -o data/val-glass-plate \
+    --scene glass-plate --size 512x256 --seed 11 -q
+  [[ -f data/val-wsnight-1280x720/manifest.jsonl ]] || build/raindrop-render -i "$out/cv100" \
+    -o data/val-wsnight-1280x720 --scene windshield-night --size 1280x720 --seed 11 -q
+  [[ -f data/train-windshield-night/manifest.jsonl ]] || build/raindrop-render -i "$shared/camvid/train" \
+    -o data/train-windshield-night --scene windshield-night --size 512x256 --variants 4 --seed 7 -q
+  hn="$out/headnight"
+  trained_head compact-windshield-head 3000 tools/configs/compact-windshield-head.yaml
+  trained_head compact-windshield-head-night 1000 tools/configs/compact-windshield-head-night.yaml
+  default_with_head tools/runs/compact-windshield-head-night/head.pt "$hn"
+  for l in default:"-j 2" night:"-j 2 --models $hn/models/compact-multiscale"; do
+    split_sets "$hn" "${l%%:*}" "${l#*:}" val-wsnight-1280x720:-:0
+    score_sets "$hn" "${l%%:*}" "${l#*:}" "${router_vals[@]}" val-ws-1280x720:-:0 val-wsday-1280x720:-:0 \
+      val-size-1280x720:-:0 val-glass-plate:-:0
+  done | tee "$hn/scores.txt"
+  lettering_damage "$hn" default:"" night:"--models $hn/models/compact-multiscale" | tee "$hn/lettering.txt"
+  router_photos "$hn" default
+  router_photos "$hn" night --models "$hn/models/compact-multiscale"
+  photos_changed "$hn/photos-night/removed" "$hn/photos-default/removed" | tee "$hn/photos-changed.txt"
 fi

@@ -1,7 +1,9 @@
 """Train an ``AlternativeHead`` (networks.py): a router's second detector as a light head on the
 main detector's own layers, taught to give a committed detector's map (distillation: the
 teacher's probabilities are the targets, so no masks are needed and real photographs without
-clean partners could serve as inputs too).
+clean partners could serve as inputs too). A source may instead give its own rendered masks as
+the targets (``targets: mask``): drops the teacher never learned to see (night drops) are taught
+from the renderer's truth.
 
     python -m raindrop_tools.train_head --config tools/configs/compact-windshield-head.yaml \\
         --out tools/runs/compact-windshield-head
@@ -50,6 +52,13 @@ class Source:
     split: str | None = None  # only the manifest's samples of this split (real pairs: never the test split)
     working_size: int | None = None  # long side brought down to this, as raindrop-remove's working pass does
     images: str = "rainy"  # the folder of the data set to read: rainy, or clean (text negatives)
+    # What the head learns on this source's crops: the teacher's map ("teacher"), or the data
+    # set's own masks ("mask": the renderer's truth, for drops the teacher does not find).
+    targets: str = "teacher"
+    # With mask targets: a drop (a part of the mask) whose mean change of the image inside it is
+    # under this many 8-bit luma levels is no target (a drop the photograph does not show, such
+    # as a night drop over black, is not one to find).
+    min_contrast: float = 0.0
 
 
 @dataclass
@@ -94,6 +103,15 @@ def read_config(path: Path) -> HeadConfig:
         raise SystemExit(f"error: {path}: text_sources are given but text_share is 0 (they would not be used)")
     if cfg.text_sources and any(s.weight <= 0 for s in cfg.text_sources):
         raise SystemExit(f"error: {path}: every text source needs a weight > 0")
+    for i, s in enumerate(sources):
+        if s.targets not in ("teacher", "mask"):
+            raise SystemExit(f"error: {path}: sources[{i}].targets must be teacher or mask, not {s.targets!r}")
+        if s.targets == "mask" and s.images != "rainy":
+            raise SystemExit(f"error: {path}: sources[{i}]: mask targets need the rainy images")
+        if s.min_contrast and s.targets != "mask":
+            raise SystemExit(f"error: {path}: sources[{i}]: min_contrast applies to mask targets only")
+    if cfg.text_sources and any(s.targets != "teacher" for s in cfg.text_sources):
+        raise SystemExit(f"error: {path}: text sources' target is no drop; targets does not apply to them")
     return cfg
 
 
@@ -106,10 +124,39 @@ def _image_files(source: Source) -> list[Path]:
     return sorted((root / source.images).glob("*.png"))
 
 
+def _mask_files(source: Source) -> dict[Path, tuple[Path, Path]]:
+    """Each rainy image's mask and clean image, as the data set's manifest pairs them."""
+    root = Path(source.path)
+    rows = [json.loads(line) for line in (root / "manifest.jsonl").read_text().splitlines() if line.strip()]
+    return {root / r["rainy"]: (root / r["mask"], root / r.get("clean", "")) for r in rows}
+
+
+def _luma(rgb: np.ndarray) -> np.ndarray:
+    return rgb.astype(np.float32) @ np.array([0.299, 0.587, 0.114], np.float32)
+
+
+def visible_drops(mask: np.ndarray, rainy: np.ndarray, clean: np.ndarray, min_contrast: float) -> np.ndarray:
+    """The mask without its parts whose mean absolute luma change (rainy against clean) is under
+    min_contrast levels."""
+    if min_contrast <= 0:
+        return mask
+    n, labels = cv2.connectedComponents((mask > 127).astype(np.uint8), connectivity=8)
+    change = np.abs(_luma(rainy) - _luma(clean)).ravel()
+    flat = labels.ravel()
+    sums = np.bincount(flat, weights=change, minlength=n)
+    counts = np.bincount(flat, minlength=n)
+    keep = sums >= min_contrast * np.maximum(counts, 1)
+    keep[0] = False
+    return np.where(keep[labels], mask, 0).astype(np.uint8)
+
+
 def load_images(source: Source, n: int, rng: random.Random) -> list[np.ndarray]:
+    """Up to n of the source's images, RGB uint8; with mask targets, the mask as a fourth channel
+    (so that every crop, scale and flip moves image and target together)."""
     files = _image_files(source)
     if not files:
         raise SystemExit(f"error: no {source.images} images in {source.path}" + (f" (split {source.split})" if source.split else ""))
+    masks = _mask_files(source) if source.targets == "mask" else {}
     rng.shuffle(files)
     images = []
     for f in files[:n]:
@@ -117,6 +164,19 @@ def load_images(source: Source, n: int, rng: random.Random) -> list[np.ndarray]:
             im = read_rgb(f)
         except ImageError as e:
             raise SystemExit(f"error: {e}") from None
+        if source.targets == "mask":
+            m = cv2.imread(str(masks[f][0]), cv2.IMREAD_GRAYSCALE) if f in masks else None
+            if m is None or m.shape != im.shape[:2]:
+                raise SystemExit(f"error: {f}: no mask of its size in the manifest of {source.path}")
+            if source.min_contrast > 0:
+                try:
+                    clean = read_rgb(masks[f][1])
+                except ImageError as e:
+                    raise SystemExit(f"error: {e}") from None
+                if clean.shape != im.shape:
+                    raise SystemExit(f"error: {masks[f][1]}: not the size of {f}")
+                m = visible_drops(m, im, clean, source.min_contrast)
+            im = np.dstack([im, m])
         s = source.scale
         if source.working_size:
             s = min(s, source.working_size / max(im.shape[:2]))
@@ -127,8 +187,9 @@ def load_images(source: Source, n: int, rng: random.Random) -> list[np.ndarray]:
 
 
 def crops(pools, weights, cfg: HeadConfig, rng: random.Random, text_pools=None, text_weights=None):
-    """A batch of crops, and which of them are text negatives (a bool per crop)."""
-    out, negative = [], []
+    """A batch of crops (B, 3, crop, crop), which of them are text negatives (a bool per crop),
+    and the targets of those whose source gives masks (B, 1, crop, crop; NaN for the others)."""
+    out, negative, truth = [], [], []
     for _ in range(cfg.batch_size):
         text = text_pools is not None and rng.random() < cfg.text_share
         if text:
@@ -149,8 +210,10 @@ def crops(pools, weights, cfg: HeadConfig, rng: random.Random, text_pools=None, 
             crop = cv2.resize(np.ascontiguousarray(crop), (cfg.crop, cfg.crop), interpolation=cv2.INTER_LINEAR)
         if text:
             crop = draw_text(np.ascontiguousarray(crop), rng)
-        out.append(torch.from_numpy(np.ascontiguousarray(crop)).permute(2, 0, 1).float() / 255)
-    return torch.stack(out), torch.tensor(negative)
+        t = torch.from_numpy(np.ascontiguousarray(crop)).permute(2, 0, 1).float() / 255
+        out.append(t[:3])
+        truth.append(t[3:] if len(t) == 4 else torch.full_like(t[:1], float("nan")))
+    return torch.stack(out), torch.tensor(negative), torch.stack(truth)
 
 
 def distillation_loss(logits: torch.Tensor, target: torch.Tensor) -> torch.Tensor:
@@ -191,11 +254,13 @@ def train(cfg: HeadConfig, out: Path) -> Path:
     t0, running = time.time(), None
     with open(out / "log.jsonl", "w") as log:
         for step in range(1, cfg.steps + 1):
-            x, negative = crops(pools, weights, cfg, rng, text_pools, text_weights)
+            x, negative, truth = crops(pools, weights, cfg, rng, text_pools, text_weights)
             with torch.no_grad():
                 taps = rdn_taps(main, x)
                 target = torch.sigmoid(teacher(x))
                 target[negative] = 0.0  # lettering on a clean image: no drop, whatever the teacher says
+                own = ~truth.isnan()
+                target[own] = truth[own]  # a source's own masks, where it gives them
             loss = distillation_loss(head(*taps), target)
             if not math.isfinite(loss.item()):
                 raise SystemExit(f"error: step {step}: the loss is not finite")

@@ -5,6 +5,7 @@ is refused as an RDN, and the reference pipeline reads the merged graph's first 
 import json
 import shutil
 
+import cv2
 import numpy as np
 import onnx
 import pytest
@@ -186,10 +187,50 @@ def test_text_negative_crops_have_lettering_and_no_drop_as_their_target(tmp_path
     cfg = train_head.HeadConfig(name="h", main="a", teacher="b", sources=[], batch_size=32, crop=64,
                                 coarse_share=0.0, text_share=0.5)
     grey = [np.full((96, 128, 3), 128, np.uint8)]
-    x, negative = train_head.crops([grey], [1.0], cfg, random.Random(0), [grey], [1.0])
+    x, negative, truth = train_head.crops([grey], [1.0], cfg, random.Random(0), [grey], [1.0])
     assert x.shape == (32, 3, 64, 64) and 4 < int(negative.sum()) < 28
     flat = (x - 128 / 255).abs().flatten(1).amax(1) < 1e-6
     assert torch.equal(flat, ~negative)
+    assert truth.isnan().all(), "no source gives masks: every target is the teacher's"
+
+
+def test_mask_targets_move_with_their_crops(tmp_path):
+    """A source with targets: mask carries its masks through every crop, coarse scale and flip:
+    with the mask a copy of the image's red channel, each crop's target is its red channel."""
+    import random
+
+    rng = np.random.default_rng(2)
+    data = tmp_path / "set"
+    for d in ("rainy", "mask"):
+        (data / d).mkdir(parents=True)
+    rows = []
+    for i in range(3):
+        im = cv2.GaussianBlur((rng.random((90, 120, 3)) * 255).astype(np.uint8), (0, 0), 3)
+        cv2.imwrite(str(data / "rainy" / f"{i}.png"), im[:, :, ::-1])
+        cv2.imwrite(str(data / "mask" / f"{i}.png"), im[:, :, 0])
+        rows.append(json.dumps({"rainy": f"rainy/{i}.png", "mask": f"mask/{i}.png"}))
+    (data / "manifest.jsonl").write_text("\n".join(rows) + "\n")
+    source = train_head.Source(path=str(data), weight=1.0, targets="mask")
+    pool = train_head.load_images(source, 10, random.Random(0))
+    assert len(pool) == 3 and pool[0].shape == (90, 120, 4)
+    cfg = train_head.HeadConfig(name="h", main="a", teacher="b", sources=[source], batch_size=24, crop=64,
+                                coarse_share=0.5)
+    x, negative, truth = train_head.crops([pool], [1.0], cfg, random.Random(1))
+    assert not negative.any() and not truth.isnan().any()
+    assert torch.equal(truth[:, 0], x[:, 0])
+    (data / "mask" / "1.png").unlink()
+    with pytest.raises(SystemExit, match="no mask of its size"):
+        train_head.load_images(source, 10, random.Random(0))
+
+
+def test_mask_targets_are_refused_where_they_cannot_apply(tmp_path):
+    path = tmp_path / "head.yaml"
+    path.write_text("name: h\nmain: a\nteacher: b\nsources: [{path: p, weight: 1, targets: masks}]\n")
+    with pytest.raises(SystemExit, match="teacher or mask"):
+        train_head.read_config(path)
+    path.write_text("name: h\nmain: a\nteacher: b\nsources: [{path: p, weight: 1, targets: mask, images: clean}]\n")
+    with pytest.raises(SystemExit, match="need the rainy images"):
+        train_head.read_config(path)
 
 
 def test_a_read_only_graph_is_kept(tmp_path, capsys):
@@ -249,3 +290,18 @@ def test_quantized_with_its_head_the_main_map_is_the_plain_int8_one_and_the_head
     assert "taken from" in json.loads((tmp_path / "h-int8" / "export.json").read_text())["quantization"]["reconstruction"]
     info = json.loads((tmp_path / "main-int8" / "export.json").read_text())
     assert info["alternative_head"]["folder"] == "h-int8"
+
+
+def test_visible_drops_keeps_the_drops_the_image_shows():
+    """min_contrast: of two drops, the one whose mean luma change is under the bar is no target;
+    at 0 the mask is kept as it is."""
+    clean = np.full((40, 80, 3), 100, np.uint8)
+    rainy = clean.copy()
+    mask = np.zeros((40, 80), np.uint8)
+    cv2.circle(mask, (20, 20), 8, 255, -1)
+    cv2.circle(mask, (60, 20), 8, 255, -1)
+    rainy[:, 40:][mask[:, 40:] > 0] += 10  # the right drop changes the image by 10 levels, the left not at all
+    kept = train_head.visible_drops(mask, rainy, clean, 4.0)
+    assert not kept[:, :40].any() and np.array_equal(kept[:, 40:], mask[:, 40:])
+    assert train_head.visible_drops(mask, rainy, clean, 11.0).max() == 0
+    assert train_head.visible_drops(mask, rainy, clean, 0.0) is mask
