@@ -7,7 +7,7 @@
 # windshield-followup longer growth sharpness coalesce surround largewidth largedrops-all windshield2
 # errorsplit withoutvnni graphrewrites jitter windshieldscale router routed int8router droplets realismcontrol
 # droplets2 infocus realismbar windshieldday fillarea finedrops lanes glassplate platerecon aperturelanes headrouter int8head headthreshold dilation coarsescales mainthreshold
-# rim headtext headnight
+# rim headtext headnight workers
 #
 # Sections measured before docs/RESULTS.md 4.44 run compact-windshield's detector (and the routed
 # default) with --surround-fill-area 150, the area they had then, so that they reproduce.
@@ -30,7 +30,7 @@ sections=("$@")
                                   surround largewidth largedrops-all windshield2 errorsplit withoutvnni graphrewrites
                                   jitter windshieldscale router routed int8router droplets realismcontrol droplets2 infocus realismbar
                                   windshieldday fillarea finedrops lanes glassplate platerecon aperturelanes headrouter int8head headthreshold dilation coarsescales mainthreshold
-                                  rim headtext headnight)
+                                  rim headtext headnight workers)
 want() { [[ " ${sections[*]} " == *" $1 "* ]]; }
 # link_set SRC DST SPLIT [LIMIT]: the first LIMIT (default 100; 0: all) samples of data set SRC
 # (of manifest split SPLIT; "-" = all) linked into DST/rainy and DST/clean (and DST/mask, where
@@ -2984,4 +2984,30 @@ if want headnight; then
   router_photos "$hn" default
   router_photos "$hn" night --models "$hn/models/compact-multiscale"
   photos_changed "$hn/photos-night/removed" "$hn/photos-default/removed" | tee "$hn/photos-changed.txt"
+fi
+if want workers; then
+  # RESULTS 4.59: folder mode with two images at once (--workers 2, each on one of the two
+  # threads) against one at a time on both, rounds alternated: wall time, peak memory, and the
+  # outputs compared byte for byte.
+  windshield_1280_sets
+  real_pairs_data
+  wk="$out/workers"
+  mkdir -p "$wk"
+  link_set data/real-pairs "$wk/pairs" test 0
+  link_set data/val-wsday-1280x720 "$wk/wsday" - 0
+  : >"$wk/times.txt"
+  for folder in "$shared/real-raindrop" "$wk/pairs/rainy" "$wk/wsday/rainy"; do
+    for round in 1 2 3 4; do
+      order=(1 2)
+      ((round % 2)) || order=(2 1)
+      for w in "${order[@]}"; do
+        rm -rf "$wk/out-$w"
+        s=$(date +%s%N)
+        /usr/bin/time -f "%M" -o "$wk/rss" build/raindrop-remove "$folder" "$wk/out-$w" -j 2 -q --workers "$w"
+        echo "$(basename "$(dirname "$folder")")/$(basename "$folder") workers-$w $(( ($(date +%s%N) - s) / 1000000 )) ms, peak RSS $(( $(cat "$wk/rss") / 1024 )) MB" |
+          tee -a "$wk/times.txt"
+      done
+    done
+    diff -r "$wk/out-1" "$wk/out-2" >/dev/null && echo "$folder: the same bytes" | tee -a "$wk/times.txt"
+  done
 fi

@@ -20,9 +20,12 @@
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
+#include <functional>
 #include <iostream>
 #include <map>
 #include <limits>
+#include <memory>
+#include <mutex>
 #include <optional>
 #include <set>
 #include <string>
@@ -297,7 +300,7 @@ int run(int argc, char** argv) {
   std::optional<int> surround_fill_area;
   double surround_fill_mad = kSurroundFillMad;
   int surround_fill_rim = kSurroundFillRim;
-  int threads = 0, tile = kDefaultTile, overlap = kDefaultOverlap;
+  int threads = 0, workers = 0, tile = kDefaultTile, overlap = kDefaultOverlap;
   bool time = false, quiet = false, keep_going = false, no_large_drops = false, mirror_average = false, fine_drops = false;
   bool no_router = false;
   Shard shard;
@@ -381,6 +384,11 @@ int run(int argc, char** argv) {
                "are unchanged; --surround-fill-area does not apply to it");
   app.add_option("-j,--threads", threads, "CPU threads (0: one per core; more than the cores: capped, with a warning); with 2 or more, RDN and 3RN run side by side on half each")
       ->capture_default_str()->check(CLI::Range(0, 1024));
+  app.add_option("--workers", workers,
+                 "Folder mode: images removed at once, each on its share of --threads (0: two where there are two or "
+                 "more threads and images, else one; at most --threads). The same output bytes as one at a time, "
+                 "more images per second: one image's stages leave cores idle (docs/RESULTS.md 4.59)")
+      ->capture_default_str()->check(CLI::Range(0, 1024));
   app.add_option("--device", device, "Execution device")->transform(cli::names_to(device_names()))->default_str("cpu");
   app.add_option("--tile", tile, "Process images larger than N x N in overlapping tiles of at most N x N (0: never)")
       ->capture_default_str();
@@ -425,6 +433,7 @@ int run(int argc, char** argv) {
                  cores, cores);
     threads = cores;
   }
+  const int all_threads = threads > 0 ? threads : cores;
 
   // Check the inputs before loading the models (which takes a moment).
   std::error_code ec;
@@ -579,7 +588,30 @@ int run(int argc, char** argv) {
   std::optional<fs::path> large_dir;
   if (no_large_drops) large_dir = model_dir;
   if (!large_drop_models.empty()) large_dir = fs::path(large_drop_models);
-  Remover remover(model_dir, session, large_dir, !no_router);
+  // Folder mode removes `worker_count` images at once, each with its own models on its share
+  // of the threads: one image's stages (decoding, the side-by-side networks of unequal length,
+  // the blend, encoding) leave cores idle that another image's fill. Each image is removed
+  // exactly as one at a time with the same threads per image.
+  int worker_count = 1;
+  if (batch && device == Device::cpu) {
+    worker_count = workers > 0 ? workers : (all_threads >= 2 ? 2 : 1);
+    if (worker_count > all_threads) {
+      std::fprintf(stderr, "raindrop-remove: warning: --workers %d is more than the %d threads; using %d\n", worker_count,
+                   all_threads, all_threads);
+      worker_count = all_threads;
+    }
+    worker_count = std::max(1, std::min(worker_count, static_cast<int>(jobs.size())));
+  } else if (workers > 1) {
+    std::fprintf(stderr, "raindrop-remove: warning: --workers applies to folders on the CPU; one image at a time\n");
+  }
+  std::vector<std::unique_ptr<Remover>> removers;
+  for (int w = 0; w < worker_count; ++w) {
+    SessionConfig mine = session;
+    // The threads shared out, the first workers taking what does not divide evenly.
+    if (worker_count > 1) mine.threads = all_threads / worker_count + (w < all_threads % worker_count ? 1 : 0);
+    removers.push_back(std::make_unique<Remover>(model_dir, mine, large_dir, !no_router));
+  }
+  Remover& remover = *removers.front();
 
   Settings s;
   s.options.threshold = threshold;
@@ -599,8 +631,9 @@ int run(int argc, char** argv) {
   s.time = time;
   if (time) {
     const ModelInfo& mi = remover.info();
-    const std::string thread_text = threads == 0 ? std::string("threads: one per core")
-                                                  : std::to_string(threads) + (threads == 1 ? " thread" : " threads");
+    std::string thread_text = threads == 0 ? std::string("threads: one per core")
+                                            : std::to_string(threads) + (threads == 1 ? " thread" : " threads");
+    if (worker_count > 1) thread_text += ", " + std::to_string(worker_count) + " images at once";
     char sharpness_text[64] = "";  // the limit only matters when the coarse pass runs
     if (!no_large_drops) std::snprintf(sharpness_text, sizeof sharpness_text, ", large-drop sharpness %g", large_drop_sharpness);
     const std::string large = no_large_drops                           ? "no coarse pass"
@@ -625,35 +658,68 @@ int run(int argc, char** argv) {
       if (file) record_own_output(g.folder, file->lexically_relative(g.folder).generic_string(), *file);
     }
   };
-  std::vector<std::vector<cv::Mat>> rows;
-  std::vector<std::string> captions;
   const std::size_t refused = errors.size();
   Progress progress(static_cast<std::int64_t>(jobs.size()), "remove", batch && !quiet);
   // One image: its output, mask and contact sheet appear together or not at all (a sheet that
   // fails to write leaves no output). Folder mode: each image's output and mask together.
   StagedImages single;
   std::string single_lost;
-  for (const auto& job : jobs) {
-    const bool want_panels = !sheet.empty() && static_cast<int>(rows.size()) < kSheetRows;
-    try {
-      StagedImages files;
-      std::string lost;
-      auto panels = process(remover, job, s, want_panels, batch ? &files : &single, batch ? &lost : &single_lost);
-      files.commit();
-      if (batch) record_in_guarded(job);
-      warn_format_loss(job.output, lost);
-      if (want_panels) {
-        rows.push_back(std::move(panels));
-        captions.push_back(job.caption);
+  // The contact sheet holds the first kSheetRows images, in the inputs' order, that succeeded.
+  std::map<std::size_t, std::vector<cv::Mat>> panels_of;
+  std::mutex shared;  // guards panels_of, errors, failures, first_error, the own-output lists
+  std::size_t next = 0, failures = 0;
+  std::exception_ptr first_error;
+  const auto work = [&](Remover& mine) {
+    for (;;) {
+      std::size_t i = 0;
+      bool want_panels = false;
+      {
+        const std::lock_guard<std::mutex> lock(shared);
+        // Without --keep-going the first failure ends the run (exit 1 through main): no image
+        // starts after it; one another worker had started is finished and kept.
+        if (first_error || next == jobs.size()) return;
+        i = next++;
+        // Images that may still make the sheet: those below kSheetRows plus every one before
+        // them that failed or may yet fail (at most one per worker in flight).
+        want_panels = !sheet.empty() && i < kSheetRows + failures + removers.size();
       }
-    } catch (const std::exception& e) {
-      // Without --keep-going the first failure ends the run (exit 1 through main).
-      if (!batch || !keep_going) throw;
-      errors.push_back(one_line(e.what()));
+      const Job& job = jobs[i];
+      try {
+        StagedImages files;
+        std::string lost;
+        auto panels = process(mine, job, s, want_panels, batch ? &files : &single, batch ? &lost : &single_lost);
+        files.commit();
+        const std::lock_guard<std::mutex> lock(shared);
+        if (batch) record_in_guarded(job);
+        warn_format_loss(job.output, lost);
+        if (want_panels) panels_of[i] = std::move(panels);
+      } catch (const std::exception& e) {
+        const std::lock_guard<std::mutex> lock(shared);
+        ++failures;
+        if (!batch || !keep_going) {
+          if (!first_error) first_error = std::current_exception();
+        } else {
+          errors.push_back(one_line(e.what()));
+        }
+      }
+      progress.advance();
     }
-    progress.advance();
+  };
+  {
+    std::vector<std::thread> others;
+    for (std::size_t w = 1; w < removers.size(); ++w) others.emplace_back(work, std::ref(*removers[w]));
+    work(remover);
+    for (auto& t : others) t.join();
   }
+  if (first_error) std::rethrow_exception(first_error);
   progress.finish();
+  std::vector<std::vector<cv::Mat>> rows;
+  std::vector<std::string> captions;
+  for (auto& [i, panels] : panels_of) {
+    if (static_cast<int>(rows.size()) == kSheetRows) break;
+    rows.push_back(std::move(panels));
+    captions.push_back(jobs[i].caption);
+  }
   if (!sheet.empty() && !rows.empty()) {
     const cv::Mat contact_sheet = make_contact_sheet(rows, {"input", "mask", "output"}, captions, kPanelWidth);
     if (batch) {

@@ -1018,6 +1018,60 @@ TEST_F(RemoveCli, ThreadsAreCappedAtTheCores) {
 }
 
 
+// Folder mode removes two images at once where there are two threads (--workers, each image
+// on its share of them): every output, mask and the contact sheet are the bytes of one image at
+// a time on the same threads per image, and the sheet keeps the inputs' order.
+TEST_F(RemoveCli, WorkersGiveTheBytesOfOneImageAtATime) {
+  const char* names[] = {"a.png", "b.png", "c.png", "d.png", "e.png", "f.png"};
+  for (int i = 0; i < 6; ++i) write_image(tmp / "batch" / names[i], make_image(30 + 7 * i, 41 - 3 * i, 10 + i));
+  const RunResult one = remove({"batch", "one", "--mask-dir", "one-masks", "--contact-sheet", "one.png", "-j", "1",
+                                "--workers", "1", "-q"});
+  ASSERT_EQ(one.code, 0) << one.describe();
+  const RunResult two = remove({"batch", "two", "--mask-dir", "two-masks", "--contact-sheet", "two.png", "-j", "2",
+                                "--workers", "2", "-q", "--time"});
+  ASSERT_EQ(two.code, 0) << two.describe();
+  EXPECT_NE(two.err.find("2 threads, 2 images at once"), std::string::npos) << two.describe();
+  for (const char* n : names) {
+    SCOPED_TRACE(n);
+    EXPECT_EQ(read_file(tmp / "two" / n), read_file(tmp / "one" / n));
+    EXPECT_EQ(read_file(tmp / "two-masks" / n), read_file(tmp / "one-masks" / n));
+  }
+  EXPECT_EQ(read_file(tmp / "two.png"), read_file(tmp / "one.png")) << "the sheet: the first four images, in order";
+  // More workers than threads: capped, with one line saying so.
+  const RunResult many = remove({"batch", "many", "-j", "1", "--workers", "3", "-q"});
+  ASSERT_EQ(many.code, 0) << many.describe();
+  EXPECT_EQ(many.err, "raindrop-remove: warning: --workers 3 is more than the 1 threads; using 1\n") << many.describe();
+  EXPECT_EQ(read_file(tmp / "many" / "f.png"), read_file(tmp / "one" / "f.png"));
+  EXPECT_EQ(remove({"batch", "bad", "--workers", "-1"}).code, 2);
+  EXPECT_FALSE(fs::exists(tmp / "bad"));
+}
+
+// A file whose pixel data is cut (its header passes the check before the models load) fails
+// while the other worker removes its neighbour: without --keep-going the run stops with exit 1,
+// no image starts after the failure and the cut one leaves nothing; with it, every other image
+// is written and the failure is reported.
+TEST_F(RemoveCli, WorkersStopAtAFailureOrGoOn) {
+  for (int i = 0; i < 5; ++i) write_image(tmp / "batch" / ("img" + std::to_string(i) + ".png"), make_image(40, 30, 20 + i));
+  const std::string whole = read_file(tmp / "batch" / "img1.png");
+  write_file(tmp / "batch" / "img1.png", whole.substr(0, whole.size() * 6 / 10));
+  RunResult r = remove({"batch", "stop", "-j", "2", "--workers", "2", "-q"});
+  EXPECT_EQ(r.code, 1) << r.describe();
+  EXPECT_EQ(split_lines(r.err).size(), 1u) << r.describe();
+  EXPECT_NE(r.err.find("img1.png"), std::string::npos) << r.describe();
+  EXPECT_FALSE(fs::exists(tmp / "stop" / "img1.png"));
+  // img0 and img1 start together; at most one more image (begun while img1 was decoding) is written.
+  int written = 0;
+  for (int i = 2; i < 5; ++i) written += fs::exists(tmp / "stop" / ("img" + std::to_string(i) + ".png"));
+  EXPECT_LE(written, 1) << r.describe();
+  EXPECT_TRUE(hidden_temporaries(tmp / "stop").empty());
+  r = remove({"batch", "go", "-j", "2", "--workers", "2", "-q", "--keep-going"});
+  EXPECT_EQ(r.code, 3) << r.describe();
+  for (int i : {0, 2, 3, 4}) EXPECT_TRUE(fs::exists(tmp / "go" / ("img" + std::to_string(i) + ".png"))) << i;
+  EXPECT_FALSE(fs::exists(tmp / "go" / "img1.png"));
+  EXPECT_NE(r.err.find("4 of 5 images done, 1 failed"), std::string::npos) << r.describe();
+}
+
+
 // NaN passes CLI11's range check (every comparison with it is false); it is a bad command
 // line like any other out-of-range threshold, found before the models are loaded.
 TEST_F(RemoveCli, NanThresholdIsAUsageError) {
