@@ -21,6 +21,7 @@
 #include <cstdio>
 #include <filesystem>
 #include <functional>
+#include <future>
 #include <iostream>
 #include <map>
 #include <limits>
@@ -63,6 +64,10 @@ using raindrop::cli::read_own_outputs;
 namespace {
 
 constexpr int kSheetRows = 4;  // images on a batch run's contact sheet
+// Folders with an image larger than this go one image at a time unless --workers says
+// otherwise: each image's working memory grows with its pixels (an 11-megapixel photograph
+// peaks near 0.4 GB), and two at once must not turn a folder that fits into one that does not.
+constexpr std::int64_t kTwoAtATimeMaxPixels = std::int64_t{1} << 24;
 constexpr int kPanelWidth = 512;
 
 // A command line that is well-formed but asks for something impossible (exit code 2, like
@@ -382,12 +387,13 @@ int run(int argc, char** argv) {
                "glass photographs the working scale misses. Costs a detector run on 2.25 times the working pixels "
                "(docs/RESULTS.md 4.45); images the networks see at full size (long side at most 512 without --scale) "
                "are unchanged; --surround-fill-area does not apply to it");
-  app.add_option("-j,--threads", threads, "CPU threads (0: one per core; more than the cores: capped, with a warning); with 2 or more, RDN and 3RN run side by side on half each")
+  app.add_option("-j,--threads", threads, "CPU threads (0: one per core; more than the cores: capped, with a warning); with 2 or more, RDN and 3RN run side by side on half each (folders: of each image's worker's share, --workers)")
       ->capture_default_str()->check(CLI::Range(0, 1024));
   app.add_option("--workers", workers,
                  "Folder mode: images removed at once, each on its share of --threads (0: two where there are two or "
-                 "more threads and images, else one; at most --threads). The same output bytes as one at a time, "
-                 "more images per second: one image's stages leave cores idle (docs/RESULTS.md 4.59)")
+                 "more threads and images and none is over 16 megapixels, else one; at most --threads). The same "
+                 "output bytes as one at a time, more images per second: one image's stages leave cores idle "
+                 "(docs/RESULTS.md 4.59)")
       ->capture_default_str()->check(CLI::Range(0, 1024));
   app.add_option("--device", device, "Execution device")->transform(cli::names_to(device_names()))->default_str("cpu");
   app.add_option("--tile", tile, "Process images larger than N x N in overlapping tiles of at most N x N (0: never)")
@@ -543,11 +549,12 @@ int run(int argc, char** argv) {
   // inside the pixel data (a cut file) is still found only when the image is decoded. With
   // --keep-going such inputs are reported as failed at the end instead.
   std::vector<std::string> errors;
+  std::int64_t largest_pixels = 0;
   if (batch) {
     std::vector<Job> readable;
     for (auto& j : jobs) {
       try {
-        check_native_header(j.input);
+        largest_pixels = std::max(largest_pixels, check_native_header(j.input));
         readable.push_back(std::move(j));
       } catch (const Error& e) {
         if (!keep_going) throw;
@@ -594,7 +601,7 @@ int run(int argc, char** argv) {
   // exactly as one at a time with the same threads per image.
   int worker_count = 1;
   if (batch && device == Device::cpu) {
-    worker_count = workers > 0 ? workers : (all_threads >= 2 ? 2 : 1);
+    worker_count = workers > 0 ? workers : (all_threads >= 2 && largest_pixels <= kTwoAtATimeMaxPixels ? 2 : 1);
     if (worker_count > all_threads) {
       std::fprintf(stderr, "raindrop-remove: warning: --workers %d is more than the %d threads; using %d\n", worker_count,
                    all_threads, all_threads);
@@ -604,13 +611,18 @@ int run(int argc, char** argv) {
   } else if (workers > 1) {
     std::fprintf(stderr, "raindrop-remove: warning: --workers applies to folders on the CPU; one image at a time\n");
   }
-  std::vector<std::unique_ptr<Remover>> removers;
-  for (int w = 0; w < worker_count; ++w) {
+  // The threads shared out, the first workers taking what does not divide evenly; the
+  // workers' models load side by side.
+  const auto make_remover = [&](int w) {
     SessionConfig mine = session;
-    // The threads shared out, the first workers taking what does not divide evenly.
     if (worker_count > 1) mine.threads = all_threads / worker_count + (w < all_threads % worker_count ? 1 : 0);
-    removers.push_back(std::make_unique<Remover>(model_dir, mine, large_dir, !no_router));
-  }
+    return std::make_unique<Remover>(model_dir, mine, large_dir, !no_router);
+  };
+  std::vector<std::future<std::unique_ptr<Remover>>> loading;
+  for (int w = 1; w < worker_count; ++w) loading.push_back(std::async(std::launch::async, make_remover, w));
+  std::vector<std::unique_ptr<Remover>> removers;
+  removers.push_back(make_remover(0));
+  for (auto& f : loading) removers.push_back(f.get());
   Remover& remover = *removers.front();
 
   Settings s;
@@ -666,17 +678,29 @@ int run(int argc, char** argv) {
   std::string single_lost;
   // The contact sheet holds the first kSheetRows images, in the inputs' order, that succeeded.
   std::map<std::size_t, std::vector<cv::Mat>> panels_of;
-  std::mutex shared;  // guards panels_of, errors, failures, first_error, the own-output lists
+  std::mutex shared;  // guards panels_of, failed, failures, first_error, the own-output lists
   std::size_t next = 0, failures = 0;
+  // Without --keep-going: the error of the failed image first in the inputs' order (a worker
+  // may find its failure after another's later in the order).
   std::exception_ptr first_error;
-  const auto work = [&](Remover& mine) {
+  std::size_t first_error_at = 0;
+  std::map<std::size_t, std::string> failed;  // with --keep-going: each failed image's error
+  const auto stop_at = [&](std::size_t i, std::exception_ptr e) {
+    if (!first_error || i < first_error_at) {
+      first_error = std::move(e);
+      first_error_at = i;
+    }
+  };
+  const auto work = [&](Remover& mine) noexcept {
+    // noexcept: nothing may leave a worker's thread; what no handler below takes ends the run
+    // as before (std::terminate), on any thread.
     for (;;) {
       std::size_t i = 0;
       bool want_panels = false;
       {
         const std::lock_guard<std::mutex> lock(shared);
         // Without --keep-going the first failure ends the run (exit 1 through main): no image
-        // starts after it; one another worker had started is finished and kept.
+        // starts once it is known; those other workers had begun are finished and kept.
         if (first_error || next == jobs.size()) return;
         i = next++;
         // Images that may still make the sheet: those below kSheetRows plus every one before
@@ -697,21 +721,33 @@ int run(int argc, char** argv) {
         const std::lock_guard<std::mutex> lock(shared);
         ++failures;
         if (!batch || !keep_going) {
-          if (!first_error) first_error = std::current_exception();
+          stop_at(i, std::current_exception());
         } else {
-          errors.push_back(one_line(e.what()));
+          failed[i] = one_line(e.what());
         }
+      } catch (...) {  // not ours: ends the run, as it did before there were workers
+        const std::lock_guard<std::mutex> lock(shared);
+        ++failures;
+        stop_at(i, std::current_exception());
       }
       progress.advance();
     }
   };
   {
     std::vector<std::thread> others;
-    for (std::size_t w = 1; w < removers.size(); ++w) others.emplace_back(work, std::ref(*removers[w]));
+    for (std::size_t w = 1; w < removers.size(); ++w) {
+      try {
+        others.emplace_back(work, std::ref(*removers[w]));
+      } catch (const std::system_error& e) {  // no more threads: the ones running take every image
+        std::fprintf(stderr, "raindrop-remove: warning: %zu of %zu workers started (%s)\n", w, removers.size(), e.what());
+        break;
+      }
+    }
     work(remover);
     for (auto& t : others) t.join();
   }
   if (first_error) std::rethrow_exception(first_error);
+  for (auto& [i, e] : failed) errors.push_back(std::move(e));  // after the refused ones, in the inputs' order
   progress.finish();
   std::vector<std::vector<cv::Mat>> rows;
   std::vector<std::string> captions;

@@ -233,8 +233,10 @@ void check_native_spec(const fs::path& path, const ImageHeader& header, int min_
 
 }  // namespace
 
-void check_native_header(const fs::path& path, int min_size) {
-  check_native_spec(path, open_image(path, /*check_data=*/false).header, min_size);
+std::int64_t check_native_header(const fs::path& path, int min_size) {
+  const auto header = open_image(path, /*check_data=*/false).header;
+  check_native_spec(path, header, min_size);
+  return static_cast<std::int64_t>(header.width) * header.height;
 }
 
 cv::Mat read_image_native(const fs::path& path, int min_size, std::string* icc_profile) {

@@ -1046,29 +1046,42 @@ TEST_F(RemoveCli, WorkersGiveTheBytesOfOneImageAtATime) {
   EXPECT_FALSE(fs::exists(tmp / "bad"));
 }
 
-// A file whose pixel data is cut (its header passes the check before the models load) fails
-// while the other worker removes its neighbour: without --keep-going the run stops with exit 1,
-// no image starts after the failure and the cut one leaves nothing; with it, every other image
-// is written and the failure is reported.
+// Files whose pixel data is damaged (chunks and CRCs intact, so the header check before the
+// models load passes them) fail inside a worker while the other removes its neighbour. Without
+// --keep-going the run stops with exit 1 and one line naming the first failed image in the
+// inputs' order, the damaged ones leave nothing, and no image starts once the failure is known
+// (img0 and img1 start together, img1 fails at its decode while the larger img0 is still being
+// removed: nothing after img1 is written). With it, every other image is written and the
+// failures are reported in the inputs' order.
 TEST_F(RemoveCli, WorkersStopAtAFailureOrGoOn) {
-  for (int i = 0; i < 5; ++i) write_image(tmp / "batch" / ("img" + std::to_string(i) + ".png"), make_image(40, 30, 20 + i));
-  const std::string whole = read_file(tmp / "batch" / "img1.png");
-  write_file(tmp / "batch" / "img1.png", whole.substr(0, whole.size() * 6 / 10));
+  write_image(tmp / "batch" / "img0.png", make_image(320, 240, 20));
+  for (int i = 1; i < 6; ++i) write_image(tmp / "batch" / ("img" + std::to_string(i) + ".png"), make_image(40, 30, 20 + i));
+  for (const char* name : {"img1.png", "img4.png"}) {
+    auto chunks = png_chunks(read_file(tmp / "batch" / name));
+    for (auto& [type, data] : chunks) {
+      if (type != "IDAT") continue;
+      for (size_t i = data.size() / 2; i < data.size() / 2 + 16 && i < data.size(); ++i) data[i] ^= 0x5a;
+    }
+    write_file(tmp / "batch" / name, png_from_chunks(chunks));
+  }
   RunResult r = remove({"batch", "stop", "-j", "2", "--workers", "2", "-q"});
   EXPECT_EQ(r.code, 1) << r.describe();
-  EXPECT_EQ(split_lines(r.err).size(), 1u) << r.describe();
+  ASSERT_EQ(split_lines(r.err).size(), 1u) << r.describe();
+  EXPECT_NE(r.err.find("cannot decode"), std::string::npos) << "a failure in a worker, not the header check\n" << r.describe();
   EXPECT_NE(r.err.find("img1.png"), std::string::npos) << r.describe();
   EXPECT_FALSE(fs::exists(tmp / "stop" / "img1.png"));
-  // img0 and img1 start together; at most one more image (begun while img1 was decoding) is written.
-  int written = 0;
-  for (int i = 2; i < 5; ++i) written += fs::exists(tmp / "stop" / ("img" + std::to_string(i) + ".png"));
-  EXPECT_LE(written, 1) << r.describe();
+  for (int i = 2; i < 6; ++i) EXPECT_FALSE(fs::exists(tmp / "stop" / ("img" + std::to_string(i) + ".png"))) << i;
   EXPECT_TRUE(hidden_temporaries(tmp / "stop").empty());
   r = remove({"batch", "go", "-j", "2", "--workers", "2", "-q", "--keep-going"});
   EXPECT_EQ(r.code, 3) << r.describe();
-  for (int i : {0, 2, 3, 4}) EXPECT_TRUE(fs::exists(tmp / "go" / ("img" + std::to_string(i) + ".png"))) << i;
+  for (int i : {0, 2, 3, 5}) EXPECT_TRUE(fs::exists(tmp / "go" / ("img" + std::to_string(i) + ".png"))) << i;
   EXPECT_FALSE(fs::exists(tmp / "go" / "img1.png"));
-  EXPECT_NE(r.err.find("4 of 5 images done, 1 failed"), std::string::npos) << r.describe();
+  EXPECT_FALSE(fs::exists(tmp / "go" / "img4.png"));
+  EXPECT_NE(r.err.find("4 of 6 images done, 2 failed"), std::string::npos) << r.describe();
+  const size_t first = r.err.find("img1.png"), second = r.err.find("img4.png");
+  ASSERT_NE(first, std::string::npos) << r.describe();
+  ASSERT_NE(second, std::string::npos) << r.describe();
+  EXPECT_LT(first, second) << "failures reported in the inputs' order\n" << r.describe();
 }
 
 

@@ -58,8 +58,8 @@ void check_rgb8_header(const std::filesystem::path& path, bool convert, int min_
 cv::Mat read_image_native(const std::filesystem::path& path, int min_size = 1, std::string* icc_profile = nullptr);
 
 // Throws the Error read_image_native would throw for what the file's header shows, without
-// decoding the pixels (as check_rgb8_header does for read_rgb8).
-void check_native_header(const std::filesystem::path& path, int min_size = 1);
+// decoding the pixels (as check_rgb8_header does for read_rgb8); returns the image's pixels.
+std::int64_t check_native_header(const std::filesystem::path& path, int min_size = 1);
 
 // PNG compression: a zlib level 0-9 with libpng's adaptive row filters; kPngRunLength: zlib's
 // run-length strategy over Paeth-filtered rows, both faster and smaller than a zlib level (a
