@@ -38,6 +38,7 @@ import yaml
 
 from .config import ConfigError, _from_dict
 from .imageio import ImageError, read_rgb
+from .metrics import luma_float
 from .networks import AlternativeHead, rdn_taps
 from .read_only import refuse_read_only
 from .shared_detector import load_rdn, rdn_config
@@ -131,17 +132,13 @@ def _mask_files(source: Source) -> dict[Path, tuple[Path, Path]]:
     return {root / r["rainy"]: (root / r["mask"], root / r.get("clean", "")) for r in rows}
 
 
-def _luma(rgb: np.ndarray) -> np.ndarray:
-    return rgb.astype(np.float32) @ np.array([0.299, 0.587, 0.114], np.float32)
-
-
 def visible_drops(mask: np.ndarray, rainy: np.ndarray, clean: np.ndarray, min_contrast: float) -> np.ndarray:
     """The mask without its parts whose mean absolute luma change (rainy against clean) is under
     min_contrast levels."""
     if min_contrast <= 0:
         return mask
     n, labels = cv2.connectedComponents((mask > 127).astype(np.uint8), connectivity=8)
-    change = np.abs(_luma(rainy) - _luma(clean)).ravel()
+    change = np.abs(luma_float(rainy) - luma_float(clean)).ravel()
     flat = labels.ravel()
     sums = np.bincount(flat, weights=change, minlength=n)
     counts = np.bincount(flat, minlength=n)
