@@ -7,13 +7,19 @@
 # windshield-followup longer growth sharpness coalesce surround largewidth largedrops-all windshield2
 # errorsplit withoutvnni graphrewrites jitter windshieldscale router routed int8router droplets realismcontrol
 # droplets2 infocus realismbar windshieldday fillarea finedrops lanes glassplate platerecon aperturelanes headrouter int8head headthreshold dilation coarsescales mainthreshold
-# rim headtext headnight workers
+# rim headtext headnight workers int8default
 #
 # Sections measured before docs/RESULTS.md 4.44 run compact-windshield's detector (and the routed
 # default) with --surround-fill-area 150, the area they had then, so that they reproduce.
 # Sections measured before 4.54 ran without the fill's growth into rims (now on by default); run
 # now, the default's rows there may differ by the few hundredths of a dB 4.54 measured (pass
 # --surround-fill-rim 0 to raindrop-remove for the figures as they were).
+# Sections measured before 4.60 ran the float default where they name no model; since 4.60 a CPU
+# with VNNI loads the default's int8 copy there (models/DEFAULT's vnni line), so on such a CPU
+# their default's rows are the int8 copy's (0.05 dB lower on average, 4.60). For the figures as
+# they were, run them on a CPU without VNNI, or with a models root whose DEFAULT has no vnni line:
+#   mkdir -p /tmp/float && ln -sfn "$PWD"/models/*/ /tmp/float/ && echo compact-multiscale >/tmp/float/DEFAULT
+#   RAINDROP_MODELS=/tmp/float scripts/results.sh SECTION
 #
 # Nothing here is committed automatically: images derived from Cityscapes, CamVid or the
 # real raindrop photographs stay under out/ (their licences forbid redistribution).
@@ -30,7 +36,7 @@ sections=("$@")
                                   surround largewidth largedrops-all windshield2 errorsplit withoutvnni graphrewrites
                                   jitter windshieldscale router routed int8router droplets realismcontrol droplets2 infocus realismbar
                                   windshieldday fillarea finedrops lanes glassplate platerecon aperturelanes headrouter int8head headthreshold dilation coarsescales mainthreshold
-                                  rim headtext headnight workers)
+                                  rim headtext headnight workers int8default)
 want() { [[ " ${sections[*]} " == *" $1 "* ]]; }
 # link_set SRC DST SPLIT [LIMIT]: the first LIMIT (default 100; 0: all) samples of data set SRC
 # (of manifest split SPLIT; "-" = all) linked into DST/rainy and DST/clean (and DST/mask, where
@@ -2583,6 +2589,15 @@ router_sets() {
   router_tests=(real-pairs:test:0 test-sparse:-:0 test-windshield-sharp:-:0 test-size-512x288:-:0 test-size-1280x720:-:0)
   router_vals=(real-pairs:train:0 val-sparse:-:0 val-windshield-sharp:-:0)
 }
+# default_sets: the sets the default's changes are scored on since 4.57 (router_sets, the
+# windshield sets at 1280x720 and val-glass-plate), each rendered once.
+default_sets() {
+  router_sets
+  windshield_1280_sets
+  link_cv100
+  [[ -f data/val-glass-plate/manifest.jsonl ]] || build/raindrop-render -i "$out/cv100" -o data/val-glass-plate \
+    --scene glass-plate --size 512x256 --seed 11 -q
+}
 # router_photos DIR NAME FLAGS...: the 44 photographs through raindrop-remove FLAGS into
 # DIR/photos-NAME (outputs, masks, --time's lines) and its contact sheet DIR/photos-NAME-sheet.png.
 router_photos() {
@@ -2962,11 +2977,7 @@ if want headnight; then
   # RESULTS 4.57: the default's windshield head fine-tuned with night drops, taught by the
   # renderer's masks where the teacher never saw such drops
   # (tools/configs/compact-windshield-head-night.yaml, which states the rule fixed before scoring).
-  router_sets
-  windshield_1280_sets
-  link_cv100
-  [[ -f data/val-glass-plate/manifest.jsonl ]] || build/raindrop-render -i "$out/cv100" -o data/val-glass-plate \
-    --scene glass-plate --size 512x256 --seed 11 -q
+  default_sets
   [[ -f data/val-wsnight-1280x720/manifest.jsonl ]] || build/raindrop-render -i "$out/cv100" \
     -o data/val-wsnight-1280x720 --scene windshield-night --size 1280x720 --seed 11 -q
   [[ -f data/train-windshield-night/manifest.jsonl ]] || build/raindrop-render -i "$shared/camvid/train" \
@@ -3010,4 +3021,40 @@ if want workers; then
     done
     diff -r "$wk/out-1" "$wk/out-2" >/dev/null && echo "$folder: the same bytes" | tee -a "$wk/times.txt"
   done
+fi
+
+if want int8default; then
+  # RESULTS 4.60: models/DEFAULT's int8 copy on CPUs with VNNI, its RFN kept in float. The float
+  # default, the int8 copy as it was (every network int8; from git, 1ad2fb0) and as it is, named
+  # explicitly (so that the figures do not depend on the CPU that runs this), side by side: the
+  # validation sets, then the test sets once; the 44 photographs; process start to file written
+  # on two photographs, rounds alternated, with this machine's choice ("") beside.
+  default_sets
+  i8="$out/int8default"
+  mkdir -p "$i8"
+  if ! grep -q '"kept_float"' models/compact-multiscale-int8/export.json; then
+    [[ -f data/train/manifest.jsonl ]] || build/raindrop-render --input "$shared/camvid/train" --input "$shared/camvid/val" \
+      --cityscapes "$shared/cityscapes-mini" --split train --size 512x256 --variants 6 --seed 1 --out data/train -q
+    $py -m raindrop_tools.quantize --models models/compact-multiscale --data data/train --out models/compact-multiscale-int8 \
+      --count 16 --keep-float rfn
+    $py -m raindrop_tools.quantize --models models/compact-windshield-head --data data/train \
+      --out models/compact-windshield-head-int8 --count 16 --reuse-reconstruction models/compact-multiscale-int8
+  fi
+  allint8="$i8/models"
+  rm -rf "$allint8" && mkdir -p "$allint8"
+  git archive 1ad2fb0 models/compact-multiscale-int8 models/compact-windshield-head-int8 | tar -x -C "$allint8" --strip-components=1
+  ln -sfn "$PWD/models/paper-real-coarse-int8" "$allint8/paper-real-coarse-int8"
+  vals=(real-pairs:train:0 val-sparse:-:0 val-windshield-sharp:-:0 val-ws-1280x720:-:0 val-wsday-1280x720:-:0
+        val-size-1280x720:-:0 val-glass-plate:-:0)
+  tests=(real-pairs:test:0 test-sparse:-:0 test-windshield-sharp:-:0 test-size-512x288:-:0 test-size-1280x720:-:0
+         test-ws-1280x720:-:0 test-wsday-1280x720:-:0)
+  variants=("compact-multiscale|--model-config compact-multiscale" "all-int8|--models $allint8/compact-multiscale-int8"
+            "compact-multiscale-int8|--model-config compact-multiscale-int8")
+  for v in "${variants[@]}"; do score_sets "$i8" "${v%%|*}" "-j 2 ${v#*|}" "${vals[@]}"; done | tee "$i8/scores-val.txt"
+  for v in "${variants[@]}"; do score_sets "$i8" "${v%%|*}" "-j 2 ${v#*|}" "${tests[@]}"; done | tee "$i8/scores-test.txt"
+  for m in compact-multiscale compact-multiscale-int8; do router_photos "$i8" "$m" --model-config "$m"; done
+  photos_changed "$i8/photos-compact-multiscale/removed" "$i8/photos-compact-multiscale-int8/removed" | tee "$i8/photos.txt"
+  alternate_times 15 default windshield_2.jpg attgan-fork_test_5.png -- "" "--model-config compact-multiscale" \
+    "--model-config compact-multiscale-int8" >"$i8/times.txt"
+  median_times "$i8/times.txt" | tee "$i8/times-summary.txt"
 fi

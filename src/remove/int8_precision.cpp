@@ -14,6 +14,14 @@ bool int8_products_saturate() {
 #endif
 }
 
+bool int8_runs_fast() {
+#if defined(__x86_64__) || defined(__i386__)
+  return !int8_products_saturate();
+#else
+  return false;
+#endif
+}
+
 const char* int8_kernels_description() {
 #if defined(__x86_64__) || defined(__i386__)
   return int8_products_saturate() ? "exact uint8 kernels (this CPU has no VNNI)" : "VNNI";

@@ -2,9 +2,11 @@
 
 #include <cstdlib>
 #include <fstream>
+#include <sstream>
 #include <system_error>
 
 #include "raindrop/common/error.h"
+#include "raindrop/remove/int8_precision.h"
 
 #ifndef RAINDROP_SOURCE_MODELS_DIR
 #define RAINDROP_SOURCE_MODELS_DIR ""
@@ -40,7 +42,33 @@ std::optional<std::string> read_first_line(const fs::path& file) {
 
 }  // namespace
 
-std::optional<std::string> read_default_config(const fs::path& models_root) { return read_first_line(models_root / "DEFAULT"); }
+std::optional<DefaultConfig> read_default(const fs::path& models_root) {
+  const fs::path file = models_root / "DEFAULT";
+  const auto name = read_first_line(file);
+  if (!name) return std::nullopt;
+  DefaultConfig d{*name, std::nullopt};
+  std::ifstream in(file);
+  std::string line;
+  std::getline(in, line);  // the first line: `name`
+  while (std::getline(in, line)) {
+    std::istringstream words(line);
+    std::string key, value, extra;
+    if (!(words >> key) || key[0] == '#') continue;
+    if (key != "vnni" || !(words >> value) || (words >> extra && extra[0] != '#'))
+      throw Error("'" + file.string() + "': a line after the first must be 'vnni NAME' (the int8 copy for CPUs with VNNI), not '" +
+                  line + "'");
+    if (d.int8_fast) throw Error("'" + file.string() + "' has more than one 'vnni' line");
+    check_config_name(value);
+    d.int8_fast = value;
+  }
+  return d;
+}
+
+std::optional<std::string> read_default_config(const fs::path& models_root, bool int8_fast) {
+  const auto d = read_default(models_root);
+  if (!d) return std::nullopt;
+  return int8_fast && d->int8_fast ? *d->int8_fast : d->name;
+}
 
 std::optional<fs::path> large_drop_companion(const fs::path& model_dir) {
   const auto name = read_first_line(model_dir / "LARGE_DROPS");
@@ -88,10 +116,12 @@ ModelSearch default_model_search() {
   s.executable = fs::read_symlink("/proc/self/exe", ec);
   if (ec) s.executable.clear();
   s.source_models = RAINDROP_SOURCE_MODELS_DIR;
+  s.int8_fast = int8_runs_fast();
   return s;
 }
 
-fs::path find_models(const ModelSearch& s) {
+fs::path find_models(const ModelSearch& s, std::string* why) {
+  if (why) why->clear();
   if (s.explicit_dir) return *s.explicit_dir;  // loading it says what is wrong with it
   if (s.config) check_config_name(*s.config);
   const auto name_in = [&](const fs::path& root) {
@@ -99,9 +129,18 @@ fs::path find_models(const ModelSearch& s) {
     check_config_name(name);
     return name;
   };
+  // DEFAULT's int8 copy in `root`, where it applies and holds models.
+  const auto int8_copy_in = [&](const fs::path& root) -> std::optional<fs::path> {
+    if (s.config || !s.int8_fast) return std::nullopt;
+    const auto d = read_default(root);
+    if (!d || !d->int8_fast || !has_models(root / *d->int8_fast)) return std::nullopt;
+    if (why) *why = "DEFAULT's int8 copy of " + d->name + ": this CPU has VNNI";
+    return root / *d->int8_fast;
+  };
   if (s.env_dir) {
     // An explicit environment variable is authoritative: no fall-back past it.
     if (!s.config && has_models(*s.env_dir)) return *s.env_dir;
+    if (const auto dir = int8_copy_in(*s.env_dir)) return *dir;
     const fs::path dir = *s.env_dir / name_in(*s.env_dir);
     if (has_models(dir)) return dir;
     throw Error("$RAINDROP_MODELS is '" + s.env_dir->string() + "', but neither it nor '" + dir.string() +
@@ -112,6 +151,7 @@ fs::path find_models(const ModelSearch& s) {
   if (!s.source_models.empty()) roots.push_back(s.source_models);
   std::string tried;
   for (const auto& root : roots) {
+    if (const auto int8 = int8_copy_in(root)) return *int8;
     const fs::path dir = root / name_in(root);
     if (has_models(dir)) return dir;
     tried += (tried.empty() ? "" : ", ") + ("'" + dir.string() + "'");

@@ -10,6 +10,8 @@
 #include <gtest/gtest.h>
 
 #include <cstdlib>
+#include <fstream>
+#include <iterator>
 
 #include "raindrop/remove/int8_precision.h"
 #include "remove_test_util.h"
@@ -44,6 +46,59 @@ TEST(Int8Precision, OnlyX86CpusWithoutVnniNeedTheExactKernels) {
 #endif
 }
 
+// How to run raindrop-remove as on a CPU without VNNI: `env`, then `program`, then
+// `program_args` and the arguments; `how` says which. Returns why it cannot ("" where it can);
+// a failure of the check itself is a test failure (ADD_FAILURE) and is returned too.
+struct NoVnniRun {
+  std::vector<std::string> env;
+  fs::path program;
+  std::vector<std::string> program_args;
+  std::string how;
+};
+
+std::string no_vnni_run(const fs::path& cwd, NoVnniRun* nv) {
+  nv->program = remove_bin();
+  RunResult r;
+#ifdef RAINDROP_HIDE_AVX512_LIB
+  // (In a sanitizer build the sanitizer's runtime must otherwise be the first library loaded.)
+  const char* asan = std::getenv("ASAN_OPTIONS");
+  nv->env = {std::string("LD_PRELOAD=") + RAINDROP_HIDE_AVX512_LIB,
+             std::string("ASAN_OPTIONS=") + (asan && *asan ? std::string(asan) + ":" : "") + "verify_asan_link_order=0"};
+  r = run_command(remove_bin(), {"--version"}, cwd, nv->env);
+  if (r.code == 0) nv->how = "libraindrop_hide_avx512.so";
+  else if (r.code != 3 || r.err.find("cannot trap cpuid") == std::string::npos) {
+    ADD_FAILURE() << r.describe();
+    return "the cpuid trap failed";
+  }
+#endif
+  if (nv->how.empty()) {
+#if defined(__SANITIZE_ADDRESS__)
+    return "this CPU cannot trap cpuid for libraindrop_hide_avx512.so, and an AddressSanitizer build "
+           "cannot run under qemu-x86_64 (its shadow memory)";
+#endif
+    nv->env.clear();
+    nv->program = testsupport::find_on_path("qemu-x86_64");
+    if (nv->program.empty())
+      return "this CPU cannot trap cpuid for libraindrop_hide_avx512.so, and qemu-x86_64 is not on the PATH "
+             "(Debian: apt-get install qemu-user; scripts/test.sh installs it)";
+    nv->program_args = {"-cpu", "Haswell", remove_bin().string()};
+    nv->how = "qemu-x86_64 -cpu Haswell";
+    nv->program_args.push_back("--version");
+    r = run_command(nv->program, nv->program_args, cwd);
+    nv->program_args.pop_back();
+    if (r.code != 0) {
+      ADD_FAILURE() << r.describe();
+      return "qemu-x86_64 failed";
+    }
+  }
+  // The program sees a CPU without VNNI.
+  if (r.out.find("int8 models: exact uint8 kernels (this CPU has no VNNI)") == std::string::npos) {
+    ADD_FAILURE() << nv->how << "\n" << r.describe();
+    return "the program still sees VNNI";
+  }
+  return "";
+}
+
 TEST(Int8Precision, AnInt8FolderGivesTheSameOutputOnACpuWithoutVnni) {
 #if !defined(__x86_64__)
   GTEST_SKIP() << "x86-64 only (the saturating products are x86's)";
@@ -59,41 +114,14 @@ TEST(Int8Precision, AnInt8FolderGivesTheSameOutputOnACpuWithoutVnni) {
                             tmp.path());
   ASSERT_EQ(r.code, 0) << r.describe();
 
-  // How to run raindrop-remove as on a CPU without VNNI: `env` then `program` then the arguments.
-  std::vector<std::string> env;
-  fs::path program = remove_bin();
-  std::vector<std::string> program_args;
-  std::string how;
-#ifdef RAINDROP_HIDE_AVX512_LIB
-  // (In a sanitizer build the sanitizer's runtime must otherwise be the first library loaded.)
-  const char* asan = std::getenv("ASAN_OPTIONS");
-  env = {std::string("LD_PRELOAD=") + RAINDROP_HIDE_AVX512_LIB,
-         std::string("ASAN_OPTIONS=") + (asan && *asan ? std::string(asan) + ":" : "") + "verify_asan_link_order=0"};
-  r = run_command(remove_bin(), {"--version"}, tmp.path(), env);
-  if (r.code == 0) how = "libraindrop_hide_avx512.so";
-  else if (r.code != 3 || r.err.find("cannot trap cpuid") == std::string::npos) FAIL() << r.describe();
-#endif
-  if (how.empty()) {
-#if defined(__SANITIZE_ADDRESS__)
-    GTEST_SKIP() << "this CPU cannot trap cpuid for libraindrop_hide_avx512.so, and an AddressSanitizer build "
-                    "cannot run under qemu-x86_64 (its shadow memory)";
-#endif
-    env.clear();
-    program = testsupport::find_on_path("qemu-x86_64");
-    if (program.empty())
-      GTEST_SKIP() << "this CPU cannot trap cpuid for libraindrop_hide_avx512.so, and qemu-x86_64 is not on the PATH "
-                      "(Debian: apt-get install qemu-user; scripts/test.sh installs it)";
-    program_args = {"-cpu", "Haswell", remove_bin().string()};
-    how = "qemu-x86_64 -cpu Haswell";
-    program_args.push_back("--version");
-    r = run_command(program, program_args, tmp.path());
-    program_args.pop_back();
-    ASSERT_EQ(r.code, 0) << r.describe();
-  }
-  // The program sees a CPU without VNNI.
-  ASSERT_NE(r.out.find("int8 models: exact uint8 kernels (this CPU has no VNNI)"), std::string::npos)
-      << how << "\n" << r.describe();
-
+  NoVnniRun nv;
+  if (const std::string skip = no_vnni_run(tmp.path(), &nv); !skip.empty()) GTEST_SKIP() << skip;
+  std::vector<std::string>& env = nv.env;
+  fs::path& program = nv.program;
+  std::vector<std::string>& program_args = nv.program_args;
+  const std::string& how = nv.how;
+  std::ifstream info(models / "export.json");
+  const bool kept_float = std::string(std::istreambuf_iterator<char>(info), {}).find("\"kept_float\"") != std::string::npos;
   const std::vector<std::string> common{"--models", models.string(), "--no-large-drops", "-q", "-j", "2"};
   auto args = [&](const std::string& tag) {
     std::vector<std::string> a{"set/rainy", "out-" + tag, "--mask-dir", "mask-" + tag};
@@ -116,13 +144,49 @@ TEST(Int8Precision, AnInt8FolderGivesTheSameOutputOnACpuWithoutVnni) {
       const auto b = read_image(tmp / (kind + "-haswell") / n, &why);
       ASSERT_TRUE(b.has_value()) << why;
       ASSERT_EQ(a->pixels.size(), b->pixels.size());
+      // The masks come from the int8 detector alone: the same bits. The output passes the RFN,
+      // which the default's int8 copy keeps in float (docs/RESULTS.md 4.60), and float kernels
+      // may round a last bit differently on AVX-512 and AVX2: within a level there.
       const double diff = cv::norm(a->pixels, b->pixels, cv::NORM_INF);
-      EXPECT_EQ(diff, 0.0) << models.filename() << " " << kind << " of " << n
-                           << " differs between this CPU and one without VNNI (" << how << "; max " << diff << " levels)";
+      const double allowed = kind == "out" && kept_float ? 1.0 : 0.0;
+      EXPECT_LE(diff, allowed) << models.filename() << " " << kind << " of " << n
+                               << " differs between this CPU and one without VNNI (" << how << "; max " << diff << " levels)";
       ++compared;
     }
   }
   EXPECT_EQ(compared, 4);
+}
+
+// models/DEFAULT's int8 copy ("vnni NAME") is what raindrop-remove loads without --models on a
+// CPU with VNNI, and the float default on one without: int8 there is slower (docs/RESULTS.md
+// 3.10, 4.60). The models line says which, and why.
+TEST(Int8Precision, TheDefaultIsItsInt8CopyOnlyWithVnni) {
+#if !defined(__x86_64__)
+  GTEST_SKIP() << "x86-64 only";
+#endif
+  std::ifstream in(source_dir() / "models" / "DEFAULT");
+  std::string first, vnni, int8_name;
+  std::getline(in, first);
+  in >> vnni >> int8_name;
+  if (vnni != "vnni" || !fs::is_regular_file(source_dir() / "models" / int8_name / "rdn.onnx"))
+    GTEST_SKIP() << "models/DEFAULT names no committed int8 copy";
+  TempDir tmp;
+  write_image(tmp / "in.png", make_image(96, 64, 3));
+  const std::vector<std::string> args{"in.png", "out.png", "--time", "-j", "1", "--no-large-drops"};
+  const std::string float_line = "models/" + first + "' (config", int8_line = "models/" + int8_name + "' (config";
+  RunResult r = run_remove(args, tmp.path());
+  ASSERT_EQ(r.code, 0) << r.describe();
+  const bool vnni_here = raindrop::removal::int8_runs_fast();
+  EXPECT_NE(r.err.find(vnni_here ? int8_line : float_line), std::string::npos) << r.describe();
+  EXPECT_EQ(r.err.find("this CPU has VNNI)") != std::string::npos, vnni_here) << r.describe();
+  NoVnniRun nv;
+  if (const std::string skip = no_vnni_run(tmp.path(), &nv); !skip.empty()) GTEST_SKIP() << skip;
+  std::vector<std::string> a = nv.program_args;
+  a.insert(a.end(), args.begin(), args.end());
+  r = run_command(nv.program, a, tmp.path(), nv.env);
+  ASSERT_EQ(r.code, 0) << nv.how << "\n" << r.describe();
+  EXPECT_NE(r.err.find(float_line), std::string::npos) << nv.how << "\n" << r.describe();
+  EXPECT_EQ(r.err.find("int8"), std::string::npos) << nv.how << "\n" << r.describe();
 }
 
 }  // namespace

@@ -9,6 +9,7 @@
 #include <onnxruntime_cxx_api.h>
 
 #include "raindrop/common/image_io.h"
+#include "raindrop/remove/int8_precision.h"
 #include "remove_test_util.h"
 
 namespace removetest {
@@ -412,6 +413,24 @@ TEST_F(RemoveCli, ModelsFromTheEnvironment) {
   ASSERT_EQ(r.code, 0) << r.describe();
   fs::remove(tmp / "out.png");
   fs::remove(tmp / "out2.png");
+  // DEFAULT's int8 copy ("vnni NAME") where this CPU runs int8 fast, said on the models line;
+  // --model-config names the first line's folder itself.
+  fs::create_directory_symlink(smoke_models(), tmp / "root" / "smoke-int8");
+  write_file(tmp / "root" / "DEFAULT", "smoke\nvnni smoke-int8\n");
+  const bool int8 = raindrop::removal::int8_runs_fast();
+  r = remove({"in.png", "out.png", "--time"}, {"RAINDROP_MODELS=" + (tmp / "root").string()});
+  ASSERT_EQ(r.code, 0) << r.describe();
+  EXPECT_EQ(r.err.find("root/smoke-int8'") != std::string::npos, int8) << r.describe();
+  EXPECT_EQ(r.err.find("(DEFAULT's int8 copy of smoke: this CPU has VNNI)") != std::string::npos, int8) << r.describe();
+  r = remove({"in.png", "out2.png", "--time", "--model-config", "smoke"}, {"RAINDROP_MODELS=" + (tmp / "root").string()});
+  ASSERT_EQ(r.code, 0) << r.describe();
+  EXPECT_NE(r.err.find("root/smoke'"), std::string::npos) << r.describe();
+  EXPECT_EQ(r.err.find("int8 copy"), std::string::npos) << r.describe();
+  fs::remove(tmp / "out.png");
+  fs::remove(tmp / "out2.png");
+  write_file(tmp / "root" / "DEFAULT", "smoke\nvnni\n");
+  r = remove({"in.png", "out.png"}, {"RAINDROP_MODELS=" + (tmp / "root").string()});
+  expect_clean_failure(r, "vnni NAME");
   // Nothing there: a clear error naming the variable.
   fs::create_directories(tmp / "empty");
   r = remove({"in.png", "out.png"}, {"RAINDROP_MODELS=" + (tmp / "empty").string()});

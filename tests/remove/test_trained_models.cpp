@@ -12,6 +12,7 @@
 #include <gtest/gtest.h>
 
 #include "raindrop/common/error.h"
+#include "raindrop/remove/int8_precision.h"
 #include "raindrop/remove/model_paths.h"
 #include "remove_test_util.h"
 
@@ -181,11 +182,13 @@ cv::Mat luma8(const cv::Mat& rgb) {
 
 double psnr_y(const cv::Mat& a, const cv::Mat& b) { return psnr(luma8(a), luma8(b)); }
 
-// The folder raindrop-remove loads from the source tree without --models (models/DEFAULT's),
-// found by its own search; the models root itself where there are none (the callers skip).
-fs::path default_models() {
+// The folder raindrop-remove loads from the source tree without --models (models/DEFAULT's; its
+// int8 copy on a CPU with VNNI, `int8_fast`), found by its own search; the models root itself
+// where there are none (the callers skip).
+fs::path default_models(bool int8_fast = raindrop::removal::int8_runs_fast()) {
   raindrop::removal::ModelSearch search;
   search.source_models = source_dir() / "models";
+  search.int8_fast = int8_fast;
   try {
     return raindrop::removal::find_models(search);
   } catch (const raindrop::Error&) {
@@ -206,9 +209,13 @@ TEST(TrainedModels, DefaultRemovesRealLensCoverDrops) {
   std::error_code ec;
   if (std::string(RAINDROP_SHARED_DATA).empty() || !fs::is_directory(pairs, ec))
     GTEST_SKIP() << "no real pairs in " << pairs << "; the default's real-photograph gain is not checked";
-  const fs::path models = default_models();
-  if (!fs::is_regular_file(models / "rdn.onnx")) GTEST_SKIP() << "no trained models in " << models;
-  ASSERT_TRUE(fs::is_regular_file(models / "LARGE_DROPS")) << models << " lost its large-drop models";
+  // The default on CPUs without VNNI and its int8 copy on CPUs with it (one folder where they are one).
+  std::vector<fs::path> defaults{default_models(false)};
+  if (default_models(true) != defaults.front()) defaults.push_back(default_models(true));
+  for (const fs::path& models : defaults) {
+    if (!fs::is_regular_file(models / "rdn.onnx")) GTEST_SKIP() << "no trained models in " << models;
+    ASSERT_TRUE(fs::is_regular_file(models / "LARGE_DROPS")) << models << " lost its large-drop models";
+  }
   // The test split of tools/raindrop_tools/realpairs.py's group-wise rule over these pairs' 10
   // groups (tools/tests/test_realpairs.py holds the rule to these 5 names).
   const std::vector<std::string> test_groups = {"robotcar_i0", "robotcar_i14400", "robotcar_i4800", "robotcar_i8000",
@@ -227,30 +234,33 @@ TEST(TrainedModels, DefaultRemovesRealLensCoverDrops) {
   // On purpose a failure, not a skip: a different copy of the pairs would make the floors below
   // meaningless.
   ASSERT_EQ(names.size(), 50u) << "the held-out split of " << pairs << " should have 50 pairs";
-  double gain[2] = {0, 0};
-  int k = 0;
-  for (const std::vector<std::string>& extra :
-       {std::vector<std::string>{}, std::vector<std::string>{"--large-drop-models", models.string()}}) {
-    const fs::path out = tmp / ("out" + std::to_string(k));
-    std::vector<std::string> args{"in", out.string(), "--models", models.string(), "-q", "-j", "1"};
-    args.insert(args.end(), extra.begin(), extra.end());
-    const RunResult r = run_remove(args, tmp.path());
-    ASSERT_EQ(r.code, 0) << r.describe();
-    for (const auto& n : names) {
-      const std::string clean_name = n.substr(0, n.size() - 9) + "_clean.png";
-      const cv::Mat rainy = read_or_fail(tmp / "in" / n), clean = read_or_fail(pairs / clean_name),
-                    removed = read_or_fail(out / n);
-      ASSERT_FALSE(rainy.empty() || clean.empty() || removed.empty());
-      ASSERT_TRUE(rainy.type() == CV_8UC3 && clean.type() == CV_8UC3 && removed.type() == CV_8UC3) << n;
-      gain[k] += (psnr_y(removed, clean) - psnr_y(rainy, clean)) / static_cast<double>(names.size());
+  for (const fs::path& models : defaults) {
+    SCOPED_TRACE(models.filename().string());
+    double gain[2] = {0, 0};
+    int k = 0;
+    for (const std::vector<std::string>& extra :
+         {std::vector<std::string>{}, std::vector<std::string>{"--large-drop-models", models.string()}}) {
+      const fs::path out = tmp / (models.filename().string() + "-out" + std::to_string(k));
+      std::vector<std::string> args{"in", out.string(), "--models", models.string(), "-q", "-j", "1"};
+      args.insert(args.end(), extra.begin(), extra.end());
+      const RunResult r = run_remove(args, tmp.path());
+      ASSERT_EQ(r.code, 0) << r.describe();
+      for (const auto& n : names) {
+        const std::string clean_name = n.substr(0, n.size() - 9) + "_clean.png";
+        const cv::Mat rainy = read_or_fail(tmp / "in" / n), clean = read_or_fail(pairs / clean_name),
+                      removed = read_or_fail(out / n);
+        ASSERT_FALSE(rainy.empty() || clean.empty() || removed.empty());
+        ASSERT_TRUE(rainy.type() == CV_8UC3 && clean.type() == CV_8UC3 && removed.type() == CV_8UC3) << n;
+        gain[k] += (psnr_y(removed, clean) - psnr_y(rainy, clean)) / static_cast<double>(names.size());
+      }
+      ++k;
     }
-    ++k;
+    std::printf("real lens-cover test split, %s: default +%.2f dB, its own networks for large drops +%.2f dB\n",
+                models.filename().c_str(), gain[0], gain[1]);
+    // Issue 10's target, +3 dB; the large-drop growth (4.21) took the default from +3.00 to +3.43.
+    EXPECT_GE(gain[0], 3.0) << "the default's gain on held-out real pairs (docs/RESULTS.md 4.21: +3.43)";
+    EXPECT_GE(gain[0] - gain[1], 0.8) << "what the large-drop models add (docs/RESULTS.md 3.4: +3.00 against +1.63 for the default; 4.11: compact +1.48)";
   }
-  std::printf("real lens-cover test split: default +%.2f dB, its own networks for large drops +%.2f dB\n", gain[0],
-              gain[1]);
-  // Issue 10's target, +3 dB; the large-drop growth (4.21) took the default from +3.00 to +3.43.
-  EXPECT_GE(gain[0], 3.0) << "the default's gain on held-out real pairs (docs/RESULTS.md 4.21: +3.43)";
-  EXPECT_GE(gain[0] - gain[1], 0.8) << "what the large-drop models add (docs/RESULTS.md 3.4: +3.00 against +1.63 for the default; 4.11: compact +1.48)";
 }
 
 // The default gains as much on a large street frame as on the same drops at the size its networks
@@ -308,7 +318,8 @@ TEST(TrainedModels, DefaultGainsAsMuchOnLargeStreetFrames) {
 // demo street (working scale 0.4, many drops 2-4 px there) come out closer to the clean frame
 // (measured +0.20 dB), the checkerboard hardly further from it (-0.002 dB with the router's head
 // at its first threshold, 0.75; -0.028 dB since it is 0.5, docs/RESULTS.md 4.50: the pass fills
-// 73 parts of the checkerboard instead of 47, its mask 8.5% of it instead of 6.2%); every pixel it changes
+// 73 parts of the checkerboard instead of 47, its mask 8.5% of it instead of 6.2%; -0.051 dB with the
+// default's int8 copy, which a CPU with VNNI runs, and +0.17 dB on the street); every pixel it changes
 // is within a pixel of the written mask; at 512x256 (the networks see every pixel) it changes
 // nothing.
 TEST(TrainedModels, FineDropsTakeSmallWindshieldDropsOutAndTouchNothingElse) {
@@ -343,7 +354,7 @@ TEST(TrainedModels, FineDropsTakeSmallWindshieldDropsOutAndTouchNothingElse) {
       if (n == "street_v00.png") {
         EXPECT_GE(after - before, 0.05) << n;
       }
-      EXPECT_GE(after - before, -0.05) << n;
+      EXPECT_GE(after - before, models.filename().string().find("-int8") == std::string::npos ? -0.05 : -0.1) << n;
       cv::Mat diff;
       cv::absdiff(base, fine, diff);
       std::vector<cv::Mat> channels;

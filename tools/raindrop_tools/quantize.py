@@ -19,6 +19,13 @@ reconstructs with the main folder's networks, so it takes the main int8 folder's
 
     python -m raindrop_tools.quantize --models models/compact --data data/train --out models/compact-int8
 
+``--keep-float rfn`` leaves a network in float32 (its graph copied, under the int8 folder's
+configuration name): the default's int8 RFN cost 0.2-0.3 dB on sparse rendered drops for no
+measurable time (docs/RESULTS.md 4.60), so its int8 copy keeps the RFN in float:
+
+    python -m raindrop_tools.quantize --models models/compact-multiscale --data data/train \
+        --out models/compact-multiscale-int8 --keep-float rfn
+
 Imports without torch.
 """
 
@@ -113,7 +120,7 @@ def reused_reconstruction(models_dir: Path, reuse_dir: Path) -> dict[str, onnx.M
 
 
 def quantize_models(models_dir: Path, data_dir: Path, out_dir: Path, count: int = 16, seed: int = 0,
-                    reuse_dir: Path | None = None) -> dict:
+                    reuse_dir: Path | None = None, keep_float: tuple[str, ...] = ()) -> dict:
     models_dir, data_dir, out_dir = Path(models_dir), Path(data_dir), Path(out_dir)
     # The int8 graphs take the fp32 ones' file names: written into the models' own folder they
     # replaced the fp32 model, with nothing left to quantize or compare against.
@@ -122,7 +129,13 @@ def quantize_models(models_dir: Path, data_dir: Path, out_dir: Path, count: int 
                             "choose another folder (e.g. models/<name>-int8)")
     if count < 1:
         raise QuantizeError(f"--count must be at least 1, got {count}")
+    keep_float = tuple(keep_float)
+    if any(n not in NETWORKS for n in keep_float):
+        raise QuantizeError(f"--keep-float takes {', '.join(NETWORKS)}, got {', '.join(keep_float)}")
     reused = reused_reconstruction(models_dir, Path(reuse_dir)) if reuse_dir is not None else {}
+    for name in keep_float:
+        if name in reused and is_quantized(reused[name]):
+            raise QuantizeError(f"--keep-float {name}: --reuse-reconstruction {reuse_dir} gives an int8 {GRAPH_FILES[name]}")
     feeds = calibration_feeds(models_dir, data_dir, count, seed)
     out_dir.mkdir(parents=True, exist_ok=True)
     info = json.loads((models_dir / EXPORT_INFO).read_text()) if (models_dir / EXPORT_INFO).is_file() else {}
@@ -130,34 +143,56 @@ def quantize_models(models_dir: Path, data_dir: Path, out_dir: Path, count: int 
     # Staged and renamed in (staging.py): an interrupted run leaves the folder's model as it was,
     # and a graph there that is a link (to the fp32 model, say) is replaced, not written through.
     with staged_model_files(out_dir, "quantize") as stage:
-        _quantize_into(stage, models_dir, data_dir, count, seed, feeds, info, base_config, reused, reuse_dir)
+        _quantize_into(stage, models_dir, data_dir, count, seed, feeds, info, base_config, reused, reuse_dir, keep_float)
     for extra in ("README.md",):
         if (models_dir / extra).is_file() and not (out_dir / extra).exists():
             shutil.copy(models_dir / extra, out_dir / extra)
     return info
 
 
+META_QUANTIZATION = "raindrop.quantization"
+KEPT_FLOAT = "none: kept in float32"
+
+
+def is_quantized(graph: onnx.ModelProto) -> bool:
+    """Whether a graph holds quantized operators (QDQ pairs), i.e. is not a float graph."""
+    return any(n.op_type in ("QuantizeLinear", "DequantizeLinear") for n in graph.graph.node)
+
+
 def _set_int8_metadata(q: onnx.ModelProto, fp32: onnx.ModelProto) -> None:
-    """The fp32 graph's contract metadata (names, pad multiple, defaults) on the int8 graph,
-    marked as int8; a head's map is the int8 head's, so its folder is named as the int8 copy's."""
+    """The fp32 graph's contract metadata (names, pad multiple, defaults) on the int8 folder's
+    graph, marked as int8 (or as kept in float, for a graph without quantized operators); a
+    head's map is the int8 head's, so its folder is named as the int8 copy's."""
     del q.metadata_props[:]
     for p in fp32.metadata_props:
+        if p.key == META_QUANTIZATION:
+            continue
         value = f"{p.value}-int8" if p.key in (META_CONFIG, META_ALTERNATIVE_DETECTOR) else p.value
         q.metadata_props.add(key=p.key, value=value)
-    q.metadata_props.add(key="raindrop.quantization", value="int8 static QDQ, per-channel weights, uint8 activations")
+    q.metadata_props.add(key=META_QUANTIZATION,
+                         value="int8 static QDQ, per-channel weights, uint8 activations" if is_quantized(q) else KEPT_FLOAT)
 
 
 def _quantize_into(out_dir: Path, models_dir: Path, data_dir: Path, count: int, seed: int, feeds: dict, info: dict,
-                   base_config: str, reused: dict[str, onnx.ModelProto], reuse_dir: Path | None) -> None:
+                   base_config: str, reused: dict[str, onnx.ModelProto], reuse_dir: Path | None,
+                   keep_float: tuple[str, ...] = ()) -> None:
     """The three int8 graphs and their export.json, written into the (staging) folder out_dir;
     `info` (the fp32 export.json) is updated in place. Graphs in `reused` are taken as they are,
-    under this folder's configuration name."""
+    under this folder's configuration name; those in `keep_float` are the fp32 graphs, likewise."""
     with tempfile.TemporaryDirectory() as tmp:
         for name, q in reused.items():
             _set_int8_metadata(q, onnx.load(str(models_dir / GRAPH_FILES[name])))
             onnx.save(q, str(out_dir / GRAPH_FILES[name]))
-        for name in NETWORKS:
+        for name in keep_float:
             if name in reused:
+                continue
+            fp32 = onnx.load(str(models_dir / GRAPH_FILES[name]))
+            kept = onnx.ModelProto()
+            kept.CopyFrom(fp32)
+            _set_int8_metadata(kept, fp32)
+            onnx.save(kept, str(out_dir / GRAPH_FILES[name]))
+        for name in NETWORKS:
+            if name in reused or name in keep_float:
                 continue
             src = models_dir / GRAPH_FILES[name]
             pre = Path(tmp) / f"{name}.pre.onnx"
@@ -188,6 +223,8 @@ def _quantize_into(out_dir: Path, models_dir: Path, data_dir: Path, count: int, 
                 "calibration": f"{count} rendered images from {data_dir} (seed {seed}), min-max",
                 **({"reconstruction": f"{', '.join(GRAPH_FILES[n] for n in reused)} taken from {reuse_dir}"}
                    if reused else {}),
+                **({"kept_float": [GRAPH_FILES[n] for n in NETWORKS if not is_quantized(onnx.load(str(out_dir / GRAPH_FILES[n])))]}
+                   if keep_float or reused else {}),
             },
             # The int8 files' own digests (the fp32 entries and the fp32 export's PyTorch
             # parity figures describe other files).
@@ -210,10 +247,12 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--reuse-reconstruction", type=Path, default=None, metavar="DIR",
                     help="take the int8 3RN and RFN of DIR (quantized from fp32 graphs with the same weights), e.g. a "
                          "router head's folder from its main folder's int8 copy")
+    ap.add_argument("--keep-float", action="append", default=[], choices=list(NETWORKS), metavar="NET",
+                    help=f"leave network NET ({', '.join(NETWORKS)}) in float32; repeatable")
     args = ap.parse_args(argv)
     try:
         info = quantize_models(Path(args.models), Path(args.data), Path(args.out), args.count, args.seed,
-                               args.reuse_reconstruction)
+                               args.reuse_reconstruction, tuple(args.keep_float))
     except (ValueError, OSError) as e:  # QuantizeError, a missing or empty data set, unreadable files
         print(f"error: {e}", file=sys.stderr)
         return 2

@@ -21,8 +21,15 @@ FOLDERS = sorted(p for p in MODELS.iterdir() if p.is_dir() and (p / "export.json
 def test_default_names_a_committed_model():
     if not FOLDERS:
         pytest.skip(f"no trained models in {MODELS}")
-    default = (MODELS / "DEFAULT").read_text().strip()
-    assert default in {p.name for p in FOLDERS}, f"models/DEFAULT says {default!r}"
+    lines = [line.split() for line in (MODELS / "DEFAULT").read_text().splitlines()]
+    default = " ".join(lines[0])
+    names = {p.name for p in FOLDERS}
+    assert default in names, f"models/DEFAULT says {default!r}"
+    # Later lines: "vnni NAME", the default's int8 copy for CPUs with VNNI (raindrop-remove reads it).
+    copies = [w for w in lines[1:] if w and not w[0].startswith("#")]
+    assert all(len(w) == 2 and w[0] == "vnni" for w in copies), copies
+    for _, name in copies:
+        assert name in names and name == default + "-int8", name
 
 
 def test_large_drop_models_are_other_committed_models():

@@ -8,6 +8,7 @@ import json
 import numpy as np
 import onnx
 import onnxruntime as ort
+import pytest
 
 from helpers import FIXTURE_MODELS, procedural_image
 from raindrop_tools.contract import FILES, META_CONFIG, META_DILATION, META_THRESHOLD, NETWORKS
@@ -84,3 +85,40 @@ def test_quantize_replaces_a_linked_graph_instead_of_writing_through_it(tmp_path
     assert (fp32 / FILES["rdn"]).read_bytes() == before
     assert not (out / FILES["rdn"]).is_symlink()
     assert not any(p.name.startswith(".int8.quantize-") for p in tmp_path.iterdir())
+
+
+def test_a_network_kept_in_float_is_the_fp32_graph_under_the_int8_folders_name(tmp_path, tiny_dataset, capsys):
+    """--keep-float rfn: the RFN is the fp32 graph bit for bit (weights and nodes), named as the
+    int8 folder's and marked as float; the others are quantized as without the option, to the
+    byte; a folder reusing this one's reconstruction gets the float RFN marked so too; export.json
+    lists what stayed float; an unknown network is refused."""
+    from raindrop_tools import quantize as Q
+
+    full, mixed = tmp_path / "full-int8", tmp_path / "mixed-int8"
+    quantize_models(FIXTURE_MODELS, tiny_dataset, full, count=2)
+    info = quantize_models(FIXTURE_MODELS, tiny_dataset, mixed, count=2, keep_float=("rfn",))
+    assert info["quantization"]["kept_float"] == [FILES["rfn"]]
+    for name in ("rdn", "rrn"):
+        assert (mixed / FILES[name]).read_bytes() == (full / FILES[name]).read_bytes(), name
+    kept, fp32 = onnx.load(str(mixed / FILES["rfn"])), onnx.load(str(FIXTURE_MODELS / FILES["rfn"]))
+    assert not Q.is_quantized(kept) and Q.is_quantized(onnx.load(str(full / FILES["rfn"])))
+    assert kept.graph.SerializeToString() == fp32.graph.SerializeToString()
+    meta = {p.key: p.value for p in kept.metadata_props}
+    fp_meta = {p.key: p.value for p in fp32.metadata_props}
+    assert meta == {**fp_meta, META_CONFIG: fp_meta[META_CONFIG] + "-int8", Q.META_QUANTIZATION: Q.KEPT_FLOAT}
+    # The pipeline loads it (one configuration name across the three graphs).
+    assert RaindropRemover(mixed).remove(procedural_image(40, 50, seed=9)).output.shape == (40, 50, 3)
+    # Reused by a folder with the same fp32 reconstruction: the float RFN comes along, marked float.
+    info = quantize_models(FIXTURE_MODELS, tiny_dataset, tmp_path / "reusing-int8", count=2, reuse_dir=mixed)
+    assert info["quantization"]["kept_float"] == [FILES["rfn"]]
+    reused = onnx.load(str(tmp_path / "reusing-int8" / FILES["rfn"]))
+    assert {p.key: p.value for p in reused.metadata_props}[Q.META_QUANTIZATION] == Q.KEPT_FLOAT
+    assert "kept_float" not in json.loads((full / "export.json").read_text())["quantization"]
+    with pytest.raises(ValueError, match="gives an int8 rfn.onnx"):  # a reused int8 RFN cannot be kept in float
+        quantize_models(FIXTURE_MODELS, tiny_dataset, tmp_path / "r2", count=1, reuse_dir=full, keep_float=("rfn",))
+    with pytest.raises(SystemExit) as exit_:
+        Q.main(["--models", str(FIXTURE_MODELS), "--data", str(tiny_dataset), "--out", str(tmp_path / "q"),
+                "--keep-float", "head"])
+    assert exit_.value.code == 2 and "invalid choice" in capsys.readouterr().err
+    with pytest.raises(ValueError, match="--keep-float takes"):
+        quantize_models(FIXTURE_MODELS, tiny_dataset, tmp_path / "q", count=1, keep_float=("head",))

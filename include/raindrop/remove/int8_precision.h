@@ -19,6 +19,12 @@ namespace raindrop::removal {
 // on a VNNI CPU and on every other architecture (ARM's int8 dot products sum in 32 bits).
 bool int8_products_saturate();
 
+// True on an x86 CPU with usable VNNI: where int8 graphs run faster than float ones (1.2-1.3x
+// for the default's, docs/RESULTS.md 4.60), so that models/DEFAULT's int8 copy is chosen
+// (model_paths.h). False elsewhere: without VNNI the exact kernels make int8 slower than float,
+// and on other architectures it was never measured.
+bool int8_runs_fast();
+
 // What int8 graphs run on here, for --version: "VNNI", "exact uint8 kernels (this CPU has no
 // VNNI)", or "32-bit sums" (not x86).
 const char* int8_kernels_description();

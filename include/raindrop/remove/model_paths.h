@@ -6,8 +6,12 @@
 //   3. the installed copy: <exe>/../share/raindrop/models/<name>;
 //   4. the source tree's models/<name> (its path is compiled in), for a program run from
 //      its build folder.
-// <name> is --model-config NAME, or else the one line of DEFAULT in that models folder
-// (models/DEFAULT in the source tree names "compact-multiscale"), or else "compact".
+// <name> is --model-config NAME, or else what DEFAULT in that models folder names, or else
+// "compact". DEFAULT's first line names the default configuration; a later line "vnni NAME"
+// names its int8 copy, used instead where int8 graphs run fast (ModelSearch::int8_fast: an x86
+// CPU with VNNI, the CPU device) and that folder holds models. The source tree's DEFAULT names
+// "compact-multiscale" and "vnni compact-multiscale-int8": 0.05 dB lower on average (at most
+// 0.10 on a validation set), 1.27-1.39x faster on such a CPU (docs/RESULTS.md 4.60).
 #include <filesystem>
 #include <optional>
 #include <string>
@@ -21,17 +25,31 @@ struct ModelSearch {
   std::optional<std::filesystem::path> env_dir;       // $RAINDROP_MODELS (unset/empty: none)
   std::filesystem::path executable;                   // for the installed location; may be empty
   std::filesystem::path source_models;                // the source tree's models/; may be empty
+  bool int8_fast = false;                             // DEFAULT's "vnni" line applies (int8_runs_fast)
 };
 
-// The search of the current process: $RAINDROP_MODELS, /proc/self/exe and the compiled-in
-// source folder filled in.
+// What DEFAULT in a models folder says: the default configuration and, optionally, its int8
+// copy for CPUs where int8 runs fast.
+struct DefaultConfig {
+  std::string name;
+  std::optional<std::string> int8_fast;  // "vnni NAME"
+};
+
+// The search of the current process: $RAINDROP_MODELS, /proc/self/exe, the compiled-in
+// source folder and int8_fast (int8_runs_fast()) filled in.
 ModelSearch default_model_search();
 
-// The model folder to load, or raindrop::Error listing every place tried.
-std::filesystem::path find_models(const ModelSearch& search);
+// The model folder to load, or raindrop::Error listing every place tried. `why`, if given,
+// receives why DEFAULT's int8 copy was chosen ("" where it was not).
+std::filesystem::path find_models(const ModelSearch& search, std::string* why = nullptr);
 
-// The configuration name DEFAULT in `models_root` names, if the file exists (trimmed).
-std::optional<std::string> read_default_config(const std::filesystem::path& models_root);
+// What DEFAULT in `models_root` says, if the file exists and names one (trimmed); a
+// raindrop::Error for a later line that is neither blank, a # comment nor "vnni NAME".
+std::optional<DefaultConfig> read_default(const std::filesystem::path& models_root);
+
+// The configuration DEFAULT names for a CPU where int8 runs fast or not (its int8 copy's name
+// or its first line), if the file exists.
+std::optional<std::string> read_default_config(const std::filesystem::path& models_root, bool int8_fast = false);
 
 // The folder of the models that reconstruct the coarse pass's large drops for the models in
 // `model_dir` (large_drops.h): the sibling configuration named by the one line of the
