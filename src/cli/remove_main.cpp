@@ -209,13 +209,26 @@ struct Settings {
   bool time = false;
 };
 
+// An input image decoded, with its colour profile (given to the output: image_io.h).
+struct DecodedInput {
+  cv::Mat image;
+  std::string icc_profile;
+};
+
+DecodedInput decode_input(const fs::path& path) {
+  DecodedInput d;
+  d.image = read_image_native(path, 1, &d.icc_profile);
+  return d;
+}
+
 // Removes the drops from one file, staging its output and mask in `files` (the caller commits
 // them, then says what the output's format lost: `lost`); returns the panels for the contact
-// sheet.
+// sheet. `decoded`, if given, is the file being decoded already (its error is thrown here).
 std::vector<cv::Mat> process(Remover& remover, const Job& job, const Settings& s, bool want_panels,
-                             StagedImages* files, std::string* lost) {
-  std::string icc_profile;  // the input's colour profile, given to the output (image_io.h)
-  const cv::Mat input = read_image_native(job.input, 1, &icc_profile);
+                             StagedImages* files, std::string* lost, std::future<DecodedInput>* decoded = nullptr) {
+  DecodedInput in = decoded ? decoded->get() : decode_input(job.input);
+  const cv::Mat input = in.image;
+  const std::string& icc_profile = in.icc_profile;
   const auto started = std::chrono::steady_clock::now();
   RemoveResult r = remover.run(input, s.options);
   const double run_ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - started).count();
@@ -582,6 +595,16 @@ int run(int argc, char** argv) {
     }
   }
   if (!sheet.empty()) check_image_destination(sheet);
+  // One image: it is decoded on a thread of its own while ONNX Runtime and the models load,
+  // which leaves a core idle for much of that time (the library's loading and set-up run on one
+  // thread). Its errors are reported where reading it reported them, after the models'.
+  std::future<DecodedInput> first_input;
+  if (!batch && jobs.size() == 1) {
+    try {
+      first_input = std::async(std::launch::async, decode_input, jobs.front().input);
+    } catch (const std::system_error&) {  // no thread to spare: it is read when its turn comes
+    }
+  }
 
   SessionConfig session;
   session.threads = threads;
@@ -716,7 +739,8 @@ int run(int argc, char** argv) {
       try {
         StagedImages files;
         std::string lost;
-        auto panels = process(mine, job, s, want_panels, batch ? &files : &single, batch ? &lost : &single_lost);
+        auto panels = process(mine, job, s, want_panels, batch ? &files : &single, batch ? &lost : &single_lost,
+                              i == 0 && first_input.valid() ? &first_input : nullptr);
         files.commit();
         const std::lock_guard<std::mutex> lock(shared);
         if (batch) record_in_guarded(job);

@@ -147,6 +147,23 @@ TEST_F(RemoveCli, CorruptModelFile) {
   expect_clean_failure(remove({"in.png", "out.png", "--models", "models"}), "rrn.onnx");
 }
 
+// One image is decoded beside the models' loading (remove_main.cpp): a broken model folder is
+// still the error reported first, as when the image was read after the models, and a cut image
+// with good models is still reported as cut.
+TEST_F(RemoveCli, BrokenModelsAreReportedBeforeABrokenImage) {
+  fs::create_directories(tmp / "models");
+  for (const char* f : {"rdn.onnx", "rrn.onnx", "rfn.onnx"}) fs::copy_file(smoke_models() / f, tmp / "models" / f);
+  const std::string model = read_file(tmp / "models" / "rrn.onnx");
+  write_file(tmp / "models" / "rrn.onnx", model.substr(0, model.size() / 2));
+  const std::string image = read_file(tmp / "in.png");
+  write_file(tmp / "cut.png", image.substr(0, image.size() / 2));
+  RunResult r = remove({"cut.png", "out.png", "--models", "models"});
+  expect_clean_failure(r, "rrn.onnx");
+  EXPECT_EQ(r.err.find("truncated"), std::string::npos) << r.describe();
+  fs::copy_file(smoke_models() / "rrn.onnx", tmp / "models" / "rrn.onnx", fs::copy_options::overwrite_existing);
+  expect_clean_failure(remove({"cut.png", "out.png", "--models", "models"}), "truncated");
+}
+
 TEST_F(RemoveCli, MissingLargeDropModels) {
   expect_clean_failure(remove({"in.png", "out.png", "--large-drop-models", "nowhere"}), "nowhere");
 }
