@@ -28,28 +28,31 @@ void check_config_name(const std::string& name) {
     throw Error("model configuration name '" + name + "' is not a plain folder name");
 }
 
-// The first line of a small text file, trimmed; std::nullopt if the file is missing or blank.
-std::optional<std::string> read_first_line(const fs::path& file) {
-  std::ifstream in(file);
-  if (!in) return std::nullopt;
+// The next line of `in`, trimmed; std::nullopt at the end or for a blank line.
+std::optional<std::string> next_line_trimmed(std::istream& in) {
   std::string line;
-  std::getline(in, line);
+  if (!std::getline(in, line)) return std::nullopt;
   const auto first = line.find_first_not_of(" \t\r");
   const auto last = line.find_last_not_of(" \t\r");
   if (first == std::string::npos) return std::nullopt;
   return line.substr(first, last - first + 1);
 }
 
+// The first line of a small text file, trimmed; std::nullopt if the file is missing or blank.
+std::optional<std::string> read_first_line(const fs::path& file) {
+  std::ifstream in(file);
+  return next_line_trimmed(in);
+}
+
 }  // namespace
 
 std::optional<DefaultConfig> read_default(const fs::path& models_root) {
   const fs::path file = models_root / "DEFAULT";
-  const auto name = read_first_line(file);
+  std::ifstream in(file);
+  const auto name = next_line_trimmed(in);
   if (!name) return std::nullopt;
   DefaultConfig d{*name, std::nullopt};
-  std::ifstream in(file);
   std::string line;
-  std::getline(in, line);  // the first line: `name`
   while (std::getline(in, line)) {
     std::istringstream words(line);
     std::string key, value, extra;
@@ -124,23 +127,22 @@ fs::path find_models(const ModelSearch& s, std::string* why) {
   if (why) why->clear();
   if (s.explicit_dir) return *s.explicit_dir;  // loading it says what is wrong with it
   if (s.config) check_config_name(*s.config);
+  // The configuration to look for in `root`: --model-config, or what its DEFAULT names (its
+  // int8 copy where that applies and holds models, said in `why`), or the fallback.
   const auto name_in = [&](const fs::path& root) {
-    std::string name = s.config ? *s.config : read_default_config(root).value_or(kFallbackConfig);
-    check_config_name(name);
-    return name;
-  };
-  // DEFAULT's int8 copy in `root`, where it applies and holds models.
-  const auto int8_copy_in = [&](const fs::path& root) -> std::optional<fs::path> {
-    if (s.config || !s.int8_fast) return std::nullopt;
+    if (s.config) return *s.config;
     const auto d = read_default(root);
-    if (!d || !d->int8_fast || !has_models(root / *d->int8_fast)) return std::nullopt;
-    if (why) *why = "DEFAULT's int8 copy of " + d->name + ": this CPU has VNNI";
-    return root / *d->int8_fast;
+    if (!d) return std::string(kFallbackConfig);
+    if (s.int8_fast && d->int8_fast && has_models(root / *d->int8_fast)) {
+      if (why) *why = "DEFAULT's int8 copy of " + d->name + ": this CPU has VNNI";
+      return *d->int8_fast;
+    }
+    check_config_name(d->name);
+    return d->name;
   };
   if (s.env_dir) {
     // An explicit environment variable is authoritative: no fall-back past it.
     if (!s.config && has_models(*s.env_dir)) return *s.env_dir;
-    if (const auto dir = int8_copy_in(*s.env_dir)) return *dir;
     const fs::path dir = *s.env_dir / name_in(*s.env_dir);
     if (has_models(dir)) return dir;
     throw Error("$RAINDROP_MODELS is '" + s.env_dir->string() + "', but neither it nor '" + dir.string() +
@@ -151,7 +153,6 @@ fs::path find_models(const ModelSearch& s, std::string* why) {
   if (!s.source_models.empty()) roots.push_back(s.source_models);
   std::string tried;
   for (const auto& root : roots) {
-    if (const auto int8 = int8_copy_in(root)) return *int8;
     const fs::path dir = root / name_in(root);
     if (has_models(dir)) return dir;
     tried += (tried.empty() ? "" : ", ") + ("'" + dir.string() + "'");

@@ -14,6 +14,7 @@
 #include <iterator>
 
 #include "raindrop/remove/int8_precision.h"
+#include "raindrop/remove/model_paths.h"
 #include "remove_test_util.h"
 
 namespace removetest {
@@ -21,9 +22,7 @@ namespace {
 
 // The committed int8 folder of the default model (models/<DEFAULT>-int8), or the first int8 one.
 fs::path int8_models() {
-  std::string default_name;
-  std::ifstream in(source_dir() / "models" / "DEFAULT");
-  std::getline(in, default_name);
+  const std::string default_name = raindrop::removal::read_default_config(source_dir() / "models").value_or("");
   fs::path first;
   for (const auto& dir : trained_models()) {
     const std::string name = dir.filename().string();
@@ -116,10 +115,6 @@ TEST(Int8Precision, AnInt8FolderGivesTheSameOutputOnACpuWithoutVnni) {
 
   NoVnniRun nv;
   if (const std::string skip = no_vnni_run(tmp.path(), &nv); !skip.empty()) GTEST_SKIP() << skip;
-  std::vector<std::string>& env = nv.env;
-  fs::path& program = nv.program;
-  std::vector<std::string>& program_args = nv.program_args;
-  const std::string& how = nv.how;
   std::ifstream info(models / "export.json");
   const bool kept_float = std::string(std::istreambuf_iterator<char>(info), {}).find("\"kept_float\"") != std::string::npos;
   const std::vector<std::string> common{"--models", models.string(), "--no-large-drops", "-q", "-j", "2"};
@@ -130,9 +125,9 @@ TEST(Int8Precision, AnInt8FolderGivesTheSameOutputOnACpuWithoutVnni) {
   };
   r = run_remove(args("native"), tmp.path());
   ASSERT_EQ(r.code, 0) << r.describe();
-  for (const auto& a : args("haswell")) program_args.push_back(a);
-  r = run_command(program, program_args, tmp.path(), env);
-  ASSERT_EQ(r.code, 0) << how << "\n" << r.describe();
+  for (const auto& a : args("haswell")) nv.program_args.push_back(a);
+  r = run_command(nv.program, nv.program_args, tmp.path(), nv.env);
+  ASSERT_EQ(r.code, 0) << nv.how << "\n" << r.describe();
 
   int compared = 0;
   for (const auto& e : fs::directory_iterator(tmp / "set/rainy")) {
@@ -150,7 +145,7 @@ TEST(Int8Precision, AnInt8FolderGivesTheSameOutputOnACpuWithoutVnni) {
       const double diff = cv::norm(a->pixels, b->pixels, cv::NORM_INF);
       const double allowed = kind == "out" && kept_float ? 1.0 : 0.0;
       EXPECT_LE(diff, allowed) << models.filename() << " " << kind << " of " << n
-                               << " differs between this CPU and one without VNNI (" << how << "; max " << diff << " levels)";
+                               << " differs between this CPU and one without VNNI (" << nv.how << "; max " << diff << " levels)";
       ++compared;
     }
   }
@@ -164,12 +159,11 @@ TEST(Int8Precision, TheDefaultIsItsInt8CopyOnlyWithVnni) {
 #if !defined(__x86_64__)
   GTEST_SKIP() << "x86-64 only";
 #endif
-  std::ifstream in(source_dir() / "models" / "DEFAULT");
-  std::string first, vnni, int8_name;
-  std::getline(in, first);
-  in >> vnni >> int8_name;
-  if (vnni != "vnni" || !fs::is_regular_file(source_dir() / "models" / int8_name / "rdn.onnx"))
+  const auto defaults = raindrop::removal::read_default(source_dir() / "models");
+  if (!defaults || !defaults->int8_fast || !fs::is_regular_file(source_dir() / "models" / *defaults->int8_fast / "rdn.onnx"))
     GTEST_SKIP() << "models/DEFAULT names no committed int8 copy";
+  const std::string& first = defaults->name;
+  const std::string& int8_name = *defaults->int8_fast;
   TempDir tmp;
   write_image(tmp / "in.png", make_image(96, 64, 3));
   const std::vector<std::string> args{"in.png", "out.png", "--time", "-j", "1", "--no-large-drops"};

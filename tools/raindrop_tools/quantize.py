@@ -179,6 +179,8 @@ def _quantize_into(out_dir: Path, models_dir: Path, data_dir: Path, count: int, 
     """The three int8 graphs and their export.json, written into the (staging) folder out_dir;
     `info` (the fp32 export.json) is updated in place. Graphs in `reused` are taken as they are,
     under this folder's configuration name; those in `keep_float` are the fp32 graphs, likewise."""
+    # What stays float: the graphs asked for, and a reused folder's float graphs.
+    kept = set(keep_float) | {n for n, q in reused.items() if not is_quantized(q)}
     with tempfile.TemporaryDirectory() as tmp:
         for name, q in reused.items():
             _set_int8_metadata(q, onnx.load(str(models_dir / GRAPH_FILES[name])))
@@ -187,10 +189,10 @@ def _quantize_into(out_dir: Path, models_dir: Path, data_dir: Path, count: int, 
             if name in reused:
                 continue
             fp32 = onnx.load(str(models_dir / GRAPH_FILES[name]))
-            kept = onnx.ModelProto()
-            kept.CopyFrom(fp32)
-            _set_int8_metadata(kept, fp32)
-            onnx.save(kept, str(out_dir / GRAPH_FILES[name]))
+            graph = onnx.ModelProto()
+            graph.CopyFrom(fp32)
+            _set_int8_metadata(graph, fp32)
+            onnx.save(graph, str(out_dir / GRAPH_FILES[name]))
         for name in NETWORKS:
             if name in reused or name in keep_float:
                 continue
@@ -223,8 +225,7 @@ def _quantize_into(out_dir: Path, models_dir: Path, data_dir: Path, count: int, 
                 "calibration": f"{count} rendered images from {data_dir} (seed {seed}), min-max",
                 **({"reconstruction": f"{', '.join(GRAPH_FILES[n] for n in reused)} taken from {reuse_dir}"}
                    if reused else {}),
-                **({"kept_float": [GRAPH_FILES[n] for n in NETWORKS if not is_quantized(onnx.load(str(out_dir / GRAPH_FILES[n])))]}
-                   if keep_float or reused else {}),
+                **({"kept_float": [GRAPH_FILES[n] for n in NETWORKS if n in kept]} if kept else {}),
             },
             # The int8 files' own digests (the fp32 entries and the fp32 export's PyTorch
             # parity figures describe other files).
