@@ -7,7 +7,7 @@
 # windshield-followup longer growth sharpness coalesce surround largewidth largedrops-all windshield2
 # errorsplit withoutvnni graphrewrites jitter windshieldscale router routed int8router droplets realismcontrol
 # droplets2 infocus realismbar windshieldday fillarea finedrops lanes glassplate platerecon aperturelanes headrouter int8head headthreshold dilation coarsescales mainthreshold
-# rim headtext headnight workers int8default
+# rim headtext headnight workers int8default sampledlayers
 #
 # Sections measured before docs/RESULTS.md 4.44 run compact-windshield's detector (and the routed
 # default) with --surround-fill-area 150, the area they had then, so that they reproduce.
@@ -36,7 +36,7 @@ sections=("$@")
                                   surround largewidth largedrops-all windshield2 errorsplit withoutvnni graphrewrites
                                   jitter windshieldscale router routed int8router droplets realismcontrol droplets2 infocus realismbar
                                   windshieldday fillarea finedrops lanes glassplate platerecon aperturelanes headrouter int8head headthreshold dilation coarsescales mainthreshold
-                                  rim headtext headnight workers int8default)
+                                  rim headtext headnight workers int8default sampledlayers)
 want() { [[ " ${sections[*]} " == *" $1 "* ]]; }
 # link_set SRC DST SPLIT [LIMIT]: the first LIMIT (default 100; 0: all) samples of data set SRC
 # (of manifest split SPLIT; "-" = all) linked into DST/rainy and DST/clean (and DST/mask, where
@@ -3057,4 +3057,126 @@ if want int8default; then
   alternate_times 15 default windshield_2.jpg attgan-fork_test_5.png -- "" "--model-config compact-multiscale" \
     "--model-config compact-multiscale-int8" >"$i8/times.txt"
   median_times "$i8/times.txt" | tee "$i8/times-summary.txt"
+fi
+
+if want sampledlayers; then
+  # RESULTS 4.63: the thin lens's layers with circles of 48-96 px spread at every second or third
+  # pixel and row and interpolated between; the antialiased disk's rim areas by chord and octant;
+  # one comparison per sRGB code. The build before (a340440, in a worktree under $sl/before) and
+  # this one: what changes in the renders (windshield-day at f/2 with the glass at 10 cm at
+  # 2048x1024, the issue's camera; the presets at 1024x512), the camera section at 2048x1024 and
+  # that windshield end to end, rounds alternated.
+  sl="$out/sampledlayers"
+  before="$sl/before"
+  mkdir -p "$sl"
+  built_at a340440 "$before"
+  city="$shared/cityscapes-mini"
+  edited_scene 's/"glass_distance_cm": \[5, 30\]/"glass_distance_cm": [10, 10]/; s/"f_number": \[1.8, 5.6\]/"f_number": [2, 2]/' \
+    scenes/windshield-day.json 2 >"$sl/windshield-f2.json"
+  compare_renders() {  # values that differ between two render folders; rainy and alpha inside the coverage
+    "$py" - "$1" "$2" <<'PY'
+import sys, glob, os
+import cv2, numpy as np
+a_dir, b_dir = sys.argv[1], sys.argv[2]
+files = differ = 0
+worst = {"rainy": 0.0, "alpha": 0.0}
+sq = {"rainy": 0.0, "alpha": 0.0}
+n = 0
+mask_changed = mask_px = 0
+for f in sorted(glob.glob(os.path.join(a_dir, "rainy", "*.png"))):
+    name = os.path.basename(f)
+    for kind in ("rainy", "alpha", "mask"):
+        pa, pb = os.path.join(a_dir, kind, name), os.path.join(b_dir, kind, name)
+        if not os.path.exists(pa):
+            continue
+        files += 1
+        differ += open(pa, "rb").read() != open(pb, "rb").read()
+    rainy_a = cv2.imread(f).astype(float)
+    if not os.path.exists(os.path.join(a_dir, "alpha", name)):  # no thin lens: no coverage, the whole frame
+        alpha_a = alpha_b = np.zeros(rainy_a.shape[:2])
+        inside = np.ones(rainy_a.shape[:2], bool)
+    else:
+        alpha_a = cv2.imread(os.path.join(a_dir, "alpha", name), cv2.IMREAD_UNCHANGED).astype(float) / 65535 * 255
+        alpha_b = cv2.imread(os.path.join(b_dir, "alpha", name), cv2.IMREAD_UNCHANGED).astype(float) / 65535 * 255
+        inside = alpha_a > 0
+    n += int(inside.sum())
+    for kind, a, b in (("rainy", rainy_a, cv2.imread(os.path.join(b_dir, "rainy", name)).astype(float)),
+                       ("alpha", alpha_a, alpha_b)):
+        d = np.abs(a - b)
+        worst[kind] = max(worst[kind], float(d.max()))
+        sq[kind] += float((d[inside] ** 2).sum()) / (3 if kind == "rainy" else 1)
+    ma = cv2.imread(os.path.join(a_dir, "mask", name), 0)
+    mb = cv2.imread(os.path.join(b_dir, "mask", name), 0)
+    mask_changed += int((ma != mb).sum())
+    mask_px += int((ma > 0).sum())
+rms = {k: (sq[k] / max(n, 1)) ** 0.5 for k in sq}
+print(f"{differ} of {files} files differ; rainy worst {worst['rainy']:.0f} levels, RMS {rms['rainy']:.3f} inside the coverage; "
+      f"coverage worst {worst['alpha']:.2f}/255, RMS {rms['alpha']:.3f}/255; mask {mask_changed} of {mask_px} pixels changed")
+PY
+  }
+  # SCENE|SIZE (native: the frames' 2048x1024)
+  for run in "$sl/windshield-f2.json|native" "$sl/windshield-f2.json|1024x512" "lens-cover|1024x512" \
+             "windshield-night|1024x512" "windshield-day|1024x512" "glass-droplets|1024x512" "paper|1024x512" \
+             "full-physics|1024x512"; do
+    for b in before now; do
+      rm -rf "$sl/render-$b"
+      "$(bin_of "$b")/raindrop-render" --cityscapes "$city" --split all --scene "${run%|*}" --size "${run#*|}" -q -j2 \
+        --out "$sl/render-$b" >/dev/null
+    done
+    echo "$(basename "${run%|*}") at ${run#*|}: $(compare_renders "$sl/render-before" "$sl/render-now")"
+  done | tee "$sl/differences.txt"
+  # Both fast paths against the 256-ray aperture reference (the same drops), at 2048x1024 and 1024x512.
+  edited_scene 's/"defocus": "layered"/"defocus": "aperture", "aperture_samples": 256/' "$sl/windshield-f2.json" \
+    >"$sl/windshield-f2-reference.json"
+  for size in native 1024x512; do
+    for b in reference before now; do
+      scene="$sl/windshield-f2.json"
+      [[ $b == reference ]] && scene="$sl/windshield-f2-reference.json"
+      rm -rf "$sl/$b-$size"
+      "$(bin_of "$b")/raindrop-render" --cityscapes "$city" --split all --scene "$scene" --size "$size" -q -j2 \
+        --out "$sl/$b-$size" >/dev/null
+    done
+    "$py" - "$sl/reference-$size" "$sl/before-$size" "$sl/now-$size" <<'PY'
+import sys, glob, os, json
+import cv2, numpy as np
+ref, fasts = sys.argv[1], sys.argv[2:]
+def drops(d):
+    return [[(x["center_cm"], x["footprint_radius_cm"], x["contact_angle_deg"]) for x in json.loads(l)["drops"]]
+            for l in open(os.path.join(d, "manifest.jsonl"))]
+for f in fasts:
+    assert drops(ref) == drops(f), f"{f}: not the reference's drops"
+    sq = csq = n = worst = 0
+    for p in sorted(glob.glob(os.path.join(ref, "rainy", "*.png"))):
+        name = os.path.basename(p)
+        r = cv2.imread(p).astype(float)
+        a = cv2.imread(os.path.join(f, "rainy", name)).astype(float)
+        ra = cv2.imread(os.path.join(ref, "alpha", name), cv2.IMREAD_UNCHANGED).astype(float) / 65535
+        fa = cv2.imread(os.path.join(f, "alpha", name), cv2.IMREAD_UNCHANGED).astype(float) / 65535
+        inside = (ra > 0) | (fa > 0)
+        sq += ((r - a)[inside] ** 2).sum() / 3
+        csq += ((ra - fa)[inside] ** 2).sum()
+        n += inside.sum()
+        worst = max(worst, np.abs(r - a).max())
+    print(f"{os.path.basename(f)}: against the 256-ray reference, RMSE {np.sqrt(sq / n):.3f} levels inside either "
+          f"coverage, worst {worst:.0f}; coverage RMS {np.sqrt(csq / n) * 255:.2f}/255")
+PY
+    rm -rf "$sl/reference-$size" "$sl/before-$size" "$sl/now-$size"
+  done | tee "$sl/against-reference.txt"
+  for r in 1 2 3; do
+    for b in before now; do
+      echo "$b round $r"
+      "$(bin_of "$b")/raindrop-bench" render --sections camera --lens-size 2048x1024 --frames 3 --repeats 2 2>/dev/null |
+        grep -E '^\| (paper|lens-cover|windshield-day|glass)' | grep -v aperture
+    done
+  done | tee "$sl/camera-2048.txt"
+  for r in 1 2 3; do
+    for b in before now; do
+      rm -rf "$sl/e2e"
+      start=$(date +%s%N)
+      "$(bin_of "$b")/raindrop-render" --cityscapes "$city" --split all --scene "$sl/windshield-f2.json" --variants 2 -q \
+        --out "$sl/e2e" >/dev/null
+      echo "$b round $r: $(( ($(date +%s%N) - start) / 16000000 )) ms per frame (16 frames, 2048x1024, PNG written)"
+    done
+  done | tee "$sl/end-to-end.txt"
+  rm -rf "$sl/render-before" "$sl/render-now" "$sl/e2e"
 fi

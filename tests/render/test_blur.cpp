@@ -9,6 +9,7 @@
 
 #include "raindrop/common/rng.h"
 #include "raindrop/render/blur.h"
+#include "raindrop/render/disk_kernel.h"
 
 using namespace raindrop;
 
@@ -126,6 +127,31 @@ TEST(Blur, KernelsHaveTheDiskAreaAndVariance) {
     cv::flip(aa, flipped, -1);
     EXPECT_LT(cv::norm(aa, flipped, cv::NORM_INF), 1e-15);
   }
+}
+
+// The antialiased disk weighs each rim pixel by the fraction of its 16 x 16 sub-points inside
+// the circle; disk_kernel.cpp counts them per sub-row from the chord, corrected with the same
+// test. Point by point here, over diameters that put the rim anywhere in its pixels.
+TEST(Blur, AntialiasedWeightsAreThePointByPointCount) {
+  int rim = 0;
+  for (double d = 1.1; d < 140; d += 0.37) {
+    const double r = 0.5 * d;
+    for (const KernelRow& row : disk_rows(d, true, false)) {
+      for (const auto& [dx, w] : row.taps) {
+        int inside = 0;
+        for (int j = 0; j < 16; ++j) {
+          const double yy = row.dy - 0.5 + (j + 0.5) / 16;
+          for (int i = 0; i < 16; ++i) {
+            const double xx = dx - 0.5 + (i + 0.5) / 16;
+            inside += xx * xx + yy * yy <= r * r;
+          }
+        }
+        ASSERT_EQ(w, static_cast<float>(inside / 256.0)) << "diameter " << d << " at " << dx << ", " << row.dy;
+        rim += inside < 256;
+      }
+    }
+  }
+  EXPECT_GT(rim, 10000);
 }
 
 TEST(Blur, DisksSmallerThanAPixelAreTheIdentity) {

@@ -147,6 +147,30 @@ TEST(Highlights, ALampSeenThroughADefocusedDropBloomsByTheGain) {
   EXPECT_GT(shoulder, 100);
 }
 
+// Circles of 48-96 px are spread at every second or third pixel and interpolated between
+// (defocus_rows.cpp), which would smear the rim of a lamp's bokeh: a small drop that sees a
+// lifted lamp spreads it into a disk as bright as the light, edged within a few pixels. Such a
+// layer is spread at every pixel, as the exact per-drop convolution does; the same drop seeing
+// light below the lift is sampled, within the sampled circles' bounds.
+TEST(Highlights, ALiftedLampsBokehKeepsItsRimWhereCirclesAreSampled) {
+  const Camera cam = camera(257, 257, 640);
+  const cv::Mat dark(cam.height, cam.width, CV_8UC3, cv::Scalar::all(20));
+  SceneSample plain = one_drop_scene(), lifted = plain;
+  lifted.highlights = lift(0.9, 16);
+  const std::vector<Drop> drops = drops_of(plain);
+  const double circle = layer_blur_diameter(plain, drops[0], cam.fx, dark.size());
+  ASSERT_GT(circle, 60);  // a sampled circle
+  ASSERT_LT(circle, 72);
+  for (const SceneSample* scene : {&plain, &lifted}) {
+    const TraceResult traced = disc_trace(cam, 5, 1.0f);
+    const DefocusedFrame fast = composite_layers(dark, traced, cam, *scene, drops);
+    const DefocusedFrame exact = composite_layers_exact(dark, traced, cam, *scene, drops);
+    const char* what = scene == &lifted ? "lifted" : "plain";
+    EXPECT_LE(cv::norm(fast.rainy, exact.rainy, cv::NORM_INF), 2) << what;
+    EXPECT_LT(cv::norm(fast.coverage, exact.coverage, cv::NORM_INF), 3 / 255.0) << what;
+  }
+}
+
 // A frame bright but not clipped (stored 240, above the threshold) behind a dark drop: the
 // pixels the blur's faintest edge reaches keep their stored value, as those it does not reach
 // do. (Stored with a hard clip after the mix instead of the camera's shoulder, every one of

@@ -18,10 +18,13 @@
 // Two implementations of the same sums: composite_layers spreads every layer with the disk's
 // rows (disk_kernel.h: a prefix-sum run and the rim's partial taps per row, O(d) per pixel),
 // output row by output row on all threads, and touches only the rows and columns a layer can
-// reach; circles of 96 px and more it spreads on a coarser grid (defocus_rows.cpp).
+// reach; circles of 48-96 px it spreads so at every second or third pixel and interpolates
+// between (unless the drop sees lifted highlights), circles of 96 px and more on a coarser
+// grid (defocus_rows.cpp).
 // composite_layers_exact convolves each drop's layer with the dense disk by cv::filter2D, one
 // drop after another (the method before; `"defocus": "layered-exact"`). They agree to float
-// rounding below 96 px, within 1/255 in coverage above (tests/render/test_defocus.cpp).
+// rounding below 48 px, within 3/255 in coverage and two levels of the image at 48-96 px, and
+// within 1/255 and two levels above (tests/render/test_defocus.cpp).
 #include <vector>
 
 #include <opencv2/core.hpp>

@@ -6,6 +6,7 @@
 #include <array>
 #include <cmath>
 #include <cstdint>
+#include <cstdlib>
 #include <cstring>
 
 #include "raindrop/common/srgb_curve.h"
@@ -46,13 +47,14 @@ class SrgbTables {
   }
 
   // Exactly linear_to_srgb8(v), for every float v: the code from the bin's first code and the
-  // smallest float of each code, found with the formula itself.
+  // smallest float of each code, found with the formula itself. A bin holds at most one
+  // code's first float (the curve's steepest slope, 12.92 x 255 codes per unit at 0, is 0.8
+  // codes per bin; the constructor checks it), so one comparison finishes, without a branch.
   std::uint8_t encode(float v) const {
     if (!(v > 0.0f)) return 0;  // also NaN, as linear_to_srgb8
     if (v >= 1.0f) return 255;
-    int c = first_code_[static_cast<int>(v * kBins)];
-    while (c < 255 && v >= first_float_[c + 1]) ++c;
-    return static_cast<std::uint8_t>(c);
+    const int c = first_code_[static_cast<int>(v * kBins)];
+    return static_cast<std::uint8_t>(c + (v >= first_float_[c + 1]));
   }
 
  private:
@@ -72,10 +74,16 @@ class SrgbTables {
       }
       std::memcpy(&first_float_[c], &hi, sizeof hi);
     }
+    first_float_[256] = INFINITY;  // no code 256: code 255's bins never step past it
     for (int i = 0; i < kBins; ++i) first_code_[i] = linear_to_srgb8(static_cast<double>(static_cast<float>(i) / kBins));
+    // encode's one comparison: no bin reaches past its first code's successor.
+    for (int i = 0; i < kBins; ++i) {
+      const int last = i + 1 < kBins ? first_code_[i + 1] : 255;
+      if (last > first_code_[i] + 1) std::abort();
+    }
   }
   std::array<float, kBins + 1> decode_{};
-  std::array<float, 256> first_float_{};
+  std::array<float, 257> first_float_{};
   std::array<std::uint8_t, kBins> first_code_{};
 };
 
