@@ -18,6 +18,7 @@
 #include <climits>
 #include <cmath>
 #include <cstdlib>
+#include <cstring>
 #include <memory>
 #include <vector>
 
@@ -582,8 +583,14 @@ DefocusedFrame composite_layers(const cv::Mat& clean, const TraceResult& traced,
   const int W = clean.cols, H = clean.rows;
   DefocusedFrame out;
   out.coc_px.assign(drops.size(), 0.0);
-  out.rainy = clean.clone();
-  out.coverage = cv::Mat(clean.size(), CV_32F, cv::Scalar(0));
+  // The clean bytes and zero coverage, written row by row on all threads: the rows the layers
+  // reach in the pass that composites them (while they are in the cache), the others first.
+  out.rainy.create(clean.size(), CV_8UC3);
+  out.coverage.create(clean.size(), CV_32F);
+  auto start_row = [&](int y) {
+    std::memcpy(out.rainy.ptr(y), clean.ptr(y), 3 * static_cast<size_t>(W));
+    std::memset(out.coverage.ptr(y), 0, sizeof(float) * static_cast<size_t>(W));
+  };
 
   // Each drop's first and last pixel per row, from the traced pixels (the tracer's spans, or
   // the drop pixels' box when a trace has none).
@@ -625,6 +632,12 @@ DefocusedFrame composite_layers(const cv::Mat& clean, const TraceResult& traced,
     y_begin = std::min(y_begin, layers[d].reach.y);
     y_end = std::max(y_end, layers[d].reach.y + layers[d].reach.height);
   }
+  y_begin = std::max(y_begin, 0);
+  y_end = std::max(std::min(y_end, H), y_begin);
+  tbb::parallel_for(tbb::blocked_range<int>(0, H, 16), [&](const tbb::blocked_range<int>& r) {
+    for (int y = r.begin(); y < r.end(); ++y)
+      if (y < y_begin || y >= y_end) start_row(y);
+  });
   if (y_begin >= y_end) return out;
   tbb::parallel_for(tbb::blocked_range<int>(y_begin, y_end, 4), [&](const tbb::blocked_range<int>& r) {
     std::vector<const Layer*> active;  // in drop order: the order of the sums
@@ -635,6 +648,7 @@ DefocusedFrame composite_layers(const cv::Mat& clean, const TraceResult& traced,
     std::vector<f4> acc(W);
     std::vector<Span> spans;  // the columns of row y that some layer reaches
     for (int y = r.begin(); y < r.end(); ++y) {
+      start_row(y);
       spans.clear();
       for (const Layer* layer : active) {
         if (y < layer->reach.y || y >= layer->reach.y + layer->reach.height) continue;
