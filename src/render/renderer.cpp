@@ -1,6 +1,8 @@
 #include "raindrop/render/renderer.h"
 
+#include <atomic>
 #include <cmath>
+#include <cstdint>
 #include <cstring>
 
 #include <opencv2/core.hpp>
@@ -16,12 +18,6 @@
 
 namespace raindrop {
 namespace {
-
-// The binary mask of a defocused frame: coverage >= the scene's threshold (0/255).
-void finish_mask(const SceneConfig& config, RenderedFrame& frame) {
-  frame.mask = frame.alpha >= static_cast<float>(config.lens.mask_threshold);
-  frame.stats.drop_pixels = cv::countNonZero(frame.mask);
-}
 
 // The thin-lens camera: layered compositing (fast, or its exact per-drop form) or aperture
 // sampling (reference).
@@ -72,11 +68,31 @@ RenderedFrame render_defocused(const cv::Mat& clean, const cv::Mat& sharp, const
     frame.timings.blur_ms = ms_since(t0);
   }
   t0 = Clock::now();
-  frame.rainy = out.rainy(inner).clone();
   if (!out.clean.empty()) frame.clean = out.clean(inner).clone();
-  frame.alpha = out.coverage(inner).clone();
   frame.coc_px = std::move(out.coc_px);
-  finish_mask(config, frame);
+  // The crop, and the binary mask (coverage >= the scene's threshold, 0/255) with its count, in
+  // one pass over the rows on all threads: each row's coverage is still in the cache when it is
+  // thresholded.
+  frame.rainy.create(clean.size(), CV_8UC3);
+  frame.alpha.create(clean.size(), CV_32F);
+  frame.mask.create(clean.size(), CV_8U);
+  const float threshold = static_cast<float>(config.lens.mask_threshold);
+  std::atomic<std::int64_t> masked{0};
+  tbb::parallel_for(tbb::blocked_range<int>(0, clean.rows, 16), [&](const tbb::blocked_range<int>& r) {
+    std::int64_t n = 0;
+    for (int y = r.begin(); y < r.end(); ++y) {
+      std::memcpy(frame.rainy.ptr(y), out.rainy.ptr<cv::Vec3b>(inner.y + y) + inner.x, 3 * static_cast<size_t>(clean.cols));
+      const float* a = out.coverage.ptr<float>(inner.y + y) + inner.x;
+      std::memcpy(frame.alpha.ptr(y), a, sizeof(float) * static_cast<size_t>(clean.cols));
+      std::uint8_t* m = frame.mask.ptr<std::uint8_t>(y);
+      for (int x = 0; x < clean.cols; ++x) {
+        m[x] = a[x] >= threshold ? 255 : 0;
+        n += a[x] >= threshold;
+      }
+    }
+    masked += n;
+  });
+  frame.stats.drop_pixels = masked;
   frame.timings.compose_ms = ms_since(t0);
   return frame;
 }
