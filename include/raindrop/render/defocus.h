@@ -23,7 +23,7 @@
 // grid (defocus_rows.cpp).
 // composite_layers_exact convolves each drop's layer with the dense disk by cv::filter2D, one
 // drop after another (the method before; `"defocus": "layered-exact"`). They agree to float
-// rounding below 48 px, within 3/255 in coverage and two levels of the image at 48-96 px, and
+// rounding below 48 px, within 4/255 in coverage and four levels of the image at 48-96 px, and
 // within 1/255 and two levels above (tests/render/test_defocus.cpp).
 #include <vector>
 
