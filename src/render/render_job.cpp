@@ -305,17 +305,6 @@ json sample_record(const std::string& id, const InputImage& input, int variant, 
   return record;
 }
 
-// Coverage in [0, 1] as a 16-bit image (the pinhole mask's 0/1 when the lens was skipped).
-cv::Mat alpha16(const RenderedFrame& f) {
-  cv::Mat out;
-  if (f.alpha.empty()) {
-    f.mask.convertTo(out, CV_16U, 65535.0 / 255.0);
-  } else {
-    f.alpha.convertTo(out, CV_16U, 65535.0);
-  }
-  return out;
-}
-
 std::string variant_id(const std::string& input_id, int variant) {
   char buf[16];
   std::snprintf(buf, sizeof buf, "_v%02d", variant);
@@ -329,6 +318,16 @@ std::string input_of(const std::string& sample_id) {
 }
 
 }  // namespace
+
+cv::Mat alpha16(const RenderedFrame& f) {
+  cv::Mat out;
+  if (f.alpha.empty()) {
+    f.mask.convertTo(out, CV_16U, 65535.0 / 255.0);
+  } else {
+    f.alpha.convertTo(out, CV_16U, 65535.0);
+  }
+  return out;
+}
 
 std::string renderer_version() { return kVersion; }
 

@@ -56,6 +56,10 @@ struct RenderSummary {
 
 std::string renderer_version();
 
+// The coverage image a sample with a lens writes as alpha/<name>.png: coverage in [0, 1] as
+// 16-bit (the pinhole mask's 0/1 when the lens was skipped).
+cv::Mat alpha16(const RenderedFrame& f);
+
 // Derives the seed of one sample from the run seed, the input id and the variant.
 std::uint64_t sample_seed(std::uint64_t run_seed, const std::string& input_id, int variant);
 
