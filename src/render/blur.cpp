@@ -217,6 +217,58 @@ inline __attribute__((always_inline)) void sum_wide(const RowKernel& k, int x, c
   }
 }
 
+// The same sums as sum_wide<V, A>, register a taking the P pixels from xs[a]: a run's last
+// pixels, which do not fill A registers side by side, are summed A registers at a time by
+// overlapping the pixels before them (summed again to the same values, since each pixel adds the
+// same terms in the same order whichever register holds it) instead of in fewer registers, whose
+// chains of dependent additions leave the adder waiting (or one pixel per register, P times slower).
+template <typename V, int A>
+inline __attribute__((always_inline)) void sum_at(const RowKernel& k, const int* xs, cv::Vec3f* dst) {
+  constexpr int P = sizeof(V) / sizeof(f4);
+  V acc[A];
+  for (int a = 0; a < A; ++a) acc[a] = V{};
+  for (const Run& run : k.runs) {
+    const f4* hi = k.prefix_rows[run.row] + run.hi;
+    const f4* lo = k.prefix_rows[run.row] + run.lo;
+    for (int a = 0; a < A; ++a) {
+      V h, l;
+      load(h, hi + xs[a]);
+      load(l, lo + xs[a]);
+      acc[a] += h - l;
+    }
+  }
+  for (const Tap& tap : k.taps) {
+    const f4* src_px = k.rgb_rows[tap.row] + tap.dx;
+    for (int a = 0; a < A; ++a) {
+      V v;
+      load(v, src_px + xs[a]);
+      acc[a] += tap.w * v;
+    }
+  }
+  for (int a = 0; a < A; ++a) {
+    const V o = acc[a] * k.inv_total;
+    for (int q = 0; q < P; ++q) dst[xs[a] + q] = cv::Vec3f(o[4 * q], o[4 * q + 1], o[4 * q + 2]);
+  }
+}
+
+// Pixels [x, end) (a run starting at `start` <= x) not left to the caller: whole groups of A
+// registers of P pixels, then the rest as one more group overlapping the pixels before it
+// (sum_at). Returns the first pixel left: `end`, or x where the run is narrower than P.
+template <typename V, int A>
+inline __attribute__((always_inline)) int blur_span_groups(const RowKernel& k, int start, int x, int end,
+                                                           cv::Vec3f* dst) {
+  constexpr int P = sizeof(V) / sizeof(f4), G = A * P;
+  if (end - start < P) return x;
+  for (; x + G <= end; x += G) sum_wide<V, A>(k, x, dst);
+  if (x == end) return end;
+  // The last group: from G pixels before the end, or from the run's start where it is narrower.
+  const int base = std::max(start, end - G);
+  int xs[A];
+  for (int a = 0; a < A; ++a) xs[a] = base + std::min(a * P, end - P - base);
+  sum_at<V, A>(k, xs, dst);
+  return end;
+}
+
 #if defined(__x86_64__) && defined(__GNUC__)
 // Wider registers hold several pixels' f4 side by side (AVX: 2, AVX-512: 4; pixel_vectors.h):
 // every lane does the SSE2 path's arithmetic in its order, so the same bits with half or a
@@ -226,16 +278,13 @@ using pixel_vectors::f8;
 using pixel_vectors::f16;
 
 // Each blurs pixels x, x+1, ... of [x, end) in blocks of 8 and returns the first it left.
+// Four registers at a time: each register's sum is a chain of dependent additions, and fewer
+// chains leave the adder waiting on their latency.
 __attribute__((target("avx"))) int blur_span_avx(const RowKernel& k, int x, int end, cv::Vec3f* dst) {
-  for (; x + 8 <= end; x += 8) sum_wide<f8, 4>(k, x, dst);
-  return x;
+  return blur_span_groups<f8, 4>(k, x, x, end, dst);
 }
-// Four registers (16 pixels) at a time where the run is long enough: each register's sum is a
-// chain of dependent additions, and two chains left the adder waiting on their latency.
 __attribute__((target("avx512f"))) int blur_span_avx512(const RowKernel& k, int x, int end, cv::Vec3f* dst) {
-  for (; x + 16 <= end; x += 16) sum_wide<f16, 4>(k, x, dst);
-  for (; x + 8 <= end; x += 8) sum_wide<f16, 2>(k, x, dst);
-  return x;
+  return blur_span_groups<f16, 4>(k, x, x, end, dst);
 }
 #endif
 
@@ -256,8 +305,10 @@ int blur_span_wide(int level, const RowKernel& k, int x, int end, cv::Vec3f* dst
   return x;
 }
 
+// `spans` (optional): per frame row, x-intervals holding every drop pixel; only they are scanned
+// for drop pixels (without them, the mask box's whole row, most of which is not a drop).
 void blur_rows(const Source& src, const cv::Mat& label, cv::Mat& color, const cv::Rect& mask_box,
-               const std::vector<KernelRow>& kernel) {
+               const std::vector<KernelRow>& kernel, const Spans* spans) {
   const int W = label.cols, H = label.rows;
   std::vector<Run> runs;
   std::vector<Tap> taps;
@@ -319,23 +370,30 @@ void blur_rows(const Source& src, const cv::Mat& label, cv::Mat& color, const cv
       // The fast path needs the whole kernel inside the frame: rows, and columns
       // [reach_x, W - reach_x).
       const int fast_lo = rows_inside ? reach_x : W, fast_hi = rows_inside ? W - reach_x : W;
-      const int end = mask_box.x + mask_box.width;
-      for (int x = mask_box.x; x < end;) {
-        if (lab[x] < 0) {
-          ++x;
-          continue;
+      const RowKernel row_kernel{runs, taps, prefix_rows.data(), rgb_rows.data(), inv_total};
+      // Blurs the drop pixels of columns [from, to): each run of them at once.
+      auto blur_columns = [&](int from, int to) {
+        for (int x = from; x < to;) {
+          while (x < to && lab[x] < 0) ++x;
+          int b = x;  // [x, b): a run of drop pixels
+          while (b < to && lab[b] >= 0) ++b;
+          if (b == x) break;
+          const int a_fast = std::min(std::max(x, fast_lo), b), b_fast = std::max(std::min(b, fast_hi), a_fast);
+          for (int i = x; i < a_fast; ++i) border_pixel(i);
+          int i = blur_span_wide(level, row_kernel, a_fast, b_fast, dst);
+          for (; i + kBlock <= b_fast; i += kBlock) sum_wide<f4, kBlock>(row_kernel, i, dst);
+          for (; i < b_fast; ++i) sum_wide<f4, 1>(row_kernel, i, dst);
+          for (i = b_fast; i < b; ++i) border_pixel(i);
+          x = b;
         }
-        int b = x;  // [x, b): a run of drop pixels
-        while (b < end && lab[b] >= 0) ++b;
-        const int a_fast = std::min(std::max(x, fast_lo), b), b_fast = std::max(std::min(b, fast_hi), a_fast);
-        for (int i = x; i < a_fast; ++i) border_pixel(i);
-        const RowKernel row_kernel{runs, taps, prefix_rows.data(), rgb_rows.data(), inv_total};
-        int i = blur_span_wide(level, row_kernel, a_fast, b_fast, dst);
-        for (; i + kBlock <= b_fast; i += kBlock) sum_wide<f4, kBlock>(row_kernel, i, dst);
-        for (; i < b_fast; ++i) sum_wide<f4, 1>(row_kernel, i, dst);
-        for (i = b_fast; i < b; ++i) border_pixel(i);
-        x = b;
+      };
+      // Only the tracer's spans hold drop pixels: the rest of the mask box's row is not scanned.
+      const int begin = mask_box.x, end = mask_box.x + mask_box.width;
+      if (!spans) {
+        blur_columns(begin, end);
+        continue;
       }
+      for (const auto& [a, e] : (*spans)[y]) blur_columns(std::max(a, begin), std::min(e + 1, end));
     }
   });
 }
@@ -427,7 +485,7 @@ void blur_drops(const cv::Mat& clean, const cv::Mat& label, cv::Mat& color, doub
     return;
   }
   const bool aa = method == BlurMethod::DiskAntialiased;
-  blur_rows(src, label, color, mask_box, disk_rows(diameter_px, aa, runs));
+  blur_rows(src, label, color, mask_box, disk_rows(diameter_px, aa, runs), spans);
 }
 
 cv::Mat blur_kernel(double diameter_px, BlurMethod method) {

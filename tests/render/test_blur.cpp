@@ -376,3 +376,45 @@ TEST(Blur, EveryRegisterWidthGivesTheSameBits) {
     }
   }
 }
+
+// Runs of every length from 1 to 48 drop pixels, alone in their row and in pairs of runs, at
+// every register width: a run's last pixels that do not fill a whole group are summed by a group
+// that overlaps the pixels before it (blur.cpp, sum_at), which must give each pixel the SSE2
+// path's bits, and never write outside the run (the pixels between the runs keep the sentinel).
+TEST(Blur, RunsOfEveryLengthGiveTheSameBitsAtEveryRegisterWidth) {
+  const int widest = blur_simd_level();
+  if (widest == 0) GTEST_SKIP() << "this processor has neither AVX nor AVX-512: only the SSE2 path runs here";
+  const int w = 160, h = 2 * 48 + 40;
+  Fixture f = random_fixture(w, h, 23);
+  f.label.setTo(-1);
+  f.color.setTo(cv::Scalar(-7, -7, -7));
+  Rng rng(29);
+  auto drop_run = [&](int y, int x0, int len) {
+    for (int x = x0; x < x0 + len; ++x) {
+      f.label.at<int>(y, x) = 1;
+      f.color.at<cv::Vec3f>(y, x) = cv::Vec3f(static_cast<float>(rng.uniform()), static_cast<float>(rng.uniform()),
+                                              static_cast<float>(rng.uniform()));
+    }
+  };
+  for (int len = 1; len <= 48; ++len) {
+    drop_run(20 + len - 1, 30, len);              // alone, away from the border
+    drop_run(20 + 48 + len - 1, 25, len);         // two runs in one row, a few pixels apart
+    drop_run(20 + 48 + len - 1, 25 + len + 1 + len % 3, 48 - len + 1);
+  }
+  for (BlurMethod method : {BlurMethod::DiskAntialiased, BlurMethod::DiskSpan}) {
+    for (double d : {2.5, 13.3, 20.0}) {
+      force_blur_simd_level(0);
+      cv::Mat narrow = f.color.clone();
+      blur_drops(f.clean, f.label, narrow, d, method);
+      for (int level = 1; level <= widest; ++level) {
+        force_blur_simd_level(level);
+        cv::Mat wide = f.color.clone();
+        blur_drops(f.clean, f.label, wide, d, method);
+        EXPECT_EQ(0, std::memcmp(narrow.data, wide.data, narrow.total() * narrow.elemSize()))
+            << "level " << level << ", d = " << d << ", max difference in drops " << max_diff_in_mask(f, narrow, wide);
+      }
+      force_blur_simd_level(-1);
+      EXPECT_GT(max_diff_in_mask(f, narrow, f.color), 1e-3) << "the blur changed nothing, d = " << d;
+    }
+  }
+}
