@@ -191,6 +191,14 @@ EndToEnd end_to_end(const Input& input, const SceneConfig& config, const cv::Siz
   std::vector<cv::Mat> rainy(frames), clean(frames), mask(frames), alpha(frames);
   std::vector<std::int64_t> px(frames);
   std::vector<double> coverage(frames);
+  std::vector<std::string> clean_bytes(frames);  // per frame, the input's bytes written as its clean image, if any
+  auto write_clean = [&](int i, const cv::Mat& image, const fs::path& path) {
+    if (clean_bytes[i].empty()) {
+      write_image_atomic(image, path);
+    } else {
+      write_text_atomic(clean_bytes[i], path);
+    }
+  };
   // Warm-up: loads the image plugins and creates the Embree device outside the timings.
   with_threads(threads, [&] {
     const Frame f = make_frame(read_rgb8(input.png, false), input.calibration, size);
@@ -203,7 +211,9 @@ EndToEnd end_to_end(const Input& input, const SceneConfig& config, const cv::Siz
       double t0 = now_ms();
       tbb::parallel_for(0, frames, 1, [&](int i) {
         const double a = now_ms();
-        const Frame f = make_frame(read_rgb8(input.png, false), input.calibration, size);
+        std::string input_png;
+        const cv::Mat rgb = read_rgb8(input.png, false, 16, &input_png);
+        const Frame f = make_frame(rgb, input.calibration, size);
         const double b = now_ms();
         Rng rng(1000 + i);
         const SceneSample scene = sample_scene(config, f.camera, rng);
@@ -211,7 +221,10 @@ EndToEnd end_to_end(const Input& input, const SceneConfig& config, const cv::Siz
         const double c = now_ms();
         const std::string stem = "t" + std::to_string(i);
         write_image_atomic(out.rainy, tmp / (stem + "_rainy.png"));
-        write_image_atomic(f.clean, tmp / (stem + "_clean.png"));
+        // As raindrop-render writes it: the input file's bytes where the frame is the input as
+        // it was (render_job.cpp), else encoded.
+        clean_bytes[i] = f.clean.data == rgb.data && out.clean.empty() ? input_png : std::string();
+        write_clean(i, f.clean, tmp / (stem + "_clean.png"));
         write_image_atomic(out.mask, tmp / (stem + "_mask.png"));
         if (config.lens.enabled) {
           alpha[i] = alpha16(out);
@@ -231,11 +244,12 @@ EndToEnd end_to_end(const Input& input, const SceneConfig& config, const cv::Siz
       wall_full.push_back((now_ms() - t0) / frames);
       t0 = now_ms();
       tbb::parallel_for(0, frames, 1, [&](int i) {
-        const Frame f = make_frame(read_rgb8(input.png, false), input.calibration, size);
+        std::string input_png;
+        const Frame f = make_frame(read_rgb8(input.png, false, 16, &input_png), input.calibration, size);
         (void)f;
         const std::string stem = "f" + std::to_string(i);
         write_image_atomic(rainy[i], tmp / (stem + "_rainy.png"));
-        write_image_atomic(clean[i], tmp / (stem + "_clean.png"));
+        write_clean(i, clean[i], tmp / (stem + "_clean.png"));
         write_image_atomic(mask[i], tmp / (stem + "_mask.png"));
         if (config.lens.enabled) write_image_atomic(alpha[i], tmp / (stem + "_alpha.png"));
       });
@@ -256,8 +270,9 @@ EndToEnd end_to_end(const Input& input, const SceneConfig& config, const cv::Siz
 
 void time_table(const Input& input, const std::vector<cv::Size>& sizes, int frames, int repeats, const fs::path& tmp) {
   std::cout << "\n### Time per frame (paper scene, 70 drops)\n\n"
-            << "Decode = read + crop/resize; trace includes building the Embree scene; encode = three PNGs "
-               "(rainy, clean, mask). Stage columns are per-frame latencies inside a run that keeps all "
+            << "Decode = read + crop/resize; trace includes building the Embree scene; encode = the three "
+               "images written as raindrop-render writes them (rainy and mask encoded as PNG; clean too, "
+               "except where the frame is the input PNG as it was: then its bytes). Stage columns are per-frame latencies inside a run that keeps all "
                "threads busy with " << frames << " frames; *end to end* is the run's wall time per frame; the "
                "*I/O floor* runs the same loop with decode and encode only (same images); *core alone* is "
                "trace + blur + compose with all threads on one frame at a time.\n\n"
@@ -908,7 +923,8 @@ void camera_table(const Input& input, int frames, int repeats, int threads, cons
   std::cout << "\n### End to end against the I/O floor (" << size.width << "x" << size.height << ", " << threads
             << (threads == 1 ? " thread, " : " threads, ") << frames << " frames at a time, median of " << repeats
             << ")\n\nEach frame decoded from the input, rendered and written as raindrop-render writes it (rainy, "
-               "clean, mask, and with a lens the 16-bit coverage); the *I/O floor* is the same loop with decode and "
+               "clean, mask, and with a lens the 16-bit coverage; the clean image as the input file's bytes where "
+               "the frame is that PNG as it was); the *I/O floor* is the same loop with decode and "
                "encode only, the same images.\n\n"
             << "| preset | method | end to end ms | I/O floor ms | end to end / floor | target |\n"
                "|---|---|---|---|---|---|\n";

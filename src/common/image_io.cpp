@@ -47,7 +47,7 @@ struct Opened {
 // that is about to be decoded, so that the image data of a PNG that OpenImageIO decodes is
 // checked row by row first (below); false reads the header alone. Throws a one-line
 // Error naming the file for a missing, empty, unreadable or oversized image.
-Opened open_image(const fs::path& path, bool check_data = true) {
+Opened open_image(const fs::path& path, bool check_data = true, bool keep_png_file = false) {
   std::error_code ec;
   if (!fs::exists(path, ec)) throw Error(quoted(path) + ": no such file");
   if (fs::is_directory(path, ec)) throw Error(quoted(path) + ": is a folder, not an image");
@@ -69,7 +69,7 @@ Opened open_image(const fs::path& path, bool check_data = true) {
     // own error handler, which reports the same problems in one line (and checking first would
     // inflate the image twice: a 2048x1024 frame decoded in 65 ms, 46 without; docs/RESULTS.md
     // section 1).
-    o.png = png::check(path, size, check_data);
+    o.png = png::check(path, size, check_data, keep_png_file);
     if (o.png.native()) {
       o.route = Route::png;
       o.header = {static_cast<int>(o.png.width), static_cast<int>(o.png.height), o.png.channels, o.png.depth, false, "png"};
@@ -182,10 +182,18 @@ void check_rgb8_header(const fs::path& path, bool convert, int min_size) {
   check_rgb8_spec(path, open_image(path, /*check_data=*/false).header, convert, min_size);
 }
 
-cv::Mat read_rgb8(const fs::path& path, bool convert, int min_size) {
-  const Opened o = open_image(path);
+cv::Mat read_rgb8(const fs::path& path, bool convert, int min_size, std::string* stored_png) {
+  Opened o = open_image(path, true, stored_png != nullptr);
   check_rgb8_spec(path, o.header, convert, min_size);
   const cv::Mat stored = decode(path, o);
+  if (stored_png) {
+    // 8-bit RGB as stored (no palette, no transparency), shown as sRGB: the bytes decode to
+    // exactly the pixels returned, and look as they do written here.
+    const bool as_is = o.route == Route::png && o.png.colour_type == 2 && o.png.depth == 8 && !o.png.has_trns &&
+                       o.png.shown_as_srgb;
+    stored_png->clear();
+    if (as_is) stored_png->swap(o.png.file);
+  }
   const int w = stored.cols, h = stored.rows, nc = stored.channels();
   cv::Mat raw;
   if (stored.depth() == CV_32F) {

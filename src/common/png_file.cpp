@@ -110,7 +110,7 @@ bool has_signature(const unsigned char* first8) {
   return std::memcmp(first8, kPng, 8) == 0;
 }
 
-Info check(const fs::path& path, std::uintmax_t size, bool check_data) {
+Info check(const fs::path& path, std::uintmax_t size, bool check_data, bool keep_file) {
   std::ifstream f(path, std::ios::binary);
   unsigned char signature[8] = {0};
   f.read(reinterpret_cast<char*>(signature), 8);
@@ -119,6 +119,7 @@ Info check(const fs::path& path, std::uintmax_t size, bool check_data) {
   f.read(reinterpret_cast<char*>(data.data()), static_cast<std::streamsize>(data.size()));
   size_t at = 0;
   bool first = true, palette = false, trns = false, idat_ended = false;
+  bool srgb = false, gamma_or_primaries = false, profile = false;
   std::string idat, previous, iccp;
   std::vector<unsigned char> ihdr;
   while (true) {
@@ -148,6 +149,9 @@ Info check(const fs::path& path, std::uintmax_t size, bool check_data) {
     if (type == "PLTE" && !idat.empty()) throw Error(corrupt + "the palette comes after the image data)");
     palette = palette || type == "PLTE";
     trns = trns || type == "tRNS";
+    srgb = srgb || type == "sRGB";
+    gamma_or_primaries = gamma_or_primaries || type == "gAMA" || type == "cHRM";
+    profile = profile || type == "iCCP" || type == "cICP";
     if (type == "IDAT") idat.append(reinterpret_cast<const char*>(&data[at + 8]), length);
     if (type == "iCCP" && iccp.empty()) iccp.assign(reinterpret_cast<const char*>(&data[at + 8]), length);
     if (type == "IEND") break;
@@ -179,6 +183,13 @@ Info check(const fs::path& path, std::uintmax_t size, bool check_data) {
   info.channels = (colour == 3 ? 3 : c->second.first) + (trns && (colour == 0 || colour == 2 || colour == 3) ? 1 : 0);
   info.interlaced = ihdr[12] == 1;
   info.iccp = std::move(iccp);
+  info.shown_as_srgb = !profile && (srgb || !gamma_or_primaries);
+  if (keep_file) {
+    static const char kSignature[8] = {'\x89', 'P', 'N', 'G', '\r', '\n', '\x1a', '\n'};
+    info.file.reserve(8 + data.size());
+    info.file.assign(kSignature, 8);
+    info.file.append(reinterpret_cast<const char*>(data.data()), data.size());
+  }
   // A declared size past the pixel limit is refused by the caller before anything is inflated.
   if (static_cast<double>(width) * height > kMaxImagePixels || !check_data) return info;
   if (info.native()) {

@@ -28,6 +28,11 @@ struct Info {
   std::string image_data;
   // The iCCP chunk's data as stored (profile name, 0, compression method, zlib stream), or empty.
   std::string iccp;
+  // The file asks to be shown as sRGB, as an 8-bit image written here is: an sRGB chunk (which
+  // overrides gAMA and cHRM), or none of gAMA, cHRM, iCCP and cICP.
+  bool shown_as_srgb = true;
+  // The whole file's bytes, kept by check(..., keep_file = true).
+  std::string file;
 };
 
 // The ICC profile an iCCP chunk holds (inflated), or "" when there is none or it does not
@@ -45,7 +50,8 @@ bool has_signature(const unsigned char* first8);
 // image data that inflates to every declared row with valid filter types. A native() file's data
 // is left to decode(), whose error handler reports the same faults in one line. A declared size
 // over kMaxImagePixels is returned without inflating anything (the caller refuses it).
-Info check(const std::filesystem::path& path, std::uintmax_t size, bool check_data);
+// `keep_file`: also keep the file's bytes in Info::file.
+Info check(const std::filesystem::path& path, std::uintmax_t size, bool check_data, bool keep_file = false);
 
 // The pixels of a native() file: CV_8UC(n) or CV_16UC(n), n = info.channels, RGB(A) order,
 // alpha as stored. With info.image_data, inflated by libdeflate and unfiltered here (a 2048x1024
