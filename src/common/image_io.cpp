@@ -188,9 +188,11 @@ cv::Mat read_rgb8(const fs::path& path, bool convert, int min_size, std::string*
   const cv::Mat stored = decode(path, o);
   if (stored_png) {
     // 8-bit RGB as stored (no palette, no transparency), shown as sRGB: the bytes decode to
-    // exactly the pixels returned, and look as they do written here.
+    // exactly the pixels returned, and look as they do written here. Not interlaced: such files
+    // are decoded from the bytes read here (libpng reads an interlaced one again, and the file
+    // may have changed meanwhile).
     const bool as_is = o.route == Route::png && o.png.colour_type == 2 && o.png.depth == 8 && !o.png.has_trns &&
-                       o.png.shown_as_srgb;
+                       !o.png.interlaced && o.png.shown_as_srgb;
     stored_png->clear();
     if (as_is) stored_png->swap(o.png.file);
   }
