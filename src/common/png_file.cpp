@@ -6,6 +6,7 @@
 #include <cstring>
 #include <fstream>
 #include <map>
+#include <memory>
 #include <optional>
 #include <set>
 #include <string>
@@ -300,18 +301,20 @@ std::optional<cv::Mat> decode_image_data(const Info& info) {
   if (info.image_data.empty() || info.interlaced || !info.native()) return std::nullopt;
   const std::size_t sample = info.depth / 8, bpp = sample * static_cast<std::size_t>(info.channels);
   const std::size_t stride = bpp * info.width;
-  std::vector<std::uint8_t> raw((stride + 1) * info.height);
+  // Uninitialised: a successful inflate writes every byte (exactly raw_size, checked below).
+  const std::size_t raw_size = (stride + 1) * info.height;
+  std::unique_ptr<std::uint8_t[]> raw(new std::uint8_t[raw_size]);
   libdeflate_decompressor* inflater = libdeflate_alloc_decompressor();
   if (!inflater) return std::nullopt;
   const libdeflate_result result = libdeflate_zlib_decompress(inflater, info.image_data.data(), info.image_data.size(),
-                                                              raw.data(), raw.size(), nullptr);
+                                                              raw.get(), raw_size, nullptr);
   libdeflate_free_decompressor(inflater);
   if (result != LIBDEFLATE_SUCCESS) return std::nullopt;
   // Unfiltered in place, each row against the one above (zeros above the first).
   const std::vector<std::uint8_t> zero(stride, 0);
   const std::uint8_t* above = zero.data();
   for (std::size_t y = 0; y < info.height; ++y) {
-    std::uint8_t* row = raw.data() + y * (stride + 1) + 1;
+    std::uint8_t* row = raw.get() + y * (stride + 1) + 1;
     const std::uint8_t type = row[-1];
     switch (type) {
       case 0:
@@ -346,7 +349,7 @@ std::optional<cv::Mat> decode_image_data(const Info& info) {
                 info.depth == 16 ? CV_16UC(info.channels) : CV_8UC(info.channels));
   const bool swap = sample == 2 && __BYTE_ORDER__ == __ORDER_LITTLE_ENDIAN__;
   for (int y = 0; y < image.rows; ++y) {
-    const std::uint8_t* row = raw.data() + static_cast<std::size_t>(y) * (stride + 1) + 1;
+    const std::uint8_t* row = raw.get() + static_cast<std::size_t>(y) * (stride + 1) + 1;
     std::uint8_t* out = image.ptr<std::uint8_t>(y);
     if (swap) {
       copy_swapping_16_bit(row, out, stride);
@@ -490,7 +493,10 @@ void encode_fast(const cv::Mat& image, std::FILE* file, const fs::path& name, co
   const std::size_t sample = image.depth() == CV_16U ? 2 : 1;
   const std::size_t bpp = sample * static_cast<std::size_t>(image.channels());
   const std::size_t stride = bpp * static_cast<std::size_t>(image.cols);
-  std::vector<std::uint8_t> filtered((stride + 1) * static_cast<std::size_t>(image.rows));
+  // Uninitialised, as `deflated` below (every byte read is written first): a std::vector's zeros
+  // were a pass over memory the size of the image, a percent of a frame's time (perf).
+  const std::size_t filtered_size = (stride + 1) * static_cast<std::size_t>(image.rows);
+  std::unique_ptr<std::uint8_t[]> filtered(new std::uint8_t[filtered_size]);
   // PNG's 16-bit samples are big-endian: such rows are converted first, into two row buffers.
   std::vector<std::uint8_t> zero(stride, 0), big[2];
   const bool swap = sample == 2 && __BYTE_ORDER__ == __ORDER_LITTLE_ENDIAN__;
@@ -502,20 +508,21 @@ void encode_fast(const cv::Mat& image, std::FILE* file, const fs::path& name, co
       copy_swapping_16_bit(row, big[y & 1].data(), stride);
       row = big[y & 1].data();
     }
-    std::uint8_t* out = filtered.data() + static_cast<std::size_t>(y) * (stride + 1);
+    std::uint8_t* out = filtered.get() + static_cast<std::size_t>(y) * (stride + 1);
     out[0] = 4;  // Paeth
     paeth_row(row, above, out + 1, stride, bpp);
     above = row;
   }
   libdeflate_compressor* compressor = libdeflate_alloc_compressor(1);
   if (!compressor) throw Error(quoted(name) + ": cannot write (out of memory)");
-  std::vector<std::uint8_t> deflated(libdeflate_zlib_compress_bound(compressor, filtered.size()));
+  const std::size_t deflated_bound = libdeflate_zlib_compress_bound(compressor, filtered_size);
+  std::unique_ptr<std::uint8_t[]> deflated(new std::uint8_t[deflated_bound]);
   const std::size_t deflated_size =
-      libdeflate_zlib_compress(compressor, filtered.data(), filtered.size(), deflated.data(), deflated.size());
+      libdeflate_zlib_compress(compressor, filtered.get(), filtered_size, deflated.get(), deflated_bound);
   libdeflate_free_compressor(compressor);
   if (deflated_size == 0) throw Error(quoted(name) + ": cannot write (compression failed)");
 
-  std::vector<std::uint8_t>().swap(filtered);  // not needed any more: the file is written from `deflated`
+  filtered.reset();  // not needed any more: the file is written from `deflated`
 
   static const std::uint8_t kSignature[8] = {0x89, 'P', 'N', 'G', '\r', '\n', 0x1a, '\n'};
   std::uint8_t ihdr[13];
@@ -531,7 +538,7 @@ void encode_fast(const cv::Mat& image, std::FILE* file, const fs::path& name, co
   }
   constexpr std::size_t kIdatBytes = 1 << 20;  // chunks of 1 MiB, as encoders commonly write
   for (std::size_t at = 0; ok && at < deflated_size; at += kIdatBytes)
-    ok = write_chunk(file, "IDAT", deflated.data() + at, std::min(kIdatBytes, deflated_size - at));
+    ok = write_chunk(file, "IDAT", deflated.get() + at, std::min(kIdatBytes, deflated_size - at));
   ok = ok && write_chunk(file, "IEND", nullptr, 0) && std::fflush(file) == 0;
   if (!ok) throw Error(quoted(name) + ": cannot write (" + std::strerror(errno) + ")");
 }
