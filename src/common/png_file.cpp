@@ -1,6 +1,7 @@
 #include "png_file.h"
 
 #include <algorithm>
+#include <atomic>
 #include <cctype>
 #include <cerrno>
 #include <cstring>
@@ -13,6 +14,9 @@
 #include <vector>
 
 #include <libdeflate.h>
+#if defined(__x86_64__) && defined(__GNUC__)
+#include <immintrin.h>
+#endif
 #include <png.h>
 #include <zlib.h>
 
@@ -113,20 +117,23 @@ bool has_signature(const unsigned char* first8) {
 
 Info check(const fs::path& path, std::uintmax_t size, bool check_data, bool keep_file) {
   std::ifstream f(path, std::ios::binary);
-  unsigned char signature[8] = {0};
-  f.read(reinterpret_cast<char*>(signature), 8);
-  if (!f || size < 8 || !has_signature(signature)) throw Error(quoted(path) + ": not a PNG file");
-  std::vector<unsigned char> data(size - 8);
-  f.read(reinterpret_cast<char*>(data.data()), static_cast<std::streamsize>(data.size()));
+  // The whole file in one string (kept as Info::file without a copy where asked); a file shorter
+  // than `size` by now reads as zeros past its end, which the chunk checks then refuse.
+  std::string file(static_cast<std::size_t>(size), '\0');
+  f.read(file.data(), static_cast<std::streamsize>(size));
+  if (size < 8 || f.gcount() < 8 || !has_signature(reinterpret_cast<const unsigned char*>(file.data())))
+    throw Error(quoted(path) + ": not a PNG file");
+  const unsigned char* const data = reinterpret_cast<const unsigned char*>(file.data()) + 8;
+  const std::size_t data_size = static_cast<std::size_t>(size) - 8;
   size_t at = 0;
   bool first = true, palette = false, trns = false, idat_ended = false;
   bool srgb = false, gamma_or_primaries = false, profile = false;
   std::string idat, previous, iccp;
   std::vector<unsigned char> ihdr;
   while (true) {
-    if (at + 12 > data.size()) throw Error(quoted(path) + ": truncated PNG (ends inside a chunk, no IEND)");
+    if (at + 12 > data_size) throw Error(quoted(path) + ": truncated PNG (ends inside a chunk, no IEND)");
     const std::uint32_t length = be32(&data[at]);
-    if (length > data.size() - at - 12) throw Error(quoted(path) + ": truncated PNG (a chunk runs past the end of the file)");
+    if (length > data_size - at - 12) throw Error(quoted(path) + ": truncated PNG (a chunk runs past the end of the file)");
     const std::string type(reinterpret_cast<const char*>(&data[at + 4]), 4);
     const std::uint32_t crc = libdeflate_crc32(0, &data[at + 4], 4 + length);
     if (crc != be32(&data[at + 8 + length])) throw Error(quoted(path) + ": corrupt PNG (CRC error in a " + type + " chunk)");
@@ -185,12 +192,7 @@ Info check(const fs::path& path, std::uintmax_t size, bool check_data, bool keep
   info.interlaced = ihdr[12] == 1;
   info.iccp = std::move(iccp);
   info.shown_as_srgb = !profile && (srgb || !gamma_or_primaries);
-  if (keep_file) {
-    static const char kSignature[8] = {'\x89', 'P', 'N', 'G', '\r', '\n', '\x1a', '\n'};
-    info.file.reserve(8 + data.size());
-    info.file.assign(kSignature, 8);
-    info.file.append(reinterpret_cast<const char*>(data.data()), data.size());
-  }
+  if (keep_file) info.file = std::move(file);  // `data` is not read after this
   // A declared size past the pixel limit is refused by the caller before anything is inflated.
   if (static_cast<double>(width) * height > kMaxImagePixels || !check_data) return info;
   if (info.native()) {
@@ -295,7 +297,131 @@ void unpaeth(std::uint8_t* row, const std::uint8_t* above, std::size_t stride) {
   }
 }
 
+// Pixels [x0, x1) of a Paeth row, the pixels before x0 (and above them) already unfiltered:
+// unpaeth's arithmetic from a given start, for the corners that unpaeth_band leaves.
+template <std::size_t BPP>
+void unpaeth_range(std::uint8_t* row, const std::uint8_t* above, std::size_t x0, std::size_t x1) {
+  for (std::size_t x = x0; x < x1; ++x) {
+    for (std::size_t k = 0; k < BPP; ++k) {
+      const std::size_t i = x * BPP + k;
+      const int left = x > 0 ? row[i - BPP] : 0, upper_left = x > 0 ? above[i - BPP] : 0;
+      row[i] = static_cast<std::uint8_t>(row[i] + paeth_predictor(left, above[i], upper_left));
+    }
+  }
+}
+
+// R consecutive Paeth rows of BPP (3 or 4) bytes per pixel, `width` >= R pixels, unfiltered at once
+// as a wavefront: at step t row k unfilters its pixel t - k, whose
+// left neighbour row k made one step before and whose upper neighbours row k - 1 made one and two
+// steps before. So the R rows' chains of dependent steps run side by side in one register of R
+// slots of four 16-bit lanes (a pixel's bytes), where one row's chain alone left the processor
+// waiting on each step's latency; every slot does unpaeth's integer arithmetic, so the same bytes.
+// The corners where a row has no pixel at a step (its first R - 1 - k pixels and last k) are
+// unpaeth_range's. Slot 0 reads its upper neighbours from `above` (the row over the band).
+#if defined(__x86_64__) && defined(__GNUC__)
+// A pixel's BPP bytes as the low bytes of an int (no byte past them read).
+template <std::size_t BPP>
+inline int band_pixel(const std::uint8_t* p) {
+  std::uint32_t v = 0;
+  std::memcpy(&v, p, BPP);
+  return static_cast<int>(v);
+}
+
+// Four consecutive Paeth rows of BPP (3 or 4) bytes per pixel, `width` >= 4 pixels, `pitch` bytes
+// from one row's start to the next's, unfiltered at once as a wavefront: at step t, row k
+// unfilters its pixel t - k, whose left neighbour row k made one step before and whose upper
+// neighbours row k - 1 made one and two steps before. The four rows' chains of dependent steps
+// then run side by side in one AVX2 register (four slots of four 16-bit lanes, a pixel's bytes),
+// where one row's chain left the processor waiting on each step's latency. Every lane does
+// unpaeth's integer arithmetic: the same bytes. The corners where a row has no pixel at a step
+// (its first 3 - k pixels and last k) are unpaeth_range's; slot 0 reads its upper neighbours
+// from `above`, the row over the band. Each slot stores exactly its pixel's bytes: a wider store
+// would overlap the next step's load of the following pixel, which then waits for the store.
+template <std::size_t BPP>
+__attribute__((target("avx2"), always_inline)) inline void unpaeth_band4_avx2(std::uint8_t* row0,
+                                                                             std::size_t pitch,
+                                                                             const std::uint8_t* above,
+                                                                             std::size_t width) {
+  static_assert(BPP == 3 || BPP == 4, "a pixel per slot of four lanes");
+  std::uint8_t* rows[4] = {row0, row0 + pitch, row0 + 2 * pitch, row0 + 3 * pitch};
+  for (int k = 0; k < 3; ++k) unpaeth_range<BPP>(rows[k], k == 0 ? above : rows[k - 1], 0, static_cast<std::size_t>(3 - k));
+  // Slot k's pixel 2 - k (prev) and 1 - k (prev2), those before the first step t = 3.
+  __m256i prev = _mm256_cvtepu8_epi16(_mm_setr_epi32(band_pixel<BPP>(rows[0] + 2 * BPP), band_pixel<BPP>(rows[1] + BPP), band_pixel<BPP>(rows[2]), 0));
+  __m256i prev2 = _mm256_cvtepu8_epi16(_mm_setr_epi32(band_pixel<BPP>(rows[0] + BPP), band_pixel<BPP>(rows[1]), 0, 0));
+  // Row k's pixel t - k lies at row0 + t BPP + k (pitch - BPP).
+  const __m128i offsets = _mm_setr_epi32(0, static_cast<int>(pitch - BPP), static_cast<int>(2 * (pitch - BPP)),
+                                         static_cast<int>(3 * (pitch - BPP)));
+  const __m256i low_byte = _mm256_set1_epi16(0xff);
+  for (std::size_t t = 3; t < width; ++t) {
+    // Four bytes a slot: for BPP 3 the fourth is the next pixel's first, ignored (lanes do not mix).
+    const __m128i filtered = _mm_i32gather_epi32(reinterpret_cast<const int*>(row0 + t * BPP), offsets, 1);
+    const __m256i x = _mm256_cvtepu8_epi16(filtered);
+    // Upper neighbours: slot k - 1's last two outputs moved up a slot; slot 0's from `above`.
+    // Four bytes of `above` at once (for BPP 3 the fourth is ignored as above; `above` has a byte
+    // after its last pixel): a pixel assembled from narrower loads stalled the chain on a store
+    // that could not be forwarded.
+    std::int32_t up, up_left;
+    std::memcpy(&up, above + t * BPP, 4);
+    std::memcpy(&up_left, above + (t - 1) * BPP, 4);
+    const __m256i b = _mm256_blend_epi32(_mm256_permute4x64_epi64(prev, _MM_SHUFFLE(2, 1, 0, 0)),
+                                         _mm256_cvtepu8_epi16(_mm_cvtsi32_si128(up)), 0x03);
+    const __m256i c = _mm256_blend_epi32(_mm256_permute4x64_epi64(prev2, _MM_SHUFFLE(2, 1, 0, 0)),
+                                         _mm256_cvtepu8_epi16(_mm_cvtsi32_si128(up_left)), 0x03);
+    const __m256i a = prev;
+    const __m256i b_c = _mm256_sub_epi16(b, c), a_c = _mm256_sub_epi16(a, c);
+    const __m256i pa = _mm256_abs_epi16(b_c), pb = _mm256_abs_epi16(a_c), pc = _mm256_abs_epi16(_mm256_add_epi16(b_c, a_c));
+    // a where pa <= pb and pa <= pc; else b where pb <= pc; else c.
+    const __m256i not_a = _mm256_or_si256(_mm256_cmpgt_epi16(pa, pb), _mm256_cmpgt_epi16(pa, pc));
+    const __m256i b_or_c = _mm256_blendv_epi8(b, c, _mm256_cmpgt_epi16(pb, pc));
+    const __m256i predictor = _mm256_blendv_epi8(a, b_or_c, not_a);
+    const __m256i out = _mm256_and_si256(_mm256_add_epi16(x, predictor), low_byte);
+    const __m128i bytes = _mm_packus_epi16(_mm256_castsi256_si128(out), _mm256_extracti128_si256(out, 1));
+    const std::uint32_t v0 = static_cast<std::uint32_t>(_mm_cvtsi128_si32(bytes));
+    const std::uint32_t v1 = static_cast<std::uint32_t>(_mm_extract_epi32(bytes, 1));
+    const std::uint32_t v2 = static_cast<std::uint32_t>(_mm_extract_epi32(bytes, 2));
+    const std::uint32_t v3 = static_cast<std::uint32_t>(_mm_extract_epi32(bytes, 3));
+    std::memcpy(rows[0] + t * BPP, &v0, BPP);
+    std::memcpy(rows[1] + (t - 1) * BPP, &v1, BPP);
+    std::memcpy(rows[2] + (t - 2) * BPP, &v2, BPP);
+    std::memcpy(rows[3] + (t - 3) * BPP, &v3, BPP);
+    prev2 = prev;
+    prev = out;
+  }
+  for (int k = 1; k < 4; ++k) unpaeth_range<BPP>(rows[k], rows[k - 1], width - static_cast<std::size_t>(k), width);
+}
+
+__attribute__((target("avx2"))) void unpaeth_band3(std::uint8_t* row0, std::size_t pitch, const std::uint8_t* above,
+                                                   std::size_t width) {
+  unpaeth_band4_avx2<3>(row0, pitch, above, width);
+}
+__attribute__((target("avx2"))) void unpaeth_band4(std::uint8_t* row0, std::size_t pitch, const std::uint8_t* above,
+                                                   std::size_t width) {
+  unpaeth_band4_avx2<4>(row0, pitch, above, width);
+}
+#endif
+
+std::atomic<bool> paeth_bands_off{false};
+
+// Whether this processor unfilters runs of four Paeth rows as bands (AVX2), unless a test said no.
+bool paeth_bands() {
+#if defined(__x86_64__) && defined(__GNUC__)
+  static const bool avx2 = __builtin_cpu_supports("avx2");
+  return avx2 && !paeth_bands_off.load(std::memory_order_relaxed);
+#else
+  return false;
+#endif
+}
+
 }  // namespace
+
+bool enable_paeth_bands(bool enabled) {
+  paeth_bands_off.store(!enabled, std::memory_order_relaxed);
+#if defined(__x86_64__) && defined(__GNUC__)
+  return __builtin_cpu_supports("avx2");
+#else
+  return false;
+#endif
+}
 
 std::optional<cv::Mat> decode_image_data(const Info& info) {
   if (info.image_data.empty() || info.interlaced || !info.native()) return std::nullopt;
@@ -311,11 +437,24 @@ std::optional<cv::Mat> decode_image_data(const Info& info) {
   libdeflate_free_decompressor(inflater);
   if (result != LIBDEFLATE_SUCCESS) return std::nullopt;
   // Unfiltered in place, each row against the one above (zeros above the first).
-  const std::vector<std::uint8_t> zero(stride, 0);
+  // Zeros over the first row, with bytes to spare (unpaeth_band reads four bytes a pixel, one
+  // past the last pixel of an RGB row, where a row of `raw` has the next row's filter type).
+  const std::vector<std::uint8_t> zero(stride + 4, 0);
   const std::uint8_t* above = zero.data();
+  // Runs of four Paeth rows of 8-bit RGB or RGBA (most rows of most photographs' PNGs) as bands.
+  const bool bands = (bpp == 3 || bpp == 4) && info.width >= 4 && paeth_bands();
   for (std::size_t y = 0; y < info.height; ++y) {
     std::uint8_t* row = raw.get() + y * (stride + 1) + 1;
     const std::uint8_t type = row[-1];
+#if defined(__x86_64__) && defined(__GNUC__)
+    if (type == 4 && bands && y + 4 <= info.height && row[stride] == 4 && row[2 * stride + 1] == 4 &&
+        row[3 * stride + 2] == 4) {
+      (bpp == 3 ? unpaeth_band3 : unpaeth_band4)(row, stride + 1, above, info.width);
+      y += 3;
+      above = row + 3 * (stride + 1);
+      continue;
+    }
+#endif
     switch (type) {
       case 0:
         break;

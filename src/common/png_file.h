@@ -67,6 +67,11 @@ cv::Mat decode(const std::filesystem::path& path, const Info& info);
 // and its messages.
 std::optional<cv::Mat> decode_image_data(const Info& info);
 
+// Tests: whether decode_image_data may undo runs of four Paeth rows of 8-bit RGB or RGBA as one
+// band (AVX2, where the processor has it; png_file.cpp, unpaeth_band4_avx2); otherwise row by
+// row. The same pixels either way. Returns whether this processor has the band path at all.
+bool enable_paeth_bands(bool enabled);
+
 // Writes `image` (CV_8U or CV_16U, 1-4 channels) as PNG to `file`: with zlib level `level`
 // (0-9) and libpng's adaptive row filters, (kPngRunLength) zlib's run-length strategy with
 // Paeth filters, or (kPngFast) Paeth filters deflated by libdeflate. Throws raindrop::Error

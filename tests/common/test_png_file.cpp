@@ -459,3 +459,88 @@ TEST(PngFile, DataOurDecoderRefusesGoesToLibpng) {
   ASSERT_EQ(read.size(), cv::Size(w, h));
   EXPECT_EQ(read.at<cv::Vec3b>(5, 3), cv::Vec3b(9 * 7 + 5, 10 * 7 + 5, 11 * 7 + 5));  // byte i of row y: 7 i + y
 }
+
+namespace {
+
+// PNG's row filter `type` of one row (bpp bytes per pixel) against the row above, as an encoder
+// applies it.
+std::vector<png_byte> filter_row(const png_byte* row, const png_byte* above, size_t bytes, size_t bpp, int type) {
+  std::vector<png_byte> out(bytes);
+  for (size_t i = 0; i < bytes; ++i) {
+    const int a = i >= bpp ? row[i - bpp] : 0, b = above[i], c = i >= bpp ? above[i - bpp] : 0;
+    int predictor = 0;
+    if (type == 1) predictor = a;
+    if (type == 2) predictor = b;
+    if (type == 3) predictor = (a + b) / 2;
+    if (type == 4) {
+      const int p = a + b - c, pa = std::abs(p - a), pb = std::abs(p - b), pc = std::abs(p - c);
+      predictor = pa <= pb && pa <= pc ? a : pb <= pc ? b : c;
+    }
+    out[i] = static_cast<png_byte>(row[i] - predictor);
+  }
+  return out;
+}
+
+}  // namespace
+
+// Runs of Paeth rows of 8-bit RGB and RGBA are undone four rows at a time where the processor has
+// AVX2 (png_file.cpp, unpaeth_band4_avx2): on images whose rows take random filter types (mostly
+// Paeth: runs of every length, broken by the others) at widths from the band's least (4 pixels)
+// up, and on all-Paeth images whose heights leave every remainder of four, the pixels are those
+// written, with the bands and row by row.
+TEST(PngFile, PaethBandsGiveTheRowByRowPixels) {
+  const bool has_bands = png::enable_paeth_bands(true);
+  testsupport::TempDir tmp("raindrop-png-");
+  std::mt19937 rng(77);
+  int cases = 0;
+  for (int channels : {3, 4}) {
+    for (int width : {1, 3, 4, 5, 7, 8, 9, 16, 33, 100}) {
+      for (int height : {1, 3, 4, 5, 8, 9, 23}) {
+        for (bool all_paeth : {true, false}) {
+          // Smooth with noise: the Paeth predictor picks each of a, b and c somewhere.
+          cv::Mat image(height, width, CV_8UC(channels));
+          for (int y = 0; y < height; ++y)
+            for (int i = 0; i < width * channels; ++i)
+              image.ptr<uchar>(y)[i] = static_cast<uchar>(3 * i + 7 * y + static_cast<int>(rng() % 40));
+          const size_t bytes = static_cast<size_t>(width) * channels;
+          std::string raw;
+          std::vector<png_byte> zero(bytes, 0);
+          for (int y = 0; y < height; ++y) {
+            const int type = all_paeth || rng() % 3 != 0 ? 4 : static_cast<int>(rng() % 4);
+            const auto filtered = filter_row(image.ptr<uchar>(y), y ? image.ptr<uchar>(y - 1) : zero.data(), bytes,
+                                             static_cast<size_t>(channels), type);
+            raw += static_cast<char>(type);
+            raw.append(reinterpret_cast<const char*>(filtered.data()), filtered.size());
+          }
+          uLongf deflated_size = compressBound(static_cast<uLong>(raw.size()));
+          std::string deflated(deflated_size, '\0');
+          ASSERT_EQ(compress2(reinterpret_cast<Bytef*>(deflated.data()), &deflated_size,
+                              reinterpret_cast<const Bytef*>(raw.data()), static_cast<uLong>(raw.size()), 6),
+                    Z_OK);
+          deflated.resize(deflated_size);
+          const std::string ihdr = testsupport::be32(static_cast<std::uint32_t>(width)) +
+                                   testsupport::be32(static_cast<std::uint32_t>(height)) +
+                                   std::string{8, static_cast<char>(channels == 3 ? 2 : 6), 0, 0, 0};
+          const auto file = tmp / "bands.png";
+          {
+            std::ofstream out(file, std::ios::binary);
+            out << testsupport::png_from_chunks({{"IHDR", ihdr}, {"IDAT", deflated}, {"IEND", ""}});
+          }
+          SCOPED_TRACE(std::to_string(channels) + " channels, " + std::to_string(width) + "x" + std::to_string(height) +
+                       (all_paeth ? ", all Paeth" : ", mixed filters"));
+          const png::Info header = png::check(file, fs::file_size(file), true);
+          for (bool bands : {true, false}) {
+            png::enable_paeth_bands(bands);
+            const std::optional<cv::Mat> ours = png::decode_image_data(header);
+            ASSERT_TRUE(ours.has_value());
+            EXPECT_TRUE(same(*ours, image)) << (bands ? "with bands" : "row by row");
+          }
+          png::enable_paeth_bands(true);
+          ++cases;
+        }
+      }
+    }
+  }
+  EXPECT_EQ(cases, 2 * 10 * 7 * 2);
+  if (!has_bands) GTEST_SKIP() << "this processor has no AVX2: only the row-by-row path was checked";
+}
