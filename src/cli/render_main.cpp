@@ -112,7 +112,7 @@ int run(int argc, char** argv) {
   app.add_option("--png-level", png_level,
                  "PNG compression: fast (Paeth rows deflated by libdeflate: fastest, about zlib level 3's size), "
                  "rle (zlib's run-length strategy: smaller than level 6 on photographs, about 2x slower than fast) "
-                 "or a zlib level 0-9; a clean image that is its input PNG as it was (no --size change, 8-bit RGB, not interlaced, shown "
+                 "or a zlib level 0-9; a clean image that is its input PNG as it was (no --size change, 8-bit RGB, not interlaced, no EXIF orientation or animation, shown "
                  "as sRGB) is that file's bytes, not encoded again")
       ->capture_default_str()->check(CLI::IsMember({"fast", "rle", "0", "1", "2", "3", "4", "5", "6", "7", "8", "9"}));
   app.add_option("--shard", shard_text,

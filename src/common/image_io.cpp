@@ -92,8 +92,11 @@ Opened open_image(const fs::path& path, bool check_data = true, bool keep_png_fi
 }
 
 // The whole image as stored: CV_8U, CV_16U or (float files) CV_32F, with the header's channels.
-cv::Mat decode(const fs::path& path, const Opened& o, std::string* icc = nullptr) {
-  cv::Mat image = o.route == Route::png    ? png::decode(path, o.png)
+// `from_bytes_read`, if given: set to whether a PNG's pixels came from the bytes open_image read
+// (not from libpng reading the file again, as it does where our own decoding gives up).
+cv::Mat decode(const fs::path& path, const Opened& o, std::string* icc = nullptr, bool* from_bytes_read = nullptr) {
+  if (from_bytes_read) *from_bytes_read = false;
+  cv::Mat image = o.route == Route::png    ? png::decode(path, o.png, from_bytes_read)
                   : o.route == Route::jpeg ? jpeg::decode(path, icc)
                                            : oiio::codec(quoted(path) + ": reading this file").decode(path);
   if (icc && o.route == Route::png) *icc = png::icc_profile(o.png);
@@ -185,14 +188,15 @@ void check_rgb8_header(const fs::path& path, bool convert, int min_size) {
 cv::Mat read_rgb8(const fs::path& path, bool convert, int min_size, std::string* stored_png) {
   Opened o = open_image(path, true, stored_png != nullptr);
   check_rgb8_spec(path, o.header, convert, min_size);
-  const cv::Mat stored = decode(path, o);
+  bool from_bytes_read = false;
+  const cv::Mat stored = decode(path, o, nullptr, &from_bytes_read);
   if (stored_png) {
-    // 8-bit RGB as stored (no palette, no transparency), shown as sRGB: the bytes decode to
-    // exactly the pixels returned, and look as they do written here. Not interlaced: such files
-    // are decoded from the bytes read here (libpng reads an interlaced one again, and the file
-    // may have changed meanwhile).
+    // 8-bit RGB as stored (no palette, no transparency), shown as sRGB and nothing else asked of
+    // a reader (no orientation, no animation): the bytes decode to exactly the pixels returned,
+    // and look as they do written here. Decoded from these very bytes: not where libpng read the
+    // file again (an interlaced file, or data our decoder gave up on), which may have changed.
     const bool as_is = o.route == Route::png && o.png.colour_type == 2 && o.png.depth == 8 && !o.png.has_trns &&
-                       !o.png.interlaced && o.png.shown_as_srgb;
+                       from_bytes_read && o.png.shown_as_srgb && o.png.plain_ancillaries;
     stored_png->clear();
     if (as_is) stored_png->swap(o.png.file);
   }

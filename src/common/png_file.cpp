@@ -127,7 +127,7 @@ Info check(const fs::path& path, std::uintmax_t size, bool check_data, bool keep
   const std::size_t data_size = static_cast<std::size_t>(size) - 8;
   size_t at = 0;
   bool first = true, palette = false, trns = false, idat_ended = false;
-  bool srgb = false, gamma_or_primaries = false, profile = false;
+  bool srgb = false, gamma_or_primaries = false, profile = false, plain = true;
   std::string idat, previous, iccp;
   std::vector<unsigned char> ihdr;
   while (true) {
@@ -157,7 +157,11 @@ Info check(const fs::path& path, std::uintmax_t size, bool check_data, bool keep
     if (type == "PLTE" && !idat.empty()) throw Error(corrupt + "the palette comes after the image data)");
     palette = palette || type == "PLTE";
     trns = trns || type == "tRNS";
-    srgb = srgb || type == "sRGB";
+    srgb = srgb || (type == "sRGB" && idat.empty());  // after the data, readers ignore it
+    static const std::set<std::string> kPlain = {"IHDR", "PLTE", "IDAT", "IEND", "sRGB", "gAMA", "cHRM", "iCCP",
+                                                 "cICP", "sBIT", "bKGD", "pHYs", "tIME", "tEXt", "zTXt", "iTXt",
+                                                 "tRNS"};
+    plain = plain && kPlain.count(type) > 0;  // the colour chunks and tRNS are judged apart
     gamma_or_primaries = gamma_or_primaries || type == "gAMA" || type == "cHRM";
     profile = profile || type == "iCCP" || type == "cICP";
     if (type == "IDAT") idat.append(reinterpret_cast<const char*>(&data[at + 8]), length);
@@ -192,6 +196,7 @@ Info check(const fs::path& path, std::uintmax_t size, bool check_data, bool keep
   info.interlaced = ihdr[12] == 1;
   info.iccp = std::move(iccp);
   info.shown_as_srgb = !profile && (srgb || !gamma_or_primaries);
+  info.plain_ancillaries = plain;
   if (keep_file) info.file = std::move(file);  // `data` is not read after this
   // A declared size past the pixel limit is refused by the caller before anything is inflated.
   if (static_cast<double>(width) * height > kMaxImagePixels || !check_data) return info;
@@ -499,9 +504,13 @@ std::optional<cv::Mat> decode_image_data(const Info& info) {
   return image;
 }
 
-cv::Mat decode(const fs::path& path, const Info& info) {
+cv::Mat decode(const fs::path& path, const Info& info, bool* from_image_data) {
   CV_Assert(info.native());
-  if (std::optional<cv::Mat> image = decode_image_data(info)) return *image;
+  if (from_image_data) *from_image_data = false;
+  if (std::optional<cv::Mat> image = decode_image_data(info)) {
+    if (from_image_data) *from_image_data = true;
+    return *image;
+  }
   // Everything with a destructor exists before setjmp: a longjmp skips no C++ frame.
   cv::Mat image(static_cast<int>(info.height), static_cast<int>(info.width),
                 info.depth == 16 ? CV_16UC(info.channels) : CV_8UC(info.channels));

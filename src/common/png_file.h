@@ -28,9 +28,13 @@ struct Info {
   std::string image_data;
   // The iCCP chunk's data as stored (profile name, 0, compression method, zlib stream), or empty.
   std::string iccp;
-  // The file asks to be shown as sRGB, as an 8-bit image written here is: an sRGB chunk (which
-  // overrides gAMA and cHRM), or none of gAMA, cHRM, iCCP and cICP.
+  // The file asks to be shown as sRGB, as an 8-bit image written here is: an sRGB chunk before
+  // the image data (which overrides gAMA and cHRM), or none of gAMA, cHRM, iCCP and cICP.
   bool shown_as_srgb = true;
+  // Every ancillary chunk is one that changes nothing a reader shows of an opaque image beyond
+  // its colour space (sRGB, gAMA, cHRM, sBIT, bKGD, pHYs, tIME, tEXt, zTXt, iTXt): none that
+  // turns it (eXIf's orientation), animates it (acTL, fcTL, fdAT) or is unknown here.
+  bool plain_ancillaries = true;
   // The whole file's bytes, kept by check(..., keep_file = true).
   std::string file;
 };
@@ -58,7 +62,9 @@ Info check(const std::filesystem::path& path, std::uintmax_t size, bool check_da
 // frame in about half libpng's time); any fault there, and every other file, goes to libpng, so
 // that damaged files get libpng's verdict. Throws raindrop::Error naming the file on any libpng
 // error (nothing printed).
-cv::Mat decode(const std::filesystem::path& path, const Info& info);
+// `from_image_data`, if given: set to whether the pixels came from info.image_data (the bytes
+// check() read), not from libpng reading the file again.
+cv::Mat decode(const std::filesystem::path& path, const Info& info, bool* from_image_data = nullptr);
 
 // decode()'s own path: info.image_data inflated by libdeflate and unfiltered (every filter type,
 // every native depth and channel count); nullopt where there is no such data (header-only

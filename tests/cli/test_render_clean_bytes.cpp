@@ -2,6 +2,8 @@
 // RGB, shown as sRGB) is that file's bytes, not a new encoding of them; every other input's clean
 // image is encoded, and decodes to the frame that was rendered. Either way the rainy image equals
 // the clean one outside the mask.
+#include <zlib.h>
+
 #include "../common/png_bytes.h"
 #include "cli_test_util.h"
 
@@ -25,6 +27,33 @@ std::string png_with(const cv::Mat& pixels, const std::vector<std::pair<std::str
 }
 
 std::string be32s(std::uint32_t v) { return testsupport::be32(v); }
+
+// An 8-bit RGB PNG of `pixels` made here: rows with filter type None deflated by zlib, `trailing`
+// bytes more in the stream after the last row (which libpng reads past with a warning and our
+// own decoder refuses), `before` chunks ahead of the image data and `after` chunks behind it.
+std::string png_made_here(const cv::Mat& pixels, const std::vector<std::pair<std::string, std::string>>& before,
+                          const std::vector<std::pair<std::string, std::string>>& after = {}, int trailing = 0) {
+  std::string raw;
+  for (int y = 0; y < pixels.rows; ++y) {
+    raw += '\0';
+    raw.append(reinterpret_cast<const char*>(pixels.ptr(y)), 3 * static_cast<size_t>(pixels.cols));
+  }
+  raw.append(static_cast<size_t>(trailing), '\x55');
+  uLongf size = compressBound(static_cast<uLong>(raw.size()));
+  std::string deflated(size, '\0');
+  EXPECT_EQ(compress2(reinterpret_cast<Bytef*>(deflated.data()), &size, reinterpret_cast<const Bytef*>(raw.data()),
+                      static_cast<uLong>(raw.size()), 6),
+            Z_OK);
+  deflated.resize(size);
+  std::vector<std::pair<std::string, std::string>> chunks{
+      {"IHDR", be32s(static_cast<std::uint32_t>(pixels.cols)) + be32s(static_cast<std::uint32_t>(pixels.rows)) +
+                   std::string{8, 2, 0, 0, 0}}};
+  chunks.insert(chunks.end(), before.begin(), before.end());
+  chunks.push_back({"IDAT", deflated});
+  chunks.insert(chunks.end(), after.begin(), after.end());
+  chunks.push_back({"IEND", ""});
+  return png_from_chunks(chunks);
+}
 
 void expect_rainy_equals_clean_outside_mask(const fs::path& out, const std::string& id) {
   const auto rainy = read_image(out / "rainy" / (id + ".png"));
@@ -72,7 +101,8 @@ TEST(RenderCleanBytes, AnInputShownAsSrgbIsItsOwnCleanImageToTheByte) {
 
 // Where the file's bytes would not stand for the frame, the clean image is encoded from the frame:
 // a gamma other than sRGB's or an ICC profile (a colour-managed viewer would show the copy
-// otherwise than the rainy image), a crop and resize (--size), and a 16-bit file (--convert).
+// otherwise than the rainy image), an orientation or an animation, pixels not decoded from the
+// bytes read, a crop and resize (--size), and a 16-bit file (--convert).
 TEST(RenderCleanBytes, OtherInputsAreEncodedFromTheFrame) {
   TempDir tmp;
   const cv::Mat pixels = make_background(160, 96, 4);
@@ -106,10 +136,27 @@ TEST(RenderCleanBytes, OtherInputsAreEncodedFromTheFrame) {
     expect_rainy_equals_clean_outside_mask(out, id);
   };
 
+  // A plain file made here is copied (the control); the same with an EXIF orientation (a reader
+  // may turn the copy, not the rainy image), an APNG animation control, an sRGB chunk after the
+  // data (ignored by readers, so the gAMA before it rules), or data that libpng takes and our
+  // own decoder refuses (libpng then reads the file again, which may have changed) is encoded.
+  const std::string exif = std::string("MM\0*\0\0\0\x08\0\x01\x01\x12\0\x03\0\0\0\x01\0\x06\0\0\0\0\0\0", 26);
+  write_file(tmp / "in" / "plain.png", png_made_here(pixels, {}));
+  write_file(tmp / "in" / "turned.png", png_made_here(pixels, {{"eXIf", exif}}));
+  write_file(tmp / "in" / "animated.png",
+             png_made_here(pixels, {{"acTL", be32s(1) + be32s(0)}}));
+  write_file(tmp / "in" / "late.png",
+             png_made_here(pixels, {{"gAMA", be32s(100000)}}, {{"sRGB", std::string(1, '\0')}}));
+  write_file(tmp / "in" / "overlong.png", png_made_here(pixels, {}, {}, 10));
+
   auto r = run_render({"-i", "in", "--out", "out", "--seed", "3", "-j", "2", "-q"}, tmp.path());
   ASSERT_EQ(r.code, 0) << r.describe();
   check_encoded(tmp / "out", "linear_v00", read_file(tmp / "in" / "linear.png"), pixels);
   check_encoded(tmp / "out", "profiled_v00", read_file(tmp / "in" / "profiled.png"), pixels);
+  EXPECT_EQ(read_file(tmp / "out" / "clean" / "plain_v00.png"), read_file(tmp / "in" / "plain.png"))
+      << "the control, a plain PNG made here, was not copied";
+  for (const char* name : {"turned", "animated", "late", "overlong"})
+    check_encoded(tmp / "out", std::string(name) + "_v00", read_file(tmp / "in" / (std::string(name) + ".png")), pixels);
 
   // An input that would have been copied, resized: the frame is the resized input.
   write_file(tmp / "in2" / "bare.png", png_with(pixels, {}, tmp / "scratch.png"));

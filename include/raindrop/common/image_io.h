@@ -43,9 +43,10 @@ ImageHeader read_header(const std::filesystem::path& path);
 // and alpha is dropped (colour kept as stored, not premultiplied).
 // Images smaller than `min_size` on a side are refused. Truncated files are errors.
 // `stored_png`, if given, receives the file's bytes where they can stand for the returned image
-// (a non-interlaced PNG of 8-bit RGB as stored, no palette or transparency, shown as sRGB: an
-// sRGB chunk, or no gAMA, cHRM, iCCP or cICP; the pixels returned are decoded from these bytes),
-// so that writing them writes that image without encoding it again; else it is cleared.
+// (a PNG of 8-bit RGB as stored, no palette or transparency, shown as sRGB: an sRGB chunk, or no
+// gAMA, cHRM, iCCP or cICP; no chunk that turns or animates it (eXIf, APNG) or is unknown; the
+// pixels returned decoded from these very bytes, so not interlaced), so that writing them writes
+// that image without encoding it again; else it is cleared.
 cv::Mat read_rgb8(const std::filesystem::path& path, bool convert, int min_size = 16,
                   std::string* stored_png = nullptr);
 
