@@ -129,6 +129,7 @@ Info check(const fs::path& path, std::uintmax_t size, bool check_data, bool keep
   bool first = true, palette = false, trns = false, idat_ended = false;
   bool srgb = false, gamma_or_primaries = false, profile = false, plain = true;
   std::string idat, previous, iccp;
+  std::size_t idat_bytes = 0;
   std::vector<unsigned char> ihdr;
   while (true) {
     if (at + 12 > data_size) throw Error(quoted(path) + ": truncated PNG (ends inside a chunk, no IEND)");
@@ -154,22 +155,26 @@ Info check(const fs::path& path, std::uintmax_t size, bool check_data, bool keep
     previous = type;
     if (first) ihdr.assign(&data[at + 8], &data[at + 8] + length);
     first = false;
-    if (type == "PLTE" && !idat.empty()) throw Error(corrupt + "the palette comes after the image data)");
+    if (type == "PLTE" && idat_bytes > 0) throw Error(corrupt + "the palette comes after the image data)");
     palette = palette || type == "PLTE";
     trns = trns || type == "tRNS";
-    srgb = srgb || (type == "sRGB" && idat.empty());  // after the data, readers ignore it
+    srgb = srgb || (type == "sRGB" && idat_bytes == 0);  // after the data, readers ignore it
     static const std::set<std::string> kPlain = {"IHDR", "PLTE", "IDAT", "IEND", "sRGB", "gAMA", "cHRM", "iCCP",
                                                  "cICP", "sBIT", "bKGD", "pHYs", "tIME", "tEXt", "zTXt", "iTXt",
                                                  "tRNS"};
     plain = plain && kPlain.count(type) > 0;  // the colour chunks and tRNS are judged apart
     gamma_or_primaries = gamma_or_primaries || type == "gAMA" || type == "cHRM";
     profile = profile || type == "iCCP" || type == "cICP";
-    if (type == "IDAT") idat.append(reinterpret_cast<const char*>(&data[at + 8]), length);
+    if (type == "IDAT") {
+      idat_bytes += length;
+      // Joined only for a check that reads them: a header check copied a frame's data for nothing.
+      if (check_data) idat.append(reinterpret_cast<const char*>(&data[at + 8]), length);
+    }
     if (type == "iCCP" && iccp.empty()) iccp.assign(reinterpret_cast<const char*>(&data[at + 8]), length);
     if (type == "IEND") break;
     at += 12 + length;
   }
-  if (idat.empty()) throw Error(quoted(path) + ": corrupt PNG (no image data)");
+  if (idat_bytes == 0) throw Error(quoted(path) + ": corrupt PNG (no image data)");
   const std::string bad_ihdr = quoted(path) + ": corrupt PNG (invalid IHDR: ";
   if (ihdr.size() != 13) throw Error(bad_ihdr + "length " + std::to_string(ihdr.size()) + ", not 13)");
   const std::uint32_t width = be32(&ihdr[0]), height = be32(&ihdr[4]);
@@ -286,43 +291,37 @@ int paeth_predictor(int a, int b, int c) {
   return pa <= pb && pa <= pc ? a : b_or_c;
 }
 
-// Undoes the Paeth filter of one row in place, a pixel at a time: each of the BPP byte chains
-// depends on its own left neighbour only, so the BPP chains run side by side (in a scratch
-// timing of a 2048x1024 RGB frame: 13 ms, against 21 for the plain byte loop).
+// Undoes the Paeth filter of one row, `src` (filtered) into `dst` (which may be `src`), a pixel
+// at a time: each of the BPP byte chains depends on its own left neighbour only, so the BPP
+// chains run side by side (in a scratch timing of a 2048x1024 RGB frame: 13 ms, against 21 for
+// the plain byte loop).
 template <std::size_t BPP>
-void unpaeth(std::uint8_t* row, const std::uint8_t* above, std::size_t stride) {
+void unpaeth(const std::uint8_t* src, std::uint8_t* dst, const std::uint8_t* above, std::size_t stride) {
   int left[BPP] = {0}, upper_left[BPP] = {0};  // zeros before the first pixel: Paeth is then Up
   for (std::size_t i = 0; i < stride; i += BPP) {
     for (std::size_t k = 0; k < BPP; ++k) {
       const int up = above[i + k];
-      left[k] = static_cast<std::uint8_t>(row[i + k] + paeth_predictor(left[k], up, upper_left[k]));
-      row[i + k] = static_cast<std::uint8_t>(left[k]);
+      left[k] = static_cast<std::uint8_t>(src[i + k] + paeth_predictor(left[k], up, upper_left[k]));
+      dst[i + k] = static_cast<std::uint8_t>(left[k]);
       upper_left[k] = up;
     }
   }
 }
 
-// Pixels [x0, x1) of a Paeth row, the pixels before x0 (and above them) already unfiltered:
-// unpaeth's arithmetic from a given start, for the corners that unpaeth_band leaves.
+// Pixels [x0, x1) of a Paeth row, src into dst, the pixels before x0 (and above them) already
+// undone: unpaeth's arithmetic from a given start, for the corners that unpaeth_band leaves.
 template <std::size_t BPP>
-void unpaeth_range(std::uint8_t* row, const std::uint8_t* above, std::size_t x0, std::size_t x1) {
+void unpaeth_range(const std::uint8_t* src, std::uint8_t* dst, const std::uint8_t* above, std::size_t x0,
+                   std::size_t x1) {
   for (std::size_t x = x0; x < x1; ++x) {
     for (std::size_t k = 0; k < BPP; ++k) {
       const std::size_t i = x * BPP + k;
-      const int left = x > 0 ? row[i - BPP] : 0, upper_left = x > 0 ? above[i - BPP] : 0;
-      row[i] = static_cast<std::uint8_t>(row[i] + paeth_predictor(left, above[i], upper_left));
+      const int left = x > 0 ? dst[i - BPP] : 0, upper_left = x > 0 ? above[i - BPP] : 0;
+      dst[i] = static_cast<std::uint8_t>(src[i] + paeth_predictor(left, above[i], upper_left));
     }
   }
 }
 
-// R consecutive Paeth rows of BPP (3 or 4) bytes per pixel, `width` >= R pixels, unfiltered at once
-// as a wavefront: at step t row k unfilters its pixel t - k, whose
-// left neighbour row k made one step before and whose upper neighbours row k - 1 made one and two
-// steps before. So the R rows' chains of dependent steps run side by side in one register of R
-// slots of four 16-bit lanes (a pixel's bytes), where one row's chain alone left the processor
-// waiting on each step's latency; every slot does unpaeth's integer arithmetic, so the same bytes.
-// The corners where a row has no pixel at a step (its first R - 1 - k pixels and last k) are
-// unpaeth_range's. Slot 0 reads its upper neighbours from `above` (the row over the band).
 #if defined(__x86_64__) && defined(__GNUC__)
 // A pixel's BPP bytes as the low bytes of an int (no byte past them read).
 template <std::size_t BPP>
@@ -332,38 +331,43 @@ inline int band_pixel(const std::uint8_t* p) {
   return static_cast<int>(v);
 }
 
-// Four consecutive Paeth rows of BPP (3 or 4) bytes per pixel, `width` >= 4 pixels, `pitch` bytes
-// from one row's start to the next's, unfiltered at once as a wavefront: at step t, row k
-// unfilters its pixel t - k, whose left neighbour row k made one step before and whose upper
-// neighbours row k - 1 made one and two steps before. The four rows' chains of dependent steps
-// then run side by side in one AVX2 register (four slots of four 16-bit lanes, a pixel's bytes),
-// where one row's chain left the processor waiting on each step's latency. Every lane does
-// unpaeth's integer arithmetic: the same bytes. The corners where a row has no pixel at a step
-// (its first 3 - k pixels and last k) are unpaeth_range's; slot 0 reads its upper neighbours
-// from `above`, the row over the band. Each slot stores exactly its pixel's bytes: a wider store
-// would overlap the next step's load of the following pixel, which then waits for the store.
+// Four consecutive Paeth rows of BPP (3 or 4) bytes per pixel, `width` >= 4 pixels, undone at
+// once as a wavefront, from `src` (the filtered rows, `src_pitch` bytes from one to the next)
+// into `dst` (`dst_pitch`): at step t, row k undoes its pixel t - k, whose left neighbour row k
+// made one step before and whose upper neighbours row k - 1 made one and two steps before. The
+// four rows' chains of dependent steps then run side by side in one AVX2 register (four slots of
+// four 16-bit lanes, a pixel's bytes), where one row's chain left the processor waiting on each
+// step's latency. Every lane does unpaeth's integer arithmetic: the same bytes. The corners where
+// a row has no pixel at a step (its first 3 - k pixels and last k) are unpaeth_range's; slot 0
+// reads its upper neighbours from `above`, the row over the band, four bytes at a time (for BPP
+// 3 the fourth is ignored: lanes do not mix), so `above` needs a byte after its last pixel. Each
+// slot stores exactly its pixel's bytes.
 template <std::size_t BPP>
-__attribute__((target("avx2"), always_inline)) inline void unpaeth_band4_avx2(std::uint8_t* row0,
-                                                                             std::size_t pitch,
+__attribute__((target("avx2"), always_inline)) inline void unpaeth_band4_avx2(const std::uint8_t* src,
+                                                                             std::size_t src_pitch, std::uint8_t* dst,
+                                                                             std::size_t dst_pitch,
                                                                              const std::uint8_t* above,
                                                                              std::size_t width) {
   static_assert(BPP == 3 || BPP == 4, "a pixel per slot of four lanes");
-  std::uint8_t* rows[4] = {row0, row0 + pitch, row0 + 2 * pitch, row0 + 3 * pitch};
-  for (int k = 0; k < 3; ++k) unpaeth_range<BPP>(rows[k], k == 0 ? above : rows[k - 1], 0, static_cast<std::size_t>(3 - k));
+  const std::uint8_t* in[4] = {src, src + src_pitch, src + 2 * src_pitch, src + 3 * src_pitch};
+  std::uint8_t* out[4] = {dst, dst + dst_pitch, dst + 2 * dst_pitch, dst + 3 * dst_pitch};
+  for (int k = 0; k < 3; ++k)
+    unpaeth_range<BPP>(in[k], out[k], k == 0 ? above : out[k - 1], 0, static_cast<std::size_t>(3 - k));
   // Slot k's pixel 2 - k (prev) and 1 - k (prev2), those before the first step t = 3.
-  __m256i prev = _mm256_cvtepu8_epi16(_mm_setr_epi32(band_pixel<BPP>(rows[0] + 2 * BPP), band_pixel<BPP>(rows[1] + BPP), band_pixel<BPP>(rows[2]), 0));
-  __m256i prev2 = _mm256_cvtepu8_epi16(_mm_setr_epi32(band_pixel<BPP>(rows[0] + BPP), band_pixel<BPP>(rows[1]), 0, 0));
-  // Row k's pixel t - k lies at row0 + t BPP + k (pitch - BPP).
-  const __m128i offsets = _mm_setr_epi32(0, static_cast<int>(pitch - BPP), static_cast<int>(2 * (pitch - BPP)),
-                                         static_cast<int>(3 * (pitch - BPP)));
+  __m256i prev = _mm256_cvtepu8_epi16(
+      _mm_setr_epi32(band_pixel<BPP>(out[0] + 2 * BPP), band_pixel<BPP>(out[1] + BPP), band_pixel<BPP>(out[2]), 0));
+  __m256i prev2 = _mm256_cvtepu8_epi16(_mm_setr_epi32(band_pixel<BPP>(out[0] + BPP), band_pixel<BPP>(out[1]), 0, 0));
+  // Row k's filtered pixel t - k lies at src + t BPP + k (src_pitch - BPP): one gather for the four.
+  const __m128i offsets = _mm_setr_epi32(0, static_cast<int>(src_pitch - BPP), static_cast<int>(2 * (src_pitch - BPP)),
+                                         static_cast<int>(3 * (src_pitch - BPP)));
   const __m256i low_byte = _mm256_set1_epi16(0xff);
   for (std::size_t t = 3; t < width; ++t) {
-    // Four bytes a slot: for BPP 3 the fourth is the next pixel's first, ignored (lanes do not mix).
-    const __m128i filtered = _mm_i32gather_epi32(reinterpret_cast<const int*>(row0 + t * BPP), offsets, 1);
-    const __m256i x = _mm256_cvtepu8_epi16(filtered);
-    // Upper neighbours: slot k - 1's last two outputs moved up a slot; slot 0's from `above`.
-    // Four bytes of `above` at once (for BPP 3 the fourth is ignored as above; `above` has a byte
-    // after its last pixel): a pixel assembled from narrower loads stalled the chain on a store
+    // Four bytes a slot: for BPP 3 the fourth is the next pixel's first (or the next row's filter
+    // type), ignored.
+    const __m256i x =
+        _mm256_cvtepu8_epi16(_mm_i32gather_epi32(reinterpret_cast<const int*>(src + t * BPP), offsets, 1));
+    // Upper neighbours: slot k - 1's last two outputs moved up a slot; slot 0's from `above`,
+    // read four bytes at once: a pixel assembled from narrower loads stalled the chain on a store
     // that could not be forwarded.
     std::int32_t up, up_left;
     std::memcpy(&up, above + t * BPP, 4);
@@ -379,29 +383,32 @@ __attribute__((target("avx2"), always_inline)) inline void unpaeth_band4_avx2(st
     const __m256i not_a = _mm256_or_si256(_mm256_cmpgt_epi16(pa, pb), _mm256_cmpgt_epi16(pa, pc));
     const __m256i b_or_c = _mm256_blendv_epi8(b, c, _mm256_cmpgt_epi16(pb, pc));
     const __m256i predictor = _mm256_blendv_epi8(a, b_or_c, not_a);
-    const __m256i out = _mm256_and_si256(_mm256_add_epi16(x, predictor), low_byte);
-    const __m128i bytes = _mm_packus_epi16(_mm256_castsi256_si128(out), _mm256_extracti128_si256(out, 1));
+    const __m256i result = _mm256_and_si256(_mm256_add_epi16(x, predictor), low_byte);
+    const __m128i bytes = _mm_packus_epi16(_mm256_castsi256_si128(result), _mm256_extracti128_si256(result, 1));
     const std::uint32_t v0 = static_cast<std::uint32_t>(_mm_cvtsi128_si32(bytes));
     const std::uint32_t v1 = static_cast<std::uint32_t>(_mm_extract_epi32(bytes, 1));
     const std::uint32_t v2 = static_cast<std::uint32_t>(_mm_extract_epi32(bytes, 2));
     const std::uint32_t v3 = static_cast<std::uint32_t>(_mm_extract_epi32(bytes, 3));
-    std::memcpy(rows[0] + t * BPP, &v0, BPP);
-    std::memcpy(rows[1] + (t - 1) * BPP, &v1, BPP);
-    std::memcpy(rows[2] + (t - 2) * BPP, &v2, BPP);
-    std::memcpy(rows[3] + (t - 3) * BPP, &v3, BPP);
+    std::memcpy(out[0] + t * BPP, &v0, BPP);
+    std::memcpy(out[1] + (t - 1) * BPP, &v1, BPP);
+    std::memcpy(out[2] + (t - 2) * BPP, &v2, BPP);
+    std::memcpy(out[3] + (t - 3) * BPP, &v3, BPP);
     prev2 = prev;
-    prev = out;
+    prev = result;
   }
-  for (int k = 1; k < 4; ++k) unpaeth_range<BPP>(rows[k], rows[k - 1], width - static_cast<std::size_t>(k), width);
+  for (int k = 1; k < 4; ++k)
+    unpaeth_range<BPP>(in[k], out[k], out[k - 1], width - static_cast<std::size_t>(k), width);
 }
 
-__attribute__((target("avx2"))) void unpaeth_band3(std::uint8_t* row0, std::size_t pitch, const std::uint8_t* above,
+__attribute__((target("avx2"))) void unpaeth_band3(const std::uint8_t* src, std::size_t src_pitch, std::uint8_t* dst,
+                                                   std::size_t dst_pitch, const std::uint8_t* above,
                                                    std::size_t width) {
-  unpaeth_band4_avx2<3>(row0, pitch, above, width);
+  unpaeth_band4_avx2<3>(src, src_pitch, dst, dst_pitch, above, width);
 }
-__attribute__((target("avx2"))) void unpaeth_band4(std::uint8_t* row0, std::size_t pitch, const std::uint8_t* above,
+__attribute__((target("avx2"))) void unpaeth_band4(const std::uint8_t* src, std::size_t src_pitch, std::uint8_t* dst,
+                                                   std::size_t dst_pitch, const std::uint8_t* above,
                                                    std::size_t width) {
-  unpaeth_band4_avx2<4>(row0, pitch, above, width);
+  unpaeth_band4_avx2<4>(src, src_pitch, dst, dst_pitch, above, width);
 }
 #endif
 
@@ -441,66 +448,68 @@ std::optional<cv::Mat> decode_image_data(const Info& info) {
                                                               raw.get(), raw_size, nullptr);
   libdeflate_free_decompressor(inflater);
   if (result != LIBDEFLATE_SUCCESS) return std::nullopt;
-  // Unfiltered in place, each row against the one above (zeros above the first).
-  // Zeros over the first row, with bytes to spare (unpaeth_band reads four bytes a pixel, one
-  // past the last pixel of an RGB row, where a row of `raw` has the next row's filter type).
+  // Each row undone against the one above (zeros above the first). 8-bit rows go from `raw`
+  // straight into the image's rows (a copy afterwards was 3% of a 512x256 render's time, perf);
+  // 16-bit rows are undone in place and then copied with their bytes swapped where the machine
+  // is little-endian (PNG's samples are big-endian).
+  cv::Mat image(static_cast<int>(info.height), static_cast<int>(info.width),
+                info.depth == 16 ? CV_16UC(info.channels) : CV_8UC(info.channels));
+  const bool swap = sample == 2 && __BYTE_ORDER__ == __ORDER_LITTLE_ENDIAN__;
+  auto source_row = [&](std::size_t y) { return raw.get() + y * (stride + 1) + 1; };
+  auto output_row = [&](std::size_t y) { return swap ? source_row(y) : image.ptr<std::uint8_t>(static_cast<int>(y)); };
+  // Zeros over the first row, with bytes to spare: unpaeth_band reads four bytes a pixel, one
+  // past the last pixel of an RGB row (where an image row has the next row's first byte).
   const std::vector<std::uint8_t> zero(stride + 4, 0);
   const std::uint8_t* above = zero.data();
   // Runs of four Paeth rows of 8-bit RGB or RGBA (most rows of most photographs' PNGs) as bands.
-  const bool bands = (bpp == 3 || bpp == 4) && info.width >= 4 && paeth_bands();
+  const bool bands = !swap && (bpp == 3 || bpp == 4) && info.width >= 4 && paeth_bands();
   for (std::size_t y = 0; y < info.height; ++y) {
-    std::uint8_t* row = raw.get() + y * (stride + 1) + 1;
-    const std::uint8_t type = row[-1];
+    const std::uint8_t* src = source_row(y);
+    std::uint8_t* dst = output_row(y);
+    const std::uint8_t type = src[-1];
 #if defined(__x86_64__) && defined(__GNUC__)
-    if (type == 4 && bands && y + 4 <= info.height && row[stride] == 4 && row[2 * stride + 1] == 4 &&
-        row[3 * stride + 2] == 4) {
-      (bpp == 3 ? unpaeth_band3 : unpaeth_band4)(row, stride + 1, above, info.width);
+    if (type == 4 && bands && y + 4 <= info.height && src[stride] == 4 && src[2 * stride + 1] == 4 &&
+        src[3 * stride + 2] == 4) {
+      (bpp == 3 ? unpaeth_band3 : unpaeth_band4)(src, stride + 1, dst, image.step[0], above, info.width);
       y += 3;
-      above = row + 3 * (stride + 1);
+      above = output_row(y);
       continue;
     }
 #endif
     switch (type) {
       case 0:
+        if (dst != src) std::memcpy(dst, src, stride);
         break;
       case 1:
-        for (std::size_t i = bpp; i < stride; ++i) row[i] = static_cast<std::uint8_t>(row[i] + row[i - bpp]);
+        for (std::size_t i = 0; i < bpp && i < stride; ++i) dst[i] = src[i];
+        for (std::size_t i = bpp; i < stride; ++i) dst[i] = static_cast<std::uint8_t>(src[i] + dst[i - bpp]);
         break;
       case 2:
-        for (std::size_t i = 0; i < stride; ++i) row[i] = static_cast<std::uint8_t>(row[i] + above[i]);
+        for (std::size_t i = 0; i < stride; ++i) dst[i] = static_cast<std::uint8_t>(src[i] + above[i]);
         break;
       case 3:
-        for (std::size_t i = 0; i < bpp; ++i) row[i] = static_cast<std::uint8_t>(row[i] + (above[i] >> 1));
+        for (std::size_t i = 0; i < bpp && i < stride; ++i) dst[i] = static_cast<std::uint8_t>(src[i] + (above[i] >> 1));
         for (std::size_t i = bpp; i < stride; ++i)
-          row[i] = static_cast<std::uint8_t>(row[i] + ((row[i - bpp] + above[i]) >> 1));
+          dst[i] = static_cast<std::uint8_t>(src[i] + ((dst[i - bpp] + above[i]) >> 1));
         break;
       case 4:
         switch (bpp) {
-          case 1: unpaeth<1>(row, above, stride); break;
-          case 2: unpaeth<2>(row, above, stride); break;
-          case 3: unpaeth<3>(row, above, stride); break;
-          case 4: unpaeth<4>(row, above, stride); break;
-          case 6: unpaeth<6>(row, above, stride); break;
-          default: unpaeth<8>(row, above, stride); break;  // 16-bit RGBA
+          case 1: unpaeth<1>(src, dst, above, stride); break;
+          case 2: unpaeth<2>(src, dst, above, stride); break;
+          case 3: unpaeth<3>(src, dst, above, stride); break;
+          case 4: unpaeth<4>(src, dst, above, stride); break;
+          case 6: unpaeth<6>(src, dst, above, stride); break;
+          default: unpaeth<8>(src, dst, above, stride); break;  // 16-bit RGBA
         }
         break;
       default:
         return std::nullopt;
     }
-    above = row;
+    above = dst;
   }
-  cv::Mat image(static_cast<int>(info.height), static_cast<int>(info.width),
-                info.depth == 16 ? CV_16UC(info.channels) : CV_8UC(info.channels));
-  const bool swap = sample == 2 && __BYTE_ORDER__ == __ORDER_LITTLE_ENDIAN__;
-  for (int y = 0; y < image.rows; ++y) {
-    const std::uint8_t* row = raw.get() + static_cast<std::size_t>(y) * (stride + 1) + 1;
-    std::uint8_t* out = image.ptr<std::uint8_t>(y);
-    if (swap) {
-      copy_swapping_16_bit(row, out, stride);
-    } else {
-      std::memcpy(out, row, stride);
-    }
-  }
+  if (swap)
+    for (std::size_t y = 0; y < info.height; ++y)
+      copy_swapping_16_bit(source_row(y), image.ptr<std::uint8_t>(static_cast<int>(y)), stride);
   return image;
 }
 
