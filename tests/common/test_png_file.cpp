@@ -484,18 +484,19 @@ std::vector<png_byte> filter_row(const png_byte* row, const png_byte* above, siz
 }  // namespace
 
 // Runs of Paeth rows of 8-bit RGB and RGBA are undone four rows at a time where the processor has
-// AVX2 (png_file.cpp, unpaeth_band4_avx2): on images whose rows take random filter types (mostly
-// Paeth: runs of every length, broken by the others) at widths from the band's least (4 pixels)
-// up, and on all-Paeth images whose heights leave every remainder of four, the pixels are those
-// written, with the bands and row by row.
+// AVX2 and eight where it has AVX-512 (png_file.cpp, unpaeth_band4_avx2, unpaeth_band8_avx512):
+// on images whose rows take random filter types (mostly Paeth: runs of every length, broken by
+// the others) at widths below and from the bands' least (4 and 8 pixels) up, and on all-Paeth
+// images whose heights leave every remainder of four and eight, the pixels are those written, at
+// every level this processor has and row by row.
 TEST(PngFile, PaethBandsGiveTheRowByRowPixels) {
-  const bool has_bands = png::enable_paeth_bands(true);
+  const int widest = png::limit_paeth_bands(2);
   testsupport::TempDir tmp("raindrop-png-");
   std::mt19937 rng(77);
   int cases = 0;
   for (int channels : {3, 4}) {
     for (int width : {1, 3, 4, 5, 7, 8, 9, 16, 33, 100}) {
-      for (int height : {1, 3, 4, 5, 8, 9, 23}) {
+      for (int height : {1, 3, 4, 5, 8, 9, 15, 16, 23}) {
         for (bool all_paeth : {true, false}) {
           // Smooth with noise: the Paeth predictor picks each of a, b and c somewhere.
           cv::Mat image(height, width, CV_8UC(channels));
@@ -529,18 +530,19 @@ TEST(PngFile, PaethBandsGiveTheRowByRowPixels) {
           SCOPED_TRACE(std::to_string(channels) + " channels, " + std::to_string(width) + "x" + std::to_string(height) +
                        (all_paeth ? ", all Paeth" : ", mixed filters"));
           const png::Info header = png::check(file, fs::file_size(file), true);
-          for (bool bands : {true, false}) {
-            png::enable_paeth_bands(bands);
+          for (int level = 0; level <= widest; ++level) {
+            png::limit_paeth_bands(level);
             const std::optional<cv::Mat> ours = png::decode_image_data(header);
             ASSERT_TRUE(ours.has_value());
-            EXPECT_TRUE(same(*ours, image)) << (bands ? "with bands" : "row by row");
+            EXPECT_TRUE(same(*ours, image)) << (level == 0 ? "row by row" : level == 1 ? "four-row bands" : "eight-row bands");
           }
-          png::enable_paeth_bands(true);
+          png::limit_paeth_bands(2);
           ++cases;
         }
       }
     }
   }
-  EXPECT_EQ(cases, 2 * 10 * 7 * 2);
-  if (!has_bands) GTEST_SKIP() << "this processor has no AVX2: only the row-by-row path was checked";
+  EXPECT_EQ(cases, 2 * 10 * 9 * 2);
+  if (widest < 2) GTEST_SKIP() << "this processor has no " << (widest == 0 ? "AVX2 or " : "") << "AVX-512: only "
+                              << (widest == 0 ? "the row-by-row path was" : "four-row bands and rows were") << " checked";
 }
