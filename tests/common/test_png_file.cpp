@@ -9,6 +9,7 @@
 #include <csignal>
 #include <cstdio>
 #include <fstream>
+#include <iostream>
 #include <cstring>
 
 #include <sys/resource.h>
@@ -543,6 +544,8 @@ TEST(PngFile, PaethBandsGiveTheRowByRowPixels) {
     }
   }
   EXPECT_EQ(cases, 2 * 10 * 9 * 2);
-  if (widest < 2) GTEST_SKIP() << "this processor has no " << (widest == 0 ? "AVX2 or " : "") << "AVX-512: only "
-                              << (widest == 0 ? "the row-by-row path was" : "four-row bands and rows were") << " checked";
+  // Not a skip: what this processor runs was checked. Said, so that a log shows which bands ran.
+  if (widest < 2)
+    std::cout << "note: this processor has no " << (widest == 0 ? "AVX2 or " : "") << "AVX-512: "
+              << (widest == 0 ? "the row-by-row path was" : "four-row bands and rows were") << " checked\n";
 }
