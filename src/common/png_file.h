@@ -73,12 +73,6 @@ cv::Mat decode(const std::filesystem::path& path, const Info& info, bool* from_i
 // and its messages.
 std::optional<cv::Mat> decode_image_data(const Info& info);
 
-// Tests: the widest bands decode_image_data may undo runs of Paeth rows of 8-bit RGB or RGBA in
-// (png_file.cpp, unpaeth_band4_avx2 and unpaeth_band8_avx512): 0 row by row, 1 four rows (AVX2),
-// 2 eight rows (AVX-512), each where the processor has it. The same pixels at every level.
-// Returns the widest this processor has.
-int limit_paeth_bands(int level);
-
 // Writes `image` (CV_8U or CV_16U, 1-4 channels) as PNG to `file`: with zlib level `level`
 // (0-9) and libpng's adaptive row filters, (kPngRunLength) zlib's run-length strategy with
 // Paeth filters, or (kPngFast) Paeth filters deflated by libdeflate. Throws raindrop::Error

@@ -21,6 +21,7 @@
 #include "raindrop/common/error.h"
 #include "raindrop/common/image_io.h"
 #include "../../src/common/png_file.h"  // decode_image_data, our decoding path on its own
+#include "../../src/common/png_unfilter.h"  // limit_paeth_bands
 #include "test_images.h"
 #include "png_bytes.h"
 #include "test_support.h"
@@ -485,7 +486,7 @@ std::vector<png_byte> filter_row(const png_byte* row, const png_byte* above, siz
 }  // namespace
 
 // Runs of Paeth rows of 8-bit RGB and RGBA are undone four rows at a time where the processor has
-// AVX2 and eight where it has AVX-512 (png_file.cpp, unpaeth_band4_avx2, unpaeth_band8_avx512):
+// AVX2 and eight where it has AVX-512 (png_unfilter.cpp, unpaeth_band4_avx2, unpaeth_band8_avx512):
 // on images whose rows take random filter types (mostly Paeth: runs of every length, broken by
 // the others) at widths below and from the bands' least (4 and 8 pixels) up, and on all-Paeth
 // images whose heights leave every remainder of four and eight, the pixels are those written, at
