@@ -14,7 +14,7 @@ import pytest
 
 from helpers import FIXTURE_MODELS
 from raindrop_tools import contract as C
-from raindrop_tools import evaluate, large_drop_growth, merge_datasets, train
+from raindrop_tools import evaluate, large_drop_growth, merge_datasets
 from raindrop_tools.imageio import ImageError, write_rgb
 from raindrop_tools.read_only import ReadOnlyFileError, read_only_problem, refuse_read_only
 from raindrop_tools.report_file import report_path_problem
@@ -126,7 +126,11 @@ def test_merge_keeps_a_read_only_manifest(tiny_dataset, tmp_path, capsys):
     assert sorted(p.name for p in out.iterdir()) == ["manifest.jsonl"], "refused before the first link"
 
 
+@pytest.mark.torch
 def test_a_training_run_keeps_its_read_only_files(tmp_path):
+    pytest.importorskip("torch")  # the light set (RAINDROP_TEST_NO_TORCH=1) has no PyTorch
+    from raindrop_tools import train
+
     f = tmp_path / "config.yaml"
     f.write_text("old\n")
     before = _protect(f)
@@ -186,7 +190,9 @@ def test_evaluate_keeps_a_read_only_sheet_it_would_have_removed(tmp_path, capsys
     assert sorted((out / "sheets").iterdir()) == sheets and (out / "results.json").read_bytes() == results
 
 
+@pytest.mark.torch
 def test_pruning_keeps_a_read_only_checkpoint(tmp_path):
+    pytest.importorskip("torch")
     from raindrop_tools import checkpoint as ckpt
 
     run = tmp_path / "run"
@@ -199,7 +205,11 @@ def test_pruning_keeps_a_read_only_checkpoint(tmp_path):
     assert [r.path.name for r in ckpt.list_checkpoints(run, 1)] == [old.name, ckpt.checkpoint_path(run, 1, 400).name]
 
 
+@pytest.mark.torch
 def test_train_reports_a_read_only_run_file_on_one_line_before_any_work(tmp_path, capsys):
+    pytest.importorskip("torch")
+    from raindrop_tools import train
+
     run = tmp_path / "run"
     run.mkdir()
     (run / train.RUN_FILE).write_text("{}\n")
