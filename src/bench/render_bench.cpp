@@ -223,7 +223,7 @@ EndToEnd end_to_end(const Input& input, const SceneConfig& config, const cv::Siz
         write_image_atomic(out.rainy, tmp / (stem + "_rainy.png"));
         // As raindrop-render writes it: the input file's bytes where the frame is the input as
         // it was (render_job.cpp), else encoded.
-        clean_bytes[i] = f.clean.data == rgb.data && out.clean.empty() ? input_png : std::string();
+        clean_bytes[i] = frame_is_stored_input(rgb, f, input_png) && out.clean.empty() ? input_png : std::string();
         write_clean(i, f.clean, tmp / (stem + "_clean.png"));
         write_image_atomic(out.mask, tmp / (stem + "_mask.png"));
         if (config.lens.enabled) {
@@ -244,7 +244,7 @@ EndToEnd end_to_end(const Input& input, const SceneConfig& config, const cv::Siz
       wall_full.push_back((now_ms() - t0) / frames);
       t0 = now_ms();
       tbb::parallel_for(0, frames, 1, [&](int i) {
-        std::string input_png;
+        std::string input_png;  // read as the loop above reads it (the bytes kept): the same work
         const Frame f = make_frame(read_rgb8(input.png, false, 16, &input_png), input.calibration, size);
         (void)f;
         const std::string stem = "f" + std::to_string(i);

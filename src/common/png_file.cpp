@@ -380,8 +380,8 @@ using PaethRow = void (*)(const std::uint8_t*, const std::uint8_t*, std::uint8_t
 
 PaethRow paeth_row_for_this_cpu() {
 #if defined(__x86_64__) && defined(__GNUC__)
-  if (__builtin_cpu_supports("avx512bw")) return paeth_row_avx512;
-  if (__builtin_cpu_supports("avx2")) return paeth_row_avx2;
+  if (simd_level() == 2) return paeth_row_avx512;
+  if (simd_level() == 1) return paeth_row_avx2;
 #endif
   return paeth_row_sse2;
 }

@@ -205,24 +205,22 @@ std::atomic<int> paeth_bands_limit{2};
 
 // The widest bands this processor runs, at most what a test allowed: 0 none, 1 four rows (AVX2),
 // 2 eight rows (AVX-512).
-int paeth_bands() {
+int paeth_bands() { return std::min(simd_level(), paeth_bands_limit.load(std::memory_order_relaxed)); }
+
+}  // namespace
+
+int simd_level() {
 #if defined(__x86_64__) && defined(__GNUC__)
-  static const int widest = __builtin_cpu_supports("avx512bw") ? 2 : __builtin_cpu_supports("avx2") ? 1 : 0;
-  return std::min(widest, paeth_bands_limit.load(std::memory_order_relaxed));
+  static const int level = __builtin_cpu_supports("avx512bw") ? 2 : __builtin_cpu_supports("avx2") ? 1 : 0;
+  return level;
 #else
   return 0;
 #endif
 }
 
-}  // namespace
-
 int limit_paeth_bands(int level) {
   paeth_bands_limit.store(level, std::memory_order_relaxed);
-#if defined(__x86_64__) && defined(__GNUC__)
-  return __builtin_cpu_supports("avx512bw") ? 2 : __builtin_cpu_supports("avx2") ? 1 : 0;
-#else
-  return 0;
-#endif
+  return simd_level();
 }
 
 bool unfilter(std::uint8_t* raw, std::size_t stride, std::size_t bpp, std::size_t width, std::size_t height, bool swap,

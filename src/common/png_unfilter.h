@@ -34,6 +34,10 @@ inline void copy_swapping_16_bit(const std::uint8_t* from, std::uint8_t* to, std
 bool unfilter(std::uint8_t* raw, std::size_t stride, std::size_t bpp, std::size_t width, std::size_t height,
               bool swap, cv::Mat& image);
 
+// The widest registers this processor gives the PNG row loops (the writer's Paeth filter and the
+// Paeth bands here): 0 SSE2 only, 1 AVX2, 2 AVX-512 with byte and word operations (AVX512BW).
+int simd_level();
+
 // Tests: the widest bands unfilter may use: 0 row by row, 1 four rows (AVX2), 2 eight rows
 // (AVX-512), each where the processor has it. The same pixels at every level. Returns the widest
 // this processor has.

@@ -329,6 +329,10 @@ cv::Mat alpha16(const RenderedFrame& f) {
   return out;
 }
 
+bool frame_is_stored_input(const cv::Mat& rgb, const Frame& frame, const std::string& stored_png) {
+  return !stored_png.empty() && frame.clean.data == rgb.data && frame.clean.size() == rgb.size();
+}
+
 std::string renderer_version() { return kVersion; }
 
 std::uint64_t sample_seed(std::uint64_t run_seed, const std::string& input_id, int variant) {
@@ -505,12 +509,9 @@ RenderSummary render_dataset(const std::vector<InputImage>& inputs, const Render
               std::string input_png;
               const cv::Mat rgb = read_rgb8(task.input->path, o.convert, 16, &input_png);
               const Frame frame = make_frame(rgb, task.input->calibration, o.size);
-              // A frame that is the input as it was (no crop or resize) from a PNG that holds
-              // exactly its pixels (read_rgb8): the clean image is that file's bytes, written
-              // without encoding it again (one of a frame's three encodes, about a third of its
-              // time at 2048x1024).
-              const bool clean_is_input = !input_png.empty() && frame.clean.data == rgb.data &&
-                                          frame.clean.size() == rgb.size();
+              // The clean image as the input file's bytes where they stand for it: one of a
+              // frame's three encodes saved, about a third of its time at 2048x1024.
+              const bool clean_is_input = frame_is_stored_input(rgb, frame, input_png);
               // Every variant of an input focused on its background has the same clean image:
               // encoded once, then copied (encoding is most of a frame's time; a copy of the
               // bytes is a fraction of it). A defocused street is each variant's own.

@@ -16,6 +16,7 @@
 
 #include "raindrop/common/image_io.h"
 #include "raindrop/common/shard.h"
+#include "raindrop/render/framing.h"
 #include "raindrop/render/inputs.h"
 #include "raindrop/render/renderer.h"
 #include "raindrop/render/scene_config.h"
@@ -59,6 +60,11 @@ std::string renderer_version();
 // The coverage image a sample with a lens writes as alpha/<name>.png: coverage in [0, 1] as
 // 16-bit (the pinhole mask's 0/1 when the lens was skipped).
 cv::Mat alpha16(const RenderedFrame& f);
+
+// Whether `frame`, made from `rgb` (read_rgb8 with its `stored_png` bytes), is that input as it was
+// (no crop or resize) in a file whose bytes can stand for it: then a clean image that is the frame
+// itself (the street in focus) is written as those bytes, not encoded again.
+bool frame_is_stored_input(const cv::Mat& rgb, const Frame& frame, const std::string& stored_png);
 
 // Derives the seed of one sample from the run seed, the input id and the variant.
 std::uint64_t sample_seed(std::uint64_t run_seed, const std::string& input_id, int variant);
