@@ -17,8 +17,25 @@ ApertureReach::ApertureReach(const std::vector<Drop>& drops, double aperture_rad
     glm::dvec3 lo, hi;
     drop.bounds(&lo, &hi);
     Sphere s;
-    s.centre = 0.5 * (lo + hi);
-    s.radius = 0.5 * glm::length(hi - lo) * (1 + 1e-6) + 1e-6 * (glm::length(lo) + glm::length(hi)) + 1e-9;
+    // Two spheres hold the drop; the smaller is kept. The box's: around its bounding box. The
+    // footprint's: centred on the footprint, as wide as its longer semi-axis. A cap of contact
+    // angle at most 90 degrees lies within that distance of the footprint's centre (in the frame
+    // where it is a spherical cap of footprint radius r, a point of it at height z >= 0 lies at
+    // distance^2 r^2 - 2 z (R - h) <= r^2; an irregular outline lies under the cap of its widest
+    // radius, drop.h; gravity's stretch along the slope, at least 1, and flattening, at most 1,
+    // scale no distance by more than the stretch). For a drop on a tilted glass the box's sphere
+    // is about 1.4 times wider, so this one keeps a third or more of the pixels near a small
+    // drop, whose rays all miss it, out of the reference.
+    const double pad = 1e-6 * (glm::length(lo) + glm::length(hi)) + 1e-9;
+    const double box_radius = 0.5 * glm::length(hi - lo) * (1 + 1e-6) + pad;
+    const double footprint_radius = drop.shape().footprint_semi_axes().y * (1 + 1e-6) + pad;
+    if (footprint_radius < box_radius) {
+      s.centre = drop.centre();
+      s.radius = footprint_radius;
+    } else {
+      s.centre = 0.5 * (lo + hi);
+      s.radius = box_radius;
+    }
     s.z0 = s.centre.z - s.radius;
     s.z1 = s.centre.z + s.radius;
     s.cone_reach = a * std::max(std::abs(1 - s.z0 * inv_focus_), std::abs(1 - s.z1 * inv_focus_)) + s.radius;

@@ -67,14 +67,16 @@ TEST(ApertureReach, EveryRayThatMeetsADropPassesBothTests) {
 }
 
 // A ray that grazes a drop's bounding sphere passes; one just beyond it is culled: the
-// tests are the geometry they claim, not a blanket yes.
+// tests are the geometry they claim, not a blanket yes. The sphere is the footprint's (centred
+// on it, as wide as its longer semi-axis), narrower here than the one around the drop's box.
 TEST(ApertureReach, ARayIsCulledJustBeyondTheDropsSphereAndKeptJustInside) {
   const GlassPlane glass = upright_glass(10);
   const std::vector<Drop> drops = {Drop(cap(0, 0, 0.2, 60), glass)};
   glm::dvec3 lo, hi;
   drops[0].bounds(&lo, &hi);
-  const glm::dvec3 centre = 0.5 * (lo + hi);
-  const double radius = 0.5 * glm::length(hi - lo);
+  const glm::dvec3 centre = drops[0].centre();
+  const double radius = 0.2;
+  ASSERT_LT(radius, 0.95 * 0.5 * glm::length(hi - lo));  // the box's sphere would keep the rays below
   const ApertureReach reach(drops, 0.1, 500);
   // Rays parallel to the axis, offset sideways from the sphere's centre.
   const glm::dvec3 dir(0, 0, 1);
@@ -125,4 +127,35 @@ TEST(ApertureReach, TheReferenceIsTheSameBitsWithFewerRays) {
   }
   EXPECT_GE(compared, 18);
   EXPECT_LT(traced, all * 9 / 10);
+}
+
+// The footprint's sphere holds the drop: every point of the cap lies within the footprint's
+// longer semi-axis of its centre, for contact angles up to 90 degrees, gravity's stretch and
+// flattening, and irregular outlines (the cap's points, its rim among them, by Drop::cap_point).
+// The bound is tight: the rim's farthest point reaches it.
+TEST(ApertureReach, EveryPointOfADropLiesWithinItsFootprintSphere) {
+  Rng rng(5);
+  const GlassPlane glass{12, 0.6};
+  double closest = 1;  // the largest distance / bound seen, per drop, at its least
+  for (int i = 0; i < 300; ++i) {
+    DropShape shape = cap(rng.uniform(-2, 2), rng.uniform(-2, 2), rng.uniform(0.02, 0.8), rng.uniform(5, 90));
+    if (i % 3 != 0) {
+      shape.elongation = rng.uniform(1, 2.5);
+      shape.flattening = rng.uniform(0.2, 1);
+    }
+    if (i % 2 == 0) shape.outline = Outline::draw(rng.uniform(0, 0.6), 6, rng);
+    const Drop drop(shape, glass);
+    const double bound = shape.footprint_semi_axes().y;
+    double farthest = 0;
+    for (int t = 0; t <= 32; ++t) {
+      for (int p = 0; p < 64; ++p) {
+        const double theta = shape.contact_angle * t / 32, phi = 2 * M_PI * (p + rng.uniform(0, 1)) / 64;
+        const double d = glm::length(drop.cap_point(theta, phi) - drop.centre());
+        EXPECT_LE(d, bound * (1 + 1e-12)) << "drop " << i << " theta " << theta;
+        farthest = std::max(farthest, d);
+      }
+    }
+    closest = std::min(closest, farthest / bound);
+  }
+  EXPECT_GT(closest, 0.6);
 }

@@ -42,7 +42,7 @@ struct TraceStats {
   std::int64_t lockstep_pixels = 0;  // camera rays traced side by side (TraceStrategy::lockstep)
   std::int64_t lane_pixels = 0;      // of those, in SIMD lanes (TraceStrategy::lanes)
   std::int64_t lens_sampled_pixels = 0;  // pixels that averaged rays from the lens disk (LensTrace)
-  std::int64_t lens_lane_rays = 0;       // of their rays, traced in SIMD lanes (TraceStrategy::lanes)
+  std::int64_t lens_lane_rays = 0;       // of their rays, those that met a drop on its common path in SIMD lanes (TraceStrategy::lanes)
 };
 
 struct TraceResult {
@@ -149,7 +149,8 @@ struct ApertureResult {
   cv::Mat clean_linear;  // CV_32FC3 linear RGB of the street alone, focus off it; else empty
   std::int64_t lockstep_rays = 0;  // rays traced side by side (TraceStrategy::lockstep)
   std::int64_t traced_rays = 0;    // rays traced at all (the others cannot meet a drop: aperture_reach.h)
-  std::int64_t lane_rays = 0;      // of those, traced in SIMD lanes (TraceStrategy::lanes)
+  std::int64_t lane_rays = 0;      // of those, the ones that met a drop and took its common path in SIMD lanes
+                                   // (TraceStrategy::lanes; rays the lanes found missing every drop are not counted)
 };
 // `margin`: as LensTrace's.
 ApertureResult trace_aperture(const cv::Mat& clean, const Camera& camera, const SceneConfig& config,
