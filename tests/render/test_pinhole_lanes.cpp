@@ -288,6 +288,68 @@ TEST(PinholeLanes, EachApertureRayPathIsTracePathsToTheBit) {
   expect_many_of_each(paths, misses);
 }
 
+// Rays aimed at a drop's rim, just inside it, on it and just outside it (a billionth and a few
+// units in the last place of the footprint's radius either way), where the lanes' first-hit
+// test skips the registers whose lines clearly miss the drop's sphere: each ray the lanes trace
+// ends where trace_path ends it and each they call a miss meets no drop, on every register
+// width; the lane cases' scenes (contact angles up to 90 degrees, where the rim is the sphere's
+// widest circle).
+TEST(PinholeLanes, RaysAtADropsRimMeetWhatTracePathMeets) {
+  SKIP_WITHOUT_LANES();
+  const Camera cam = camera(163, 80, 180);
+  const std::vector<NamedScene> cases = lane_cases(cam);
+  const int widest = PinholeLanes::level();
+  std::vector<std::int64_t> paths(widest + 1, 0), misses(widest + 1, 0);
+  constexpr int kRays = 16;
+  const double scales[] = {1 - 1e-9, 1 - 4e-16, 1, 1 + 4e-16, 1 + 1e-9};
+  for (const NamedScene& k : cases) {
+    const std::vector<Drop> drops = drops_of(k.scene);
+    DropAccel accel(drops, k.config.geometry);
+    accel.set_disjoint(k.config.drops_disjoint());
+    if (!PinholeLanes::applies(accel)) continue;
+    const double n = k.config.channel_indices().y, F = k.scene.background_distance_cm;
+    const ApertureReach reach(drops, 0.3, F);
+    for (int level = 0; level <= widest; ++level) {
+      const ForcedLevel forced(level);
+      const PinholeLanes lanes(cam, accel, k.scene.glass, F, n, k.config.tir, k.config.fresnel.enabled);
+      PinholeLanes::Row row;
+      Rng rng(23);
+      std::vector<double> arrays[6];
+      for (auto& v : arrays) v.resize(kRays);
+      for (size_t d = 0; d < drops.size(); ++d) {
+        glm::dvec3 origins[kRays], raw[kRays];
+        std::vector<int> near;
+        for (int i = 0; i < kRays; ++i) {
+          const double angle = rng.uniform(0.0, 2 * M_PI), rho = 0.3 * std::sqrt(rng.uniform());
+          origins[i] = glm::dvec3(rho * std::cos(angle), rho * std::sin(angle), 0.0);
+          const glm::dvec3 c = drops[d].centre();
+          const glm::dvec3 rim = drops[d].cap_point(drops[d].shape().contact_angle, rng.uniform(0.0, 2 * M_PI));
+          raw[i] = c + scales[i % 5] * (rim - c) - origins[i];
+          const glm::dvec3 dir = glm::normalize(raw[i]);
+          arrays[0][i] = origins[i].x, arrays[1][i] = origins[i].y, arrays[2][i] = origins[i].z;
+          arrays[3][i] = dir.x, arrays[4][i] = dir.y, arrays[5][i] = dir.z;
+          for (int e = 0; e < static_cast<int>(drops.size()); ++e)
+            if (reach.ray_meets(e, origins[i], raw[i]) && std::find(near.begin(), near.end(), e) == near.end())
+              near.push_back(e);
+        }
+        const lanes_detail::RayArrays rays{arrays[0].data(), arrays[1].data(), arrays[2].data(),
+                                           arrays[3].data(), arrays[4].data(), arrays[5].data()};
+        lanes.trace_rays(rays, kRays, near, &row);
+        for (int i = 0; i < kRays; ++i) {
+          if (row.outcome[i] == PinholeLanes::Outcome::Alone) continue;
+          const DropPath w =
+              trace_through_drops(origins[i], raw[i], n, k.config.tir, k.config.fresnel.enabled, accel, k.scene.glass);
+          const auto where = [&] {
+            return k.name + ", level " + std::to_string(level) + ", drop " + std::to_string(d) + ", ray " + std::to_string(i);
+          };
+          ASSERT_TRUE(same_outcome(row, i, w, cam, F, where, &paths[level], &misses[level]));
+        }
+      }
+    }
+  }
+  expect_many_of_each(paths, misses);
+}
+
 // The aperture reference with its rays in the lanes renders what it renders with every ray
 // traced alone, on every register width, and the lanes do take most of the rays that meet a
 // drop on windshield glass with the dark band black.

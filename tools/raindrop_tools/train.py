@@ -731,9 +731,11 @@ def build_arg_parser() -> argparse.ArgumentParser:
     )
     ap.add_argument(
         "--init-from",
-        metavar="RUN_OR_CHECKPOINT",
-        help="fine-tune: start from the network weights of a run folder (its latest stage-2 checkpoint) or a "
-        "checkpoint .pt file; optimizers and step counts start fresh. Only when the run has no checkpoints yet",
+        metavar="RUN_CHECKPOINT_OR_MODELS",
+        help="fine-tune: start from the network weights of a run folder (its latest stage-2 checkpoint), a "
+        "checkpoint .pt file or a committed model folder (models/<config>/: its ONNX graphs, BatchNorms folded, "
+        "so the run needs train.freeze_batchnorm: true); optimizers and step counts start fresh. Only when the "
+        "run has no checkpoints yet",
     )
     ap.add_argument("--threads", type=int, help="torch CPU threads (default: torch's choice)")
     ap.add_argument("--no-progress", action="store_true", help="no progress bar")
