@@ -226,6 +226,35 @@ TEST(PinholeLanes, TraceWhatTheSideBySidePathTraces) {
   }
 }
 
+// Rays origins[i] + t raw[i], i < n, traced in the lanes against `near` (directions normalised as
+// trace_packet normalises them), each outcome compared with trace_path's (same_outcome;
+// `where(i)` names ray i). Returns false where a comparison stopped.
+template <class Where>
+bool lane_rays_are_trace_paths(const PinholeLanes& lanes, const NamedScene& k, const DropAccel& accel, const Camera& cam,
+                               double background_z, const glm::dvec3* origins, const glm::dvec3* raw, int n,
+                               const std::vector<int>& near, const Where& where, std::int64_t* paths,
+                               std::int64_t* misses) {
+  std::vector<double> arrays[6];
+  for (auto& v : arrays) v.resize(static_cast<size_t>(n));
+  for (int i = 0; i < n; ++i) {
+    const glm::dvec3 d = glm::normalize(raw[i]);
+    arrays[0][i] = origins[i].x, arrays[1][i] = origins[i].y, arrays[2][i] = origins[i].z;
+    arrays[3][i] = d.x, arrays[4][i] = d.y, arrays[5][i] = d.z;
+  }
+  const lanes_detail::RayArrays rays{arrays[0].data(), arrays[1].data(), arrays[2].data(),
+                                     arrays[3].data(), arrays[4].data(), arrays[5].data()};
+  PinholeLanes::Row row;
+  lanes.trace_rays(rays, n, near, &row);
+  const double n_water = k.config.channel_indices().y;
+  for (int i = 0; i < n; ++i) {
+    if (row.outcome[i] == PinholeLanes::Outcome::Alone) continue;
+    const DropPath w =
+        trace_through_drops(origins[i], raw[i], n_water, k.config.tir, k.config.fresnel.enabled, accel, k.scene.glass);
+    if (!same_outcome(row, i, w, cam, background_z, [&] { return where(i); }, paths, misses)) return false;
+  }
+  return true;
+}
+
 // An aperture pixel's rays (trace_rays: any origins, the drops the pixel's cone meets): each
 // ray the lanes trace ends where trace_path ends it, to the bit, and each they call a miss
 // meets no drop; every register width, the lane cases' scenes seen through a 0.6 cm aperture
@@ -248,10 +277,7 @@ TEST(PinholeLanes, EachApertureRayPathIsTracePathsToTheBit) {
     for (int level = 0; level <= widest; ++level) {
       const ForcedLevel forced(level);
       const PinholeLanes lanes(cam, accel, k.scene.glass, F, n, k.config.tir, k.config.fresnel.enabled);
-      PinholeLanes::Row row;
       Rng rng(17);
-      std::vector<double> arrays[6];
-      for (auto& v : arrays) v.resize(kRays);
       for (int y = 0; y < cam.height; y += 3) {
         for (int x = 0; x < cam.width; x += 3) {
           const glm::dvec3 focus = F * cam.ray_direction(x, y);
@@ -264,23 +290,13 @@ TEST(PinholeLanes, EachApertureRayPathIsTracePathsToTheBit) {
             const double angle = rng.uniform(0.0, 2 * M_PI), rho = i % 4 == 0 ? kRadius : kRadius * std::sqrt(rng.uniform());
             origins[i] = glm::dvec3(rho * std::cos(angle), rho * std::sin(angle), 0.0);
             raw[i] = focus - origins[i];
-            const glm::dvec3 d = glm::normalize(raw[i]);
-            arrays[0][i] = origins[i].x, arrays[1][i] = origins[i].y, arrays[2][i] = origins[i].z;
-            arrays[3][i] = d.x, arrays[4][i] = d.y, arrays[5][i] = d.z;
           }
-          const lanes_detail::RayArrays rays{arrays[0].data(), arrays[1].data(), arrays[2].data(),
-                                             arrays[3].data(), arrays[4].data(), arrays[5].data()};
-          lanes.trace_rays(rays, kRays, near, &row);
-          for (int i = 0; i < kRays; ++i) {
-            if (row.outcome[i] == PinholeLanes::Outcome::Alone) continue;
-            const DropPath w =
-                trace_through_drops(origins[i], raw[i], n, k.config.tir, k.config.fresnel.enabled, accel, k.scene.glass);
-            const auto where = [&] {
-              return k.name + ", level " + std::to_string(level) + ", pixel " + std::to_string(x) + "," +
-                     std::to_string(y) + ", ray " + std::to_string(i);
-            };
-            ASSERT_TRUE(same_outcome(row, i, w, cam, F, where, &paths[level], &misses[level]));
-          }
+          const auto where = [&](int i) {
+            return k.name + ", level " + std::to_string(level) + ", pixel " + std::to_string(x) + "," +
+                   std::to_string(y) + ", ray " + std::to_string(i);
+          };
+          ASSERT_TRUE(lane_rays_are_trace_paths(lanes, k, accel, cam, F, origins, raw, kRays, near, where, &paths[level],
+                                                &misses[level]));
         }
       }
     }
@@ -312,10 +328,7 @@ TEST(PinholeLanes, RaysAtADropsRimMeetWhatTracePathMeets) {
     for (int level = 0; level <= widest; ++level) {
       const ForcedLevel forced(level);
       const PinholeLanes lanes(cam, accel, k.scene.glass, F, n, k.config.tir, k.config.fresnel.enabled);
-      PinholeLanes::Row row;
       Rng rng(23);
-      std::vector<double> arrays[6];
-      for (auto& v : arrays) v.resize(kRays);
       for (size_t d = 0; d < drops.size(); ++d) {
         glm::dvec3 origins[kRays], raw[kRays];
         std::vector<int> near;
@@ -325,25 +338,15 @@ TEST(PinholeLanes, RaysAtADropsRimMeetWhatTracePathMeets) {
           const glm::dvec3 c = drops[d].centre();
           const glm::dvec3 rim = drops[d].cap_point(drops[d].shape().contact_angle, rng.uniform(0.0, 2 * M_PI));
           raw[i] = c + scales[i % 5] * (rim - c) - origins[i];
-          const glm::dvec3 dir = glm::normalize(raw[i]);
-          arrays[0][i] = origins[i].x, arrays[1][i] = origins[i].y, arrays[2][i] = origins[i].z;
-          arrays[3][i] = dir.x, arrays[4][i] = dir.y, arrays[5][i] = dir.z;
           for (int e = 0; e < static_cast<int>(drops.size()); ++e)
             if (reach.ray_meets(e, origins[i], raw[i]) && std::find(near.begin(), near.end(), e) == near.end())
               near.push_back(e);
         }
-        const lanes_detail::RayArrays rays{arrays[0].data(), arrays[1].data(), arrays[2].data(),
-                                           arrays[3].data(), arrays[4].data(), arrays[5].data()};
-        lanes.trace_rays(rays, kRays, near, &row);
-        for (int i = 0; i < kRays; ++i) {
-          if (row.outcome[i] == PinholeLanes::Outcome::Alone) continue;
-          const DropPath w =
-              trace_through_drops(origins[i], raw[i], n, k.config.tir, k.config.fresnel.enabled, accel, k.scene.glass);
-          const auto where = [&] {
-            return k.name + ", level " + std::to_string(level) + ", drop " + std::to_string(d) + ", ray " + std::to_string(i);
-          };
-          ASSERT_TRUE(same_outcome(row, i, w, cam, F, where, &paths[level], &misses[level]));
-        }
+        const auto where = [&](int i) {
+          return k.name + ", level " + std::to_string(level) + ", drop " + std::to_string(d) + ", ray " + std::to_string(i);
+        };
+        ASSERT_TRUE(lane_rays_are_trace_paths(lanes, k, accel, cam, F, origins, raw, kRays, near, where, &paths[level],
+                                              &misses[level]));
       }
     }
   }
