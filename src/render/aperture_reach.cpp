@@ -26,7 +26,10 @@ ApertureReach::ApertureReach(const std::vector<Drop>& drops, double aperture_rad
     // scale no distance by more than the stretch). For a drop on a tilted glass the box's sphere
     // is about 1.4 times wider, so this one keeps a third or more of the pixels near a small
     // drop, whose rays all miss it, out of the reference.
-    const double pad = 1e-6 * (glm::length(lo) + glm::length(hi)) + 1e-9;
+    // Padded by the drop's coordinates and the aperture's radius: a mesh drop's triangles are met
+    // by Embree in float, relative to a ray's origin, so its hits stray by about 1e-7 of the
+    // distance from a lens point (up to the aperture's radius off the axis) to the drop.
+    const double pad = 1e-6 * (glm::length(lo) + glm::length(hi) + aperture_radius_cm) + 1e-9;
     const double box_radius = 0.5 * glm::length(hi - lo) * (1 + 1e-6) + pad;
     const double footprint_radius = drop.shape().footprint_semi_axes().y * (1 + 1e-6) + pad;
     if (footprint_radius < box_radius) {
