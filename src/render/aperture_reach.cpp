@@ -24,8 +24,8 @@ ApertureReach::ApertureReach(const std::vector<Drop>& drops, double aperture_rad
     // distance^2 r^2 - 2 z (R - h) <= r^2; an irregular outline lies under the cap of its widest
     // radius, drop.h; gravity's stretch along the slope, at least 1, and flattening, at most 1,
     // scale no distance by more than the stretch). For a drop on a tilted glass the box's sphere
-    // is about 1.4 times wider, so this one keeps a third or more of the pixels near a small
-    // drop, whose rays all miss it, out of the reference.
+    // is about 1.4 times wider: with this one the reference has about an eighth fewer pixels near
+    // windshield drops to trace (docs/RESULTS.md 4.69), most of whose rays would have missed.
     // Padded by the drop's coordinates and the aperture's radius: a mesh drop's triangles are met
     // by Embree in float, relative to a ray's origin, so its hits stray by about 1e-7 of the
     // distance from a lens point (up to the aperture's radius off the axis) to the drop.

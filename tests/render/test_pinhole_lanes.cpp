@@ -258,6 +258,28 @@ bool lane_rays_are_trace_paths(const PinholeLanes& lanes, const NamedScene& k, c
   return true;
 }
 
+// The lane cases' scenes the lanes take, each at every register width the processor has:
+// fn(k, drops, accel, lanes, reach, level), with the lanes' background and the reach's focus on
+// the background plane and the reach for a lens disk of `radius`. Stops at a fatal failure.
+template <class Fn>
+void at_every_width_of_each_lane_case(const Camera& cam, double radius, const Fn& fn) {
+  for (const NamedScene& k : lane_cases(cam)) {
+    const std::vector<Drop> drops = drops_of(k.scene);
+    DropAccel accel(drops, k.config.geometry);
+    accel.set_disjoint(k.config.drops_disjoint());
+    if (!PinholeLanes::applies(accel)) continue;
+    const double F = k.scene.background_distance_cm;
+    const ApertureReach reach(drops, radius, F);
+    for (int level = 0; level <= PinholeLanes::level(); ++level) {
+      const ForcedLevel forced(level);
+      const PinholeLanes lanes(cam, accel, k.scene.glass, F, k.config.channel_indices().y, k.config.tir,
+                               k.config.fresnel.enabled);
+      fn(k, drops, accel, lanes, reach, level);
+      if (::testing::Test::HasFatalFailure()) return;
+    }
+  }
+}
+
 // An aperture pixel's rays (trace_rays: any origins, the drops the pixel's cone meets): each
 // ray the lanes trace ends where trace_path ends it, to the bit, and each they call a miss
 // meets no drop; every register width, the lane cases' scenes seen through a 0.6 cm aperture
@@ -265,45 +287,37 @@ bool lane_rays_are_trace_paths(const PinholeLanes& lanes, const NamedScene& k, c
 TEST(PinholeLanes, EachApertureRayPathIsTracePathsToTheBit) {
   SKIP_WITHOUT_LANES();
   const Camera cam = camera(163, 80, 180);
-  const std::vector<NamedScene> cases = lane_cases(cam);
   const int widest = PinholeLanes::level();
   std::vector<std::int64_t> paths(widest + 1, 0), misses(widest + 1, 0);
   constexpr int kRays = 16;
   constexpr double kRadius = 0.3;
-  for (const NamedScene& k : cases) {
-    const std::vector<Drop> drops = drops_of(k.scene);
-    DropAccel accel(drops, k.config.geometry);
-    accel.set_disjoint(k.config.drops_disjoint());
-    if (!PinholeLanes::applies(accel)) continue;
-    const double n = k.config.channel_indices().y, F = k.scene.background_distance_cm;
-    const ApertureReach reach(drops, kRadius, F);
-    for (int level = 0; level <= widest; ++level) {
-      const ForcedLevel forced(level);
-      const PinholeLanes lanes(cam, accel, k.scene.glass, F, n, k.config.tir, k.config.fresnel.enabled);
-      Rng rng(17);
-      for (int y = 0; y < cam.height; y += 3) {
-        for (int x = 0; x < cam.width; x += 3) {
-          const glm::dvec3 focus = F * cam.ray_direction(x, y);
-          std::vector<int> near;
-          for (int d = 0; d < static_cast<int>(drops.size()); ++d)
-            if (reach.cone_meets(d, focus)) near.push_back(d);
-          if (near.empty()) continue;
-          glm::dvec3 origins[kRays], raw[kRays];
-          for (int i = 0; i < kRays; ++i) {
-            const double angle = rng.uniform(0.0, 2 * M_PI), rho = i % 4 == 0 ? kRadius : kRadius * std::sqrt(rng.uniform());
-            origins[i] = glm::dvec3(rho * std::cos(angle), rho * std::sin(angle), 0.0);
-            raw[i] = focus - origins[i];
-          }
-          const auto where = [&](int i) {
-            return k.name + ", level " + std::to_string(level) + ", pixel " + std::to_string(x) + "," +
-                   std::to_string(y) + ", ray " + std::to_string(i);
-          };
-          ASSERT_TRUE(lane_rays_are_trace_paths(lanes, k, accel, cam, F, origins, raw, kRays, near, where, &paths[level],
-                                                &misses[level]));
+  at_every_width_of_each_lane_case(cam, kRadius, [&](const NamedScene& k, const std::vector<Drop>& drops,
+                                                     const DropAccel& accel, const PinholeLanes& lanes,
+                                                     const ApertureReach& reach, int level) {
+    const double F = k.scene.background_distance_cm;
+    Rng rng(17);
+    for (int y = 0; y < cam.height; y += 3) {
+      for (int x = 0; x < cam.width; x += 3) {
+        const glm::dvec3 focus = F * cam.ray_direction(x, y);
+        std::vector<int> near;
+        for (int d = 0; d < static_cast<int>(drops.size()); ++d)
+          if (reach.cone_meets(d, focus)) near.push_back(d);
+        if (near.empty()) continue;
+        glm::dvec3 origins[kRays], raw[kRays];
+        for (int i = 0; i < kRays; ++i) {
+          const double angle = rng.uniform(0.0, 2 * M_PI), rho = i % 4 == 0 ? kRadius : kRadius * std::sqrt(rng.uniform());
+          origins[i] = glm::dvec3(rho * std::cos(angle), rho * std::sin(angle), 0.0);
+          raw[i] = focus - origins[i];
         }
+        const auto where = [&](int i) {
+          return k.name + ", level " + std::to_string(level) + ", pixel " + std::to_string(x) + "," +
+                 std::to_string(y) + ", ray " + std::to_string(i);
+        };
+        ASSERT_TRUE(lane_rays_are_trace_paths(lanes, k, accel, cam, F, origins, raw, kRays, near, where, &paths[level],
+                                              &misses[level]));
       }
     }
-  }
+  });
   expect_many_of_each(paths, misses);
 }
 
@@ -316,43 +330,34 @@ TEST(PinholeLanes, EachApertureRayPathIsTracePathsToTheBit) {
 TEST(PinholeLanes, RaysAtADropsRimMeetWhatTracePathMeets) {
   SKIP_WITHOUT_LANES();
   const Camera cam = camera(163, 80, 180);
-  const std::vector<NamedScene> cases = lane_cases(cam);
   const int widest = PinholeLanes::level();
   std::vector<std::int64_t> paths(widest + 1, 0), misses(widest + 1, 0);
   constexpr int kRays = 16;
   const double scales[] = {1 - 1e-9, 1 - 4e-16, 1, 1 + 4e-16, 1 + 1e-9};
-  for (const NamedScene& k : cases) {
-    const std::vector<Drop> drops = drops_of(k.scene);
-    DropAccel accel(drops, k.config.geometry);
-    accel.set_disjoint(k.config.drops_disjoint());
-    if (!PinholeLanes::applies(accel)) continue;
-    const double n = k.config.channel_indices().y, F = k.scene.background_distance_cm;
-    const ApertureReach reach(drops, 0.3, F);
-    for (int level = 0; level <= widest; ++level) {
-      const ForcedLevel forced(level);
-      const PinholeLanes lanes(cam, accel, k.scene.glass, F, n, k.config.tir, k.config.fresnel.enabled);
-      Rng rng(23);
-      for (size_t d = 0; d < drops.size(); ++d) {
-        glm::dvec3 origins[kRays], raw[kRays];
-        std::vector<int> near;
-        for (int i = 0; i < kRays; ++i) {
-          const double angle = rng.uniform(0.0, 2 * M_PI), rho = 0.3 * std::sqrt(rng.uniform());
-          origins[i] = glm::dvec3(rho * std::cos(angle), rho * std::sin(angle), 0.0);
-          const glm::dvec3 c = drops[d].centre();
-          const glm::dvec3 rim = drops[d].cap_point(drops[d].shape().contact_angle, rng.uniform(0.0, 2 * M_PI));
-          raw[i] = c + scales[i % 5] * (rim - c) - origins[i];
-          for (int e = 0; e < static_cast<int>(drops.size()); ++e)
-            if (reach.ray_meets(e, origins[i], raw[i]) && std::find(near.begin(), near.end(), e) == near.end())
-              near.push_back(e);
-        }
-        const auto where = [&](int i) {
-          return k.name + ", level " + std::to_string(level) + ", drop " + std::to_string(d) + ", ray " + std::to_string(i);
-        };
-        ASSERT_TRUE(lane_rays_are_trace_paths(lanes, k, accel, cam, F, origins, raw, kRays, near, where, &paths[level],
-                                              &misses[level]));
+  at_every_width_of_each_lane_case(cam, 0.3, [&](const NamedScene& k, const std::vector<Drop>& drops,
+                                                 const DropAccel& accel, const PinholeLanes& lanes,
+                                                 const ApertureReach& reach, int level) {
+    Rng rng(23);
+    for (size_t d = 0; d < drops.size(); ++d) {
+      glm::dvec3 origins[kRays], raw[kRays];
+      std::vector<int> near;
+      for (int i = 0; i < kRays; ++i) {
+        const double angle = rng.uniform(0.0, 2 * M_PI), rho = 0.3 * std::sqrt(rng.uniform());
+        origins[i] = glm::dvec3(rho * std::cos(angle), rho * std::sin(angle), 0.0);
+        const glm::dvec3 c = drops[d].centre();
+        const glm::dvec3 rim = drops[d].cap_point(drops[d].shape().contact_angle, rng.uniform(0.0, 2 * M_PI));
+        raw[i] = c + scales[i % 5] * (rim - c) - origins[i];
+        for (int e = 0; e < static_cast<int>(drops.size()); ++e)
+          if (reach.ray_meets(e, origins[i], raw[i]) && std::find(near.begin(), near.end(), e) == near.end())
+            near.push_back(e);
       }
+      const auto where = [&](int i) {
+        return k.name + ", level " + std::to_string(level) + ", drop " + std::to_string(d) + ", ray " + std::to_string(i);
+      };
+      ASSERT_TRUE(lane_rays_are_trace_paths(lanes, k, accel, cam, k.scene.background_distance_cm, origins, raw, kRays,
+                                            near, where, &paths[level], &misses[level]));
     }
-  }
+  });
   expect_many_of_each(paths, misses);
 }
 
