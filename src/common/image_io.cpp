@@ -91,6 +91,18 @@ Opened open_image(const fs::path& path, bool check_data = true, bool keep_png_fi
   return o;
 }
 
+// A colour profile carried from input to output: one that is an ICC profile by its header (its
+// size field its length, the 'acsp' signature) and at most kMaxCarriedProfile bytes. Anything
+// else is left behind: a fuzzer's 9 MB "profile" made outputs that OpenCV (and so the Python
+// tools) and Pillow refuse to read; real profiles are kilobytes, rarely over a few hundred.
+constexpr std::size_t kMaxCarriedProfile = 1 << 20;
+bool carried_profile(const std::string& icc) {
+  if (icc.size() < 132 || icc.size() > kMaxCarriedProfile || icc.compare(36, 4, "acsp") != 0) return false;
+  std::uint32_t declared = 0;
+  for (int i = 0; i < 4; ++i) declared = declared << 8 | static_cast<unsigned char>(icc[i]);
+  return declared == icc.size();
+}
+
 // The whole image as stored: CV_8U, CV_16U or (float files) CV_32F, with the header's channels.
 // `from_bytes_read`, if given: set to whether a PNG's pixels came from the bytes open_image read
 // (not from libpng reading the file again, as it does where our own decoding gives up).
@@ -100,6 +112,7 @@ cv::Mat decode(const fs::path& path, const Opened& o, std::string* icc = nullptr
                   : o.route == Route::jpeg ? jpeg::decode(path, icc)
                                            : oiio::codec(quoted(path) + ": reading this file").decode(path);
   if (icc && o.route == Route::png) *icc = png::icc_profile(o.png);
+  if (icc && !carried_profile(*icc)) icc->clear();
   if (image.cols != o.header.width || image.rows != o.header.height || image.channels() != o.header.channels)
     throw Error(quoted(path) + ": cannot decode (the pixels do not match the header)");
   return image;

@@ -61,7 +61,7 @@ void check_png_image_data(const fs::path& path, const std::string& idat, const s
   std::vector<unsigned char> out(1 << 16);
   size_t fed = 0, run = 0;
   std::uint64_t row = 0, left_in_row = 0;  // position in the expected rows
-  bool done = rows.empty(), end = false;
+  bool done = rows.empty(), end = false, extra = false;
   int ret = Z_OK;
   while (true) {
     if (z.avail_in == 0 && fed < idat.size()) {
@@ -74,7 +74,8 @@ void check_png_image_data(const fs::path& path, const std::string& idat, const s
     z.avail_out = static_cast<uInt>(out.size());
     ret = ::inflate(&z, Z_NO_FLUSH);
     const size_t produced = out.size() - z.avail_out;
-    for (size_t i = 0; i < produced && !done;) {
+    size_t i = 0;
+    for (; i < produced && !done;) {
       if (left_in_row == 0) {  // a row starts with its filter type
         if (out[i] > 4) {
           ::inflateEnd(&z);
@@ -91,10 +92,34 @@ void check_png_image_data(const fs::path& path, const std::string& idat, const s
       }
     }
     end = ret == Z_STREAM_END;
+    extra = done && i < produced;
     // Stop at the last row, as libpng does (data past it is ignored, and a stream that
     // inflates far beyond the declared size costs nothing), at the end of the stream, or
     // when zlib can make no progress (Z_BUF_ERROR: the data ran out) or finds an error.
     if (done || ret != Z_OK) break;
+  }
+  // After the last row libpng (png_read_finish_IDAT) reads on until the stream ends or gives a
+  // byte more (ignored); image data that runs out before either fails there with "Not enough
+  // image data", which OpenImageIO's libpng prints: a stream cut inside its Adler-32, or one
+  // never finished (a flushed but unterminated deflate stream). One byte of output is enough.
+  while (done && !end && !extra && (ret == Z_OK || ret == Z_BUF_ERROR)) {
+    if (z.avail_in == 0) {
+      if (fed == idat.size()) {
+        ::inflateEnd(&z);
+        throw Error(quoted(path) + ": truncated PNG (the image data ends before its compressed stream does)");
+      }
+      const size_t n = std::min<size_t>(idat.size() - fed, 1u << 30);
+      z.next_in = reinterpret_cast<Bytef*>(const_cast<char*>(idat.data() + fed));
+      z.avail_in = static_cast<uInt>(n);
+      fed += n;
+    }
+    z.next_out = out.data();
+    z.avail_out = 1;
+    ret = ::inflate(&z, Z_NO_FLUSH);
+    // A damaged tail (a wrong Adler-32) is a benign error to libpng after the last row.
+    if (ret != Z_OK && ret != Z_STREAM_END && ret != Z_BUF_ERROR) ret = Z_STREAM_END;
+    end = ret == Z_STREAM_END;
+    extra = z.avail_out == 0;
   }
   const std::string why = z.msg ? z.msg : "";
   ::inflateEnd(&z);

@@ -309,6 +309,10 @@ void build_layer(Layer& layer, int index, const TraceResult& traced, double diam
     px.allocate(s);
     for (int j = 0; j < n_rows; ++j) {
       const Span e = px.extent[j];
+      // A row between the drop's first and last that holds none of its pixels (merged drops:
+      // another's label there) keeps the empty span {INT_MAX, INT_MIN}; skipped, as the coarse
+      // path below skips it, before e.first - px.x0 overflows (UBSan, lens-cover-merged).
+      if (e.first > e.second) continue;
       const int* label = traced.label.ptr<int>(px.y0 + j);
       const auto* rgb = traced.color.ptr<cv::Vec3f>(px.y0 + j);
       const float* cov = traced.coverage.empty() ? nullptr : traced.coverage.ptr<float>(px.y0 + j);

@@ -9,6 +9,8 @@
 
 #include <OpenImageIO/imageio.h>
 #include <gtest/gtest.h>
+
+#include <tuple>
 #include <unistd.h>
 
 #include "raindrop/common/error.h"
@@ -153,6 +155,35 @@ TEST(ImageIo, ColourProfilesAreWrittenAndReadBack) {
     }
   }
   std::filesystem::remove_all(dir);
+}
+
+// Only a profile that is one by its header, and at most 1 MiB, is carried: a file whose "profile"
+// is 9 MB of noise gave outputs that OpenCV and Pillow refuse to read (a fuzzer's). Written
+// into PNG and JPEG by the test, each read back as none; the pixels are read all the same.
+TEST(ImageIo, OnlyAPlausibleProfileOfAtMostAMegabyteIsCarried) {
+  testsupport::TempDir tmp("raindrop-icc-");
+  cv::Mat rgb(24, 32, CV_8UC3);
+  cv::randu(rgb, 0, 256);
+  const std::string good = testsupport::test_icc_profile("RGB ", 1000);
+  std::string wrong_size = good, no_signature = good;
+  wrong_size[3] = static_cast<char>(wrong_size[3] + 4);
+  no_signature[36] = 'x';
+  const std::string largest = testsupport::test_icc_profile("RGB ", ((1 << 20) - 132) / 4);
+  const std::string too_large = testsupport::test_icc_profile("RGB ", ((1 << 20) - 132) / 4 + 1);
+  ASSERT_EQ(largest.size(), 1u << 20);
+  for (const auto& [why, icc, kept] : {std::tuple{"a profile", good, true}, std::tuple{"1 MiB", largest, true},
+                                       std::tuple{"its size field off", wrong_size, false},
+                                       std::tuple{"no 'acsp'", no_signature, false},
+                                       std::tuple{"1 MiB and 4 bytes", too_large, false}}) {
+    for (const char* name : {"p.png", "p.jpg"}) {
+      SCOPED_TRACE(std::string(why) + ", " + name);
+      write_image_atomic(rgb, tmp / name, kPngFast, icc);
+      std::string read = "stale";
+      const cv::Mat back = read_image_native(tmp / name, 1, &read);
+      EXPECT_EQ(read, kept ? icc : "");
+      EXPECT_EQ(back.size(), rgb.size());
+    }
+  }
 }
 
 // Staged images appear together at commit, or not at all: nothing is at its name before the

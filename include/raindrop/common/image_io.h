@@ -59,8 +59,9 @@ void check_rgb8_header(const std::filesystem::path& path, bool convert, int min_
 // The image with its own channels (1-4) and depth: CV_8U or CV_16U (float inputs are refused,
 // other integer depths become CV_16U). For raindrop-remove, which keeps size, channels and bit depth.
 // With `icc_profile`, also the file's ICC colour profile, for writing it back with the output
-// (PNG's iCCP chunk, JPEG's APP2 markers; "" when the file has none, or for the formats that go
-// through OpenImageIO, whose profiles are not carried).
+// (PNG's iCCP chunk, JPEG's APP2 markers; "" when the file has none, when what it holds is not
+// an ICC profile by its header or is over 1 MiB, or for the formats that go through OpenImageIO,
+// whose profiles are not carried).
 cv::Mat read_image_native(const std::filesystem::path& path, int min_size = 1, std::string* icc_profile = nullptr);
 
 // Throws the Error read_image_native would throw for what the file's header shows, without
