@@ -7,7 +7,7 @@
 # windshield-followup longer growth sharpness coalesce surround largewidth largedrops-all windshield2
 # errorsplit withoutvnni graphrewrites jitter windshieldscale router routed int8router droplets realismcontrol
 # droplets2 infocus realismbar windshieldday fillarea finedrops lanes glassplate platerecon aperturelanes headrouter int8head headthreshold dilation coarsescales mainthreshold
-# rim headtext headnight workers int8default sampledlayers
+# rim headtext headnight workers int8default sampledlayers dry
 #
 # Sections measured before docs/RESULTS.md 4.44 run compact-windshield's detector (and the routed
 # default) with --surround-fill-area 150, the area they had then, so that they reproduce.
@@ -36,7 +36,7 @@ sections=("$@")
                                   surround largewidth largedrops-all windshield2 errorsplit withoutvnni graphrewrites
                                   jitter windshieldscale router routed int8router droplets realismcontrol droplets2 infocus realismbar
                                   windshieldday fillarea finedrops lanes glassplate platerecon aperturelanes headrouter int8head headthreshold dilation coarsescales mainthreshold
-                                  rim headtext headnight workers int8default sampledlayers)
+                                  rim headtext headnight workers int8default sampledlayers dry)
 want() { [[ " ${sections[*]} " == *" $1 "* ]]; }
 # link_set SRC DST SPLIT [LIMIT]: the first LIMIT (default 100; 0: all) samples of data set SRC
 # (of manifest split SPLIT; "-" = all) linked into DST/rainy and DST/clean (and DST/mask, where
@@ -3180,4 +3180,150 @@ PY
     done
   done | tee "$sl/end-to-end.txt"
   rm -rf "$sl/render-before" "$sl/render-now" "$sl/e2e"
+fi
+
+if want dry; then
+  # RESULTS 4.70: what raindrop-remove does to photographs without drops. Every change there is
+  # damage: the output's PSNR-Y against its own input and the share of pixels marked
+  # (text_negatives damage), on the clean images of the test sets (the real pairs' dry lens,
+  # CamVid and Cityscapes frames), beside the real pairs' rainy test split scored as usual; the
+  # default (float and int8, named, so that the figures do not depend on this CPU) and the
+  # knobs a user could turn.
+  router_sets
+  windshield_1280_sets
+  dr="$out/dry"
+  mkdir -p "$dr"
+  link_set data/real-pairs "$dr/pairs" test 0
+  link_set data/test-sparse "$dr/sparse" - 0
+  link_set data/test-wsday-1280x720 "$dr/camvid1280" - 0
+  link_set data/test-size-1280x720 "$dr/cityscapes1280" - 0
+  {
+    for v in "float:--model-config compact-multiscale" "int8:--model-config compact-multiscale-int8" \
+      "float-no-large-drops:--model-config compact-multiscale --no-large-drops" \
+      "float-no-router:--model-config compact-multiscale --no-router" \
+      "float-threshold-0.85:--model-config compact-multiscale --threshold 0.85" \
+      "compact:--model-config compact" "paper:--model-config paper"; do
+      name=${v%%:*}
+      read -r -a flags <<<"${v#*:}"
+      sets=(pairs)
+      [[ $name == float || $name == int8 ]] && sets=(pairs sparse camvid1280 cityscapes1280)
+      for set in "${sets[@]}"; do
+        rm -rf "$dr/run"
+        build/raindrop-remove "$dr/$set/clean" "$dr/run/out" --mask-dir "$dr/run/masks" -q -j 2 "${flags[@]}"
+        $py -m raindrop_tools.text_negatives damage --inputs "$dr/$set/clean" --outputs "$dr/run/out" \
+          --masks "$dr/run/masks" --label "$name, $set without drops"
+      done
+      rm -rf "$dr/run"
+      build/raindrop-remove "$dr/pairs/rainy" "$dr/run/out" -q -j 2 "${flags[@]}"
+      $py -m raindrop_tools.score_outputs --data "$dr/pairs" --outputs "$dr/run/out" --label "$name, pairs with drops"
+    done
+  } | tee "$dr/damage.txt"
+  rm -rf "$dr/run"
+  # --keep-outside-mask (4.70): images the networks see at full size keep their pixels outside
+  # the mask. The default and the default with it, on the sets that run at full size (the
+  # 1280x720 ones go through the working scale, unchanged by it): validation, then test once;
+  # the drop-free frames again; and the size gap of the held-out Cityscapes frames, float and
+  # int8, that kept it from being the default.
+  link_set data/val-sparse "$dr/val-sparse" - 0
+  link_set data/val-windshield-sharp "$dr/val-ws" - 0
+  link_set data/val-glass-plate "$dr/val-plate" - 0
+  link_set data/real-pairs "$dr/pairs-train" train 0
+  link_set data/test-windshield-sharp "$dr/test-ws" - 0
+  {
+    for set in pairs-train val-sparse val-ws val-plate pairs sparse test-ws; do
+      for m in default kept; do
+        flags=()
+        [[ $m == kept ]] && flags=(--keep-outside-mask)
+        rm -rf "$dr/run"
+        build/raindrop-remove "$dr/$set/rainy" "$dr/run/out" -q -j 2 "${flags[@]}"
+        $py -m raindrop_tools.score_outputs --data "$dr/$set" --outputs "$dr/run/out" --label "$m, $set"
+        [[ $set == pairs || $set == sparse ]] || continue
+        rm -rf "$dr/run"
+        build/raindrop-remove "$dr/$set/clean" "$dr/run/out" --mask-dir "$dr/run/masks" -q -j 2 "${flags[@]}"
+        $py -m raindrop_tools.text_negatives damage --inputs "$dr/$set/clean" --outputs "$dr/run/out" \
+          --masks "$dr/run/masks" --label "$m, $set without drops"
+      done
+    done
+    link_set data/test-size-512x288 "$dr/size512" - 0
+    link_set data/test-size-1280x720 "$dr/size1280" - 0
+    for models in compact-multiscale compact-multiscale-int8; do
+      for m in default kept; do
+        flags=()
+        [[ $m == kept ]] && flags=(--keep-outside-mask)
+        for set in size512 size1280; do
+          rm -rf "$dr/run"
+          build/raindrop-remove "$dr/$set/rainy" "$dr/run/out" -q -j 2 --model-config "$models" "${flags[@]}"
+          $py -m raindrop_tools.score_outputs --data "$dr/$set" --outputs "$dr/run/out" --label "$models $m, $set"
+        done
+      done
+    done
+  } | tee "$dr/outside-mask.txt"
+  rm -rf "$dr/run"
+  # Can the program tell a photograph without drops by itself? The router's ten features
+  # (detector_router.features) of both of the default's maps, rainy against dry: each feature
+  # alone on the real pairs; a logistic gate fitted on the real pairs' train split and scored on
+  # their test split (one camera); and one fitted on every validation set (each weighted alike)
+  # and scored on the test sets and the 44 photographs, all of which hold drops.
+  PYTHONPATH=tools $py - "$shared/real-raindrop" <<'PY' | tee "$dr/gate.txt"
+import glob, json, os, sys
+import cv2, numpy as np, onnxruntime as ort
+from raindrop_tools.detector_router import features, working_copy
+opts = ort.SessionOptions()
+opts.intra_op_num_threads = 2
+rdn = ort.InferenceSession("models/compact-multiscale/rdn.onnx", opts)
+def feats(paths):
+    out = []
+    for p in paths:
+        small = working_copy(cv2.imread(p)[:, :, ::-1])
+        h, w = small.shape[:2]
+        x = np.zeros((1, 3, (h + 7) // 8 * 8, (w + 7) // 8 * 8), np.float32)
+        x[0, :, :h, :w] = small.transpose(2, 0, 1) / 255.0
+        out.append(np.concatenate([features(m[0, 0, :h, :w]) for m in rdn.run(None, {"image": x})]))
+    return np.array(out)
+def pair(d, keep=lambda name: True):
+    names = [n for n in sorted(os.listdir(f"data/{d}/rainy")) if keep(n)]
+    return feats([f"data/{d}/rainy/{n}" for n in names]), feats([f"data/{d}/clean/{n}" for n in names])
+def auc(score, y):
+    r, c = score[y == 1], score[y == 0]
+    return np.mean(r[:, None] > c[None, :]) + 0.5 * np.mean(r[:, None] == c[None, :])
+def fit(sets):  # logistic regression, each set weighted alike, a small L2 penalty
+    X = np.vstack([np.vstack(rc) for rc in sets])
+    y = np.concatenate([np.r_[np.ones(len(r)), np.zeros(len(c))] for r, c in sets])
+    wt = np.concatenate([np.full(len(r) + len(c), 1.0 / (len(r) + len(c))) for r, c in sets])
+    wt /= wt.mean()
+    mu, sd = X.mean(0), X.std(0) + 1e-9
+    Z, w, b = (X - mu) / sd, np.zeros(X.shape[1]), 0.0
+    for _ in range(20000):
+        g = wt * (1 / (1 + np.exp(-(Z @ w + b))) - y)
+        w -= 0.3 * ((Z * g[:, None]).mean(0) + 1e-3 * w)
+        b -= 0.3 * g.mean()
+    return lambda F: ((F - mu) / sd) @ w + b
+test_groups = tuple(json.load(open("data/real-pairs/realpairs.json"))["groups"]["test"])  # robotcar_i<k>, crops _t<n>
+pairs_train = pair("real-pairs", lambda n: not n.startswith(tuple(g + "_" for g in test_groups)))
+pairs_test = pair("real-pairs", lambda n: n.startswith(tuple(g + "_" for g in test_groups)))
+names = ["P>0.3", "0.05<P<=0.3", "mean P", "P>0.02"] + [f"{k}@{t}" for t in (0.05, 0.15, 0.3) for k in ("small parts", "median part")]
+X = np.vstack([*pairs_train, *pairs_test])
+y = np.r_[np.ones(len(pairs_train[0])), np.zeros(len(pairs_train[1])), np.ones(len(pairs_test[0])), np.zeros(len(pairs_test[1]))]
+print("real pairs, rainy against dry, each feature of the main map alone: AUC " +
+      ", ".join(f"{n} {max(auc(X[:, i], y), 1 - auc(X[:, i], y)):.2f}" for i, n in enumerate(names)))
+gate = fit([pairs_train])
+r, c = gate(pairs_test[0]), gate(pairs_test[1])
+print(f"gate fitted on the real pairs' train split, on their test split: AUC {auc(np.r_[r, c], np.r_[np.ones(len(r)), np.zeros(len(c))]):.2f}; "
+      + ", ".join(f"keeping {k:.0%} of the rainy images it passes over {np.mean(c < np.quantile(r, 1 - k)):.0%} of the dry ones" for k in (0.95, 0.99)))
+val = {d: pair(d) for d in ("val-sparse", "val-wsday-1280x720", "val-ws-1280x720", "val-glass-plate", "val-size-1280x720")}
+val["real-pairs train split"] = pairs_train
+test = {d: pair(d) for d in ("test-sparse", "test-windshield-sharp", "test-ws-1280x720", "test-wsday-1280x720", "test-size-1280x720")}
+test["real-pairs test split"] = pairs_test
+photos = sorted(glob.glob(os.path.join(sys.argv[1], "*")))
+gate_all = fit(list(val.values()))
+photo_scores = gate_all(feats(photos))
+for q in (0.0, 0.01):  # below every validation rainy image, and below all but 1% of them
+    rainy_val = np.concatenate([gate_all(r) for r, _ in val.values()])
+    th = rainy_val.min() if q == 0 else np.quantile(rainy_val, q)
+    print(f"gate fitted on every validation set, threshold {'below every' if q == 0 else 'at the 1st percentile of'} validation rainy image:")
+    for d, (r, c) in {**val, **test}.items():
+        print(f"  {d}: rainy images passed over {np.mean(gate_all(r) < th):.1%}, dry ones {np.mean(gate_all(c) < th):.1%}")
+    print(f"  the 44 photographs: {np.sum(photo_scores < th)} passed over: "
+          + " ".join(os.path.basename(p) for p, v in zip(photos, photo_scores) if v < th))
+PY
 fi

@@ -276,8 +276,10 @@ RemoveResult Remover::run(const cv::Mat& image, const RemoveOptions& opt) {
   }
   const auto working_pass = [&] {
     try {
-      res = small == image.size() ? run_native(image, opt, {}, {}, false, detection)
-                                  : run_scaled(image, working, opt, scale, detection);
+      // At full size, keep_outside_mask composites the result over the input with the mask as
+      // a larger image's is (an identity upsampling) instead of taking the RFN's output whole.
+      res = small == image.size() && !opt.keep_outside_mask ? run_native(image, opt, {}, {}, false, detection)
+                                                            : run_scaled(image, working, opt, scale, detection);
     } catch (...) {
       decision.fail(std::current_exception());  // a coarse pass waiting for the decision stops too
       throw;

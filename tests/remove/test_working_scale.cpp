@@ -258,11 +258,76 @@ TEST(WorkingScale, EmptyMaskReturnsTheInputBitForBit) {
     EXPECT_EQ(cv::countNonZero(r.mask), 0);
     EXPECT_EQ(max_abs_diff(r.image, *m), 0) << "channels " << m->channels();
   }
+  // At scale 1 the refine network's output everywhere (the contract's step 7), unless the
+  // pixels outside the mask are to be kept (remover.h, keep_outside_mask).
   RemoveOptions native = none;
   native.scale = 1.0;
   const RemoveResult r = smoke().run(rgb8, native);
   EXPECT_EQ(r.scale, 1.0);
   EXPECT_GT(max_abs_diff(r.image, rgb8), 0) << "the refine network ran on every pixel at scale 1";
+  native.keep_outside_mask = true;
+  EXPECT_EQ(max_abs_diff(smoke().run(rgb8, native).image, rgb8), 0);
+}
+
+// With keep_outside_mask, images the networks see at full size (at or below the working size,
+// or scale 1) keep every pixel outside the final mask bit for bit, in every pixel format, as
+// larger images do; inside it they take the pipeline's output (the contract's step 7: the
+// refine network's output everywhere, the default, which changes pixels outside the mask too).
+TEST(WorkingScale, ImagesAtFullSizeKeepTheirPixelsOutsideTheMask) {
+  const cv::Mat rgb8 = make_image(480, 320, 44);
+  cv::Mat rgb16, rgba8, grey8;
+  rgb8.convertTo(rgb16, CV_16U, 257.0);
+  rgb16.at<cv::Vec3w>(9, 4) = cv::Vec3w(3, 65533, 40001);
+  cv::cvtColor(rgb8, rgba8, cv::COLOR_RGB2RGBA);
+  cv::Mat alpha(rgb8.size(), CV_8U);
+  cv::randu(alpha, 0, 255);
+  cv::insertChannel(alpha, rgba8, 3);
+  cv::cvtColor(rgb8, grey8, cv::COLOR_RGB2GRAY);
+  for (const cv::Mat* m : {&rgb8, static_cast<const cv::Mat*>(&rgb16), static_cast<const cv::Mat*>(&rgba8),
+                           static_cast<const cv::Mat*>(&grey8)}) {
+    SCOPED_TRACE("type " + std::to_string(m->type()));
+    // The smoke detector's map is flat-ish: the first threshold that masks between a twentieth
+    // and nineteen twentieths of the image.
+    RemoveOptions o;
+    o.keep_outside_mask = true;
+    RemoveResult r;
+    for (const double t : {0.5, 0.45, 0.4, 0.35, 0.3, 0.25, 0.2, 0.15, 0.1, 0.05, 0.02}) {
+      o.threshold = t;
+      r = smoke().run(*m, o);
+      const double covered = cv::countNonZero(r.mask) / static_cast<double>(r.mask.total());
+      if (covered > 0.05 && covered < 0.95) break;
+    }
+    ASSERT_EQ(r.scale, 1.0);
+    const double covered = cv::countNonZero(r.mask) / static_cast<double>(r.mask.total());
+    ASSERT_GT(covered, 0.05) << "no threshold masks part of the image";
+    ASSERT_LT(covered, 0.95);
+    RemoveOptions paper = o;
+    paper.keep_outside_mask = false;
+    const RemoveResult everywhere = smoke().run(*m, paper);
+    EXPECT_EQ(cv::countNonZero(everywhere.mask != r.mask), 0) << "the same mask either way";
+    const double one_level = m->depth() == CV_16U ? 257.0 : 1.0;
+    int outside_changed_by_rfn = 0;
+    for (int y = 0; y < m->rows; ++y) {
+      for (int x = 0; x < m->cols; ++x) {
+        const bool masked = r.mask.at<unsigned char>(y, x) != 0;
+        for (int c = 0; c < m->channels(); ++c) {
+          const double in = m->depth() == CV_16U ? m->ptr<std::uint16_t>(y)[x * m->channels() + c]
+                                                 : m->ptr<unsigned char>(y)[x * m->channels() + c];
+          const double got = m->depth() == CV_16U ? r.image.ptr<std::uint16_t>(y)[x * m->channels() + c]
+                                                  : r.image.ptr<unsigned char>(y)[x * m->channels() + c];
+          const double rfn = m->depth() == CV_16U ? everywhere.image.ptr<std::uint16_t>(y)[x * m->channels() + c]
+                                                  : everywhere.image.ptr<unsigned char>(y)[x * m->channels() + c];
+          if (!masked || (m->channels() == 4 && c == 3)) {
+            ASSERT_EQ(got, in) << "outside the mask (or alpha) at " << x << "," << y;
+            outside_changed_by_rfn += rfn != in;
+          } else {
+            ASSERT_LE(std::abs(got - rfn), one_level) << "inside the mask at " << x << "," << y;
+          }
+        }
+      }
+    }
+    EXPECT_GT(outside_changed_by_rfn, 0) << "the refine network changes pixels outside the mask when kept everywhere";
+  }
 }
 
 // A full mask: the output is the networks' result on the area-downscaled copy, upsampled.
@@ -313,6 +378,35 @@ TEST(WorkingScale, ScaleOutsideTheUnitIntervalIsRefused) {
     RemoveOptions o;
     o.scale = bad;
     EXPECT_THROW(smoke().run(img, o), raindrop::Error) << bad;
+  }
+}
+
+// --keep-outside-mask reaches the remover: a 320x240 image (seen at full size) and its mask
+// written; every pixel the mask leaves out is the input's with the flag, and not all without.
+TEST(WorkingScaleCli, KeepOutsideMaskKeepsTheInputsPixels) {
+  TempDir tmp;
+  const cv::Mat img = make_image(320, 240, 45);
+  write_image(tmp / "in.png", img);
+  for (const bool keep : {true, false}) {
+    std::vector<std::string> args = {"in.png", "out.png", "--models", smoke_models().string(), "--mask", "mask.png",
+                                     "--threshold", "0.3"};
+    if (keep) args.push_back("--keep-outside-mask");
+    const RunResult r = run_remove(args, tmp.path());
+    ASSERT_EQ(r.code, 0) << r.describe();
+    const auto out = read_image(tmp / "out.png");
+    const auto mask = read_image(tmp / "mask.png");
+    ASSERT_TRUE(out && mask);
+    ASSERT_GT(cv::countNonZero(mask->pixels), 0);
+    ASSERT_LT(cv::countNonZero(mask->pixels), static_cast<int>(mask->pixels.total()));
+    cv::Mat differs;
+    cv::absdiff(out->pixels, img, differs);
+    cv::cvtColor(differs, differs, cv::COLOR_RGB2GRAY);
+    const int outside_changed = cv::countNonZero((differs > 0) & (mask->pixels == 0));
+    if (keep) {
+      EXPECT_EQ(outside_changed, 0);
+    } else {
+      EXPECT_GT(outside_changed, 0) << "the refine network's output everywhere by default";
+    }
   }
 }
 
