@@ -399,9 +399,9 @@ int run(int argc, char** argv) {
   app.add_flag("--keep-outside-mask", keep_outside_mask,
                "Images the networks see at full size (long side at most 512 without --scale, or --scale 1): keep the "
                "input's own pixels outside the mask, as larger images always do, instead of the refinement network's "
-               "output everywhere (the paper's pipeline, which changed street frames without drops by up to 21 levels "
-               "far from any detection): +0.37 dB on sparse rendered drops at 512x256, the same elsewhere "
-               "(docs/RESULTS.md 4.70)");
+               "output everywhere (the paper's pipeline, which changed street frames without drops by up to about 30 "
+               "levels far from any detection): +0.3 dB on held-out sparse rendered drops at 512x256, the same "
+               "elsewhere (docs/RESULTS.md 4.70)");
   app.add_flag("--fine-drops", fine_drops,
                "After both passes, run the detector again at 1.5 times the working scale and fill the small drops it "
                "finds over smooth surroundings (sky, walls, road) from them: the tiny sharp drops of windshield and "

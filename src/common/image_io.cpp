@@ -91,16 +91,18 @@ Opened open_image(const fs::path& path, bool check_data = true, bool keep_png_fi
   return o;
 }
 
-// A colour profile carried from input to output: one that is an ICC profile by its header (its
-// size field its length, the 'acsp' signature) and at most kMaxCarriedProfile bytes. Anything
-// else is left behind: a fuzzer's 9 MB "profile" made outputs that OpenCV (and so the Python
-// tools) and Pillow refuse to read; real profiles are kilobytes, rarely over a few hundred.
+// A colour profile carried from input to output: one that is an ICC profile by its header (the
+// 'acsp' signature, a size field of at least the header's 128 bytes and its tag count and at
+// most what is stored: some monitor profiles understate it by a few dozen bytes of padding, which
+// Little CMS accepts) and at most kMaxCarriedProfile bytes, carried as stored. Anything else is
+// left behind: a fuzzer's 9 MB "profile" made outputs that OpenCV (and so the Python tools) and
+// Pillow refuse to read (Pillow reads 1 MiB); real profiles are kilobytes, rarely a few hundred.
 constexpr std::size_t kMaxCarriedProfile = 1 << 20;
 bool carried_profile(const std::string& icc) {
   if (icc.size() < 132 || icc.size() > kMaxCarriedProfile || icc.compare(36, 4, "acsp") != 0) return false;
   std::uint32_t declared = 0;
   for (int i = 0; i < 4; ++i) declared = declared << 8 | static_cast<unsigned char>(icc[i]);
-  return declared == icc.size();
+  return declared >= 132 && declared <= icc.size();
 }
 
 // The whole image as stored: CV_8U, CV_16U or (float files) CV_32F, with the header's channels.

@@ -157,22 +157,31 @@ TEST(ImageIo, ColourProfilesAreWrittenAndReadBack) {
   std::filesystem::remove_all(dir);
 }
 
-// Only a profile that is one by its header, and at most 1 MiB, is carried: a file whose "profile"
-// is 9 MB of noise gave outputs that OpenCV and Pillow refuse to read (a fuzzer's). Written
-// into PNG and JPEG by the test, each read back as none; the pixels are read all the same.
+// Only a profile that is one by its header, and at most 1 MiB, is carried, as stored (padding
+// past its size field included): a file whose "profile" is 9 MB of noise gave outputs that
+// OpenCV and Pillow refuse to read (a fuzzer's). Written into PNG and JPEG by the test; those
+// refused read back as none, and the pixels are read all the same.
 TEST(ImageIo, OnlyAPlausibleProfileOfAtMostAMegabyteIsCarried) {
   testsupport::TempDir tmp("raindrop-icc-");
   cv::Mat rgb(24, 32, CV_8UC3);
   cv::randu(rgb, 0, 256);
   const std::string good = testsupport::test_icc_profile("RGB ", 1000);
-  std::string wrong_size = good, no_signature = good;
-  wrong_size[3] = static_cast<char>(wrong_size[3] + 4);
+  const auto declaring = [&good](std::uint32_t size) {  // the profile with its size field set to `size`
+    std::string p = good;
+    for (int i = 0; i < 4; ++i) p[i] = static_cast<char>(size >> (24 - 8 * i));
+    return p;
+  };
+  const auto n = static_cast<std::uint32_t>(good.size());
+  const std::string overstated = declaring(n + 4);   // says 4 bytes more than there are
+  const std::string understated = declaring(n - 52);  // padded: a monitor profile's habit
+  std::string no_signature = good;
   no_signature[36] = 'x';
   const std::string largest = testsupport::test_icc_profile("RGB ", ((1 << 20) - 132) / 4);
   const std::string too_large = testsupport::test_icc_profile("RGB ", ((1 << 20) - 132) / 4 + 1);
   ASSERT_EQ(largest.size(), 1u << 20);
   for (const auto& [why, icc, kept] : {std::tuple{"a profile", good, true}, std::tuple{"1 MiB", largest, true},
-                                       std::tuple{"its size field off", wrong_size, false},
+                                       std::tuple{"its size field past its end", overstated, false},
+                                       std::tuple{"52 bytes of padding past its size", understated, true},
                                        std::tuple{"no 'acsp'", no_signature, false},
                                        std::tuple{"1 MiB and 4 bytes", too_large, false}}) {
     for (const char* name : {"p.png", "p.jpg"}) {

@@ -87,11 +87,13 @@ struct RemoveOptions {
   // parts it finds over smooth surroundings filled from them (fine_drops.h). Off: no such pass.
   bool fine_drops = false;
   // Images the networks see at full size (the automatic scale at or below the working size, or
-  // `scale` 1) keep the input's own pixels wherever the final mask is 0, as larger images always
-  // do (the composite of working_scale.h with the mask itself). Off (the default, the contract's
-  // step 7): the RFN's output everywhere; it refines the whole blended image, and changed
-  // street frames without drops by up to 21 levels 100-300 px from any detection. On: +0.37 dB
-  // on sparse rendered drops at 512x256, but the int8 default's gap between 512x288 and
+  // `scale` 1): the working-scale pass keeps the input's own pixels wherever its mask is 0, as
+  // it always does for larger images (the composite of working_scale.h with the mask itself;
+  // the coarse pass's soft rims still change pixels just outside the written mask, at every
+  // size). Off (the default, the contract's step 7): the RFN's output everywhere; it refines
+  // the whole blended image, and changed thousands of pixels of drop-free 512x256 street frames,
+  // tens to hundreds of pixels from any detection, by up to about 30 levels. On: +0.3 dB on
+  // held-out sparse rendered drops at 512x256, but the int8 default's gap between 512x288 and
   // 1280x720 frames (issue target: 1 dB) then measures 1.002 dB (docs/RESULTS.md 4.70).
   bool keep_outside_mask = false;
 };
