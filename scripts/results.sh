@@ -3197,6 +3197,23 @@ if want dry; then
   link_set data/test-sparse "$dr/sparse" - 0
   link_set data/test-wsday-1280x720 "$dr/camvid1280" - 0
   link_set data/test-size-1280x720 "$dr/cityscapes1280" - 0
+  # scored SET LABEL FLAGS...: SET's rainy images through raindrop-remove FLAGS, scored against its
+  # clean ones; damaged SET LABEL FLAGS...: its clean images through it, every change damage.
+  scored() {
+    local set="$1" label="$2"
+    shift 2
+    rm -rf "$dr/run"
+    build/raindrop-remove "$dr/$set/rainy" "$dr/run/out" -q -j 2 "$@"
+    $py -m raindrop_tools.score_outputs --data "$dr/$set" --outputs "$dr/run/out" --label "$label"
+  }
+  damaged() {
+    local set="$1" label="$2"
+    shift 2
+    rm -rf "$dr/run"
+    build/raindrop-remove "$dr/$set/clean" "$dr/run/out" --mask-dir "$dr/run/masks" -q -j 2 "$@"
+    $py -m raindrop_tools.text_negatives damage --inputs "$dr/$set/clean" --outputs "$dr/run/out" \
+      --masks "$dr/run/masks" --label "$label"
+  }
   {
     for v in "float:--model-config compact-multiscale" "int8:--model-config compact-multiscale-int8" \
       "float-no-large-drops:--model-config compact-multiscale --no-large-drops" \
@@ -3207,15 +3224,8 @@ if want dry; then
       read -r -a flags <<<"${v#*:}"
       sets=(pairs)
       [[ $name == float || $name == int8 ]] && sets=(pairs sparse camvid1280 cityscapes1280)
-      for set in "${sets[@]}"; do
-        rm -rf "$dr/run"
-        build/raindrop-remove "$dr/$set/clean" "$dr/run/out" --mask-dir "$dr/run/masks" -q -j 2 "${flags[@]}"
-        $py -m raindrop_tools.text_negatives damage --inputs "$dr/$set/clean" --outputs "$dr/run/out" \
-          --masks "$dr/run/masks" --label "$name, $set without drops"
-      done
-      rm -rf "$dr/run"
-      build/raindrop-remove "$dr/pairs/rainy" "$dr/run/out" -q -j 2 "${flags[@]}"
-      $py -m raindrop_tools.score_outputs --data "$dr/pairs" --outputs "$dr/run/out" --label "$name, pairs with drops"
+      for set in "${sets[@]}"; do damaged "$set" "$name, $set without drops" "${flags[@]}"; done
+      scored pairs "$name, pairs with drops" "${flags[@]}"
     done
   } | tee "$dr/damage.txt"
   rm -rf "$dr/run"
@@ -3234,14 +3244,8 @@ if want dry; then
       for m in default kept; do
         flags=()
         [[ $m == kept ]] && flags=(--keep-outside-mask)
-        rm -rf "$dr/run"
-        build/raindrop-remove "$dr/$set/rainy" "$dr/run/out" -q -j 2 "${flags[@]}"
-        $py -m raindrop_tools.score_outputs --data "$dr/$set" --outputs "$dr/run/out" --label "$m, $set"
-        [[ $set == pairs || $set == sparse ]] || continue
-        rm -rf "$dr/run"
-        build/raindrop-remove "$dr/$set/clean" "$dr/run/out" --mask-dir "$dr/run/masks" -q -j 2 "${flags[@]}"
-        $py -m raindrop_tools.text_negatives damage --inputs "$dr/$set/clean" --outputs "$dr/run/out" \
-          --masks "$dr/run/masks" --label "$m, $set without drops"
+        scored "$set" "$m, $set" "${flags[@]}"
+        if [[ $set == pairs || $set == sparse ]]; then damaged "$set" "$m, $set without drops" "${flags[@]}"; fi
       done
     done
     link_set data/test-size-512x288 "$dr/size512" - 0
@@ -3250,11 +3254,7 @@ if want dry; then
       for m in default kept; do
         flags=()
         [[ $m == kept ]] && flags=(--keep-outside-mask)
-        for set in size512 size1280; do
-          rm -rf "$dr/run"
-          build/raindrop-remove "$dr/$set/rainy" "$dr/run/out" -q -j 2 --model-config "$models" "${flags[@]}"
-          $py -m raindrop_tools.score_outputs --data "$dr/$set" --outputs "$dr/run/out" --label "$models $m, $set"
-        done
+        for set in size512 size1280; do scored "$set" "$models $m, $set" --model-config "$models" "${flags[@]}"; done
       done
     done
   } | tee "$dr/outside-mask.txt"

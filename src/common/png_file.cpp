@@ -63,13 +63,19 @@ void check_png_image_data(const fs::path& path, const std::string& idat, const s
   std::uint64_t row = 0, left_in_row = 0;  // position in the expected rows
   bool done = rows.empty(), end = false, extra = false;
   int ret = Z_OK;
+  // Hands zlib the next part of the image data once it has used up what it had (at most 1 GiB
+  // at a time: avail_in is 32 bits); false when it has used up all of it.
+  const auto feed = [&] {
+    if (z.avail_in > 0) return true;
+    if (fed == idat.size()) return false;
+    const size_t n = std::min<size_t>(idat.size() - fed, 1u << 30);
+    z.next_in = reinterpret_cast<Bytef*>(const_cast<char*>(idat.data() + fed));
+    z.avail_in = static_cast<uInt>(n);
+    fed += n;
+    return true;
+  };
   while (true) {
-    if (z.avail_in == 0 && fed < idat.size()) {
-      const size_t n = std::min<size_t>(idat.size() - fed, 1u << 30);
-      z.next_in = reinterpret_cast<Bytef*>(const_cast<char*>(idat.data() + fed));
-      z.avail_in = static_cast<uInt>(n);
-      fed += n;
-    }
+    feed();
     z.next_out = out.data();
     z.avail_out = static_cast<uInt>(out.size());
     ret = ::inflate(&z, Z_NO_FLUSH);
@@ -103,15 +109,9 @@ void check_png_image_data(const fs::path& path, const std::string& idat, const s
   // image data", which OpenImageIO's libpng prints: a stream cut inside its Adler-32, or one
   // never finished (a flushed but unterminated deflate stream). One byte of output is enough.
   while (done && !end && !extra && (ret == Z_OK || ret == Z_BUF_ERROR)) {
-    if (z.avail_in == 0) {
-      if (fed == idat.size()) {
-        ::inflateEnd(&z);
-        throw Error(quoted(path) + ": truncated PNG (the image data ends before its compressed stream does)");
-      }
-      const size_t n = std::min<size_t>(idat.size() - fed, 1u << 30);
-      z.next_in = reinterpret_cast<Bytef*>(const_cast<char*>(idat.data() + fed));
-      z.avail_in = static_cast<uInt>(n);
-      fed += n;
+    if (!feed()) {
+      ::inflateEnd(&z);
+      throw Error(quoted(path) + ": truncated PNG (the image data ends before its compressed stream does)");
     }
     z.next_out = out.data();
     z.avail_out = 1;
@@ -125,7 +125,7 @@ void check_png_image_data(const fs::path& path, const std::string& idat, const s
   ::inflateEnd(&z);
   if (ret != Z_OK && ret != Z_STREAM_END && ret != Z_BUF_ERROR)
     throw Error(quoted(path) + ": corrupt PNG (bad compressed image data" + (why.empty() ? "" : ": " + why) + ")");
-  // A stream cut short after the last row is harmless to libpng; fewer rows than declared is not.
+  // Fewer rows than declared (a stream that ends or is cut off before the last row).
   if (!done) throw Error(quoted(path) + ": truncated PNG (the image data " + (end ? "ends" : "is cut off") +
                          " before the last row)");
 }

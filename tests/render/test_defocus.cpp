@@ -193,7 +193,14 @@ TEST(Defocus, FastLayersMatchTheExactPerDropConvolution) {
                                    // circles of 160-420 px: coarse grids of 3-8 px blocks
                                    {"lens-cover", camera(384, 192, 1696), 0, 1.6, 6},
                                    // circles bounded by twice the frame
-                                   {"lens-cover", camera(96, 64, 90), 1.0, 0.5, 50}};
+                                   {"lens-cover", camera(96, 64, 90), 1.0, 0.5, 50},
+                                   // merged drops: a drop's rows may hold none of its own pixels (another
+                                   // drop's label there), and a drop at the left edge starts its layer at
+                                   // a negative column; the empty rows made the exact spread compute
+                                   // INT_MAX - x0, an overflow UBSan reports (scripts/test-sanitizers.sh
+                                   // -R Defocus; a fuzzer found it) though no result used it
+                                   {"lens-cover-merged", camera(64, 32, 71), 0, 0, 0},
+                                   {"lens-cover-merged", camera(512, 256, 566), 0, 0, 0}};
   enum Kind { kExact, kSampled, kCoarse };
   const char* const names[3] = {"exact", "sampled", "coarse"};
   const double max_alpha[3] = {1e-5, 3 / 255.0, 1 / 255.0}, max_rgb[3] = {1, 2, 2};
@@ -256,32 +263,6 @@ TEST(Defocus, FastLayersMatchTheExactPerDropConvolution) {
                 std::sqrt(sq_alpha[kind] / std::max(covered[kind], 1.0)), worst_rgb[kind],
                 std::sqrt(sq_rgb[kind] / std::max(covered[kind], 1.0)));
   }
-}
-
-// Merged drops (lens-cover-merged): a drop's rows may hold none of its own pixels where another
-// drop's label covers them, and a drop near the left edge reaches past it (its layer starts at a
-// negative column). The fast layers still match the exact convolution there. The empty rows made
-// the exact spread compute INT_MAX - x0, an overflow that UBSan reports
-// (scripts/test-sanitizers.sh -R Defocus; a fuzzer found it) though no result used it.
-TEST(Defocus, MergedDropsSpreadAsTheExactConvolution) {
-  int frames = 0;
-  for (const Camera& cam : {camera(64, 32, 71), camera(128, 64, 141), camera(512, 256, 566)}) {
-    const cv::Mat clean = demo_street(cam.width, cam.height);
-    for (std::uint64_t seed = 1; seed <= 4; ++seed) {
-      SceneConfig fast = scene_preset("lens-cover-merged");
-      SceneConfig exact = fast;
-      exact.lens.method = DefocusMethod::LayeredExact;
-      Rng rng(seed);
-      const SceneSample s = sample_scene(fast, cam, rng);
-      const RenderedFrame a = render_frame(clean, cam, fast, s), b = render_frame(clean, cam, exact, s);
-      ASSERT_TRUE(a.defocused && b.defocused);
-      const std::string what = std::to_string(cam.width) + " seed " + std::to_string(seed);
-      EXPECT_LT(cv::norm(a.alpha, b.alpha, cv::NORM_INF), 4 / 255.0) << what;
-      EXPECT_LE(cv::norm(a.rainy, b.rainy, cv::NORM_INF), 2) << what;
-      ++frames;
-    }
-  }
-  EXPECT_EQ(frames, 12);
 }
 
 // Threads take bands of output rows (and of sampled or coarse layers' rows) and every pixel is
