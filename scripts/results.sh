@@ -7,7 +7,7 @@
 # windshield-followup longer growth sharpness coalesce surround largewidth largedrops-all windshield2
 # errorsplit withoutvnni graphrewrites jitter windshieldscale router routed int8router droplets realismcontrol
 # droplets2 infocus realismbar windshieldday fillarea finedrops lanes glassplate platerecon aperturelanes headrouter int8head headthreshold dilation coarsescales mainthreshold
-# rim headtext headnight workers int8default sampledlayers dry
+# rim headtext headnight workers int8default sampledlayers dry wetgate
 #
 # Sections measured before docs/RESULTS.md 4.44 run compact-windshield's detector (and the routed
 # default) with --surround-fill-area 150, the area they had then, so that they reproduce.
@@ -36,7 +36,7 @@ sections=("$@")
                                   surround largewidth largedrops-all windshield2 errorsplit withoutvnni graphrewrites
                                   jitter windshieldscale router routed int8router droplets realismcontrol droplets2 infocus realismbar
                                   windshieldday fillarea finedrops lanes glassplate platerecon aperturelanes headrouter int8head headthreshold dilation coarsescales mainthreshold
-                                  rim headtext headnight workers int8default sampledlayers dry)
+                                  rim headtext headnight workers int8default sampledlayers dry wetgate)
 want() { [[ " ${sections[*]} " == *" $1 "* ]]; }
 # link_set SRC DST SPLIT [LIMIT]: the first LIMIT (default 100; 0: all) samples of data set SRC
 # (of manifest split SPLIT; "-" = all) linked into DST/rainy and DST/clean (and DST/mask, where
@@ -3348,5 +3348,107 @@ for q in (0.0, 0.01):  # below every validation rainy image, and below all but 1
         print(f"  {d}: rainy images passed over {np.mean(gate_all(r) < th):.1%}, dry ones {np.mean(gate_all(c) < th):.1%}")
     print(f"  the 44 photographs: {np.sum(photo_scores < th)} passed over: "
           + " ".join(os.path.basename(p) for p, v in zip(photos, photo_scores) if v < th))
+PY
+fi
+
+if want wetgate; then
+  # RESULTS 4.72: a camera's wet gate (raindrop_tools.wet_gate, raindrop-remove --wet-gate) fitted
+  # on the real pairs' train split (wet lens: rainy/, dry lens: clean/, as whole frames) and run
+  # on their test split, for three shares of wet training frames kept; the default (int8 and
+  # float, named) without a gate beside it. Then the same gate on the 44 photographs of other
+  # cameras, all of which hold drops.
+  wg="$out/wetgate"
+  rm -rf "$wg" && mkdir -p "$wg"
+  $py - "$wg" <<'PY'
+import json, os, sys
+wg = sys.argv[1]
+test = tuple(g + "_" for g in json.load(open("data/real-pairs/realpairs.json"))["groups"]["test"])
+for name in sorted(os.listdir("data/real-pairs/rainy")):
+    split = "test" if name.startswith(test) else "train"
+    for kind, src in (("wet", "rainy"), ("dry", "clean")):
+        os.makedirs(f"{wg}/{split}/{kind}", exist_ok=True)
+        os.symlink(os.path.abspath(f"data/real-pairs/{src}/{name}"), f"{wg}/{split}/{kind}/{name}")
+PY
+  # judged RUN: the test split's wet and dry frames scored against the clean lens (wet) and
+  # against themselves (dry: every change is damage).
+  judged() {
+    PYTHONPATH=tools $py - "$wg" "$1" <<'PY'
+import os, sys
+import numpy as np
+from raindrop_tools import metrics
+from raindrop_tools.imageio import read_rgb
+wg, run = sys.argv[1:]
+def y(a): return metrics.luma(metrics.crop_to_multiple(a))
+names = sorted(os.listdir(f"{wg}/test/wet"))
+clean = {n: read_rgb(f"{wg}/test/dry/{n}") for n in names}
+rainy = {n: read_rgb(f"{wg}/test/wet/{n}") for n in names}
+out = {n: read_rgb(f"{wg}/{run}/wet/{n}") for n in names}
+dry = {n: read_rgb(f"{wg}/{run}/dry/{n}") for n in names}
+gain = np.mean([metrics.psnr(y(out[n]), y(clean[n])) - metrics.psnr(y(rainy[n]), y(clean[n])) for n in names])
+wet_left = sum(np.array_equal(out[n], rainy[n]) for n in names)
+left = [np.array_equal(dry[n], clean[n]) for n in names]
+changed = [n for n, s in zip(names, left) if not s]
+mse = np.mean([np.mean((y(dry[n]).astype(float) - y(clean[n])) ** 2) for n in names])
+marked = np.mean([np.mean(read_rgb(f"{wg}/{run}/dry-masks/{n}")[..., 0] > 0) for n in names])
+print(f"| {run} | {gain:+.2f} | {wet_left} of {len(names)} | {sum(left)} of {len(names)} | "
+      f"{np.mean([metrics.psnr(y(dry[n]), y(clean[n])) for n in changed]) if changed else float('inf'):.2f} | "
+      f"{10 * np.log10(255 ** 2 / mse):.2f} | {marked:.1%} |")
+PY
+  }
+  {
+    echo "| run | wet test split: gain dB | wet frames written as they were | dry frames written as they were | the other dry frames: PSNR-Y against their input | all dry frames pooled: PSNR-Y | dry: marked |"
+    echo "| --- | ---: | ---: | ---: | ---: | ---: | ---: |"
+    for m in compact-multiscale-int8 compact-multiscale; do
+      for keep in none 1.0 0.95 0.9; do
+        run="$m-$keep"
+        flags=(--model-config "$m")
+        if [[ $keep != none ]]; then
+          PYTHONPATH=tools $py -m raindrop_tools.wet_gate fit --models "models/$m" --wet "$wg/train/wet" \
+            --dry "$wg/train/dry" --keep-wet "$keep" --out "$wg/$run.gate" >&2
+          flags+=(--wet-gate "$wg/$run.gate")
+        fi
+        for kind in wet dry; do
+          build/raindrop-remove "$wg/test/$kind" "$wg/$run/$kind" --mask-dir "$wg/$run/$kind-masks" -q -j 2 "${flags[@]}"
+        done
+        judged "$run"
+      done
+    done
+  } | tee "$wg/scores.txt"
+  # The gate of one camera on the others: the 44 photographs, every one with drops.
+  for keep in 1.0 0.9; do
+    PYTHONPATH=tools $py -m raindrop_tools.wet_gate judge --gate "$wg/compact-multiscale-int8-$keep.gate" \
+      --models models/compact-multiscale-int8 "$shared"/real-raindrop/* >"$wg/photos-$keep.txt"
+    echo "the gate kept at $keep on the 44 photographs: $(grep -c ' dry$' "$wg/photos-$keep.txt") judged dry" | tee -a "$wg/scores.txt"
+  done
+  # What a judged frame costs: the test split's dry frames, with and without the gate, in turn.
+  for round in 1 2 3; do
+    for g in none gate; do
+      flags=(--model-config compact-multiscale-int8)
+      [[ $g == gate ]] && flags+=(--wet-gate "$wg/compact-multiscale-int8-1.0.gate")
+      s=$(date +%s.%N)
+      build/raindrop-remove "$wg/test/dry" "$wg/timing" -q -j 2 "${flags[@]}"
+      echo "round $round, $g: $(echo "($(date +%s.%N) - $s) * 1000 / 50" | bc -l | cut -c1-5) ms per dry 256x256 frame (folder of 50)"
+    done
+  done | tee -a "$wg/scores.txt"
+  # sheet.png (the int8 default's gate kept at 1.0): each row the frame | the default's output
+  # without the gate | the other lens; the wet frames it wrote as they were, then three dry frames
+  # it judged dry and three it judged wet.
+  $py - "$wg" <<'PY'
+import os, sys
+import cv2, numpy as np
+wg = sys.argv[1]
+run, base = f"{wg}/compact-multiscale-int8-1.0", f"{wg}/compact-multiscale-int8-none"
+names = sorted(os.listdir(f"{wg}/test/wet"))
+same = lambda a, b: np.array_equal(cv2.imread(a), cv2.imread(b))
+rows = [("wet, judged dry", n, "wet", "dry") for n in names if same(f"{wg}/test/wet/{n}", f"{run}/wet/{n}")]
+dry = [n for n in names if same(f"{wg}/test/dry/{n}", f"{run}/dry/{n}")]
+rows += [("dry, judged dry", n, "dry", "wet") for n in dry[:3]]
+rows += [("dry, judged wet", n, "dry", "wet") for n in names if n not in dry][:3]
+sheet = []
+for label, n, kind, other in rows:
+    r = np.hstack([cv2.imread(f"{wg}/test/{kind}/{n}"), cv2.imread(f"{base}/{kind}/{n}"), cv2.imread(f"{wg}/test/{other}/{n}")])
+    cv2.putText(r, f"{label}: {n}", (4, 14), cv2.FONT_HERSHEY_SIMPLEX, 0.45, (0, 255, 255), 1)
+    sheet.append(r)
+cv2.imwrite(f"{wg}/sheet.png", np.vstack(sheet))
 PY
 fi

@@ -16,6 +16,7 @@
 // stderr, no partial output file); 2 bad command line; 3 batch run with --keep-going
 // finished but some inputs failed.
 #include <algorithm>
+#include <atomic>
 #include <cerrno>
 #include <cmath>
 #include <cstdio>
@@ -207,6 +208,10 @@ void remove_stale_temporaries(const std::vector<Job>& jobs) {
 struct Settings {
   RemoveOptions options;
   bool time = false;
+  bool quiet = false;
+  bool batch = false;
+  // Images the wet gate judged dry (their outputs are their inputs), counted for the summary.
+  std::atomic<std::size_t>* judged_dry = nullptr;
 };
 
 // An input image decoded, with its colour profile (given to the output: image_io.h).
@@ -241,6 +246,13 @@ std::vector<cv::Mat> process(Remover& remover, const Job& job, const Settings& s
   }
   *lost = files->stage(r.image, job.output, kDefaultPngLevel, icc_profile);
   if (job.mask) files->stage(r.mask, *job.mask);
+  if (r.judged_dry()) {
+    if (s.judged_dry) ++*s.judged_dry;
+    // A single image's output that is its input needs saying; a folder run counts them.
+    if (!s.batch && !s.quiet && !s.time)
+      std::fprintf(stderr, "raindrop-remove: %s: judged dry by the wet gate (z %+.2f): the output is the input as it was\n",
+                   job.input.string().c_str(), *r.wet_gate_score);
+  }
   if (s.time) {
     const double coverage = 100.0 * cv::countNonZero(r.mask) / static_cast<double>(r.mask.total());
     char coarse[160] = "", sharp[64] = "", filled[64] = "";
@@ -266,10 +278,15 @@ std::vector<cv::Mat> process(Remover& remover, const Job& job, const Settings& s
       std::snprintf(routed, sizeof routed, ", detector %s (router z %+.2f)",
                     r.alternative_detector() ? ("'" + remover.router()->alternative + "'").c_str() : "the models' own",
                     *r.router_score);
+    // The wet gate's judgement (--wet-gate): a dry image's output is its input.
+    char gated[96] = "";
+    if (r.wet_gate_score)
+      std::snprintf(gated, sizeof gated, ", wet gate z %+.2f: %s", *r.wet_gate_score,
+                    r.judged_dry() ? "dry, output = input" : "wet");
     // The stages' sum counts side-by-side work twice; the wall time of the removal (decoding and
     // writing the files not included) is what the image cost.
-    std::fprintf(stderr, "raindrop-remove: %s: %dx%d at scale %.3g%s%s%s%s, %d tile%s, mask %.2f%%: %s; removal %.1f ms wall\n",
-                 job.input.string().c_str(), input.cols, input.rows, r.scale, routed, filled, coarse, fine, r.tiles_x * r.tiles_y,
+    std::fprintf(stderr, "raindrop-remove: %s: %dx%d at scale %.3g%s%s%s%s%s, %d tile%s, mask %.2f%%: %s; removal %.1f ms wall\n",
+                 job.input.string().c_str(), input.cols, input.rows, r.scale, gated, routed, filled, coarse, fine, r.tiles_x * r.tiles_y,
                  r.tiles_x * r.tiles_y == 1 ? "" : "s", coverage, r.times.describe().c_str(), run_ms);
   }
   if (!want_panels) return {};
@@ -309,7 +326,7 @@ int run(int argc, char** argv) {
       "A read-only file (chmod a-w) is never replaced, also not by root: the run stops before writing.\n"
       "Exit codes: 0 success; 1 error (one line on stderr, no partial output); 2 bad command line;\n"
       "3 folder run with --keep-going finished but some images failed.");
-  std::string input, output, models_dir, model_config, large_drop_models, mask, mask_dir, sheet, shard_text;
+  std::string input, output, models_dir, model_config, large_drop_models, mask, mask_dir, sheet, shard_text, wet_gate_file;
   Device device = Device::cpu;
   GraphOpt graph_opt = GraphOpt::all;
   std::optional<double> threshold, scale;
@@ -336,7 +353,7 @@ int run(int argc, char** argv) {
       ->check(CLI::Range(0.0, 1.0));
   app.add_option("--dilation", dilation, "Mask dilation size k (elliptical k x k; 1: none; default: the models', 3 for the committed ones). 7 takes out more of a photograph's drop rims and halos, and costs 0.2-0.4 dB on rendered drops, whose masks are exact (docs/RESULTS.md 4.51)")
       ->check(CLI::Range(1, kMaxDilation));
-  app.add_option("--scale", scale,
+  auto* scale_opt = app.add_option("--scale", scale,
                  "Scale the networks see the image at, in (0, 1] (default: the image's long side brought to the models' "
                  "working size, 512 for the committed models; never enlarged). Outside the mask the output is the input")
       ->check(CLI::Range(0.0, 1.0));
@@ -402,6 +419,12 @@ int run(int argc, char** argv) {
                "output everywhere (the paper's pipeline, which changed street frames without drops by up to about 30 "
                "levels far from any detection): +0.3 dB on held-out sparse rendered drops at 512x256, the same "
                "elsewhere (docs/RESULTS.md 4.70)");
+  app.add_option("--wet-gate", wet_gate_file,
+                 "A camera's wet gate (python -m raindrop_tools.wet_gate fit, on that camera's own frames labelled wet "
+                 "or dry): an image it judges dry from the detector's maps is written as it was, with an empty mask. For "
+                 "cameras whose dry frames the detector marks (overexposed sky through a lens cover: 39% of such frames "
+                 "marked and smeared without it); fitted for one camera, wrong for others (docs/RESULTS.md 4.72)")
+      ->excludes(scale_opt);
   app.add_flag("--fine-drops", fine_drops,
                "After both passes, run the detector again at 1.5 times the working scale and fill the small drops it "
                "finds over smooth surroundings (sky, walls, road) from them: the tiny sharp drops of windshield and "
@@ -626,6 +649,9 @@ int run(int argc, char** argv) {
   // stands in, so a LARGE_DROPS naming a folder that is not there does not stop the run.
   std::string model_choice;
   const fs::path model_dir = find_models(search, &model_choice);
+  // A damaged gate is refused before the models load; whether it suits them, once they have.
+  std::shared_ptr<const WetGate> wet_gate;
+  if (!wet_gate_file.empty()) wet_gate = std::make_shared<const WetGate>(read_wet_gate(wet_gate_file));
   std::optional<fs::path> large_dir;
   if (no_large_drops) large_dir = model_dir;
   if (!large_drop_models.empty()) large_dir = fs::path(large_drop_models);
@@ -675,6 +701,12 @@ int run(int argc, char** argv) {
   s.options.surround_fill_mad = surround_fill_mad;
   s.options.surround_fill_rim = surround_fill_rim;
   s.options.route = !no_router;
+  if (wet_gate) check_wet_gate(*wet_gate, remover.model_dir(), remover.info());
+  s.options.wet_gate = wet_gate;
+  std::atomic<std::size_t> judged_dry{0};
+  s.judged_dry = &judged_dry;
+  s.quiet = quiet;
+  s.batch = batch;
   s.time = time;
   if (time) {
     const ModelInfo& mi = remover.info();
@@ -805,9 +837,11 @@ int run(int argc, char** argv) {
   if (!batch) record_in_guarded(jobs.front());
   if (!batch) warn_format_loss(jobs.front().output, single_lost);
   for (const auto& e : errors) std::cerr << "raindrop-remove: failed: " << e << "\n";
-  if (batch && (!quiet || !errors.empty()))
-    std::fprintf(stderr, "raindrop-remove: %zu of %zu images done, %zu failed; output in %s\n",
-                 jobs.size() + refused - errors.size(), jobs.size() + refused, errors.size(), output.c_str());
+  if (batch && (!quiet || !errors.empty())) {
+    const std::string dry = wet_gate ? " (" + std::to_string(judged_dry.load()) + " judged dry by the wet gate: written as they were)" : "";
+    std::fprintf(stderr, "raindrop-remove: %zu of %zu images done%s, %zu failed; output in %s\n",
+                 jobs.size() + refused - errors.size(), jobs.size() + refused, dry.c_str(), errors.size(), output.c_str());
+  }
   return exit_without_teardown(errors.empty() ? 0 : 3);
 }
 

@@ -1,17 +1,13 @@
 #include "raindrop/remove/detector_router.h"
 
 #include <algorithm>
-#include <cerrno>
 #include <cmath>
-#include <cstdlib>
-#include <fstream>
-#include <map>
-#include <sstream>
 #include <vector>
 
 #include <opencv2/imgproc.hpp>
 
 #include "raindrop/common/error.h"
+#include "raindrop/remove/key_file.h"
 
 namespace raindrop::removal {
 namespace fs = std::filesystem;
@@ -76,54 +72,26 @@ std::optional<DetectorRouter> read_detector_router(const fs::path& model_dir) {
   const fs::path file = model_dir / "ROUTER";
   std::error_code ec;
   if (!fs::exists(file, ec)) return std::nullopt;
-  const auto fail = [&](const std::string& why) {
+  const KeyFile kf = read_key_file(file, [file](const std::string& why) {
     return Error(quoted(file) + ": " + why + " (docs/CONTRACTS.md, \"Detector router\"; or run without it: --no-router)");
-  };
-  std::ifstream in(file);
-  if (!in) throw fail("cannot read it");
-  std::map<std::string, std::vector<std::string>> fields;
-  std::string line;
-  while (std::getline(in, line)) {
-    std::istringstream words(line);
-    std::string key, word;
-    if (!(words >> key) || key[0] == '#') continue;
-    if (fields.count(key)) throw fail("'" + key + "' is given twice");
-    auto& values = fields[key];
-    while (words >> word) values.push_back(word);
-  }
-  if (in.bad()) throw fail("cannot read it");
-  if (fields["format"] != std::vector<std::string>{"1"}) throw fail("expected 'format 1'");
-  const auto& alternative = fields["alternative"];
+  });
+  if (kf.words("format") != std::vector<std::string>{"1"}) throw kf.fail("expected 'format 1'");
+  const auto& alternative = kf.words("alternative");
   if (alternative.size() != 1 || alternative[0] == "." || alternative[0] == ".." ||
       alternative[0].find('/') != std::string::npos)
-    throw fail("'alternative' must name one sibling model folder");
-  const auto numbers = [&](const std::string& key, size_t count) {
-    const auto& words = fields[key];
-    if (words.size() != count)
-      throw fail("'" + key + "' must hold " + std::to_string(count) + " number" + (count > 1 ? "s" : ""));
-    std::vector<double> v;
-    for (const std::string& w : words) {
-      char* end = nullptr;
-      errno = 0;
-      const double d = std::strtod(w.c_str(), &end);
-      if (end == w.c_str() || *end != '\0' || errno == ERANGE || !std::isfinite(d))
-        throw fail("'" + key + "' holds '" + w + "', not a finite number");
-      v.push_back(d);
-    }
-    return v;
-  };
+    throw kf.fail("'alternative' must name one sibling model folder");
   DetectorRouter r;
   r.alternative = alternative[0];
   const auto fill = [&](const std::string& key, RouterFeatures& dst) {
-    const std::vector<double> v = numbers(key, kRouterFeatures);
+    const std::vector<double> v = kf.numbers(key, kRouterFeatures);
     std::copy(v.begin(), v.end(), dst.begin());
   };
   fill("mean", r.mean);
   fill("std", r.std);
   fill("weight", r.weight);
-  r.bias = numbers("bias", 1)[0];
+  r.bias = kf.numbers("bias", 1)[0];
   for (const double s : r.std) {
-    if (!(s > 0)) throw fail("'std' must hold positive numbers");
+    if (!(s > 0)) throw kf.fail("'std' must hold positive numbers");
   }
   return r;
 }

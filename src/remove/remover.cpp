@@ -120,25 +120,39 @@ void detect(Network& rdn, const TileInputs& in, const cv::Rect& owned, double th
 
 }  // namespace
 
-// The detector an image's passes share: the working-scale pass's router decides it, and the
-// coarse pass, running beside, waits for that (or for the failure that stopped it deciding).
-class Remover::RouteDecision {
+namespace {
+
+// What the working-scale pass decides and the coarse pass, running beside it, waits for (or for
+// the failure that stopped it deciding); the first word counts.
+template <class T>
+class OnceDecided {
  public:
-  void decide(Models* chosen) {
-    std::call_once(once_, [&] { promise_.set_value(chosen); });
+  void decide(T value) {
+    std::call_once(once_, [&] { promise_.set_value(value); });
   }
   void fail(std::exception_ptr e) {
     std::call_once(once_, [&] { promise_.set_exception(e); });
   }
-  Models& wait() const { return *chosen_.get(); }
-  // Whether the choice (or the failure) is there already: wait() would not block.
-  bool ready() const { return chosen_.wait_for(std::chrono::seconds(0)) == std::future_status::ready; }
+  T wait() const { return decided_.get(); }
+  // Whether the value (or the failure) is there already: wait() would not block.
+  bool ready() const { return decided_.wait_for(std::chrono::seconds(0)) == std::future_status::ready; }
 
  private:
-  std::promise<Models*> promise_;
-  std::shared_future<Models*> chosen_ = promise_.get_future().share();
+  std::promise<T> promise_;
+  std::shared_future<T> decided_ = promise_.get_future().share();
   std::once_flag once_;
 };
+
+}  // namespace
+
+// The detector an image's passes share: the working-scale pass's router decides it.
+class Remover::RouteDecision : public OnceDecided<Models*> {
+ public:
+  Models& wait() const { return *OnceDecided::wait(); }
+};
+
+// Whether the wet gate judged the image dry (wet_gate.h): then the coarse pass reconstructs nothing.
+class Remover::WetVerdict : public OnceDecided<bool> {};
 
 namespace {
 
@@ -265,6 +279,24 @@ RemoveResult Remover::run(const cv::Mat& image, const RemoveOptions& opt) {
   Detection detection;
   detection.image_size = image.size();
   detection.scale = scale;
+  // The wet gate judges from the working pass's maps; a dry image stops there, and the coarse
+  // pass, before reconstructing large drops it found, waits for the verdict.
+  std::optional<double> wet_score;
+  WetVerdict verdict;
+  if (opt.wet_gate) {
+    if (scale != auto_scale)
+      throw Error("--wet-gate judges an image at the automatic working scale it was fitted at: it cannot be used with --scale");
+    detection.observe = [&](const cv::Mat& prob, const cv::Mat& alternative_prob) {
+      wet_score = opt.wet_gate->score(prob, alternative_prob);
+      const bool dry = *wet_score <= 0;
+      verdict.decide(dry);
+      // A dry image's pass ends before its router: a coarse pass waiting for the choice of
+      // detector takes the main one (and then reconstructs nothing).
+      if (dry) decision.decide(&models_);
+      return dry;
+    };
+    detection.observe_alternative = opt.wet_gate->maps > 1;
+  }
   if (route) {
     detection.route = [&](const cv::Mat& prob) {
       const double z = router_->score(router_features(prob));
@@ -282,11 +314,14 @@ RemoveResult Remover::run(const cv::Mat& image, const RemoveOptions& opt) {
                                                             : run_scaled(image, working, opt, scale, detection);
     } catch (...) {
       decision.fail(std::current_exception());  // a coarse pass waiting for the decision stops too
+      verdict.fail(std::current_exception());   // or for the verdict
       throw;
     }
   };
   CoarsePass coarse;
-  const auto large_drop_pass = [&] { coarse = coarse_pass(image, working, opt, scale, route ? &decision : nullptr); };
+  const auto large_drop_pass = [&] {
+    coarse = coarse_pass(image, working, opt, scale, route ? &decision : nullptr, opt.wet_gate ? &verdict : nullptr);
+  };
   if (opt.large_drops && models_.branches() > 1) {
     // Side by side: the coarse pass reads only the input, and its detector alone (what most
     // photographs need of it) left one core idle while it ran on the other (a fifth of a
@@ -298,6 +333,18 @@ RemoveResult Remover::run(const cv::Mat& image, const RemoveOptions& opt) {
   }
   res.times.convert += t_down;
   res.router_score = router_score;
+  res.wet_gate_score = wet_score;
+  if (res.judged_dry()) {
+    // Dry: the input as it was. The working pass stopped after its detector (a 3RN beside it
+    // had run), the coarse pass after its own; their times are what the verdict cost.
+    res.times += coarse.result.times;
+    res.times.convert += coarse.convert_ms;
+    res.network_pixels += coarse.result.network_pixels;
+    res.image = image.clone();
+    res.mask = cv::Mat::zeros(image.size(), CV_8U);
+    res.rgb = opt.keep_float ? to_rgb_float(image, cv::Rect(0, 0, image.cols, image.rows)) : cv::Mat();
+    return res;
+  }
   if (opt.large_drops) composite_large_drops(coarse, opt, res);
   if (opt.fine_drops) fine_pass(image, opt, scale, res);
   return res;
@@ -432,6 +479,7 @@ RemoveResult Remover::run_scaled(const cv::Mat& image, const cv::Mat& small, con
   sub.keep_float = true;
   RemoveResult res = run_native(small, sub, {}, {}, false, detection);
   res.scale = scale;
+  if (res.rgb.empty()) return res;  // stopped after detection: judged dry (wet_gate.h)
   StageTimes& t = res.times;
 
   auto clock = Clock::now();
@@ -446,7 +494,7 @@ RemoveResult Remover::run_scaled(const cv::Mat& image, const cv::Mat& small, con
 }
 
 Remover::CoarsePass Remover::coarse_pass(const cv::Mat& image, const cv::Mat& working, const RemoveOptions& opt,
-                                         double scale, const RouteDecision* route) {
+                                         double scale, const RouteDecision* route, const WetVerdict* verdict) {
   CoarsePass cp;
   const double coarse_scale = scale / kLargeDropScaleDivisor;
   const cv::Size coarse = scaled_size(image.size(), coarse_scale);
@@ -490,6 +538,9 @@ Remover::CoarsePass Remover::coarse_pass(const cv::Mat& image, const cv::Mat& wo
       cp.large = smooth_large_drops(cp.large, sharpness_map(working), opt.large_drop_max_sharpness, &cp.large_drops);
       cp.sharp_large_drops = found - cp.large_drops;
     }
+    // A dry image's large drops are not reconstructed: the working pass's verdict is waited for
+    // here, once there is something to reconstruct (its detector is then nearly done).
+    if (cp.large_drops > 0 && verdict && verdict->wait()) cp.large_drops = cp.sharp_large_drops = 0;
     return cp.large_drops > 0;
   };
   cp.result = run_native(coarse_native, sub, only_with_large_drops, [this]() -> Models& { return large_drop_models(); },
@@ -556,9 +607,12 @@ RemoveResult Remover::run_native(const cv::Mat& image, const RemoveOptions& opt,
   cv::Mat mask0(Hp, Wp, CV_8U, cv::Scalar(0));
   cv::Mat prob;                   // the first detector's probabilities, for a router
   cv::Mat alternative_prob;       // and the alternative's, where the first's graph computes them
-  if (detection.route) {
+  // The alternative's map where a router may threshold it, or an observer reads it.
+  const bool route_reads_alternative = detection.route && alternative_in_main_graph_;
+  if (detection.route || detection.observe) {
     prob.create(Hp, Wp, CV_32F);
-    if (alternative_in_main_graph_ && detector == &models_) alternative_prob.create(Hp, Wp, CV_32F);
+    if ((route_reads_alternative || (detection.observe && detection.observe_alternative)) && detector == &models_)
+      alternative_prob.create(Hp, Wp, CV_32F);
   }
   TileInputs kept;                // the single tile's inputs, reused by pass 2
   std::vector<float> kept_ihat;   // and its 3RN output when it ran beside the RDN
@@ -594,6 +648,13 @@ RemoveResult Remover::run_native(const cv::Mat& image, const RemoveOptions& opt,
   } else {
     detect_canvas(*detector, t);
   }
+  // An observer that says stop (a dry image, wet_gate.h) ends the pass here: the mask empty, no
+  // image (the caller writes the input).
+  if (detection.observe &&
+      detection.observe(prob(cv::Rect(0, 0, W, H)), alternative_prob.empty() ? cv::Mat() : alternative_prob(cv::Rect(0, 0, W, H)))) {
+    res.mask = cv::Mat::zeros(H, W, CV_8U);
+    return res;
+  }
   if (detection.route) {
     // The router reads the first detector's map; another detector it chooses runs next on the
     // same inputs, on all the threads (the 3RN beside the first is shared: the models'
@@ -607,7 +668,7 @@ RemoveResult Remover::run_native(const cv::Mat& image, const RemoveOptions& opt,
     if (chosen != detector) {
       detector = chosen;
       threshold = opt.threshold.value_or(detector->info().threshold);
-      if (!alternative_prob.empty()) {
+      if (route_reads_alternative && !alternative_prob.empty()) {
         // The first detector's graph computed the alternative's map beside its own, bit for bit
         // what the alternative's graph computes (model.h): thresholded, not run again.
         clock = Clock::now();

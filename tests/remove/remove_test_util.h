@@ -120,6 +120,12 @@ inline cv::Mat make_image(int width, int height, int seed) {
   return img;
 }
 
+// " word word ... word", `n` times: the numbers of a key file's line (ROUTER, a wet gate).
+inline std::string repeated_words(int n, const std::string& word) {
+  std::string s;
+  for (int i = 0; i < n; ++i) s += " " + word;
+  return s;
+}
 inline int max_abs_diff(const cv::Mat& a, const cv::Mat& b) {
   if (a.size() != b.size() || a.type() != b.type()) return 1 << 30;
   cv::Mat d;

@@ -69,15 +69,9 @@ TEST(DetectorRouter, ScoreIsTheStandardisedLinearForm) {
   EXPECT_DOUBLE_EQ(r.score(f), -0.5 + 4.0 / 2.0);
 }
 
-std::string numbers(int n, const std::string& v) {
-  std::string s;
-  for (int i = 0; i < n; ++i) s += " " + v;
-  return s;
-}
-
 std::string router_text(const std::string& alternative = "alt", double bias = 0.0, const std::string& std_value = "1") {
-  return "# a test router\nformat 1\nalternative " + alternative + "\nmean" + numbers(10, "0") + "\nstd" +
-         numbers(10, std_value) + "\nweight" + numbers(10, "0") + "\nbias " + std::to_string(bias) + "\n";
+  return "# a test router\nformat 1\nalternative " + alternative + "\nmean" + repeated_words(10, "0") + "\nstd" +
+         repeated_words(10, std_value) + "\nweight" + repeated_words(10, "0") + "\nbias " + std::to_string(bias) + "\n";
 }
 
 TEST(DetectorRouter, ReadsItsFileAndIsAbsentWithoutOne) {

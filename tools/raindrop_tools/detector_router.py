@@ -53,7 +53,8 @@ import numpy as np
 
 from . import metrics
 from .imageio import ImageError, read_rgb, read_rgb_strict
-from .read_only import ReadOnlyFileError, refuse_read_only
+from .key_file import check_format, finite_vector, folder_name, read_fields, write_fields
+from .read_only import ReadOnlyFileError
 
 FEATURES = 10
 WORKING_SIZE = 512
@@ -140,56 +141,26 @@ def fit(X: np.ndarray, y: np.ndarray, w: np.ndarray, alternative: str, l2: float
     return Router(alternative, mu, sd, b[:-1].copy(), float(b[-1]))
 
 
-def _numbers(values) -> str:
-    return " ".join(repr(float(v)) for v in values)
-
-
 def write_router(path: str | os.PathLike, router: Router, comment: str = "") -> None:
     """Writes the ROUTER file (format above) beside itself and renames it over `path`."""
-    path = Path(path)
-    refuse_read_only(path, follow_links=False)
-    lines = [f"# {line}" for line in comment.splitlines()]
-    lines += [f"format {FORMAT}", f"alternative {router.alternative}", f"mean {_numbers(router.mean)}",
-              f"std {_numbers(router.std)}", f"weight {_numbers(router.weight)}", f"bias {router.bias!r}"]
-    tmp = path.with_name(path.name + ".tmp")
-    tmp.write_text("\n".join(lines) + "\n")
-    os.replace(tmp, path)
+    write_fields(path, [("format", FORMAT), ("alternative", router.alternative), ("mean", router.mean), ("std", router.std),
+                        ("weight", router.weight), ("bias", repr(float(router.bias)))], comment)
 
 
 def read_router(path: str | os.PathLike) -> Router:
     """Reads a ROUTER file; RouterError naming the file and what is wrong."""
     path = Path(path)
-    fields: dict[str, list[str]] = {}
-    try:
-        text = path.read_text()
-    except (OSError, UnicodeDecodeError) as e:
-        raise RouterError(f"'{path}': cannot read it ({e})") from None
-    for line in text.splitlines():
-        parts = line.split()
-        if not parts or parts[0].startswith("#"):
-            continue
-        if parts[0] in fields:
-            raise RouterError(f"'{path}': '{parts[0]}' is given twice")
-        fields[parts[0]] = parts[1:]
-    if fields.get("format") != [str(FORMAT)]:
-        raise RouterError(f"'{path}': expected 'format {FORMAT}'")
-    alt = fields.get("alternative", [])
-    if len(alt) != 1 or alt[0] in (".", "..") or "/" in alt[0]:
-        raise RouterError(f"'{path}': 'alternative' must name one sibling model folder")
+    fields = read_fields(path, RouterError)
+    check_format(fields, FORMAT, path, RouterError)
+    alternative = folder_name(fields, "alternative", path, RouterError, "one sibling model folder")
 
     def vector(key: str, n: int) -> np.ndarray:
-        try:
-            v = np.array([float(x) for x in fields.get(key, [])], np.float64)
-        except ValueError:
-            raise RouterError(f"'{path}': '{key}' holds something that is not a number") from None
-        if len(v) != n or not np.all(np.isfinite(v)):
-            raise RouterError(f"'{path}': '{key}' must hold {n} finite number{'s' if n > 1 else ''}")
-        return v
+        return finite_vector(fields, key, n, path, RouterError)
 
     std = vector("std", FEATURES)
     if np.any(std <= 0):
         raise RouterError(f"'{path}': 'std' must be positive")
-    return Router(alt[0], vector("mean", FEATURES), std, vector("weight", FEATURES), float(vector("bias", 1)[0]))
+    return Router(alternative, vector("mean", FEATURES), std, vector("weight", FEATURES), float(vector("bias", 1)[0]))
 
 
 def _psnr_y(a: np.ndarray, b: np.ndarray) -> float:

@@ -37,6 +37,7 @@
 #include "raindrop/remove/stage_times.h"
 #include "raindrop/remove/surround_fill.h"
 #include "raindrop/remove/tiling.h"
+#include "raindrop/remove/wet_gate.h"
 #include "raindrop/remove/working_scale.h"
 
 namespace raindrop::removal {
@@ -96,6 +97,12 @@ struct RemoveOptions {
   // held-out sparse rendered drops at 512x256, but the int8 default's gap between 512x288 and
   // 1280x720 frames (issue target: 1 dB) then measures 1.002 dB (docs/RESULTS.md 4.70).
   bool keep_outside_mask = false;
+  // A camera's wet gate (wet_gate.h), checked against the models by the caller
+  // (check_wet_gate): where it judges the image dry from the working pass's detector maps, the
+  // result is the input as it was and an empty mask. It judges at the automatic working scale,
+  // where it was fitted: with a `scale` other than that, run() refuses. None: every image is
+  // processed.
+  std::shared_ptr<const WetGate> wet_gate;
 };
 
 struct RemoveResult {
@@ -121,6 +128,10 @@ struct RemoveResult {
   std::optional<double> router_score;
   // Whether the router's alternative detector decided the mask (z > 0).
   bool alternative_detector() const { return router_score && *router_score > 0; }
+  // The wet gate's z for this image (wet_gate.h); empty without a gate.
+  std::optional<double> wet_gate_score;
+  // Judged dry by the wet gate (z <= 0): image is the input, the mask empty.
+  bool judged_dry() const { return wet_gate_score && *wet_gate_score <= 0; }
 };
 
 class Remover {
@@ -164,6 +175,11 @@ class Remover {
   struct Detection {
     Models* models = nullptr;
     std::function<Models*(const cv::Mat& prob)> route;
+    // Shown the first detector's maps (CV_32F, the image's size) before `route`: its own and,
+    // with `observe_alternative`, the second map its graph computes (kAlternativeOutput). When it
+    // returns true the pass stops there (a dry image, wet_gate.h): an empty mask, no image or rgb.
+    std::function<bool(const cv::Mat& prob, const cv::Mat& alternative_prob)> observe;
+    bool observe_alternative = false;
     // The whole image's size and the scale the pass runs at, for surround_fill_area_at_scale
     // (scale 0: the area as given).
     cv::Size image_size;
@@ -201,6 +217,9 @@ class Remover {
   // `route`: the working pass's router's choice of detector, which it may have to wait for;
   // nullptr: the main models' detector.
   class RouteDecision;
+  // The wet gate's verdict (true: dry), which a coarse pass waits for before it reconstructs;
+  // nullptr: no gate.
+  class WetVerdict;
   struct CoarsePass {
     double coarse_scale = 0;  // 0: the coarse copy was too small to run (coarse_pass_fits)
     RemoveResult result;      // rgb: the coarse copy's reconstruction (when large drops were found)
@@ -209,7 +228,7 @@ class Remover {
     double convert_ms = 0;
   };
   CoarsePass coarse_pass(const cv::Mat& image, const cv::Mat& working, const RemoveOptions& options, double scale,
-                         const RouteDecision* route);
+                         const RouteDecision* route, const WetVerdict* verdict);
   void composite_large_drops(const CoarsePass& coarse, const RemoveOptions& options, RemoveResult& res);
   // The fine pass (fine_drops.h) over `res`, the result of both passes at `scale`.
   void fine_pass(const cv::Mat& image, const RemoveOptions& options, double scale, RemoveResult& res);

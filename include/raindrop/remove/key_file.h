@@ -1,0 +1,34 @@
+#pragma once
+// The small text files beside the models that tune raindrop-remove (a detector router's ROUTER,
+// a camera's wet gate): one key and its words per line, '#' starting a comment line.
+//
+//   # comments
+//   format 1
+//   mean 0.5 1.25 ...
+//
+// Read whole and checked here, so that a damaged file is refused in one line naming it.
+#include <filesystem>
+#include <functional>
+#include <map>
+#include <string>
+#include <vector>
+
+#include "raindrop/common/error.h"
+
+namespace raindrop::removal {
+
+struct KeyFile {
+  // How a fault is reported: an Error naming the file, the fault and what to do about it.
+  std::function<Error(const std::string& why)> fail;
+  std::map<std::string, std::vector<std::string>> fields;
+
+  // The words of `key`; none where the file does not give it.
+  const std::vector<std::string>& words(const std::string& key) const;
+  // Exactly `count` finite numbers under `key`, else fail().
+  std::vector<double> numbers(const std::string& key, size_t count) const;
+};
+
+// Reads `file` into its fields; fail() where it cannot be read or gives a key twice.
+KeyFile read_key_file(const std::filesystem::path& file, std::function<Error(const std::string& why)> fail);
+
+}  // namespace raindrop::removal

@@ -1,0 +1,49 @@
+#include "raindrop/remove/key_file.h"
+
+#include <cerrno>
+#include <cmath>
+#include <cstdlib>
+#include <fstream>
+#include <sstream>
+
+namespace raindrop::removal {
+
+const std::vector<std::string>& KeyFile::words(const std::string& key) const {
+  static const std::vector<std::string> none;
+  const auto it = fields.find(key);
+  return it == fields.end() ? none : it->second;
+}
+
+std::vector<double> KeyFile::numbers(const std::string& key, size_t count) const {
+  const auto& given = words(key);
+  if (given.size() != count) throw fail("'" + key + "' must hold " + std::to_string(count) + " number" + (count > 1 ? "s" : ""));
+  std::vector<double> v;
+  for (const std::string& w : given) {
+    char* end = nullptr;
+    errno = 0;
+    const double d = std::strtod(w.c_str(), &end);
+    if (end == w.c_str() || *end != '\0' || errno == ERANGE || !std::isfinite(d))
+      throw fail("'" + key + "' holds '" + w + "', not a finite number");
+    v.push_back(d);
+  }
+  return v;
+}
+
+KeyFile read_key_file(const std::filesystem::path& file, std::function<Error(const std::string& why)> fail) {
+  KeyFile kf{std::move(fail), {}};
+  std::ifstream in(file);
+  if (!in) throw kf.fail("cannot read it");
+  std::string line;
+  while (std::getline(in, line)) {
+    std::istringstream words(line);
+    std::string key, word;
+    if (!(words >> key) || key[0] == '#') continue;
+    if (kf.fields.count(key)) throw kf.fail("'" + key + "' is given twice");
+    auto& values = kf.fields[key];
+    while (words >> word) values.push_back(word);
+  }
+  if (in.bad()) throw kf.fail("cannot read it");
+  return kf;
+}
+
+}  // namespace raindrop::removal

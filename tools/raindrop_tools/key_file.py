@@ -1,0 +1,69 @@
+"""The small text files that tune raindrop-remove beside its models (a detector router's ROUTER,
+a camera's wet gate): one key and its words per line, '#' starting a comment line, each key
+once. Read here as raindrop-remove reads them (include/raindrop/remove/key_file.h), so that the
+tools refuse what the program refuses, naming the file."""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+import numpy as np
+
+
+def read_fields(path: str | os.PathLike, error: type[Exception]) -> dict[str, list[str]]:
+    """Each key's words; `error` naming the file where it cannot be read or gives a key twice."""
+    path = Path(path)
+    try:
+        text = path.read_text()
+    except (OSError, UnicodeDecodeError) as e:
+        raise error(f"'{path}': cannot read it ({e})") from None
+    fields: dict[str, list[str]] = {}
+    for line in text.splitlines():
+        parts = line.split()
+        if not parts or parts[0].startswith("#"):
+            continue
+        if parts[0] in fields:
+            raise error(f"'{path}': '{parts[0]}' is given twice")
+        fields[parts[0]] = parts[1:]
+    return fields
+
+
+def finite_vector(fields: dict[str, list[str]], key: str, n: int, path, error: type[Exception]) -> np.ndarray:
+    """Exactly `n` finite numbers under `key`, else `error` naming the file."""
+    try:
+        v = np.array([float(x) for x in fields.get(key, [])], np.float64)
+    except ValueError:
+        raise error(f"'{path}': '{key}' holds something that is not a number") from None
+    if len(v) != n or not np.all(np.isfinite(v)):
+        raise error(f"'{path}': '{key}' must hold {n} finite number{'s' if n > 1 else ''}")
+    return v
+
+
+def check_format(fields: dict[str, list[str]], fmt: int, path, error: type[Exception]) -> None:
+    if fields.get("format") != [str(fmt)]:
+        raise error(f"'{path}': expected 'format {fmt}'")
+
+
+def folder_name(fields: dict[str, list[str]], key: str, path, error: type[Exception], what: str) -> str:
+    """The one folder name under `key` (no path: '.', '..' and '/' refused), else `error` saying `what` it must be."""
+    words = fields.get(key, [])
+    if len(words) != 1 or words[0] in (".", "..") or "/" in words[0]:
+        raise error(f"'{path}': '{key}' must name {what}")
+    return words[0]
+
+
+def write_fields(path: str | os.PathLike, fields: list[tuple[str, object]], comment: str = "") -> None:
+    """Writes `comment` as '#' lines, then one line per key (a sequence as its numbers' reprs),
+    beside `path` and renames it over it; a read-only `path` is refused (read_only.py)."""
+    from .read_only import refuse_read_only
+
+    path = Path(path)
+    refuse_read_only(path, follow_links=False)
+    lines = [f"# {line}" for line in comment.splitlines()]
+    for key, value in fields:
+        words = " ".join(repr(float(v)) for v in value) if isinstance(value, (list, tuple, np.ndarray)) else str(value)
+        lines.append(f"{key} {words}")
+    tmp = path.with_name(path.name + ".tmp")
+    tmp.write_text("\n".join(lines) + "\n")
+    os.replace(tmp, path)

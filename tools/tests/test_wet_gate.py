@@ -1,0 +1,114 @@
+"""raindrop_tools.wet_gate: the fit keeps the share of wet frames it is asked to, the file's round
+trip and refusals (the same faults tests/remove/test_wet_gate.cpp refuses in C++), and the
+command line on the fixture models. The program's z against this tool's: the C++ test
+WetGate.TheProgramScoresAsTheFittingTool."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import cv2
+import numpy as np
+import pytest
+
+from raindrop_tools import wet_gate as G
+
+SMOKE = Path(__file__).resolve().parent / "fixtures" / "models-smoke"
+
+
+def features(n, shift, seed):
+    rng = np.random.default_rng(seed)
+    return rng.normal(size=(n, 20)) + shift
+
+
+@pytest.mark.parametrize("keep", [1.0, 0.95, 0.9, 0.5])
+def test_fit_keeps_the_share_of_wet_frames_asked_for(keep):
+    wet, dry = features(60, 0.8, 1), features(80, -0.8, 2)
+    gate = G.fit(wet, dry, "m", keep)
+    assert gate.maps == 2
+    kept = np.mean(gate.score(wet) > 0)
+    # At least the share asked for, and no more than one frame beyond it (the threshold sits at a frame).
+    assert keep <= kept + 1e-9
+    assert kept <= keep + 1 / 60 + 1e-9
+    # Overlapping classes: most dry frames are still judged dry where fewer wet ones must be kept.
+    assert np.mean(gate.score(dry) <= 0) > (0.5 if keep == 1.0 else 0.8)
+
+
+def test_fit_refuses_too_few_frames_and_a_share_out_of_range():
+    with pytest.raises(G.GateError, match="at least 2"):
+        G.fit(features(1, 0, 1), features(5, 0, 2), "m")
+    with pytest.raises(G.GateError, match="keep-wet"):
+        G.fit(features(5, 0, 1), features(5, 0, 2), "m", 0.0)
+
+
+def test_a_written_gate_reads_back_and_scores_the_same(tmp_path):
+    wet, dry = features(20, 1, 3)[:, :10], features(20, -1, 4)[:, :10]
+    gate = G.fit(wet, dry, "compact-multiscale", 0.95)
+    G.write_gate(tmp_path / "g", gate, "two\nlines")
+    text = (tmp_path / "g").read_text()
+    assert text.startswith("# two\n# lines\nformat 1\nmodels compact-multiscale\nmaps 1\n")
+    back = G.read_gate(tmp_path / "g")
+    np.testing.assert_array_equal(back.score(wet), gate.score(wet))
+    assert not (tmp_path / "g.tmp").exists()
+
+
+def gate_text(models="m", maps=1, std="1", bias="0"):
+    n = 10 * maps
+    return (f"format 1\nmodels {models}\nmaps {maps}\nmean {' 0' * n}\nstd {(' ' + std) * n}\n"
+            f"weight {' 0' * n}\nbias {bias}\n")
+
+
+@pytest.mark.parametrize("text, why", [
+    ("", "format 1"),
+    (gate_text() + "bias 1\n", "given twice"),
+    (gate_text(models="../up"), "one model folder"),
+    (gate_text(maps=3), "'maps' must be 1 or 2"),
+    (gate_text(std="0"), "positive"),
+    (gate_text(std="nan"), "finite"),
+    (gate_text(bias="x"), "not a number"),
+    ("format 1\nmodels m\nmaps 2\nmean" + " 0" * 10 + "\n", "20 finite numbers"),
+])
+def test_a_damaged_file_is_refused_naming_it(tmp_path, text, why):
+    (tmp_path / "camera.gate").write_text(text)
+    with pytest.raises(G.GateError, match=why) as e:
+        G.read_gate(tmp_path / "camera.gate")
+    assert "camera.gate" in str(e.value)
+
+
+def write_frames(folder, n, seed, drops):
+    folder.mkdir(parents=True)
+    rng = np.random.default_rng(seed)
+    for i in range(n):
+        img = np.full((96, 128, 3), 90, np.uint8) + rng.integers(0, 20, (96, 128, 3), dtype=np.uint8)
+        for _ in range(drops):
+            c = (int(rng.integers(10, 118)), int(rng.integers(10, 86)))
+            cv2.circle(img, c, int(rng.integers(4, 12)), (230, 230, 230), -1)
+        cv2.imwrite(str(folder / f"f{i}.png"), img)
+
+
+def test_the_command_line_fits_and_judges_on_the_fixture_models(tmp_path, capsys):
+    write_frames(tmp_path / "wet", 6, 1, drops=8)
+    write_frames(tmp_path / "dry" / "sub", 6, 2, drops=0)  # folders are searched recursively
+    out = tmp_path / "camera.gate"
+    assert G.main(["fit", "--models", str(SMOKE), "--wet", str(tmp_path / "wet"), "--dry", str(tmp_path / "dry"),
+                   "--out", str(out), "--keep-wet", "1", "--threads", "1"]) == 0
+    gate = G.read_gate(out)
+    assert gate.models == "models-smoke" and gate.maps == 1
+    assert "6 wet and 6 dry frames" in capsys.readouterr().out
+    images = sorted(str(p) for p in (tmp_path / "wet").iterdir())
+    assert G.main(["judge", "--gate", str(out), "--models", str(SMOKE), "--threads", "1", *images]) == 0
+    lines = capsys.readouterr().out.splitlines()
+    assert [line.split()[0] for line in lines] == images
+    assert all(line.split()[2] == "wet" for line in lines)  # every wet training frame kept (--keep-wet 1)
+
+
+def test_the_command_line_refuses_in_one_line(tmp_path, capsys):
+    (tmp_path / "empty").mkdir()
+    write_frames(tmp_path / "wet", 2, 1, drops=3)
+    assert G.main(["fit", "--models", str(SMOKE), "--wet", str(tmp_path / "wet"), "--dry", str(tmp_path / "empty"),
+                   "--out", str(tmp_path / "g")]) == 1
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "no images" in err
+    assert not (tmp_path / "g").exists()
+    assert G.main(["judge", "--gate", str(tmp_path / "missing"), "--models", str(SMOKE), "x.png"]) == 1
+    assert "cannot read it" in capsys.readouterr().err
