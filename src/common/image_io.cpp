@@ -113,7 +113,7 @@ cv::Mat decode(const fs::path& path, const Opened& o, std::string* icc = nullptr
   cv::Mat image = o.route == Route::png    ? png::decode(path, o.png, from_bytes_read)
                   : o.route == Route::jpeg ? jpeg::decode(path, icc)
                                            : oiio::codec(quoted(path) + ": reading this file").decode(path);
-  if (icc && o.route == Route::png) *icc = png::icc_profile(o.png);
+  if (icc && o.route == Route::png) *icc = png::icc_profile(o.png, kMaxCarriedProfile);  // longer is not carried
   if (icc && !carried_profile(*icc)) icc->clear();
   if (image.cols != o.header.width || image.rows != o.header.height || image.channels() != o.header.channels)
     throw Error(quoted(path) + ": cannot decode (the pixels do not match the header)");

@@ -235,7 +235,7 @@ Info check(const fs::path& path, std::uintmax_t size, bool check_data, bool keep
   return info;
 }
 
-std::string icc_profile(const Info& info) {
+std::string icc_profile(const Info& info, std::size_t limit) {
   // Profile name (1-79 bytes), a zero, the compression method (0: zlib), the zlib stream.
   const std::size_t name_end = info.iccp.find('\0');
   if (name_end == std::string::npos || name_end == 0 || name_end > 79 || name_end + 2 > info.iccp.size() ||
@@ -245,18 +245,17 @@ std::string icc_profile(const Info& info) {
   if (::inflateInit(&z) != Z_OK) return {};
   z.next_in = reinterpret_cast<Bytef*>(const_cast<char*>(info.iccp.data() + name_end + 2));
   z.avail_in = static_cast<uInt>(info.iccp.size() - name_end - 2);
-  constexpr std::size_t kMaxProfile = std::size_t{64} << 20;
   std::string profile;
   char buffer[1 << 16];
   int rc = Z_OK;
-  while (rc == Z_OK && profile.size() <= kMaxProfile) {
+  while (rc == Z_OK && profile.size() <= limit) {
     z.next_out = reinterpret_cast<Bytef*>(buffer);
     z.avail_out = sizeof buffer;
     rc = ::inflate(&z, Z_NO_FLUSH);
     profile.append(buffer, sizeof buffer - z.avail_out);
   }
   ::inflateEnd(&z);
-  return rc == Z_STREAM_END && profile.size() <= kMaxProfile ? profile : std::string();
+  return rc == Z_STREAM_END && profile.size() <= limit ? profile : std::string();
 }
 
 namespace {

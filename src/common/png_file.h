@@ -39,9 +39,10 @@ struct Info {
   std::string file;
 };
 
-// The ICC profile an iCCP chunk holds (inflated), or "" when there is none or it does not
-// inflate (a damaged profile is dropped, not an error: the pixels are intact). At most 64 MiB.
-std::string icc_profile(const Info& info);
+// The ICC profile an iCCP chunk holds (inflated), or "" when there is none, it does not inflate
+// (a damaged profile is dropped, not an error: the pixels are intact) or it would be longer than
+// `limit` bytes (inflating stops there: a small chunk can inflate to gigabytes).
+std::string icc_profile(const Info& info, std::size_t limit);
 
 // Whether the file starts with PNG's signature.
 bool has_signature(const unsigned char* first8);

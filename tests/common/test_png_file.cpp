@@ -611,3 +611,21 @@ TEST(PngFile, PaethBandsGiveTheRowByRowPixels) {
     std::cout << "note: this processor has no " << (widest == 0 ? "AVX2 or " : "") << "AVX-512: "
               << (widest == 0 ? "the row-by-row path was" : "four-row bands and rows were") << " checked\n";
 }
+
+// An iCCP chunk's profile is inflated only up to the limit it is asked for: one byte over it is
+// no profile (and the rest of a zip bomb is never inflated), the limit itself is the profile.
+TEST(PngFile, AnIccProfileIsInflatedOnlyUpToTheLimit) {
+  namespace png = raindrop::png;
+  const std::string profile(300000, 'p');  // compresses to a few hundred bytes
+  std::string stream(compressBound(profile.size()), '\0');
+  uLongf n = stream.size();
+  ASSERT_EQ(compress2(reinterpret_cast<Bytef*>(stream.data()), &n, reinterpret_cast<const Bytef*>(profile.data()),
+                      profile.size(), 9),
+            Z_OK);
+  stream.resize(n);
+  png::Info info;
+  info.iccp = std::string("icc") + '\0' + '\0' + stream;  // name, its zero, method 0 (zlib), the stream
+  EXPECT_EQ(png::icc_profile(info, profile.size()), profile);
+  EXPECT_EQ(png::icc_profile(info, profile.size() - 1), "");
+  EXPECT_EQ(png::icc_profile(info, 1 << 20), profile);
+}
