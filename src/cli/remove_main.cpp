@@ -226,6 +226,16 @@ DecodedInput decode_input(const fs::path& path) {
   return d;
 }
 
+// Whether `output`'s extension names the format of `input`'s (.jpg, .jpeg and .jpe alike; .tif
+// and .tiff): then a frame left as it was is the input file itself.
+bool same_format(const fs::path& input, const fs::path& output) {
+  const auto family = [](const fs::path& p) {
+    const std::string e = lowercase_extension(p);
+    return e == ".jpeg" || e == ".jpe" ? std::string(".jpg") : e == ".tif" ? std::string(".tiff") : e;
+  };
+  return family(input) == family(output);
+}
+
 // Removes the drops from one file, staging its output and mask in `files` (the caller commits
 // them, then says what the output's format lost: `lost`); returns the panels for the contact
 // sheet. `decoded`, if given, is the file being decoded already (its error is thrown here).
@@ -244,7 +254,14 @@ std::vector<cv::Mat> process(Remover& remover, const Job& job, const Settings& s
         throw Error("cannot create the folder '" + p->parent_path().string() + "' (" + ec.message() + ")");
     }
   }
-  *lost = files->stage(r.image, job.output, kDefaultPngLevel, icc_profile);
+  // A dry frame (--wet-gate) in its own format is its input file, byte for byte: a JPEG is not
+  // encoded again (and keeps its EXIF); in another format its pixels as read are written.
+  if (r.judged_dry() && same_format(job.input, job.output)) {
+    files->stage_copy(job.input, job.output);
+    lost->clear();
+  } else {
+    *lost = files->stage(r.image, job.output, kDefaultPngLevel, icc_profile);
+  }
   if (job.mask) files->stage(r.mask, *job.mask);
   if (r.judged_dry()) {
     if (s.judged_dry) ++*s.judged_dry;
@@ -421,7 +438,8 @@ int run(int argc, char** argv) {
                "elsewhere (docs/RESULTS.md 4.70)");
   app.add_option("--wet-gate", wet_gate_file,
                  "A camera's wet gate (python -m raindrop_tools.wet_gate fit, on that camera's own frames labelled wet "
-                 "or dry): an image it judges dry from the detector's maps is written as it was, with an empty mask. For "
+                 "or dry): an image it judges dry from the detector's maps is left as it was (the input file itself "
+                 "where the output has its extension, else its pixels as read), with an empty mask. For "
                  "cameras whose dry frames the detector marks (overexposed sky through a lens cover: 39% of such frames "
                  "marked and smeared without it); fitted for one camera, wrong for others (docs/RESULTS.md 4.72)")
       ->excludes(scale_opt);
@@ -651,6 +669,7 @@ int run(int argc, char** argv) {
   const fs::path model_dir = find_models(search, &model_choice);
   // A damaged gate is refused before the models load; whether it suits them, once they have.
   std::shared_ptr<const WetGate> wet_gate;
+  if (app.count("--wet-gate") > 0 && wet_gate_file.empty()) throw Error("--wet-gate needs a gate file, got ''");
   if (!wet_gate_file.empty()) wet_gate = std::make_shared<const WetGate>(read_wet_gate(wet_gate_file));
   std::optional<fs::path> large_dir;
   if (no_large_drops) large_dir = model_dir;

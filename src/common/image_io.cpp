@@ -374,6 +374,17 @@ std::string StagedImages::stage(const cv::Mat& image, const fs::path& path, int 
   return lost;
 }
 
+void StagedImages::stage_copy(const fs::path& from, const fs::path& path) {
+  const fs::path tmp = temporary_beside(path);
+  std::error_code ec;
+  if (!fs::copy_file(from, tmp, fs::copy_options::overwrite_existing, ec)) {
+    std::error_code ignored;
+    fs::remove(tmp, ignored);
+    throw Error(quoted(path) + ": cannot copy " + quoted(from) + " there (" + ec.message() + ")");
+  }
+  pending_.emplace_back(tmp, path);
+}
+
 void StagedImages::commit() {
   // Last staged first: the first (a program's main output) replaces its file only after the
   // others are in place.
@@ -452,14 +463,9 @@ void ensure_writable_dir(const fs::path& dir) {
 }
 
 void copy_file_atomic(const fs::path& from, const fs::path& to) {
-  const fs::path tmp = temporary_beside(to);
-  std::error_code ec;
-  if (!fs::copy_file(from, tmp, fs::copy_options::overwrite_existing, ec)) {
-    std::error_code ignored;
-    fs::remove(tmp, ignored);
-    throw Error(quoted(to) + ": cannot copy " + quoted(from) + " there (" + ec.message() + ")");
-  }
-  move_into_place(tmp, to);
+  StagedImages copy;
+  copy.stage_copy(from, to);
+  copy.commit();
 }
 
 void write_text_atomic(const std::string& text, const fs::path& path) {

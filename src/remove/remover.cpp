@@ -653,6 +653,7 @@ RemoveResult Remover::run_native(const cv::Mat& image, const RemoveOptions& opt,
   if (detection.observe &&
       detection.observe(prob(cv::Rect(0, 0, W, H)), alternative_prob.empty() ? cv::Mat() : alternative_prob(cv::Rect(0, 0, W, H)))) {
     res.mask = cv::Mat::zeros(H, W, CV_8U);
+    for (const StageTimes& w : worker_times) t += w;  // the detector and the 3RN beside it ran
     return res;
   }
   if (detection.route) {
@@ -676,6 +677,9 @@ RemoveResult Remover::run_native(const cv::Mat& image, const RemoveOptions& opt,
         t.mask += lap_ms(clock);
       } else {
         mask0.setTo(0);
+        // A map the main graph computed for an observer is not the chosen folder's: its graph
+        // has one output.
+        alternative_prob.release();
         detect_canvas(*detector, t);
       }
     }

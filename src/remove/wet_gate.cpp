@@ -8,9 +8,12 @@ namespace raindrop::removal {
 namespace fs = std::filesystem;
 namespace {
 
-// The name a model folder goes by: its last component ("models/compact/" is "compact").
+// The name a model folder goes by: the last component of its absolute path, symbolic links not
+// followed ("models/compact/" and "." inside it are "compact"), as wet_gate.py's folder_name.
 std::string folder_name(const fs::path& dir) {
-  const fs::path normal = dir.lexically_normal();
+  std::error_code ec;
+  fs::path normal = fs::absolute(dir, ec);
+  normal = (ec ? dir : normal).lexically_normal();
   return (normal.has_filename() ? normal.filename() : normal.parent_path().filename()).string();
 }
 

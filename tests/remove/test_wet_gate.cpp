@@ -8,6 +8,7 @@
 #include <gtest/gtest.h>
 
 #include "raindrop/common/error.h"
+#include "raindrop/common/image_io.h"
 #include "raindrop/remove/detector_router.h"
 #include "raindrop/remove/remover.h"
 #include "raindrop/remove/wet_gate.h"
@@ -130,6 +131,7 @@ TEST(WetGate, SuitsTheModelsItWasFittedOnAndTheirInt8Twin) {
   EXPECT_NO_THROW(check_wet_gate(gate("compact-multiscale", 1), "models/compact-multiscale/", one));
   EXPECT_NO_THROW(check_wet_gate(gate("compact-multiscale", 2), "/x/models/compact-multiscale-int8", two));
   EXPECT_NO_THROW(check_wet_gate(gate("compact-multiscale-int8", 2), "compact-multiscale", two));
+  EXPECT_NO_THROW(check_wet_gate(gate("compact-multiscale", 1), "/x/models/compact-multiscale/.", one));
   for (const std::string other : {"compact", "compact-multiscale-int8-int8", "paper-int8"}) {
     try {
       check_wet_gate(gate("compact-multiscale", 1), "models/" + other, one);
@@ -226,6 +228,40 @@ TEST(WetGate, TheDefaultsPassesStopForADryImageAndRunAsWithoutTheGateForAWetOne)
   }
 }
 
+// A router whose alternative is a folder of its own (not the main graph's second map) beside a
+// gate on both maps: an image the router sends there comes out exactly as without the gate (the
+// alternative's graph has one output, and is not asked for the map the gate read).
+TEST(WetGate, AGateOnTwoMapsLeavesARouterToAnotherFolderAsItIs) {
+  const fs::path src = source_dir() / "models";
+  for (const char* name : {"compact-multiscale", "compact-windshield", "paper-real-coarse"}) {
+    if (!fs::exists(src / name / "rrn.onnx")) GTEST_SKIP() << "the committed models are not in " << src;
+  }
+  TempDir tmp;
+  for (const auto& [from, to] : std::vector<std::pair<std::string, std::string>>{
+           {"compact-multiscale", "main"}, {"compact-windshield", "alt"}, {"paper-real-coarse", "paper-real-coarse"}}) {
+    fs::create_directories(tmp / "models" / to);
+    for (const char* file : {"rdn.onnx", "rrn.onnx", "rfn.onnx", "LARGE_DROPS"}) {
+      if (fs::exists(src / from / file)) fs::create_symlink(src / from / file, tmp / "models" / to / file);
+    }
+  }
+  write_file(tmp / "models" / "main" / "ROUTER",
+             "format 1\nalternative alt\nmean" + repeated_words(10, "0") + "\nstd" + repeated_words(10, "1") + "\nweight" +
+                 repeated_words(10, "0") + "\nbias 1\n");  // every image to alt
+  const cv::Mat image = make_image(700, 400, 9);
+  RemoveOptions none, wet, dry;
+  wet.wet_gate = gate_of(tmp, gate_text("main", +1.0, 2));
+  write_file(tmp / "dry.gate", gate_text("main", -1.0, 2));
+  dry.wet_gate = std::make_shared<const WetGate>(read_wet_gate(tmp / "dry.gate"));
+  raindrop::removal::Remover remover(tmp / "models" / "main");
+  const RemoveResult without = remover.run(image, none);
+  ASSERT_TRUE(without.alternative_detector());
+  const RemoveResult w = remover.run(image, wet);
+  EXPECT_TRUE(w.alternative_detector());
+  EXPECT_EQ(max_abs_diff(w.image, without.image), 0);
+  EXPECT_EQ(max_abs_diff(w.mask, without.mask), 0);
+  EXPECT_EQ(max_abs_diff(remover.run(image, dry).image, image), 0);
+}
+
 // The program end to end: a dry image's file holds the input's pixels and an empty mask, and says
 // so; a folder run counts them; a damaged gate, one for other models and --scale are refused
 // before anything is written.
@@ -253,6 +289,20 @@ TEST(WetGateCli, ADryImageIsWrittenAsItWasAndBadGatesAreRefused) {
   ASSERT_TRUE(wet_out);
   EXPECT_GT(max_abs_diff(wet_out->pixels, img), 0);
 
+  // A dry JPEG written as a JPEG is its input file, byte for byte (not encoded again); as a PNG,
+  // the pixels it was read as. And its detector's time is reported (two threads: beside the 3RN).
+  raindrop::write_image_atomic(img, tmp / "in.jpg");
+  const RunResult jpeg = run_remove({"in.jpg", "out.jpg", "--models", models, "--wet-gate", "dry.gate", "--time", "-j", "2"}, tmp.path());
+  ASSERT_EQ(jpeg.code, 0) << jpeg.describe();
+  EXPECT_EQ(read_file(tmp / "out.jpg"), read_file(tmp / "in.jpg"));
+  const auto rdn = jpeg.err.find("RDN ");
+  ASSERT_NE(rdn, std::string::npos) << jpeg.describe();
+  EXPECT_GT(std::stod(jpeg.err.substr(rdn + 4)), 0.0) << jpeg.describe();
+  ASSERT_EQ(run_remove({"in.jpg", "jpeg.png", "--models", models, "--wet-gate", "dry.gate"}, tmp.path()).code, 0);
+  const auto as_read = read_image(tmp / "in.jpg"), as_png = read_image(tmp / "jpeg.png");
+  ASSERT_TRUE(as_read && as_png);
+  EXPECT_EQ(max_abs_diff(as_png->pixels, as_read->pixels), 0);
+
   const RunResult folder = run_remove({"in", "outdir", "--models", models, "--wet-gate", "dry.gate"}, tmp.path());
   ASSERT_EQ(folder.code, 0) << folder.describe();
   EXPECT_NE(folder.err.find("2 of 2 images done (2 judged dry by the wet gate: written as they were)"), std::string::npos)
@@ -268,6 +318,10 @@ TEST(WetGateCli, ADryImageIsWrittenAsItWasAndBadGatesAreRefused) {
     EXPECT_NE(bad.err.find(gate), std::string::npos) << bad.describe();
     EXPECT_FALSE(fs::exists(tmp / "refused.png"));
   }
+  const RunResult empty = run_remove({"in/a.png", "refused.png", "--models", models, "--wet-gate", ""}, tmp.path());
+  EXPECT_EQ(empty.code, 1) << empty.describe();
+  EXPECT_NE(empty.err.find("--wet-gate needs a gate file"), std::string::npos) << empty.describe();
+  EXPECT_FALSE(fs::exists(tmp / "refused.png"));
   const RunResult scaled = run_remove({"in/a.png", "refused.png", "--models", models, "--wet-gate", "dry.gate", "--scale", "0.5"}, tmp.path());
   EXPECT_EQ(scaled.code, 2) << scaled.describe();
   EXPECT_FALSE(fs::exists(tmp / "refused.png"));
@@ -290,6 +344,17 @@ TEST(WetGate, TheProgramScoresAsTheFittingTool) {
     images.push_back((tmp / scene / "rainy" / "street_v00.png").string());
   }
   images.push_back((tmp / "paper" / "clean" / "street_v00.png").string());
+  // A 16-bit frame whose low bits matter: both sides see it at 16 bits.
+  {
+    const auto rainy = read_image(tmp / "lens-cover" / "rainy" / "street_v00.png");
+    ASSERT_TRUE(rainy.has_value());
+    cv::Mat deep, noise(rainy->pixels.size(), CV_16UC3);
+    rainy->pixels.convertTo(deep, CV_16U, 256.0);
+    cv::randu(noise, 0, 256);
+    deep += noise;
+    write_image(tmp / "deep.png", deep);
+    images.push_back((tmp / "deep.png").string());
+  }
   // Weights that give each feature of both maps a say; z near 0 on these frames, of either sign.
   std::ostringstream g;
   g << "format 1\nmodels compact-multiscale\nmaps 2\nmean";

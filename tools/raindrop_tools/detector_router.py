@@ -53,7 +53,7 @@ import numpy as np
 
 from . import metrics
 from .imageio import ImageError, read_rgb, read_rgb_strict
-from .key_file import check_format, finite_vector, folder_name, read_fields, write_fields
+from .key_file import check_format, finite_vector, read_fields, single_name, write_fields
 from .read_only import ReadOnlyFileError
 
 FEATURES = 10
@@ -152,7 +152,7 @@ def read_router(path: str | os.PathLike) -> Router:
     path = Path(path)
     fields = read_fields(path, RouterError)
     check_format(fields, FORMAT, path, RouterError)
-    alternative = folder_name(fields, "alternative", path, RouterError, "one sibling model folder")
+    alternative = single_name(fields, "alternative", path, RouterError, "one sibling model folder")
 
     def vector(key: str, n: int) -> np.ndarray:
         return finite_vector(fields, key, n, path, RouterError)

@@ -43,18 +43,38 @@ def to_uint8(img: np.ndarray) -> np.ndarray:
     return np.floor(x * np.float32(255.0) + np.float32(0.5)).astype(np.uint8)
 
 
-def read_rgb(path: str | os.PathLike) -> np.ndarray:
-    """Any image OpenCV reads -> HxWx3 uint8 RGB. Grey images are replicated, an alpha channel
-    is dropped, 16-bit images are reduced to 8 bits (OpenCV's IMREAD_COLOR conversion)."""
-    flags = cv2.IMREAD_COLOR
+def _read_upright(path: str | os.PathLike, flags: int) -> np.ndarray:
+    """cv2.imread with `flags`, RGB. PNG is read as stored, eXIf chunk or not, as raindrop-remove
+    reads it (JPEG and TIFF are turned upright by both)."""
     if str(path).lower().endswith(".png"):
-        # PNG is read as stored, eXIf chunk or not, as raindrop-remove reads it (JPEG and TIFF
-        # are turned upright by both).
         flags |= cv2.IMREAD_IGNORE_ORIENTATION
     img = cv2.imread(str(path), flags)
     if img is None:
         raise ImageError(f"{path}: cannot read image (missing or not an image)")
     return cv2.cvtColor(img, cv2.COLOR_BGR2RGB)
+
+
+def read_rgb(path: str | os.PathLike) -> np.ndarray:
+    """Any image OpenCV reads -> HxWx3 uint8 RGB. Grey images are replicated, an alpha channel
+    is dropped, 16-bit images are reduced to 8 bits (OpenCV's IMREAD_COLOR conversion)."""
+    return _read_upright(path, cv2.IMREAD_COLOR)
+
+
+def read_rgb_native(path: str | os.PathLike) -> np.ndarray:
+    """Any image OpenCV reads -> HxWx3 RGB at its own depth (uint8, uint16 or float32), as
+    raindrop-remove reads it: grey replicated, alpha dropped, JPEG and TIFF turned upright, PNG
+    as stored."""
+    return _read_upright(path, cv2.IMREAD_COLOR | cv2.IMREAD_ANYDEPTH)
+
+
+def native_to_float(img: np.ndarray) -> np.ndarray:
+    """read_rgb_native's pixels -> float32 in [0, 1] as raindrop-remove converts them (v / 255 or
+    v / 65535 in float32; float clamped, NaN -> 0; include/raindrop/remove/pixels.h)."""
+    if img.dtype == np.uint8:
+        return to_float(img)
+    if img.dtype == np.uint16:
+        return img.astype(np.float32) / np.float32(65535.0)
+    return np.clip(np.nan_to_num(img.astype(np.float32), nan=0.0), np.float32(0.0), np.float32(1.0))
 
 
 def read_rgb_strict(path: str | os.PathLike) -> np.ndarray:

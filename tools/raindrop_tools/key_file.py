@@ -45,7 +45,7 @@ def check_format(fields: dict[str, list[str]], fmt: int, path, error: type[Excep
         raise error(f"'{path}': expected 'format {fmt}'")
 
 
-def folder_name(fields: dict[str, list[str]], key: str, path, error: type[Exception], what: str) -> str:
+def single_name(fields: dict[str, list[str]], key: str, path, error: type[Exception], what: str) -> str:
     """The one folder name under `key` (no path: '.', '..' and '/' refused), else `error` saying `what` it must be."""
     words = fields.get(key, [])
     if len(words) != 1 or words[0] in (".", "..") or "/" in words[0]:

@@ -43,8 +43,8 @@ from pathlib import Path
 import numpy as np
 
 from .detector_router import FEATURES, features, fit as fit_logistic, working_copy, working_size_of
-from .imageio import ImageError, read_rgb
-from .key_file import check_format, finite_vector, folder_name, read_fields, write_fields
+from .imageio import ImageError, native_to_float, read_rgb_native
+from .key_file import check_format, finite_vector, read_fields, single_name, write_fields
 from .read_only import ReadOnlyFileError
 
 FORMAT = 1
@@ -87,8 +87,21 @@ def default_models() -> Path:
     return REPO / "models" / name
 
 
+def folder_name(models: str | os.PathLike) -> str:
+    """The name raindrop-remove gives a model folder: the last component of its absolute path,
+    symbolic links not followed ("models/x/", "." inside it and a link named "current" are "x",
+    "x" and "current")."""
+    return os.path.basename(os.path.normpath(os.path.abspath(models)))
+
+
+def float_twin(name: str) -> str:
+    """The float folder an int8 copy was made from (the name without '-int8'); others as they are."""
+    return name[: -len("-int8")] if name.endswith("-int8") and len(name) > len("-int8") else name
+
+
 class MapFeatures:
-    """The gate's features of images, from a model folder's detector."""
+    """The gate's features of images, from a model folder's detector, on the pixels as
+    raindrop-remove reads and scales them (16-bit ones at 16 bits)."""
 
     def __init__(self, models: str | os.PathLike, threads: int = 2):
         from .reference import RaindropRemover
@@ -96,12 +109,13 @@ class MapFeatures:
         self.remover = RaindropRemover(models, threads=threads)
         self.session = self.remover.sessions["rdn"]
         self.maps = len(self.session.get_outputs())
-        self.name = Path(models).resolve().name
+        self.name = folder_name(models)
 
     def __call__(self, rgb: np.ndarray) -> np.ndarray:
+        """`rgb`: read_rgb_native's pixels (uint8, uint16 or float32)."""
         small = working_copy(rgb, working_size_of(self.remover))
         h, w = small.shape[:2]
-        R, _, _ = self.remover.prepare(small)
+        R = self.remover._nchw(self.remover._pad(native_to_float(small)))
         maps = self.session.run(None, {"image": R})
         return np.concatenate([features(m[0, 0, :h, :w]) for m in maps[: self.maps]])
 
@@ -131,10 +145,15 @@ def fit(wet: np.ndarray, dry: np.ndarray, models: str, keep_wet: float = 0.99) -
     r = fit_logistic(X, y, w, alternative="-", l2=1e-2, iters=3000, lr=0.5)
     gate = WetGate(models, X.shape[1] // FEATURES, r.mean, r.std, r.weight, r.bias)
     z = np.sort(gate.score(wet))
-    # The k-th lowest wet score, k the frames let go; the threshold just below it.
-    let_go = int(np.floor((1 - keep_wet) * len(z) + 1e-9))
-    threshold = z[let_go]
-    gate.bias = float(gate.bias - (threshold - 1e-6 * max(1.0, abs(threshold))))
+    # The lowest wet score kept, the frames below it let go; the threshold halfway between it
+    # and the highest training score below it (a let-go wet frame or a dry one), so that a
+    # frame scored a little differently (another thread count, another build) stays on its side.
+    let_go = min(int(np.floor((1 - keep_wet) * len(z) + 1e-9)), len(z) - 1)
+    kept = z[let_go]
+    below = np.concatenate([z[:let_go], gate.score(dry)])
+    below = below[below < kept]
+    threshold = 0.5 * (kept + below.max()) if len(below) else kept - 1.0
+    gate.bias = float(gate.bias - threshold)
     return gate
 
 
@@ -149,7 +168,7 @@ def read_gate(path: str | os.PathLike) -> WetGate:
     path = Path(path)
     fields = read_fields(path, GateError)
     check_format(fields, FORMAT, path, GateError)
-    models = folder_name(fields, "models", path, GateError, "one model folder")
+    models = single_name(fields, "models", path, GateError, "one model folder")
     if fields.get("maps") not in (["1"], ["2"]):
         raise GateError(f"'{path}': 'maps' must be 1 or 2")
     maps = int(fields["maps"][0])
@@ -166,7 +185,7 @@ def read_gate(path: str | os.PathLike) -> WetGate:
 
 def _features_of(feats: MapFeatures, folders: list[str]) -> tuple[np.ndarray, list[Path]]:
     files = [f for d in folders for f in image_files(d)]
-    return np.array([feats(read_rgb(f)) for f in files]), files
+    return np.array([feats(read_rgb_native(f)) for f in files]), files
 
 
 def _fit_command(args) -> int:
@@ -190,10 +209,12 @@ def _judge_command(args) -> int:
     gate = read_gate(args.gate)
     models = Path(args.models) if args.models else default_models()
     feats = MapFeatures(models, args.threads)
+    if float_twin(gate.models) != float_twin(feats.name):
+        raise GateError(f"'{args.gate}': fitted on the detector of '{gate.models}', not of '{feats.name}'")
     if feats.maps < gate.maps:
         raise GateError(f"'{args.gate}': fitted on {gate.maps} maps, and '{feats.name}''s detector computes {feats.maps}")
     for image in args.images:
-        z = float(gate.score(feats(read_rgb(image))[: gate.maps * FEATURES])[0])
+        z = float(gate.score(feats(read_rgb_native(image))[: gate.maps * FEATURES])[0])
         print(f"{image} {z:+.6f} {'wet' if z > 0 else 'dry'}")
     return 0
 

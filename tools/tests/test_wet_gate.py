@@ -32,6 +32,14 @@ def test_fit_keeps_the_share_of_wet_frames_asked_for(keep):
     assert kept <= keep + 1 / 60 + 1e-9
     # Overlapping classes: most dry frames are still judged dry where fewer wet ones must be kept.
     assert np.mean(gate.score(dry) <= 0) > (0.5 if keep == 1.0 else 0.8)
+    # The threshold lies halfway between the lowest wet frame kept and the highest frame below it.
+    z = np.concatenate([gate.score(wet), gate.score(dry)])
+    assert np.min(z[z > 0]) == pytest.approx(-np.max(z[z <= 0]), abs=1e-9)
+
+
+def test_fit_keeps_at_least_one_wet_frame():
+    gate = G.fit(features(10, 0.5, 1), features(10, -0.5, 2), "m", 1e-12)
+    assert np.sum(gate.score(features(10, 0.5, 1)) > 0) >= 1
 
 
 def test_fit_refuses_too_few_frames_and_a_share_out_of_range():
@@ -112,3 +120,30 @@ def test_the_command_line_refuses_in_one_line(tmp_path, capsys):
     assert not (tmp_path / "g").exists()
     assert G.main(["judge", "--gate", str(tmp_path / "missing"), "--models", str(SMOKE), "x.png"]) == 1
     assert "cannot read it" in capsys.readouterr().err
+    (tmp_path / "other.gate").write_text(gate_text(models="compact-multiscale"))
+    assert G.main(["judge", "--gate", str(tmp_path / "other.gate"), "--models", str(SMOKE), "x.png"]) == 1
+    assert "not of 'models-smoke'" in capsys.readouterr().err
+
+
+def test_folder_names_are_those_raindrop_remove_gives(tmp_path, monkeypatch):
+    (tmp_path / "models" / "compact").mkdir(parents=True)
+    (tmp_path / "current").symlink_to(tmp_path / "models" / "compact")
+    assert G.folder_name(tmp_path / "models" / "compact") == "compact"
+    assert G.folder_name(str(tmp_path / "models" / "compact") + "/") == "compact"
+    assert G.folder_name(tmp_path / "current") == "current"  # a link is not followed
+    monkeypatch.chdir(tmp_path / "models" / "compact")
+    assert G.folder_name(".") == "compact"
+    assert G.float_twin("compact-int8") == "compact" and G.float_twin("compact") == "compact"
+    assert G.float_twin("-int8") == "-int8"
+
+
+def test_sixteen_bit_frames_are_seen_at_sixteen_bits(tmp_path):
+    from raindrop_tools.imageio import native_to_float, read_rgb_native
+
+    rng = np.random.default_rng(5)
+    img16 = rng.integers(0, 65536, (20, 30, 3), dtype=np.uint16)
+    cv2.imwrite(str(tmp_path / "a.png"), img16)
+    back = read_rgb_native(tmp_path / "a.png")
+    assert back.dtype == np.uint16
+    np.testing.assert_array_equal(back, img16[..., ::-1])
+    np.testing.assert_array_equal(native_to_float(back), back.astype(np.float32) / np.float32(65535))

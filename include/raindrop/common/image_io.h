@@ -108,6 +108,8 @@ class StagedImages {
   ~StagedImages();
   std::string stage(const cv::Mat& image, const std::filesystem::path& path, int png_level = kDefaultPngLevel,
                     const std::string& icc_profile = {});
+  // The file `from`, byte for byte, to appear at `path` (an image left as it was).
+  void stage_copy(const std::filesystem::path& from, const std::filesystem::path& path);
   void commit();
 
  private:
