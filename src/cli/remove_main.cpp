@@ -226,16 +226,6 @@ DecodedInput decode_input(const fs::path& path) {
   return d;
 }
 
-// Whether `output`'s extension names the format of `input`'s (.jpg, .jpeg and .jpe alike; .tif
-// and .tiff): then a frame left as it was is the input file itself.
-bool same_format(const fs::path& input, const fs::path& output) {
-  const auto family = [](const fs::path& p) {
-    const std::string e = lowercase_extension(p);
-    return e == ".jpeg" || e == ".jpe" ? std::string(".jpg") : e == ".tif" ? std::string(".tiff") : e;
-  };
-  return family(input) == family(output);
-}
-
 // Removes the drops from one file, staging its output and mask in `files` (the caller commits
 // them, then says what the output's format lost: `lost`); returns the panels for the contact
 // sheet. `decoded`, if given, is the file being decoded already (its error is thrown here).
@@ -254,10 +244,9 @@ std::vector<cv::Mat> process(Remover& remover, const Job& job, const Settings& s
         throw Error("cannot create the folder '" + p->parent_path().string() + "' (" + ec.message() + ")");
     }
   }
-  // A dry frame (--wet-gate) in its own format is its input file, byte for byte: a JPEG is not
-  // encoded again (and keeps its EXIF); in another format its pixels as read are written.
-  if (r.judged_dry() && same_format(job.input, job.output)) {
-    files->stage_copy(job.input, job.output);
+  // A dry frame (--wet-gate) is its pixels as read, written losslessly where the format is; a
+  // JPEG written as a JPEG is the input file's bytes (encoding it again would change it).
+  if (r.judged_dry() && files->stage_jpeg_as_it_was(job.input, input, job.output)) {
     lost->clear();
   } else {
     *lost = files->stage(r.image, job.output, kDefaultPngLevel, icc_profile);
@@ -438,8 +427,8 @@ int run(int argc, char** argv) {
                "elsewhere (docs/RESULTS.md 4.70)");
   app.add_option("--wet-gate", wet_gate_file,
                  "A camera's wet gate (python -m raindrop_tools.wet_gate fit, on that camera's own frames labelled wet "
-                 "or dry): an image it judges dry from the detector's maps is left as it was (the input file itself "
-                 "where the output has its extension, else its pixels as read), with an empty mask. For "
+                 "or dry): an image it judges dry from the detector's maps is left as it was (its pixels as read; a JPEG "
+                 "written as a JPEG: the input file's bytes), with an empty mask. For "
                  "cameras whose dry frames the detector marks (overexposed sky through a lens cover: 39% of such frames "
                  "marked and smeared without it); fitted for one camera, wrong for others (docs/RESULTS.md 4.72)")
       ->excludes(scale_opt);

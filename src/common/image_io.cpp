@@ -374,15 +374,32 @@ std::string StagedImages::stage(const cv::Mat& image, const fs::path& path, int 
   return lost;
 }
 
-void StagedImages::stage_copy(const fs::path& from, const fs::path& path) {
+bool StagedImages::stage_jpeg_as_it_was(const fs::path& from, const cv::Mat& pixels, const fs::path& path) {
+  const std::string ext = lowercase_extension(path);
+  if (ext != ".jpg" && ext != ".jpeg" && ext != ".jpe") return false;
+  std::ifstream in(from, std::ios::binary);
+  if (!in) return false;
+  const std::vector<unsigned char> bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  if (in.bad() || bytes.size() < 3 || !jpeg::has_signature(bytes.data())) return false;
+  try {
+    const cv::Mat decoded = jpeg::decode(bytes);
+    if (decoded.size() != pixels.size() || decoded.type() != pixels.type() || cv::norm(decoded, pixels, cv::NORM_INF) != 0)
+      return false;
+  } catch (const Error&) {  // not one libjpeg decodes itself (CMYK): written from its pixels
+    return false;
+  }
   const fs::path tmp = temporary_beside(path);
-  std::error_code ec;
-  if (!fs::copy_file(from, tmp, fs::copy_options::overwrite_existing, ec)) {
-    std::error_code ignored;
-    fs::remove(tmp, ignored);
-    throw Error(quoted(path) + ": cannot copy " + quoted(from) + " there (" + ec.message() + ")");
+  {
+    std::ofstream f(tmp, std::ios::binary);
+    if (!f || !f.write(reinterpret_cast<const char*>(bytes.data()), static_cast<std::streamsize>(bytes.size())) || !f.flush()) {
+      const int err = errno;  // before the clean-up can change it
+      std::error_code ignored;
+      fs::remove(tmp, ignored);
+      throw Error(quoted(path) + ": cannot write (" + std::strerror(err) + ")");
+    }
   }
   pending_.emplace_back(tmp, path);
+  return true;
 }
 
 void StagedImages::commit() {
@@ -463,9 +480,14 @@ void ensure_writable_dir(const fs::path& dir) {
 }
 
 void copy_file_atomic(const fs::path& from, const fs::path& to) {
-  StagedImages copy;
-  copy.stage_copy(from, to);
-  copy.commit();
+  const fs::path tmp = temporary_beside(to);
+  std::error_code ec;
+  if (!fs::copy_file(from, tmp, fs::copy_options::overwrite_existing, ec)) {
+    std::error_code ignored;
+    fs::remove(tmp, ignored);
+    throw Error(quoted(to) + ": cannot copy " + quoted(from) + " there (" + ec.message() + ")");
+  }
+  move_into_place(tmp, to);
 }
 
 void write_text_atomic(const std::string& text, const fs::path& path) {

@@ -298,6 +298,19 @@ TEST(WetGateCli, ADryImageIsWrittenAsItWasAndBadGatesAreRefused) {
   const auto rdn = jpeg.err.find("RDN ");
   ASSERT_NE(rdn, std::string::npos) << jpeg.describe();
   EXPECT_GT(std::stod(jpeg.err.substr(rdn + 4)), 0.0) << jpeg.describe();
+  // A read-only input's copy is a file of the program's own, writable as any output: a second
+  // run replaces it.
+  fs::permissions(tmp / "in.jpg", fs::perms::owner_read | fs::perms::group_read | fs::perms::others_read);
+  for (int run = 0; run < 2; ++run) {
+    const RunResult again = run_remove({"in.jpg", "copy.jpg", "--models", models, "--wet-gate", "dry.gate"}, tmp.path());
+    ASSERT_EQ(again.code, 0) << again.describe();
+  }
+  EXPECT_NE(fs::status(tmp / "copy.jpg").permissions() & fs::perms::owner_write, fs::perms::none);
+  EXPECT_EQ(read_file(tmp / "copy.jpg"), read_file(tmp / "in.jpg"));
+  // A PNG named .jpg is read as the PNG it is, and its dry output is a JPEG as the name says.
+  fs::copy_file(tmp / "in" / "a.png", tmp / "png.jpg");
+  ASSERT_EQ(run_remove({"png.jpg", "named.jpg", "--models", models, "--wet-gate", "dry.gate"}, tmp.path()).code, 0);
+  EXPECT_EQ(read_file(tmp / "named.jpg").substr(0, 3), "\xFF\xD8\xFF");
   ASSERT_EQ(run_remove({"in.jpg", "jpeg.png", "--models", models, "--wet-gate", "dry.gate"}, tmp.path()).code, 0);
   const auto as_read = read_image(tmp / "in.jpg"), as_png = read_image(tmp / "jpeg.png");
   ASSERT_TRUE(as_read && as_png);

@@ -147,12 +147,14 @@ def fit(wet: np.ndarray, dry: np.ndarray, models: str, keep_wet: float = 0.99) -
     z = np.sort(gate.score(wet))
     # The lowest wet score kept, the frames below it let go; the threshold halfway between it
     # and the highest training score below it (a let-go wet frame or a dry one), so that a
-    # frame scored a little differently (another thread count, another build) stays on its side.
+    # frame scored a little differently (another thread count, another build) stays on its side,
+    # and at least a millionth below it (a dry frame may score within rounding of it).
     let_go = min(int(np.floor((1 - keep_wet) * len(z) + 1e-9)), len(z) - 1)
     kept = z[let_go]
     below = np.concatenate([z[:let_go], gate.score(dry)])
     below = below[below < kept]
     threshold = 0.5 * (kept + below.max()) if len(below) else kept - 1.0
+    threshold = min(threshold, kept - 1e-6 * max(1.0, abs(kept)))
     gate.bias = float(gate.bias - threshold)
     return gate
 
@@ -191,6 +193,8 @@ def _features_of(feats: MapFeatures, folders: list[str]) -> tuple[np.ndarray, li
 def _fit_command(args) -> int:
     models = Path(args.models) if args.models else default_models()
     feats = MapFeatures(models, args.threads)
+    if not feats.name.split() or feats.name.split() != [feats.name]:
+        raise GateError(f"'{models}': a model folder whose name holds spaces cannot be named in a gate file")
     wet, _ = _features_of(feats, args.wet)
     dry, _ = _features_of(feats, args.dry)
     gate = fit(wet, dry, feats.name, args.keep_wet)

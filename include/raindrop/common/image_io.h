@@ -108,8 +108,12 @@ class StagedImages {
   ~StagedImages();
   std::string stage(const cv::Mat& image, const std::filesystem::path& path, int png_level = kDefaultPngLevel,
                     const std::string& icc_profile = {});
-  // The file `from`, byte for byte, to appear at `path` (an image left as it was).
-  void stage_copy(const std::filesystem::path& from, const std::filesystem::path& path);
+  // The bytes of `from`, to appear at `path` as a new file (this process's default mode), where
+  // they are a JPEG by their signature and by `path`'s extension, and decode exactly to `pixels`
+  // (what the caller read from it: the same file, not one put there since): a lossy image left
+  // as it was is not encoded again. Its EXIF (orientation included) comes with it. False, and
+  // nothing staged, otherwise: the caller writes the pixels.
+  bool stage_jpeg_as_it_was(const std::filesystem::path& from, const cv::Mat& pixels, const std::filesystem::path& path);
   void commit();
 
  private:
