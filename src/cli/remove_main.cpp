@@ -226,6 +226,12 @@ DecodedInput decode_input(const fs::path& path) {
   return d;
 }
 
+// Whether `output`'s format loses pixels (JPEG, WebP): what a dry frame written there is not.
+bool is_lossy_output(const fs::path& output) {
+  const std::string e = lowercase_extension(output);
+  return e == ".jpg" || e == ".jpeg" || e == ".jpe" || e == ".webp";
+}
+
 // Removes the drops from one file, staging its output and mask in `files` (the caller commits
 // them, then says what the output's format lost: `lost`); returns the panels for the contact
 // sheet. `decoded`, if given, is the file being decoded already (its error is thrown here).
@@ -245,19 +251,23 @@ std::vector<cv::Mat> process(Remover& remover, const Job& job, const Settings& s
     }
   }
   // A dry frame (--wet-gate) is its pixels as read, written losslessly where the format is; a
-  // JPEG written as a JPEG is the input file's bytes (encoding it again would change it).
+  // JPEG written as a JPEG is the input file's bytes (encoding it again would change it), unless
+  // those bytes cannot be checked against the pixels (a CMYK JPEG): then it is encoded again.
+  bool reencoded = false;
   if (r.judged_dry() && files->stage_jpeg_as_it_was(job.input, input, job.output)) {
     lost->clear();
   } else {
     *lost = files->stage(r.image, job.output, kDefaultPngLevel, icc_profile);
+    reencoded = r.judged_dry() && is_lossy_output(job.output);
   }
   if (job.mask) files->stage(r.mask, *job.mask);
   if (r.judged_dry()) {
     if (s.judged_dry) ++*s.judged_dry;
     // A single image's output that is its input needs saying; a folder run counts them.
     if (!s.batch && !s.quiet && !s.time)
-      std::fprintf(stderr, "raindrop-remove: %s: judged dry by the wet gate (z %+.2f): the output is the input as it was\n",
-                   job.input.string().c_str(), *r.wet_gate_score);
+      std::fprintf(stderr, "raindrop-remove: %s: judged dry by the wet gate (z %+.2f): %s\n", job.input.string().c_str(),
+                   *r.wet_gate_score,
+                   reencoded ? "its pixels as read, encoded again (a lossy format)" : "the output is the input as it was");
   }
   if (s.time) {
     const double coverage = 100.0 * cv::countNonZero(r.mask) / static_cast<double>(r.mask.total());
@@ -288,7 +298,7 @@ std::vector<cv::Mat> process(Remover& remover, const Job& job, const Settings& s
     char gated[96] = "";
     if (r.wet_gate_score)
       std::snprintf(gated, sizeof gated, ", wet gate z %+.2f: %s", *r.wet_gate_score,
-                    r.judged_dry() ? "dry, output = input" : "wet");
+                    r.judged_dry() ? "dry, left as read" : "wet");
     // The stages' sum counts side-by-side work twice; the wall time of the removal (decoding and
     // writing the files not included) is what the image cost.
     std::fprintf(stderr, "raindrop-remove: %s: %dx%d at scale %.3g%s%s%s%s%s, %d tile%s, mask %.2f%%: %s; removal %.1f ms wall\n",
@@ -846,7 +856,7 @@ int run(int argc, char** argv) {
   if (!batch) warn_format_loss(jobs.front().output, single_lost);
   for (const auto& e : errors) std::cerr << "raindrop-remove: failed: " << e << "\n";
   if (batch && (!quiet || !errors.empty())) {
-    const std::string dry = wet_gate ? " (" + std::to_string(judged_dry.load()) + " judged dry by the wet gate: written as they were)" : "";
+    const std::string dry = wet_gate ? " (" + std::to_string(judged_dry.load()) + " judged dry by the wet gate: written as they were read)" : "";
     std::fprintf(stderr, "raindrop-remove: %zu of %zu images done%s, %zu failed; output in %s\n",
                  jobs.size() + refused - errors.size(), jobs.size() + refused, dry.c_str(), errors.size(), output.c_str());
   }

@@ -391,7 +391,9 @@ bool StagedImages::stage_jpeg_as_it_was(const fs::path& from, const cv::Mat& pix
   const fs::path tmp = temporary_beside(path);
   {
     std::ofstream f(tmp, std::ios::binary);
-    if (!f || !f.write(reinterpret_cast<const char*>(bytes.data()), static_cast<std::streamsize>(bytes.size())) || !f.flush()) {
+    if (f) f.write(reinterpret_cast<const char*>(bytes.data()), static_cast<std::streamsize>(bytes.size()));
+    if (f) f.close();  // an error that shows only at close (a network file system) counts too
+    if (!f) {
       const int err = errno;  // before the clean-up can change it
       std::error_code ignored;
       fs::remove(tmp, ignored);

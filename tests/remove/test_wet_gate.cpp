@@ -318,7 +318,7 @@ TEST(WetGateCli, ADryImageIsWrittenAsItWasAndBadGatesAreRefused) {
 
   const RunResult folder = run_remove({"in", "outdir", "--models", models, "--wet-gate", "dry.gate"}, tmp.path());
   ASSERT_EQ(folder.code, 0) << folder.describe();
-  EXPECT_NE(folder.err.find("2 of 2 images done (2 judged dry by the wet gate: written as they were)"), std::string::npos)
+  EXPECT_NE(folder.err.find("2 of 2 images done (2 judged dry by the wet gate: written as they were read)"), std::string::npos)
       << folder.describe();
 
   write_file(tmp / "damaged.gate", "format 1\nmodels models-smoke\nmaps 1\n");
