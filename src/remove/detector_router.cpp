@@ -75,24 +75,17 @@ std::optional<DetectorRouter> read_detector_router(const fs::path& model_dir) {
   const KeyFile kf = read_key_file(file, [file](const std::string& why) {
     return Error(quoted(file) + ": " + why + " (docs/CONTRACTS.md, \"Detector router\"; or run without it: --no-router)");
   });
-  if (kf.words("format") != std::vector<std::string>{"1"}) throw kf.fail("expected 'format 1'");
-  const auto& alternative = kf.words("alternative");
-  if (alternative.size() != 1 || alternative[0] == "." || alternative[0] == ".." ||
-      alternative[0].find('/') != std::string::npos)
-    throw kf.fail("'alternative' must name one sibling model folder");
+  kf.expect_format("1");
   DetectorRouter r;
-  r.alternative = alternative[0];
-  const auto fill = [&](const std::string& key, RouterFeatures& dst) {
-    const std::vector<double> v = kf.numbers(key, kRouterFeatures);
+  r.alternative = kf.folder_name("alternative", "one sibling model folder");
+  const auto fill = [&](const std::string& key, RouterFeatures& dst, bool positive = false) {
+    const std::vector<double> v = kf.numbers(key, kRouterFeatures, positive);
     std::copy(v.begin(), v.end(), dst.begin());
   };
   fill("mean", r.mean);
-  fill("std", r.std);
+  fill("std", r.std, /*positive=*/true);
   fill("weight", r.weight);
   r.bias = kf.numbers("bias", 1)[0];
-  for (const double s : r.std) {
-    if (!(s > 0)) throw kf.fail("'std' must hold positive numbers");
-  }
   return r;
 }
 

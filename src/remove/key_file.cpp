@@ -1,5 +1,6 @@
 #include "raindrop/remove/key_file.h"
 
+#include <algorithm>
 #include <cerrno>
 #include <cmath>
 #include <cstdlib>
@@ -14,7 +15,7 @@ const std::vector<std::string>& KeyFile::words(const std::string& key) const {
   return it == fields.end() ? none : it->second;
 }
 
-std::vector<double> KeyFile::numbers(const std::string& key, size_t count) const {
+std::vector<double> KeyFile::numbers(const std::string& key, size_t count, bool positive) const {
   const auto& given = words(key);
   if (given.size() != count) throw fail("'" + key + "' must hold " + std::to_string(count) + " number" + (count > 1 ? "s" : ""));
   std::vector<double> v;
@@ -26,7 +27,20 @@ std::vector<double> KeyFile::numbers(const std::string& key, size_t count) const
       throw fail("'" + key + "' holds '" + w + "', not a finite number");
     v.push_back(d);
   }
+  if (positive && std::any_of(v.begin(), v.end(), [](double d) { return !(d > 0); }))
+    throw fail("'" + key + "' must hold positive numbers");
   return v;
+}
+
+void KeyFile::expect_format(const std::string& version) const {
+  if (words("format") != std::vector<std::string>{version}) throw fail("expected 'format " + version + "'");
+}
+
+std::string KeyFile::folder_name(const std::string& key, const std::string& what) const {
+  const auto& given = words(key);
+  if (given.size() != 1 || given[0] == "." || given[0] == ".." || given[0].find('/') != std::string::npos)
+    throw fail("'" + key + "' must name " + what);
+  return given[0];
 }
 
 KeyFile read_key_file(const std::filesystem::path& file, std::function<Error(const std::string& why)> fail) {

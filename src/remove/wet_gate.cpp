@@ -44,24 +44,18 @@ WetGate read_wet_gate(const fs::path& file) {
   };
   if (fs::is_directory(file, ec)) throw fail("is a folder, not a file");
   const KeyFile kf = read_key_file(file, fail);
-  if (kf.words("format") != std::vector<std::string>{"1"}) throw kf.fail("expected 'format 1'");
+  kf.expect_format("1");
   WetGate g;
   g.file = file;
-  const auto& models = kf.words("models");
-  if (models.size() != 1 || models[0] == "." || models[0] == ".." || models[0].find('/') != std::string::npos)
-    throw kf.fail("'models' must name one model folder");
-  g.models = models[0];
+  g.models = kf.folder_name("models", "one model folder");
   const auto& maps = kf.words("maps");
   if (maps != std::vector<std::string>{"1"} && maps != std::vector<std::string>{"2"}) throw kf.fail("'maps' must be 1 or 2");
   g.maps = maps[0] == "1" ? 1 : 2;
   const size_t n = static_cast<size_t>(g.maps * kRouterFeatures);
   g.mean = kf.numbers("mean", n);
-  g.std = kf.numbers("std", n);
+  g.std = kf.numbers("std", n, /*positive=*/true);
   g.weight = kf.numbers("weight", n);
   g.bias = kf.numbers("bias", 1)[0];
-  for (const double s : g.std) {
-    if (!(s > 0)) throw kf.fail("'std' must hold positive numbers");
-  }
   return g;
 }
 

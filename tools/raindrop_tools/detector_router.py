@@ -154,12 +154,10 @@ def read_router(path: str | os.PathLike) -> Router:
     check_format(fields, FORMAT, path, RouterError)
     alternative = single_name(fields, "alternative", path, RouterError, "one sibling model folder")
 
-    def vector(key: str, n: int) -> np.ndarray:
-        return finite_vector(fields, key, n, path, RouterError)
+    def vector(key: str, n: int, positive: bool = False) -> np.ndarray:
+        return finite_vector(fields, key, n, path, RouterError, positive)
 
-    std = vector("std", FEATURES)
-    if np.any(std <= 0):
-        raise RouterError(f"'{path}': 'std' must be positive")
+    std = vector("std", FEATURES, positive=True)
     return Router(alternative, vector("mean", FEATURES), std, vector("weight", FEATURES), float(vector("bias", 1)[0]))
 
 

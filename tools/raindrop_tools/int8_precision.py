@@ -26,16 +26,21 @@ def int8_products_saturate(cpuinfo: str | None = None, machine: str | None = Non
     machine = (machine if machine is not None else platform.machine()).lower()
     if machine not in _X86:
         return False
+    return not cpu_has_vnni(cpuinfo)
+
+
+def cpu_has_vnni(cpuinfo: str | None = None) -> bool:
+    """Whether the CPU's flags (``cpuinfo``: the text of /proc/cpuinfo, read when not given) name
+    VNNI (AVX512-VNNI or AVX-VNNI); False where they cannot be read."""
     if cpuinfo is None:
         try:
             cpuinfo = Path("/proc/cpuinfo").read_text()
         except OSError:
-            return True
+            return False
     for line in cpuinfo.splitlines():
         if line.startswith("flags"):
-            flags = set(line.split(":", 1)[-1].split())
-            return not ({"avx512_vnni", "avx_vnni"} & flags)
-    return True
+            return bool({"avx512_vnni", "avx_vnni"} & set(line.split(":", 1)[-1].split()))
+    return False
 
 
 def apply(so) -> None:

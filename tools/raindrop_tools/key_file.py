@@ -29,14 +29,17 @@ def read_fields(path: str | os.PathLike, error: type[Exception]) -> dict[str, li
     return fields
 
 
-def finite_vector(fields: dict[str, list[str]], key: str, n: int, path, error: type[Exception]) -> np.ndarray:
-    """Exactly `n` finite numbers under `key`, else `error` naming the file."""
+def finite_vector(fields: dict[str, list[str]], key: str, n: int, path, error: type[Exception],
+                  positive: bool = False) -> np.ndarray:
+    """Exactly `n` finite numbers under `key` (with `positive`, each above 0), else `error` naming the file."""
     try:
         v = np.array([float(x) for x in fields.get(key, [])], np.float64)
     except ValueError:
         raise error(f"'{path}': '{key}' holds something that is not a number") from None
     if len(v) != n or not np.all(np.isfinite(v)):
         raise error(f"'{path}': '{key}' must hold {n} finite number{'s' if n > 1 else ''}")
+    if positive and np.any(v <= 0):
+        raise error(f"'{path}': '{key}' must be positive")
     return v
 
 

@@ -42,6 +42,7 @@ from pathlib import Path
 
 import numpy as np
 
+from . import int8_precision
 from .detector_router import FEATURES, features, fit as fit_logistic, working_copy, working_size_of
 from .imageio import ImageError, native_to_float, read_rgb_native
 from .key_file import check_format, finite_vector, read_fields, single_name, write_fields
@@ -76,14 +77,8 @@ def default_models() -> Path:
     lines = [line.split() for line in (REPO / "models" / "DEFAULT").read_text().splitlines() if line.split()]
     name = lines[0][0]
     vnni = next((w[1] for w in lines[1:] if w[0] == "vnni" and len(w) == 2), None)
-    if vnni:
-        try:
-            cpu = Path("/proc/cpuinfo").read_text()
-        except OSError:
-            cpu = ""
-        flags = next((set(line.split(":", 1)[1].split()) for line in cpu.splitlines() if line.startswith("flags")), set())
-        if {"avx512_vnni", "avx_vnni"} & flags:
-            name = vnni
+    if vnni and int8_precision.cpu_has_vnni():
+        name = vnni
     return REPO / "models" / name
 
 
@@ -175,13 +170,11 @@ def read_gate(path: str | os.PathLike) -> WetGate:
         raise GateError(f"'{path}': 'maps' must be 1 or 2")
     maps = int(fields["maps"][0])
 
-    def vector(key: str, n: int) -> np.ndarray:
-        return finite_vector(fields, key, n, path, GateError)
+    def vector(key: str, n: int, positive: bool = False) -> np.ndarray:
+        return finite_vector(fields, key, n, path, GateError, positive)
 
     n = maps * FEATURES
-    std = vector("std", n)
-    if np.any(std <= 0):
-        raise GateError(f"'{path}': 'std' must be positive")
+    std = vector("std", n, positive=True)
     return WetGate(models, maps, vector("mean", n), std, vector("weight", n), float(vector("bias", 1)[0]))
 
 

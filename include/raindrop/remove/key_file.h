@@ -24,8 +24,13 @@ struct KeyFile {
 
   // The words of `key`; none where the file does not give it.
   const std::vector<std::string>& words(const std::string& key) const;
-  // Exactly `count` finite numbers under `key`, else fail().
-  std::vector<double> numbers(const std::string& key, size_t count) const;
+  // Exactly `count` finite numbers under `key` (with `positive`, each above 0), else fail().
+  std::vector<double> numbers(const std::string& key, size_t count, bool positive = false) const;
+  // fail() unless the key `format` gives exactly `version`.
+  void expect_format(const std::string& version) const;
+  // The one folder name under `key` (a name, not a path: ".", ".." and '/' refused), else fail()
+  // saying it must name `what`.
+  std::string folder_name(const std::string& key, const std::string& what) const;
 };
 
 // Reads `file` into its fields; fail() where it cannot be read or gives a key twice.
