@@ -46,10 +46,13 @@ bool write_once(const fs::path& file, int flags, const std::string& text) {
 std::map<std::string, WrittenFile> read_own_outputs(const fs::path& folder) {
   std::map<std::string, WrittenFile> own;
   std::ifstream in(folder / kOwnOutputsList);
+  const std::string header(kHeader, std::strlen(kHeader) - 1);
   std::string line;
-  if (!std::getline(in, line)) return own;  // no list (or an empty one)
+  // The header is known by its text, not its place: a list whose header could not be written
+  // (a full disk) still holds the records appended after it.
   while (std::getline(in, line)) {
     if (in.eof()) break;  // no line break after it: cut short
+    if (line == header) continue;
     std::istringstream fields(line);
     WrittenFile f;
     std::string name;
@@ -73,7 +76,9 @@ void record_own_output(const fs::path& folder, const std::string& name, const fs
   const auto fail = [&list] { throw Error("'" + list.string() + "': cannot write (" + std::strerror(errno) + ")"); };
   // The header once, by whichever run makes the list (O_EXCL: never over another's).
   if (!write_once(list, O_WRONLY | O_CREAT | O_EXCL, kHeader) && errno != EEXIST) fail();
-  const std::string line = std::to_string(f.size) + " " + std::to_string(f.mtime_ns) + " " + name + "\n";
+  // A line break first as well: a record cut short by a full disk (a failed run's last) ends
+  // there, instead of running into this one and taking it with it.
+  const std::string line = "\n" + std::to_string(f.size) + " " + std::to_string(f.mtime_ns) + " " + name + "\n";
   if (!write_once(list, O_WRONLY | O_APPEND, line)) fail();
 }
 

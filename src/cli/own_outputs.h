@@ -35,10 +35,10 @@ std::map<std::string, WrittenFile> read_own_outputs(const std::filesystem::path&
 bool is_own_output(const std::map<std::string, WrittenFile>& own, const std::string& name,
                    const std::filesystem::path& file);
 
-// Appends `file`'s record, as it is now, under `name` to `folder`'s list (one short line, one
-// write in append mode, so that shards writing into one folder do not interleave). A name with
-// a line break is not recorded: its file stays protected. Throws raindrop::Error if the list
-// cannot be written.
+// Appends `file`'s record, as it is now, under `name` to `folder`'s list (one short line after
+// a line break, one write in append mode, so that shards writing into one folder do not
+// interleave). A name with a line break is not recorded: its file stays protected. Throws
+// raindrop::Error if the list cannot be written (the caller removes the file it could not record).
 void record_own_output(const std::filesystem::path& folder, const std::string& name, const std::filesystem::path& file);
 
 }  // namespace raindrop::cli

@@ -750,10 +750,19 @@ int run(int argc, char** argv) {
 
   // A file written into a guarded folder is recorded there as written (own_outputs.h), so that
   // a later run may replace it while it is unchanged.
+  // One that cannot be recorded (a full disk) is removed, as this run wrote it: left in place,
+  // unlisted, it would make every later run into that folder refuse to start.
   const auto record_in_guarded = [&](const Job& j) {
     for (const auto& g : guarded) {
       const std::optional<fs::path> file = g.file_of(j);
-      if (file) record_own_output(g.folder, file->lexically_relative(g.folder).generic_string(), *file);
+      if (!file) continue;
+      try {
+        record_own_output(g.folder, file->lexically_relative(g.folder).generic_string(), *file);
+      } catch (const std::exception&) {
+        std::error_code removed;
+        fs::remove(*file, removed);
+        throw;
+      }
     }
   };
   const std::size_t refused = errors.size();
@@ -843,24 +852,32 @@ int run(int argc, char** argv) {
     rows.push_back(std::move(panels));
     captions.push_back(jobs[i].caption);
   }
+  std::string sheet_error;  // folder mode with --keep-going: the sheet failed, after the images
   if (!sheet.empty() && !rows.empty()) {
-    const cv::Mat contact_sheet = make_contact_sheet(rows, {"input", "mask", "output"}, captions, kPanelWidth);
     if (batch) {
-      write_image_atomic(contact_sheet, sheet);
+      // The images are written: with --keep-going a sheet that cannot be made is one more
+      // failure, reported with the images' (exit 3), not an error that hides them.
+      try {
+        write_image_atomic(make_contact_sheet(rows, {"input", "mask", "output"}, captions, kPanelWidth), sheet);
+      } catch (const std::exception& e) {
+        if (!keep_going) throw;
+        sheet_error = one_line(e.what());
+      }
     } else {
-      single.stage(contact_sheet, sheet);
+      single.stage(make_contact_sheet(rows, {"input", "mask", "output"}, captions, kPanelWidth), sheet);
     }
   }
   single.commit();
   if (!batch) record_in_guarded(jobs.front());
   if (!batch) warn_format_loss(jobs.front().output, single_lost);
   for (const auto& e : errors) std::cerr << "raindrop-remove: failed: " << e << "\n";
-  if (batch && (!quiet || !errors.empty())) {
+  if (!sheet_error.empty()) std::cerr << "raindrop-remove: failed: contact sheet " << sheet_error << "\n";
+  if (batch && (!quiet || !errors.empty() || !sheet_error.empty())) {
     const std::string dry = wet_gate ? " (" + std::to_string(judged_dry.load()) + " judged dry by the wet gate: written as they were read)" : "";
     std::fprintf(stderr, "raindrop-remove: %zu of %zu images done%s, %zu failed; output in %s\n",
                  jobs.size() + refused - errors.size(), jobs.size() + refused, dry.c_str(), errors.size(), output.c_str());
   }
-  return exit_without_teardown(errors.empty() ? 0 : 3);
+  return exit_without_teardown(errors.empty() && sheet_error.empty() ? 0 : 3);
 }
 
 }  // namespace

@@ -28,6 +28,21 @@ cv::Mat to_rgb8(const cv::Mat& image) {
   return rgb;
 }
 
+namespace {
+
+// A panel's size on the sheet: panel_width wide, keeping the image's aspect ratio, but at most
+// kMaxPanelAspect times as tall as panel_width (then narrower): a 1-pixel-wide frame of 8000
+// rows would otherwise become a 512 x 4,096,000 panel of 6 GB.
+constexpr int kMaxPanelAspect = 4;
+cv::Size panel_size(const cv::Mat& p, int panel_width) {
+  const double scale = std::min(static_cast<double>(panel_width) / p.cols,
+                                static_cast<double>(kMaxPanelAspect) * panel_width / p.rows);
+  return {std::clamp(static_cast<int>(std::lround(p.cols * scale)), 1, panel_width),
+          std::clamp(static_cast<int>(std::lround(p.rows * scale)), 1, kMaxPanelAspect * panel_width)};
+}
+
+}  // namespace
+
 cv::Mat make_contact_sheet(const std::vector<std::vector<cv::Mat>>& rows,
                            const std::vector<std::string>& column_titles,
                            const std::vector<std::string>& row_captions, int panel_width) {
@@ -38,7 +53,7 @@ cv::Mat make_contact_sheet(const std::vector<std::vector<cv::Mat>>& rows,
   for (const auto& r : rows) {
     int h = 0;
     for (const auto& p : r) {
-      if (!p.empty()) h = std::max(h, static_cast<int>(std::lround(static_cast<double>(p.rows) * panel_width / p.cols)));
+      if (!p.empty()) h = std::max(h, panel_size(p, panel_width).height);
     }
     heights.push_back(h);
   }
@@ -61,9 +76,8 @@ cv::Mat make_contact_sheet(const std::vector<std::vector<cv::Mat>>& rows,
       const cv::Mat& p = rows[r][c];
       if (p.empty()) continue;
       cv::Mat scaled;
-      const int h = static_cast<int>(std::lround(static_cast<double>(p.rows) * panel_width / p.cols));
-      cv::resize(to_rgb8(p), scaled, {panel_width, std::max(h, 1)}, 0, 0,
-                 p.cols > panel_width ? cv::INTER_AREA : cv::INTER_NEAREST);
+      const cv::Size size = panel_size(p, panel_width);
+      cv::resize(to_rgb8(p), scaled, size, 0, 0, p.cols > size.width ? cv::INTER_AREA : cv::INTER_NEAREST);
       scaled.copyTo(sheet(cv::Rect(kGap + static_cast<int>(c) * (panel_width + kGap), y, scaled.cols, scaled.rows)));
     }
     y += heights[r] + kGap;

@@ -54,6 +54,26 @@ std::string image_extensions() {
   return all;
 }
 
+namespace {
+
+// An entry's type without the throwing overloads: a symbolic link loop (or one whose target
+// cannot be examined) is neither a folder nor a file to read, instead of stopping the walk of
+// the whole folder.
+bool is_directory(const fs::directory_entry& e) {
+  std::error_code ec;
+  return e.is_directory(ec);
+}
+bool is_symlink(const fs::directory_entry& e) {
+  std::error_code ec;
+  return e.is_symlink(ec);
+}
+bool is_regular_file(const fs::directory_entry& e) {
+  std::error_code ec;
+  return e.is_regular_file(ec);
+}
+
+}  // namespace
+
 std::vector<fs::path> list_image_files(const fs::path& dir, bool recursive, const std::vector<fs::path>& skip,
                                       std::vector<fs::path>* unfollowed) {
   std::vector<fs::path> files;
@@ -71,17 +91,17 @@ std::vector<fs::path> list_image_files(const fs::path& dir, bool recursive, cons
   if (recursive) {
     for (auto it = fs::recursive_directory_iterator(dir, fs::directory_options::skip_permission_denied, ec);
          !ec && it != fs::recursive_directory_iterator(); it.increment(ec)) {
-      if (it->is_directory() && skipped(it->path())) {
+      if (is_directory(*it) && skipped(it->path())) {
         it.disable_recursion_pending();
         continue;
       }
-      if (unfollowed && it->is_symlink() && it->is_directory()) unfollowed->push_back(it->path());
-      if (it->is_regular_file() && is_image_name(it->path())) files.push_back(it->path());
+      if (unfollowed && is_symlink(*it) && is_directory(*it)) unfollowed->push_back(it->path());
+      if (is_regular_file(*it) && is_image_name(it->path())) files.push_back(it->path());
     }
   } else {
     for (auto it = fs::directory_iterator(dir, ec); !ec && it != fs::directory_iterator(); it.increment(ec)) {
-      if (unfollowed && it->is_symlink() && it->is_directory()) unfollowed->push_back(it->path());
-      if (it->is_regular_file() && is_image_name(it->path())) files.push_back(it->path());
+      if (unfollowed && is_symlink(*it) && is_directory(*it)) unfollowed->push_back(it->path());
+      if (is_regular_file(*it) && is_image_name(it->path())) files.push_back(it->path());
     }
   }
   if (ec) throw Error("cannot list " + quoted(dir) + " (" + ec.message() + ")");

@@ -45,10 +45,21 @@ std::string KeyFile::folder_name(const std::string& key, const std::string& what
 
 KeyFile read_key_file(const std::filesystem::path& file, std::function<Error(const std::string& why)> fail) {
   KeyFile kf{std::move(fail), {}};
-  std::ifstream in(file);
+  // A few hundred bytes in practice. A FIFO or a device (--wet-gate /dev/zero) would block or
+  // grow without end, so only a regular file is opened, and at most kMaxKeyFileBytes read.
+  std::error_code ec;
+  if (!std::filesystem::is_regular_file(file, ec)) throw kf.fail("not a file");
+  std::ifstream in(file, std::ios::binary);
   if (!in) throw kf.fail("cannot read it");
+  std::string text(kMaxKeyFileBytes + 1, '\0');
+  in.read(text.data(), static_cast<std::streamsize>(text.size()));
+  if (in.bad()) throw kf.fail("cannot read it");
+  text.resize(static_cast<size_t>(in.gcount()));
+  if (text.size() > kMaxKeyFileBytes)
+    throw kf.fail("larger than " + std::to_string(kMaxKeyFileBytes / 1024) + " KiB: not a key file");
+  std::istringstream lines(text);
   std::string line;
-  while (std::getline(in, line)) {
+  while (std::getline(lines, line)) {
     std::istringstream words(line);
     std::string key, word;
     if (!(words >> key) || key[0] == '#') continue;
@@ -56,7 +67,6 @@ KeyFile read_key_file(const std::filesystem::path& file, std::function<Error(con
     auto& values = kf.fields[key];
     while (words >> word) values.push_back(word);
   }
-  if (in.bad()) throw kf.fail("cannot read it");
   return kf;
 }
 

@@ -35,3 +35,20 @@ TEST(ContactSheet, SheetHoldsGreyAlphaPanels) {
   // The first panel's centre: below the title (30) and caption (22) rows, right of the gap (6).
   EXPECT_EQ(sheet.at<cv::Vec3b>(30 + 22 + 20, 6 + 30), cv::Vec3b(200, 200, 200));
 }
+
+TEST(ContactSheet, AThinTallPanelIsNarrowedInsteadOfStretched) {
+  // A 1 x 8000 frame scaled to the panel width would be 512 x 4,096,000 (6 GB): panels are at
+  // most 4 panel widths tall, and narrower to keep their aspect ratio.
+  const cv::Mat thin(8000, 1, CV_8UC3, cv::Scalar(1, 2, 3));
+  const cv::Mat wide(3, 1000, CV_8UC3, cv::Scalar(4, 5, 6));
+  const cv::Mat sheet = raindrop::make_contact_sheet({{thin, wide}}, {"a", "b"}, {"row"}, 512);
+  ASSERT_EQ(sheet.type(), CV_8UC3);
+  EXPECT_EQ(sheet.rows, 30 + 22 + 4 * 512 + 6);
+  EXPECT_EQ(sheet.cols, 2 * (512 + 6) + 6);
+  EXPECT_EQ(sheet.at<cv::Vec3b>(30 + 22 + 100, 6), cv::Vec3b(1, 2, 3));  // the thin panel, one pixel wide
+  EXPECT_EQ(sheet.at<cv::Vec3b>(30 + 22 + 100, 6 + 1), cv::Vec3b(32, 32, 32));  // background beside it
+  EXPECT_EQ(sheet.at<cv::Vec3b>(30 + 22 + 1, 6 + 518 + 300), cv::Vec3b(4, 5, 6));  // the wide one, full width
+  // An ordinary panel keeps the width it always had.
+  const cv::Mat frame(256, 512, CV_8UC3, cv::Scalar(7, 8, 9));
+  EXPECT_EQ(raindrop::make_contact_sheet({{frame}}, {"a"}, {"row"}, 128).rows, 30 + 22 + 64 + 6);
+}

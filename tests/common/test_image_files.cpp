@@ -55,3 +55,21 @@ TEST(ImageFiles, ListsRecursivelySortedSkippingFolders) {
             (std::vector<std::string>{"a.JPG", "b.png"}));
   EXPECT_THROW(list_image_files(tmp.path() / "missing", true), raindrop::Error);
 }
+
+TEST(ImageFiles, ASymbolicLinkLoopIsSkippedNotTheWholeFolder) {
+  // A loop (or a link to itself) cannot be examined: it is neither a folder nor an image, and
+  // the folder's images are still listed (it used to stop the walk with 'Too many levels of
+  // symbolic links').
+  testsupport::TempDir tmp("raindrop-common-");
+  const fs::path dir = tmp.path() / "in";
+  touch(dir / "a.png");
+  touch(dir / "sub/b.png");
+  fs::create_directory_symlink("loop2", dir / "loop1");
+  fs::create_directory_symlink("loop1", dir / "loop2");
+  fs::create_symlink("self.png", dir / "self.png");
+  fs::create_directory_symlink("self", dir / "sub" / "self");
+  std::vector<fs::path> unfollowed;
+  EXPECT_EQ(names(list_image_files(dir, true, {}, &unfollowed), dir), (std::vector<std::string>{"a.png", "sub/b.png"}));
+  EXPECT_TRUE(unfollowed.empty());
+  EXPECT_EQ(names(list_image_files(dir, false), dir), (std::vector<std::string>{"a.png"}));
+}

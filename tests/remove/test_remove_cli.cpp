@@ -1,6 +1,7 @@
 // raindrop-remove end to end: bad inputs (one line, exit code, nothing written), usage
 // errors, model discovery, formats kept, folder mode.
 #include <chrono>
+#include <fstream>
 #include <thread>
 
 #include <unistd.h>
@@ -722,6 +723,30 @@ TEST_F(RemoveCli, AReadOnlyListStopsTheRunBeforeAnyOutput) {
   EXPECT_FALSE(fs::exists(tmp / "photos" / "clean" / "a.png"));
   EXPECT_FALSE(fs::exists(tmp / "photos" / "clean" / "b.png"));
   EXPECT_TRUE(hidden_temporaries(tmp / "photos" / "clean").empty());
+}
+
+// A full disk can leave the list without its header (made, then its first write failed) or
+// with a record cut short. Neither may cost the records written after it: with the first record
+// taken for the header, or the next record run into the cut one, each later run refused the
+// files this program had written itself.
+TEST_F(RemoveCli, AListCutShortByAFullDiskKeepsTheRecordsAfterIt) {
+  write_image(tmp / "photos" / "a.png", make_image(40, 30, 1));
+  write_image(tmp / "photos" / "b.png", make_image(40, 30, 2));
+  ASSERT_EQ(remove({"photos", "photos/clean", "-q"}).code, 0);
+  const fs::path list = tmp / "photos" / "clean" / ".raindrop-remove-outputs";
+  write_file(list, "");  // the header's write failed
+  fs::remove(tmp / "photos" / "clean" / "a.png");
+  fs::remove(tmp / "photos" / "clean" / "b.png");
+  RunResult r = remove({"photos", "photos/clean", "-q"});
+  ASSERT_EQ(r.code, 0) << r.describe();
+  r = remove({"photos", "photos/clean", "-q"});
+  ASSERT_EQ(r.code, 0) << "its own outputs, recorded after a list with no header\n" << r.describe();
+  std::ofstream(list, std::ios::app) << "31 17";  // a record cut short
+  fs::remove(tmp / "photos" / "clean" / "b.png");
+  r = remove({"photos", "photos/clean", "-q"});
+  ASSERT_EQ(r.code, 0) << r.describe();
+  r = remove({"photos", "photos/clean", "-q"});
+  EXPECT_EQ(r.code, 0) << "b.png, recorded after a record cut short\n" << r.describe();
 }
 
 // An output folder that holds the input folder (photos/ for photos/wet/) may hold the user's

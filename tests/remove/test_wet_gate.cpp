@@ -5,11 +5,14 @@
 #include <cmath>
 #include <sstream>
 
+#include <sys/stat.h>
+
 #include <gtest/gtest.h>
 
 #include "raindrop/common/error.h"
 #include "raindrop/common/image_io.h"
 #include "raindrop/remove/detector_router.h"
+#include "raindrop/remove/key_file.h"
 #include "raindrop/remove/remover.h"
 #include "raindrop/remove/wet_gate.h"
 #include "remove_test_util.h"
@@ -115,6 +118,20 @@ TEST(WetGate, RefusesADamagedFileNamingIt) {
   TempDir tmp;
   EXPECT_THROW(read_wet_gate(tmp / "missing.gate"), Error);
   EXPECT_THROW(read_wet_gate(tmp.path()), Error) << "a folder";
+  // Neither a FIFO (which blocked the read until a writer came) nor an endless file (/dev/zero
+  // grew the buffer to gigabytes) is read: not a regular file, or more than a key file holds.
+  ASSERT_EQ(mkfifo((tmp / "fifo.gate").c_str(), 0600), 0);
+  EXPECT_THROW(read_wet_gate(tmp / "fifo.gate"), Error);
+  EXPECT_THROW(read_wet_gate("/dev/zero"), Error);
+  write_file(tmp / "huge.gate", gate_text() + "#" + std::string(raindrop::removal::kMaxKeyFileBytes, 'x') + "\n");
+  try {
+    read_wet_gate(tmp / "huge.gate");
+    ADD_FAILURE() << "a file larger than a key file holds was read";
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("not a key file"), std::string::npos) << e.what();
+  }
+  write_file(tmp / "long.gate", gate_text() + "# " + std::string(1000, 'x') + "\n");
+  EXPECT_NO_THROW(read_wet_gate(tmp / "long.gate")) << "comments are still fine";
 }
 
 // The folder it was fitted with, its int8 copy or the float folder of an int8 copy; no other;

@@ -212,7 +212,7 @@ def _judge_command(args) -> int:
         raise GateError(f"'{args.gate}': fitted on {gate.maps} maps, and '{feats.name}''s detector computes {feats.maps}")
     for image in args.images:
         z = float(gate.score(feats(read_rgb_native(image))[: gate.maps * FEATURES])[0])
-        print(f"{image} {z:+.6f} {'wet' if z > 0 else 'dry'}")
+        print(f"{image} {z:+.6f} {'dry' if z <= 0 else 'wet'}")
     return 0
 
 

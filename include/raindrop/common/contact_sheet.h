@@ -13,7 +13,8 @@ namespace raindrop {
 cv::Mat to_rgb8(const cv::Mat& image);
 
 // rows[r][c]: panels as to_rgb8 takes them, of any size; each is scaled to panel_width
-// (keeping its aspect ratio). Returns an RGB CV_8UC3 image.
+// (keeping its aspect ratio), or narrower where that would make it more than 4 panel widths
+// tall. Returns an RGB CV_8UC3 image.
 cv::Mat make_contact_sheet(const std::vector<std::vector<cv::Mat>>& rows,
                            const std::vector<std::string>& column_titles,
                            const std::vector<std::string>& row_captions, int panel_width);

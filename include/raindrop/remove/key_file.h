@@ -33,7 +33,11 @@ struct KeyFile {
   std::string folder_name(const std::string& key, const std::string& what) const;
 };
 
-// Reads `file` into its fields; fail() where it cannot be read or gives a key twice.
+// The largest key file read (ROUTER and gate files are a few hundred bytes).
+inline constexpr size_t kMaxKeyFileBytes = 64 * 1024;
+
+// Reads `file` into its fields; fail() where it is not a regular file, is larger than
+// kMaxKeyFileBytes, cannot be read or gives a key twice.
 KeyFile read_key_file(const std::filesystem::path& file, std::function<Error(const std::string& why)> fail);
 
 }  // namespace raindrop::removal
