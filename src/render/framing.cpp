@@ -4,6 +4,8 @@
 
 #include <opencv2/imgproc.hpp>
 
+#include "raindrop/common/error.h"
+
 namespace raindrop {
 
 Frame make_frame(const cv::Mat& rgb8, const std::optional<Camera>& calibration,
@@ -32,6 +34,12 @@ Frame make_frame(const cv::Mat& rgb8, const std::optional<Camera>& calibration,
   } else {
     h = static_cast<int>(std::lround(w / aspect));
   }
+  // An aspect ratio far from the frame's (--size 16384x16 of a 480x360 frame) leaves a window
+  // under a pixel across: nothing to resize from.
+  if (w < 1 || h < 1)
+    throw Error("a " + std::to_string(rgb8.cols) + "x" + std::to_string(rgb8.rows) + " frame holds no window of " +
+                std::to_string(size->width) + "x" + std::to_string(size->height) +
+                "'s aspect ratio a pixel across: choose a --size nearer the frame's shape");
   const int x0 = (rgb8.cols - w) / 2, y0 = (rgb8.rows - h) / 2;
   cam = cam.cropped(x0, y0, w, h);
   const cv::Mat window = rgb8(cv::Rect(x0, y0, w, h));

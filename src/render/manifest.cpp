@@ -1,8 +1,10 @@
 #include "raindrop/render/manifest.h"
 
 #include <algorithm>
-
+#include <cerrno>
 #include <cstdio>
+#include <cstring>
+#include <iterator>
 
 #include <nlohmann/json.hpp>
 
@@ -74,7 +76,20 @@ void write_manifest(const std::map<std::string, std::string>& lines_by_id, const
   write_text_atomic(text, file);
 }
 
-ManifestWriter::ManifestWriter(const fs::path& file) : file_(file), out_(file, std::ios::app) {
+ManifestWriter::ManifestWriter(const fs::path& file) : file_(file) {
+  {
+    // The whole records already there: up to the last line break.
+    std::ifstream in(file, std::ios::binary);
+    std::string text((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+    const size_t end = text.rfind('\n');
+    whole_ = end == std::string::npos ? 0 : end + 1;
+    if (whole_ < text.size()) {
+      std::error_code ec;
+      fs::resize_file(file, whole_, ec);
+      if (ec) throw Error("'" + file.string() + "': cannot cut off its last record, cut short (" + ec.message() + ")");
+    }
+  }
+  out_.open(file, std::ios::app);
   if (!out_) throw Error("'" + file.string() + "': cannot open for writing");
 }
 
@@ -82,7 +97,14 @@ void ManifestWriter::append(const std::string& id, const std::string& line) {
   std::lock_guard<std::mutex> lock(mutex_);
   out_ << line << '\n';
   out_.flush();
-  if (!out_) throw Error("'" + file_.string() + "': write failed");
+  if (!out_) {
+    const int err = errno;
+    out_.close();
+    std::error_code ec;
+    fs::resize_file(file_, whole_, ec);  // the part written, if any: readers would take it for a record
+    throw Error("'" + file_.string() + "': write failed (" + std::strerror(err) + ")");
+  }
+  whole_ += line.size() + 1;
   appended_[id] = line;
 }
 

@@ -424,11 +424,27 @@ RenderSummary render_dataset(const std::vector<InputImage>& inputs, const Render
   }
 
   RenderSummary summary;
+  std::vector<std::string> resumed;  // this run's samples an earlier run rendered
   for (auto& t : tasks) {
-    const auto done = std::remove_if(t.variants.begin(), t.variants.end(),
-                                     [&](int v) { return kept.count(variant_id(t.input->id, v)) > 0; });
+    const auto done = std::remove_if(t.variants.begin(), t.variants.end(), [&](int v) {
+      const std::string id = variant_id(t.input->id, v);
+      if (kept.count(id) == 0) return false;
+      resumed.push_back(id);
+      return true;
+    });
     summary.skipped += static_cast<std::int64_t>(t.variants.end() - done);
     t.variants.erase(done, t.variants.end());
+  }
+  // The contact sheet shows this run's first samples by id, whichever run rendered them: those
+  // already done are read back (a resumed run wrote a sheet of only what it rendered, or none).
+  if (o.contact_sheet_rows > 0) {
+    std::sort(resumed.begin(), resumed.end());
+    if (static_cast<int>(resumed.size()) > o.contact_sheet_rows) resumed.resize(o.contact_sheet_rows);
+    for (const std::string& id : resumed) {
+      const ManifestEntry& e = kept.at(id);
+      summary.samples.push_back({id, read_image_native(o.out_dir / e.files[1]), read_image_native(o.out_dir / e.files[0]),
+                                 read_image_native(o.out_dir / e.files[2])});
+    }
   }
   tasks.erase(std::remove_if(tasks.begin(), tasks.end(), [](const Task& t) { return t.variants.empty(); }),
               tasks.end());

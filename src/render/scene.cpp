@@ -91,6 +91,11 @@ SceneSample sample_scene(const SceneConfig& config, const Camera& camera, Rng& r
       shape.center = s.glass.coords(*t * ray);
     } else {
       shape.center = {p.x, p.y};
+      // Behind the camera (or beside it) the glass is nowhere in view, and a drop there has no
+      // image: its circle of confusion, spread and shift came out NaN in the manifest.
+      if (s.glass.point(shape.center).z <= shape.footprint_radius)
+        throw Error("scene '" + config.name + "': drops[" + std::to_string(i) + "]: the glass at (" +
+                    std::to_string(p.x) + ", " + std::to_string(p.y) + ") cm is not in front of the camera");
     }
     placed.push_back({shape.center, shape.footprint_radius * outline_bound});
     s.drops.push_back(shape);
@@ -143,7 +148,17 @@ SceneSample sample_scene(const SceneConfig& config, const Camera& camera, Rng& r
   }
   // Trails after everything else, so that turning them on changes no other draw; a drop that
   // slid only shrinks by the water it left behind (trails.h).
-  if (config.trails.enabled) add_trails(&s.drops, config.trails, s.glass.tilt, rng);
+  if (config.trails.enabled) {
+    add_trails(&s.drops, config.trails, s.glass.tilt, rng);
+    // A long trail up a tilted glass can run past the camera's plane, where nothing is in view
+    // (its caps' projections were NaN). Those caps are left out after every draw, so the rest
+    // of the scene is drawn as before; their water stays taken from the drop.
+    s.drops.erase(std::remove_if(s.drops.begin(), s.drops.end(),
+                                 [&](const DropShape& d) {
+                                   return d.trail_of >= 0 && s.glass.point(d.center).z <= d.footprint_radius;
+                                 }),
+                  s.drops.end());
+  }
   // The plane of focus last of all, for the same reason: a scene focused on its background
   // draws nothing here. On the glass: where the optical axis meets it (depth N).
   if (config.lens.enabled && config.lens.focus == SceneConfig::Focus::Glass) s.focus_distance_cm = s.glass.distance;

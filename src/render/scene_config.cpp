@@ -12,6 +12,7 @@
 
 #include "raindrop/common/error.h"
 #include "raindrop/render/optics.h"
+#include "raindrop/render/trails.h"
 
 namespace raindrop {
 namespace {
@@ -207,12 +208,28 @@ glm::dvec3 SceneConfig::channel_indices() const {
 
 SceneConfig parse_scene_json(const std::string& text, const std::string& origin) {
   json j;
+  // A key given twice in one object: JSON keeps the last, which would drop the first's
+  // settings without a word ("effects" twice ran without the first one's blur). Refused.
+  std::vector<std::set<std::string>> keys_of_open_objects;
+  std::string twice;
+  const json::parser_callback_t refuse_repeated_keys = [&](int, json::parse_event_t event, json& parsed) {
+    if (event == json::parse_event_t::object_start) {
+      keys_of_open_objects.emplace_back();
+    } else if (event == json::parse_event_t::object_end) {
+      keys_of_open_objects.pop_back();
+    } else if (event == json::parse_event_t::key && twice.empty() &&
+               !keys_of_open_objects.back().insert(parsed.get<std::string>()).second) {
+      twice = parsed.get<std::string>();
+    }
+    return true;
+  };
   try {
-    j = json::parse(text, nullptr, /*allow_exceptions=*/true, /*ignore_comments=*/true);
+    j = json::parse(text, refuse_repeated_keys, /*allow_exceptions=*/true, /*ignore_comments=*/true);
   } catch (const json::exception& e) {
     // Not only parse_error: a number too large for a double (1e309) is an out_of_range.
     throw Error("scene " + origin + ": not valid JSON (" + std::string(e.what()) + ")");
   }
+  if (!twice.empty()) throw Error("scene " + origin + ": '" + twice + "' is given twice in one object");
   Reader r(j, "", origin);
   SceneConfig c;
   c.name = r.string("name", std::filesystem::path(origin).stem().string());
@@ -417,11 +434,17 @@ SceneConfig parse_scene_json(const std::string& text, const std::string& origin)
     } catch (const Error& e) {
       q.fail(e.what());  // with the file's name
     }
-    const double mesh_bytes = c.geometry.mesh_bytes_per_drop() * (c.drop_count.hi + static_cast<double>(c.drops.size()));
+    // Each trail cap is a drop of the mesh too: up to kMaxTrailCaps per drop (a scene that
+    // passed without them took 6 to 23 GB).
+    const double drops = c.drop_count.hi + static_cast<double>(c.drops.size());
+    const double shapes = drops * (c.trails.enabled ? 1 + kMaxTrailCaps : 1);
+    const double mesh_bytes = c.geometry.mesh_bytes_per_drop() * shapes;
     if (mesh_bytes > kMaxMeshBytes) {
       std::ostringstream m;
       m << std::fixed << std::setprecision(1) << "'geometry' = '" << c.geometry.describe() << "' with up to "
-        << static_cast<long long>(c.drop_count.hi) + static_cast<long long>(c.drops.size()) << " drops takes about " << mesh_bytes / (1 << 30) << " GB of mesh a sample, more than the "
+        << static_cast<long long>(drops) << " drops"
+        << (c.trails.enabled ? " and their trails' caps (up to " + std::to_string(kMaxTrailCaps) + " a drop)" : "")
+        << " takes about " << mesh_bytes / (1 << 30) << " GB of mesh a sample, more than the "
         << kMaxMeshBytes / (1 << 30) << " GB limit; use fewer segments or drops";
       q.fail(m.str());
     }

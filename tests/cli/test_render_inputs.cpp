@@ -363,6 +363,32 @@ TEST(RenderFolder, TheContactSheetNeitherReplacesAFileNorFailsLate) {
   EXPECT_EQ(loop.message_lines().size(), 1u) << loop.describe();
 }
 
+// A resumed run's sheet shows the same first samples as a fresh run's, those done before read
+// back: it wrote no sheet at all when every sample was done (and said it had), and a sheet of
+// only the samples it rendered when some were.
+TEST(RenderFolder, AResumedRunWritesTheSheetAFreshRunWrites) {
+  TempDir tmp;
+  for (int i = 0; i < 3; ++i) write_image(tmp / "in" / ("f" + std::to_string(i) + ".png"), make_background(96, 64, i));
+  const std::vector<std::string> args = {"-i", "in", "-o", "o", "--variants", "2", "--sheet-rows", "3",
+                                         "--contact-sheet", "sheet.png", "-q"};
+  auto r = run_render(args, tmp.path());
+  ASSERT_EQ(r.code, 0) << r.describe();
+  const std::string fresh = read_file(tmp / "sheet.png");
+  ASSERT_FALSE(fresh.empty());
+  fs::remove(tmp / "sheet.png");
+  r = run_render(args, tmp.path());  // every sample done
+  ASSERT_EQ(r.code, 0) << r.describe();
+  EXPECT_EQ(read_file(tmp / "sheet.png"), fresh) << r.describe();
+  fs::remove(tmp / "sheet.png");
+  fs::remove(tmp / "o" / "mask" / "f0_v01.png");  // one sample to render again, in the sheet's rows
+  r = run_render(args, tmp.path());
+  ASSERT_EQ(r.code, 0) << r.describe();
+  const auto counts = parse_counts(r.err);
+  ASSERT_TRUE(counts) << r.describe();
+  EXPECT_EQ(counts->rendered, 1) << r.describe();
+  EXPECT_EQ(read_file(tmp / "sheet.png"), fresh);
+}
+
 // The demo renders into out/demo, unless an output folder is named, even the default's own name.
 TEST(RenderFolder, TheDemoWritesWhereItIsTold) {
   TempDir tmp;

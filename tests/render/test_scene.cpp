@@ -75,9 +75,16 @@ TEST(SceneFile, MistakesAreReportedWithTheKey) {
       {R"({"effects": {"blur": {"auto": true}}})", "unknown key 'auto'"},
       {R"({"quality": {"supersample": "some"}})", "'supersample'"},
       {R"({"coalesce": true})", "needs \"allow_overlap\": true"},
+      // A key twice: JSON would keep the last and drop the first's settings without a word.
+      {R"({"effects": {"blur": {}}, "drop_count": 5, "effects": {"fresnel": {}}})", "'effects' is given twice"},
+      {R"({"effects": {"gravity": {"elongation": [1, 1.2], "elongation": [1, 1.5]}}})", "'elongation' is given twice"},
   };
   for (const auto& [text, needle] : cases) expect_scene_refused(text, needle);
   EXPECT_THROW(load_scene("no-such-preset-or-file"), Error);
+  // The same key in different objects, or in objects side by side in a list, is no repeat.
+  EXPECT_NO_THROW(parse_scene_json(R"({"effects": {"fresnel": {}}, "drops": [
+      {"center_cm": [0, 0], "footprint_radius_cm": 0.2, "contact_angle_deg": 60},
+      {"center_cm": [3, 0], "footprint_radius_cm": 0.2, "contact_angle_deg": 60}]})", "test"));
 }
 
 // "auto" leaves an effect to the scene's physics (effect_policy.h): as a string, or as a key
@@ -204,6 +211,17 @@ TEST(Framing, CameraFollowsCropAndResize) {
   EXPECT_EQ(g.camera_origin, "default");
   EXPECT_EQ(g.clean.size(), cv::Size(480, 240));
   EXPECT_NEAR(g.camera.cy, 0.5 * (360 - 1) - 60, 1e-9);
+  // An aspect ratio that leaves no window a pixel across is an error naming both sizes (it was
+  // OpenCV's assertion from an empty resize), either way round; one a pixel across is a frame.
+  for (const cv::Size size : {cv::Size(16384, 16), cv::Size(16, 16384)}) {
+    try {
+      make_frame(camvid, std::nullopt, size);
+      ADD_FAILURE() << size;
+    } catch (const Error& e) {
+      EXPECT_NE(std::string(e.what()).find("480x360 frame holds no window"), std::string::npos) << e.what();
+    }
+  }
+  EXPECT_EQ(make_frame(camvid, std::nullopt, cv::Size(960, 1)).clean.size(), cv::Size(960, 1));
 }
 
 TEST(Rendering, RainyEqualsCleanOutsideTheMaskAndThreadsDoNotMatter) {
@@ -282,6 +300,19 @@ TEST(Manifest, ATruncatedLastLineIsIgnoredAndABadMiddleLineIsAnError) {
     std::ofstream(file) << R"({"id":"b","rai)" << "\n" << good << "\n";
   }
   EXPECT_THROW(read_manifest(file), Error);
+  // A run resumed after one cut short appends after the cut record, never onto it (that made it
+  // a bad middle line: the folder could not be read again).
+  {
+    std::ofstream(file, std::ios::trunc) << good << "\n" << R"({"id":"b","rai)";
+  }
+  {
+    ManifestWriter w(file);
+    const std::string c = R"({"id":"c","rainy":"rainy/c.png","clean":"clean/c.png","mask":"mask/c.png","job":"j"})";
+    w.append("c", c);
+  }
+  const auto resumed = read_manifest(file);
+  ASSERT_EQ(resumed.size(), 2u);
+  EXPECT_EQ(resumed.count("a") + resumed.count("c"), 2u);
   std::filesystem::remove_all(dir);
 }
 

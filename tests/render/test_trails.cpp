@@ -304,3 +304,55 @@ TEST(Trails, SceneFilesNameTrailsAndRefuseBadOnes) {
   expect_scene_refused(R"({"effects": {"trails": "auto"}})", "trails");
   expect_scene_refused(R"({"effects": {"trails": {"length": 3}}})", "length");
 }
+
+// A trail long enough to run up a tilted glass past the camera's plane: its caps there are
+// nowhere in view, and their projections were NaN (the manifest's shift and spread as null).
+// They are left out; every cap kept is in front of the camera, and the drops are drawn as
+// without the cut. A mesh of caps counts against the scene's mesh limit.
+TEST(Trails, CapsPastTheCamerasPlaneAreLeftOut) {
+  SceneConfig config = parse_scene_json(
+      R"({"glass_distance_cm": 20, "tilt_deg": 30, "drop_count": 20, "footprint_radius_cm": [1, 1.5],
+          "effects": {"trails": {"length_radii": 50, "hysteresis": 0.1}}})",
+      "t.json");
+  const Camera cam = camera(256, 128, 300);
+  size_t caps = 0;
+  for (std::uint64_t seed = 1; seed <= 20; ++seed) {
+    Rng rng(seed);
+    const SceneSample s = sample_scene(config, cam, rng);
+    Rng plain_rng(seed);
+    SceneConfig plain = config;
+    plain.trails.enabled = false;
+    const SceneSample without = sample_scene(plain, cam, plain_rng);
+    ASSERT_LE(without.drops.size(), s.drops.size());
+    for (size_t i = 0; i < s.drops.size(); ++i) {
+      const DropShape& d = s.drops[i];
+      EXPECT_GT(s.glass.point(d.center).z, d.footprint_radius) << "seed " << seed << " drop " << i;
+      if (d.trail_of < 0) {
+        EXPECT_EQ(d.center, without.drops[i].center);
+      } else {
+        ++caps;
+      }
+    }
+  }
+  EXPECT_GT(caps, 100u) << "the trails are there, short of the camera's plane";
+  expect_scene_refused(R"({"drop_count": 100, "quality": {"geometry": "mesh-64-flat"},
+      "effects": {"trails": {"hysteresis": 0, "length_radii": 50}}})", "trails' caps");
+  EXPECT_NO_THROW(parse_scene_json(R"({"drop_count": 100, "quality": {"geometry": "mesh-64-flat"}})", "t.json"));
+}
+
+// A drop the scene places in glass coordinates behind the camera is an error naming it, as one
+// placed at a pixel the camera does not see on the glass is.
+TEST(Trails, APlacedDropBehindTheCameraIsAnError) {
+  const SceneConfig config = parse_scene_json(
+      R"({"glass_distance_cm": 1, "tilt_deg": 15, "drop_count": 0,
+          "drops": [{"center_cm": [0, -10], "footprint_radius_cm": 0.5, "contact_angle_deg": 30}]})",
+      "t.json");
+  Rng rng(1);
+  try {
+    sample_scene(config, camera(256, 128, 300), rng);
+    ADD_FAILURE() << "a drop behind the camera was placed";
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("drops[0]"), std::string::npos) << e.what();
+    EXPECT_NE(std::string(e.what()).find("not in front of the camera"), std::string::npos) << e.what();
+  }
+}

@@ -30,6 +30,12 @@ def _read_text(f: Path) -> str:
         raise ManifestError(f"{f}: not UTF-8 text (byte {e.start}); is it a manifest?") from None
 
 
+def _whole_lines(text: str) -> list[str]:
+    """The lines that end with a line break: a last one without it is a record cut short (an
+    interrupted run's append), which the renderer ignores too and renders again on resuming."""
+    return text.split("\n")[:-1]
+
+
 def manifest_files(root: str | os.PathLike) -> list[Path]:
     """``manifest.jsonl`` (when present), then the shards' parts sorted by name."""
     root = Path(root)
@@ -48,7 +54,7 @@ def manifest_lines(root: str | os.PathLike) -> list[tuple[str, int, str]]:
     lines = [
         (f.name, n, text)
         for f in files
-        for n, text in enumerate(_read_text(f).split("\n"), start=1)
+        for n, text in enumerate(_whole_lines(_read_text(f)), start=1)
         if text.strip()
     ]
     if len(files) <= 1:

@@ -72,3 +72,19 @@ def test_trail_caps_are_not_counted_as_drops(tiny_dataset, tmp_path):
     s = dataset_stats.summarize(root)
     assert s["drops_per_frame"]["mean"] == 1
     assert s["drops_per_frame"]["p95"] == 1
+
+
+def test_a_record_cut_short_at_the_end_is_not_read(tiny_dataset, tmp_path):
+    """A run interrupted mid-append (a full disk) leaves its last record without its line break:
+    the renderer ignores it and renders that sample again, and so do the readers here, instead
+    of failing on JSON cut in half."""
+    root = tmp_path / "ds"
+    shutil.copytree(tiny_dataset, root)
+    lines = (root / "manifest.jsonl").read_text().splitlines()
+    (root / "manifest.jsonl").write_text("".join(x + "\n" for x in lines[:-1]) + lines[-1][: len(lines[-1]) // 2])
+    assert [text for _, _, text in manifest_lines(root)] == lines[:-1]
+    assert len(read_manifest(root)) == len(lines) - 1
+    # A middle line cut short is no interrupted append: still an error.
+    (root / "manifest.jsonl").write_text(lines[0][:20] + "\n" + "".join(x + "\n" for x in lines[1:]))
+    with pytest.raises(DatasetError):
+        read_manifest(root)

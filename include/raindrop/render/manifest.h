@@ -8,6 +8,7 @@
 // A shard of a run (--shard K/N, shard.h) writes manifest.part-K-of-N.jsonl instead, in the
 // same way; the parts merged (merge_manifest_parts) are byte for byte the manifest.jsonl of
 // one run.
+#include <cstdint>
 #include <filesystem>
 #include <fstream>
 #include <map>
@@ -41,6 +42,10 @@ std::vector<std::pair<std::filesystem::path, Shard>> find_manifest_parts(const s
 // Writes the lines (by id) as a finished manifest: sorted by id, one per line, atomically.
 void write_manifest(const std::map<std::string, std::string>& lines_by_id, const std::filesystem::path& file);
 
+// Appends records to a manifest as samples finish. Every record in the file ends with its line
+// break: a record cut short (an interrupted run's last, which readers ignore) is cut off before
+// the first append, and an append that fails (a full disk) is cut off again before the error,
+// so that neither is ever followed by a record, which would make it a bad middle line.
 class ManifestWriter {
  public:
   explicit ManifestWriter(const std::filesystem::path& file);
@@ -51,6 +56,7 @@ class ManifestWriter {
  private:
   std::filesystem::path file_;
   std::ofstream out_;
+  std::uintmax_t whole_ = 0;  // bytes of whole records in the file
   std::map<std::string, std::string> appended_;
   std::mutex mutex_;
 };
