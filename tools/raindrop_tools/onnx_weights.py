@@ -37,12 +37,21 @@ class OnnxWeightsError(ValueError):
     pass
 
 
-def _graph_convs(model: onnx.ModelProto) -> list[tuple[str, np.ndarray, np.ndarray | None]]:
-    """(op, weight, bias or None) of every convolution node, in graph order."""
+def _graph_convs(model: onnx.ModelProto, head_only: bool = False) -> list[tuple[str, np.ndarray, np.ndarray | None]]:
+    """(op, weight, bias or None) of every convolution node, in graph order; with ``head_only``,
+    those of the second detector's head that shared_detector.py spliced onto the RDN instead."""
     # A second detector's head on the RDN (shared_detector.py) is not the RDN's: left out,
     # unless the graph's own map is the head's (that folder's detector is a head, not an RDN).
     head = [n for n in model.graph.node if n.name.startswith(C.HEAD_NODE_PREFIX)]
-    if head:
+    if head_only:
+        if not head:
+            raise OnnxWeightsError("the graph holds no second detector's head (shared_detector.py)")
+        only = onnx.ModelProto()
+        only.CopyFrom(model)
+        del only.graph.node[:]
+        only.graph.node.extend(head)
+        model = only
+    elif head:
         if any(C.OUTPUTS["rdn"] in n.output for n in head):
             raise OnnxWeightsError("this detector is a head on another model's RDN (shared_detector.py), not an RDN: "
                                    "start from that model's folder (export.json names it)")

@@ -49,7 +49,8 @@ from .config import HalfResConfig
 from .export import OPSET, _strip_debug_info
 from .flops import count_macs, parameter_count
 from .networks import RDN, AlternativeHead, rdn_taps
-from .onnx_weights import load_network
+from .onnx_weights import MAX_ABS_DIFF as LOAD_MAX_ABS_DIFF
+from .onnx_weights import OnnxWeightsError, _graph_convs, load_network
 from .phase_conv import phase_groups, split_transposed_convs
 from .phase_final_conv import fold_final_convs
 from .read_only import refuse_read_only
@@ -78,6 +79,51 @@ def load_rdn(folder: Path) -> RDN:
     for p in net.parameters():
         p.requires_grad_(False)
     return net
+
+
+def load_head(folder: Path) -> AlternativeHead:
+    """The second detector's head that this script spliced into ``folder``'s rdn.onnx beside the
+    RDN's own map (the default's folder, whose router uses it), as a PyTorch AlternativeHead, so that
+    a committed model can start a head's fine-tune (train_head's ``init``) without the run that
+    made it. Its widths come from the graph; checked against ONNX Runtime before returning."""
+    import onnxruntime as ort
+
+    path = Path(folder) / C.FILES["rdn"]
+    model = onnx.load(str(path))
+    if C.ALTERNATIVE_OUTPUT not in [o.name for o in model.graph.output]:
+        raise SharedDetectorError(f"{path}: no {C.ALTERNATIVE_OUTPUT} output: give the folder whose detector carries the "
+                                  "head beside its own map (the default's, e.g. models/compact-multiscale)")
+    try:
+        convs = _graph_convs(model, head_only=True)
+    except OnnxWeightsError as e:
+        raise SharedDetectorError(f"{path}: {e}") from None
+    ops = [op for op, _, _ in convs]
+    if ops != ["Conv", "Conv", "ConvTranspose", "Conv"]:
+        raise SharedDetectorError(f"{path}: the head's convolutions are {ops}, not an AlternativeHead's")
+    rc = rdn_config(Path(folder))
+    mix, up = convs[0][1], convs[2][1]
+    if mix.shape[1] != rc.width + rc.expanded:
+        raise SharedDetectorError(f"{path}: the head reads {mix.shape[1]} channels, its RDN gives {rc.width + rc.expanded}")
+    head = AlternativeHead(rc.width, rc.expanded, mid=mix.shape[0], up=up.shape[1])
+    with torch.no_grad():
+        for conv, (_, w, b) in zip((head.mix, head.conv, head.up, head.out), convs):
+            if tuple(w.shape) != tuple(conv.weight.shape) or b is None:
+                raise SharedDetectorError(f"{path}: a head convolution of shape {list(w.shape)} does not fit {list(conv.weight.shape)}")
+            conv.weight.copy_(torch.from_numpy(w.copy()))
+            conv.bias.copy_(torch.from_numpy(b.copy()))
+    head.eval()
+    # The graph's head map against PyTorch's: the folder's RDN read from the same graph, the
+    # head on its taps.
+    rdn = load_rdn(Path(folder))
+    sess = ort.InferenceSession(str(path), providers=["CPUExecutionProvider"])
+    x = torch.rand(1, 3, 48, 64, generator=torch.Generator().manual_seed(1))
+    (theirs,) = sess.run([C.ALTERNATIVE_OUTPUT], {"image": x.numpy()})
+    with torch.no_grad():
+        ours = torch.sigmoid(head(*rdn_taps(rdn, x))).numpy()
+    diff = float(np.abs(ours - theirs).max())
+    if not diff <= LOAD_MAX_ABS_DIFF:
+        raise SharedDetectorError(f"{path}: the head read back differs from the graph by {diff:.3g} (> {LOAD_MAX_ABS_DIFF})")
+    return head
 
 
 def find_taps(model: onnx.ModelProto) -> tuple[str, str, str]:

@@ -41,7 +41,8 @@ from .imageio import ImageError, read_rgb
 from .metrics import luma_float
 from .networks import AlternativeHead, rdn_taps
 from .read_only import refuse_read_only
-from .shared_detector import load_rdn, rdn_config
+from .onnx_weights import OnnxWeightsError
+from .shared_detector import SharedDetectorError, load_head, load_rdn, rdn_config
 from .text_negatives import draw_text
 
 
@@ -83,7 +84,10 @@ class HeadConfig:
     # text_sources' images (clean: no drops) with lettering drawn on, and its target is no drop.
     text_share: float = 0.0
     text_sources: list[Source] | None = None
-    init: str | None = None  # a head.pt to start from (a fine-tune), else a new head
+    # A head to start from (a fine-tune): a head.pt, or a model folder whose detector carries one
+    # beside its own map (shared_detector.load_head: main's own folder, e.g. models/compact-multiscale);
+    # else a new head.
+    init: str | None = None
 
 
 def read_config(path: Path) -> HeadConfig:
@@ -224,14 +228,22 @@ def train(cfg: HeadConfig, out: Path) -> Path:
     rng = random.Random(cfg.seed)
     # A read-only file is kept (read_only.py): refused before any work.
     refuse_read_only(out / "config.json", out / "log.jsonl", out / "head.pt", follow_links=False)
-    if cfg.init and not Path(cfg.init).is_file():
-        raise SystemExit(f"error: init {cfg.init}: no such file (train that head first)")
+    if cfg.init and not (Path(cfg.init).is_file() or Path(cfg.init).is_dir()):
+        raise SystemExit(f"error: init {cfg.init}: no such file or folder (train that head first)")
     out.mkdir(parents=True, exist_ok=True)
     (out / "config.json").write_text(json.dumps(cfg.__dict__, default=lambda o: o.__dict__, indent=2) + "\n")
     main, teacher = load_rdn(Path(cfg.main)), load_rdn(Path(cfg.teacher))
     rc = rdn_config(Path(cfg.main))
     head = AlternativeHead(rc.width, rc.expanded, mid=cfg.mid, up=cfg.up)
-    if cfg.init:
+    if cfg.init and Path(cfg.init).is_dir():
+        # A committed model folder: the head its detector carries (main's own folder, typically).
+        try:
+            head.load_state_dict(load_head(Path(cfg.init)).state_dict())
+        except (SharedDetectorError, OnnxWeightsError, OSError, KeyError, ValueError) as e:
+            raise SystemExit(f"error: init {cfg.init}: {e}") from None
+        except RuntimeError as e:  # another head's shape
+            raise SystemExit(f"error: init {cfg.init}: not a head of this configuration ({str(e).splitlines()[0]})") from None
+    elif cfg.init:
         try:
             head.load_state_dict(torch.load(cfg.init, map_location="cpu", weights_only=True))
         except (RuntimeError, OSError, KeyError) as e:  # another head's shape, or not a state dict

@@ -110,6 +110,34 @@ def test_the_rdn_reads_back_from_the_merged_graph_and_the_head_is_no_rdn(tmp_pat
         SD.write(main, like, tmp_path / "h2", tmp_path / "head.pt")
 
 
+def test_a_spliced_head_reads_back_as_the_head_that_was_spliced(tmp_path):
+    # load_head (train_head's init from a model folder) recovers the saved head's weights from
+    # the phase-split, folded graph, and refuses folders without a head beside the RDN's map.
+    main, like = _current_folder(tmp_path, "main"), _current_folder(tmp_path, "like")
+    with pytest.raises(SD.SharedDetectorError, match="no alternative_mask_prob"):
+        SD.load_head(main)
+    head = _random_head(main, tmp_path / "head.pt", seed=4)
+    SD.write(main, like, tmp_path / "h", tmp_path / "head.pt")
+    back = SD.load_head(main)
+    assert (back.mix.out_channels, back.up.out_channels) == (6, 4)
+    for name, want in head.state_dict().items():
+        assert torch.allclose(back.state_dict()[name], want, atol=1e-6), name
+    with pytest.raises(SD.SharedDetectorError, match="no alternative_mask_prob"):
+        SD.load_head(tmp_path / "h")  # the head's own folder: its RDN is not there to read
+
+
+def test_a_head_fine_tune_starts_from_a_model_folders_head(tmp_path):
+    main, like = _current_folder(tmp_path, "main"), _current_folder(tmp_path, "like")
+    _random_head(main, tmp_path / "head.pt", seed=5)
+    SD.write(main, like, tmp_path / "h", tmp_path / "head.pt")
+    cfg = train_head.HeadConfig(name="t", main=str(main), teacher=str(like), sources=[], init=str(tmp_path / "nowhere"))
+    with pytest.raises(SystemExit, match="no such file or folder"):
+        train_head.train(cfg, tmp_path / "run")
+    cfg.init, cfg.mid = str(main), 7  # another width than the folder's head
+    with pytest.raises(SystemExit, match="not a head of this configuration"):
+        train_head.train(cfg, tmp_path / "run")
+
+
 def test_a_head_replaced_is_the_new_head_spliced_onto_the_graph_without_one(tmp_path):
     # Splicing head A, then replacing it by head B (--replace) gives the graph that splicing B
     # onto the original gives, byte for byte; the stripped graph is the original's, node for node.
