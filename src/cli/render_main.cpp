@@ -136,6 +136,12 @@ int run(int argc, char** argv) {
   Shard shard;
   std::optional<cv::Size> size;
   try {
+    // An option given an empty value would read as not given: the demo rendered into ./out for
+    // --merge-shards "", a whole run for --shard "".
+    for (const char* name : {"--shard", "--merge-shards", "--contact-sheet", "--cityscapes", "--scene"}) {
+      if (app.count(name) > 0 && app.get_option(name)->as<std::string>().empty())
+        throw Error(std::string(name) + " needs a value, got ''");
+    }
     size = parse_size(size_text);
     if (!shard_text.empty()) shard = parse_shard(shard_text);
     if (!merge_dir.empty() && (!cityscapes.empty() || !input_paths.empty() || demo || !shard_text.empty()))
@@ -207,6 +213,8 @@ int run(int argc, char** argv) {
     if (!sheet.empty()) check_contact_sheet(sheet, {}, options.out_dir, written);  // before the backgrounds are written
     inputs = make_demo_inputs(options.out_dir);
   }
+  if (sheet.empty() && app.count("--sheet-rows") > 0)
+    throw Error("--sheet-rows sets the rows of a contact sheet: give --contact-sheet FILE too");
   // Against every input, the ones --limit leaves out included: they are the user's files too.
   if (!sheet.empty()) {
     options.contact_sheet_rows = sheet_rows;

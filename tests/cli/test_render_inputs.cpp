@@ -216,6 +216,31 @@ TEST(RenderDemo, AnOutputFolderWithoutAnInputIsAnError) {
   EXPECT_TRUE(fs::is_empty(tmp / "mine"));
 }
 
+// An option given an empty value read as not given: --merge-shards "" rendered the demo into
+// ./out, --shard "" rendered every shard. --sheet-rows without a sheet was ignored.
+TEST(RenderDemo, AnEmptyValueOrASheetsRowsWithoutASheetAreErrors) {
+  TempDir tmp;
+  write_image(tmp / "in" / "a.png", make_background(96, 64, 0));
+  const std::vector<std::pair<std::vector<std::string>, std::string>> cases = {
+      {{"--merge-shards", ""}, "--merge-shards needs a value"},
+      {{"-i", "in", "-o", "o", "--shard", ""}, "--shard needs a value"},
+      {{"-i", "in", "-o", "o", "--contact-sheet", ""}, "--contact-sheet needs a value"},
+      {{"-i", "in", "-o", "o", "--sheet-rows", "3"}, "give --contact-sheet"},
+  };
+  for (const auto& [args, needle] : cases) {
+    const auto r = run_render(args, tmp.path());
+    EXPECT_NE(r.code, 0) << r.describe();
+    EXPECT_EQ(r.message_lines().size(), 1u) << r.describe();
+    EXPECT_NE(r.err.find(needle), std::string::npos) << r.describe();
+  }
+  EXPECT_FALSE(fs::exists(tmp / "out"));
+  EXPECT_FALSE(fs::exists(tmp / "o" / "manifest.jsonl"));
+  // The demo's own sheet takes --sheet-rows.
+  const auto demo = run_render({"--size", "64x32", "--sheet-rows", "2", "-q"}, tmp.path());
+  EXPECT_EQ(demo.code, 0) << demo.describe();
+  EXPECT_TRUE(fs::exists(tmp / "out" / "demo" / "contact_sheet.png"));
+}
+
 TEST(RenderDemo, NoInputRendersTheDemoAndAContactSheet) {
   TempDir tmp;
   const auto r = run_render({"--demo", "--out", "demo", "-j", "2"}, tmp.path());
