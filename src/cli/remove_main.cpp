@@ -16,6 +16,7 @@
 // stderr, no partial output file); 2 bad command line; 3 batch run with --keep-going
 // finished but some inputs failed.
 #include <algorithm>
+#include <cctype>
 #include <atomic>
 #include <cerrno>
 #include <cmath>
@@ -362,7 +363,7 @@ int run(int argc, char** argv) {
   app.add_option("--models", models_dir, "Model folder with rdn.onnx, rrn.onnx, rfn.onnx (default: see below)");
   app.add_option("--model-config", model_config, "Model configuration name, e.g. compact or paper (default: models/DEFAULT)");
   auto* mask_opt =
-      app.add_option("--mask", mask, "Also write the final mask (0/255, after dilation) here; a folder in folder mode");
+      app.add_option("--mask", mask, "Also write the final mask (0/255, after dilation) here: a .png, .tif or .bmp file; a folder in folder mode");
   app.add_option("--mask-dir", mask_dir, "Also write the masks into this folder, as <relative name>.png (either mode)")
       ->excludes(mask_opt);
   app.add_option("--threshold", threshold, "Detection threshold on the RDN probability (default: the models')")
@@ -532,7 +533,15 @@ int run(int argc, char** argv) {
     if (!out.has_filename() && !fs::is_directory(out, ec)) throw Error("output folder '" + output + "' does not exist");
     if (fs::is_directory(out, ec)) out /= in_path.filename();
     Job j{in_path, out, std::nullopt, in_path.filename().string(), false, {}};
-    if (!mask.empty()) j.mask = fs::path(mask);
+    if (!mask.empty()) {
+      // A mask is 0 and 255 in one channel: JPEG wrote it with other levels (9 on a photograph),
+      // WebP holds no single channel (refused only after the removal). Folder masks are PNG.
+      std::string ext = fs::path(mask).extension().string();
+      std::transform(ext.begin(), ext.end(), ext.begin(), [](unsigned char c) { return std::tolower(c); });
+      if (ext == ".jpg" || ext == ".jpeg" || ext == ".webp" || ext == ".exr")
+        throw Error("--mask '" + mask + "': a mask holds 0 and 255 in one channel; name a .png, .tif or .bmp file");
+      j.mask = fs::path(mask);
+    }
     if (!mask_dir.empty()) j.mask = (fs::path(mask_dir) / in_path.filename()).replace_extension(".png");
     jobs.push_back(j);
   }

@@ -886,6 +886,20 @@ TEST_F(RemoveCli, BadMaskOrSheetLeavesNoOutput) {
     SCOPED_TRACE(args.back());
     expect_clean_failure(remove(args), args.back());
   }
+  // A mask file in a format that cannot hold 0 and 255 in one channel: refused before the
+  // removal (JPEG wrote other levels; WebP failed after the networks had run).
+  for (const char* name : {"m.jpg", "m.JPEG", "m.webp", "m.exr"}) {
+    SCOPED_TRACE(name);
+    expect_clean_failure(remove({"in.png", "out.png", "--mask", name}), "name a .png, .tif or .bmp file");
+  }
+  for (const char* name : {"m.tif", "m.BMP"}) {
+    const RunResult r = remove({"in.png", "out.png", "--mask", name, "-q"});
+    ASSERT_EQ(r.code, 0) << name << "\n" << r.describe();
+    const auto m = read_image(tmp / name);
+    ASSERT_TRUE(m);
+    EXPECT_EQ(m->pixels.channels(), 1) << name;
+    fs::remove(tmp / "out.png");
+  }
   // Folder mode: no output at all when the sheet cannot be written.
   write_image(tmp / "batch" / "a.png", make_image(40, 30, 1));
   const RunResult r = remove({"batch", "results", "-q", "--contact-sheet", "sheet.xyz"});
