@@ -73,6 +73,43 @@ TEST(ImageIo, FloatFormatsAreWrittenInLinearLight) {
   std::filesystem::remove_all(dir);
 }
 
+// WebP holds RGB and RGBA only: a grey image (a grey photograph's output) was refused after the
+// removal had run. It is written as RGB (grey+alpha as RGBA), and the loss is said.
+TEST(ImageIo, AFormatWithoutGreyTakesGreyAsRgb) {
+  const auto dir = std::filesystem::temp_directory_path() / ("raindrop_webp_" + std::to_string(::getpid()));
+  std::filesystem::create_directories(dir);
+  cv::Mat grey(24, 32, CV_8UC1);
+  for (int y = 0; y < grey.rows; ++y)
+    for (int x = 0; x < grey.cols; ++x) grey.at<uchar>(y, x) = static_cast<uchar>(40 + 4 * x + 2 * y);
+  cv::Mat grey_alpha;
+  cv::Mat alpha(grey.size(), CV_8UC1);
+  for (int x = 0; x < grey.cols; ++x) alpha.col(x).setTo(128 + 3 * x);  // not opaque: WebP would drop it
+  cv::merge(std::vector<cv::Mat>{grey, alpha}, grey_alpha);
+  for (const auto& [image, channels, what] : {std::tuple{grey, 3, "RGB"}, std::tuple{grey_alpha, 4, "RGBA"}}) {
+    SCOPED_TRACE(what);
+    const auto path = dir / "g.webp";
+    const std::string lost = write_image_atomic(image, path);
+    EXPECT_NE(lost.find("holds no grey image: written as " + std::string(what)), std::string::npos) << lost;
+    OIIO::ImageSpec config;
+    config.attribute("oiio:UnassociatedAlpha", 1);  // the colour as stored, not times alpha
+    auto in = OIIO::ImageInput::open(path.string(), &config);
+    ASSERT_TRUE(in);
+    EXPECT_EQ(in->spec().nchannels, channels);
+    std::vector<std::uint8_t> back(grey.total() * channels);
+    ASSERT_TRUE(in->read_image(0, 0, 0, channels, OIIO::TypeDesc::UINT8, back.data()));
+    // Lossy, so near on average: each colour channel the grey level (RGB), the alpha kept (RGBA;
+    // WebP is free to change the colour under partly transparent pixels).
+    double colour = 0, alpha_off = 0;
+    for (size_t i = 0; i < grey.total(); ++i) {
+      for (int c = 0; c < 3; ++c) colour += std::abs(double(back[i * channels + c]) - grey.data[i]);
+      if (channels == 4) alpha_off += std::abs(double(back[i * 4 + 3]) - alpha.data[i]);
+    }
+    if (channels == 3) EXPECT_LE(colour / (3.0 * grey.total()), 4.0);
+    EXPECT_LE(alpha_off / grey.total(), 4.0);
+  }
+  std::filesystem::remove_all(dir);
+}
+
 // A name near the file system's 255-byte limit: its hidden temporary (16-27 bytes longer)
 // used to fail with "File name too long" after the work was done. The temporary now cuts the
 // name; a final name past the limit is refused by the destination check.
