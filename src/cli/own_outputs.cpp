@@ -75,7 +75,8 @@ void record_own_output(const fs::path& folder, const std::string& name, const fs
   const fs::path list = folder / kOwnOutputsList;
   const auto fail = [&list] { throw Error("'" + list.string() + "': cannot write (" + std::strerror(errno) + ")"); };
   // The header once, by whichever run makes the list (O_EXCL: never over another's).
-  if (!write_once(list, O_WRONLY | O_CREAT | O_EXCL, kHeader) && errno != EEXIST) fail();
+  // O_APPEND: a record another run appended between its creation and this write stays.
+  if (!write_once(list, O_WRONLY | O_CREAT | O_EXCL | O_APPEND, kHeader) && errno != EEXIST) fail();
   // A line break first as well: a record cut short by a full disk (a failed run's last) ends
   // there, instead of running into this one and taking it with it.
   const std::string line = "\n" + std::to_string(f.size) + " " + std::to_string(f.mtime_ns) + " " + name + "\n";

@@ -590,7 +590,14 @@ int run(int argc, char** argv) {
     g.own = read_own_outputs(g.folder);
     // Each file written there is appended to this list: one this run may not write would stop
     // it after its first output, so it is checked now, before any.
-    check_replaceable(g.folder / kOwnOutputsList);
+    // Anything but a plain file there (a folder, a link) would fail the first append, after the
+    // first output was written.
+    const fs::path list = g.folder / kOwnOutputsList;
+    const fs::file_status list_status = fs::symlink_status(list, ec);
+    if (fs::exists(list_status) && !fs::is_regular_file(list_status))
+      throw Error("'" + list.string() + "' is not a plain file: this program lists the files it writes into '" +
+                  g.folder.string() + "' there; move it");
+    check_replaceable(list);
     for (const auto& j : jobs) {
       const std::optional<fs::path> file = g.file_of(j);
       if (!file) continue;
@@ -761,15 +768,19 @@ int run(int argc, char** argv) {
   // a later run may replace it while it is unchanged.
   // One that cannot be recorded (a full disk) is removed, as this run wrote it: left in place,
   // unlisted, it would make every later run into that folder refuse to start.
+  // So is every later one of the image's (its mask after its output): none is left unlisted.
   const auto record_in_guarded = [&](const Job& j) {
-    for (const auto& g : guarded) {
-      const std::optional<fs::path> file = g.file_of(j);
+    for (std::size_t k = 0; k < guarded.size(); ++k) {
+      const std::optional<fs::path> file = guarded[k].file_of(j);
       if (!file) continue;
       try {
-        record_own_output(g.folder, file->lexically_relative(g.folder).generic_string(), *file);
+        record_own_output(guarded[k].folder, file->lexically_relative(guarded[k].folder).generic_string(), *file);
       } catch (const std::exception&) {
-        std::error_code removed;
-        fs::remove(*file, removed);
+        for (std::size_t later = k; later < guarded.size(); ++later) {
+          const std::optional<fs::path> unlisted = guarded[later].file_of(j);
+          std::error_code removed;
+          if (unlisted) fs::remove(*unlisted, removed);
+        }
         throw;
       }
     }

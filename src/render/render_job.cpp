@@ -442,8 +442,12 @@ RenderSummary render_dataset(const std::vector<InputImage>& inputs, const Render
     if (static_cast<int>(resumed.size()) > o.contact_sheet_rows) resumed.resize(o.contact_sheet_rows);
     for (const std::string& id : resumed) {
       const ManifestEntry& e = kept.at(id);
-      summary.samples.push_back({id, read_image_native(o.out_dir / e.files[1]), read_image_native(o.out_dir / e.files[0]),
-                                 read_image_native(o.out_dir / e.files[2])});
+      try {
+        summary.samples.push_back({id, read_image_native(o.out_dir / e.files[1]),
+                                   read_image_native(o.out_dir / e.files[0]), read_image_native(o.out_dir / e.files[2])});
+      } catch (const Error&) {
+        // A done sample damaged since is left off the sheet: the render does not read it.
+      }
     }
   }
   tasks.erase(std::remove_if(tasks.begin(), tasks.end(), [](const Task& t) { return t.variants.empty(); }),
@@ -598,6 +602,16 @@ RenderSummary render_dataset(const std::vector<InputImage>& inputs, const Render
   manifest.finalize(kept);
   // Their samples are in manifest.jsonl now.
   for (const auto& part : parts) fs::remove(part.first, ec);
+  // A run that made the folder and rendered nothing in it (its first input failed to decode)
+  // leaves nothing behind, as one refused before any write does: its empty manifest and
+  // folders go. Only what is empty is removed; a shard leaves the shared folder to the others.
+  if (!existed && !sharded && summary.rendered == 0 && kept.empty() && !summary.errors.empty()) {
+    folder_lock.reset();
+    shard_lock.reset();
+    if (fs::is_regular_file(manifest_path, ec) && fs::file_size(manifest_path, ec) == 0) fs::remove(manifest_path, ec);
+    for (const auto& dir : image_dirs) fs::remove(o.out_dir / dir, ec);  // only if empty
+    fs::remove(o.out_dir, ec);                                          // only if empty
+  }
   summary.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   return summary;
 }

@@ -93,7 +93,8 @@ SceneSample sample_scene(const SceneConfig& config, const Camera& camera, Rng& r
       shape.center = {p.x, p.y};
       // Behind the camera (or beside it) the glass is nowhere in view, and a drop there has no
       // image: its circle of confusion, spread and shift came out NaN in the manifest.
-      if (s.glass.point(shape.center).z <= shape.footprint_radius)
+      // (The footprint's depth varies by its radius times cos(tilt) about its centre's.)
+      if (s.glass.point(shape.center).z <= shape.footprint_radius * outline_bound * std::abs(std::cos(s.glass.tilt)))
         throw Error("scene '" + config.name + "': drops[" + std::to_string(i) + "]: the glass at (" +
                     std::to_string(p.x) + ", " + std::to_string(p.y) + ") cm is not in front of the camera");
     }
@@ -155,7 +156,8 @@ SceneSample sample_scene(const SceneConfig& config, const Camera& camera, Rng& r
     // of the scene is drawn as before; their water stays taken from the drop.
     s.drops.erase(std::remove_if(s.drops.begin(), s.drops.end(),
                                  [&](const DropShape& d) {
-                                   return d.trail_of >= 0 && s.glass.point(d.center).z <= d.footprint_radius;
+                                   return d.trail_of >= 0 &&
+                                          s.glass.point(d.center).z <= d.footprint_radius * std::abs(std::cos(s.glass.tilt));
                                  }),
                   s.drops.end());
   }

@@ -436,14 +436,18 @@ SceneConfig parse_scene_json(const std::string& text, const std::string& origin)
     }
     // Each trail cap is a drop of the mesh too: up to kMaxTrailCaps per drop (a scene that
     // passed without them took 6 to 23 GB).
+    // A trail's caps are at least 2 spacing x width drop radii apart (trails.h), within its
+    // length: at most 1 + length / (2 spacing width) of them, and kMaxTrailCaps.
     const double drops = c.drop_count.hi + static_cast<double>(c.drops.size());
-    const double shapes = drops * (c.trails.enabled ? 1 + kMaxTrailCaps : 1);
+    const double caps = std::min<double>(kMaxTrailCaps, 1 + std::floor(c.trails.length_radii.hi /
+                                                                     (2 * c.trails.spacing.lo * c.trails.width.lo)));
+    const double shapes = drops * (c.trails.enabled ? 1 + caps : 1);
     const double mesh_bytes = c.geometry.mesh_bytes_per_drop() * shapes;
     if (mesh_bytes > kMaxMeshBytes) {
       std::ostringstream m;
       m << std::fixed << std::setprecision(1) << "'geometry' = '" << c.geometry.describe() << "' with up to "
         << static_cast<long long>(drops) << " drops"
-        << (c.trails.enabled ? " and their trails' caps (up to " + std::to_string(kMaxTrailCaps) + " a drop)" : "")
+        << (c.trails.enabled ? " and their trails' caps (up to " + std::to_string(static_cast<int>(caps)) + " a drop)" : "")
         << " takes about " << mesh_bytes / (1 << 30) << " GB of mesh a sample, more than the "
         << kMaxMeshBytes / (1 << 30) << " GB limit; use fewer segments or drops";
       q.fail(m.str());

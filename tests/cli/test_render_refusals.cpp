@@ -38,6 +38,26 @@ TEST(RenderRefusal, RefusedThirdInputWritesNothing) {
   }
 }
 
+// An input whose header passes and whose data does not decode (a JPEG cut short): found only
+// when it is rendered. When it is the run's only input, the folder the run made goes with the
+// empty manifest and folders it had made; a folder with a sample rendered before stays.
+TEST(RenderRefusal, AnUndecodableOnlyInputLeavesNoFolderBehind) {
+  TempDir tmp;
+  write_image(tmp / "in" / "b.jpg", make_background(320, 240, 1));
+  const auto size = fs::file_size(tmp / "in" / "b.jpg");
+  fs::resize_file(tmp / "in" / "b.jpg", size * 6 / 10);
+  auto r = run_render({"-i", "in/b.jpg", "--out", "out", "-j", "1"}, tmp.path());
+  EXPECT_EQ(r.code, 1) << r.describe();
+  EXPECT_EQ(r.message_lines().size(), 1u) << r.describe();
+  EXPECT_NE(r.err.find("b.jpg"), std::string::npos) << r.describe();
+  EXPECT_FALSE(fs::exists(tmp / "out")) << ::testing::PrintToString(list_files(tmp / "out"));
+  write_image(tmp / "in" / "a.png", make_background(96, 64, 0));  // rendered first at -j1
+  r = run_render({"-i", "in", "--out", "out", "-j", "1"}, tmp.path());
+  EXPECT_EQ(r.code, 1) << r.describe();
+  EXPECT_TRUE(fs::exists(tmp / "out" / "rainy" / "a_v00.png"));
+  EXPECT_EQ(read_file(tmp / "out" / "manifest.jsonl").find("b_v00"), std::string::npos);
+}
+
 // Into an existing data set: the refusal leaves the folder as it was (the lock file goes too).
 TEST(RenderRefusal, RefusedInputLeavesAnExistingFolderAsItWas) {
   TempDir tmp;

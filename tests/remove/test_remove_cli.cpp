@@ -741,6 +741,20 @@ TEST_F(RemoveCli, AListCutShortByAFullDiskKeepsTheRecordsAfterIt) {
   ASSERT_EQ(r.code, 0) << r.describe();
   r = remove({"photos", "photos/clean", "-q"});
   ASSERT_EQ(r.code, 0) << "its own outputs, recorded after a list with no header\n" << r.describe();
+  // Not a plain file at the list's name: refused before any output (a folder there failed the
+  // first append, after the first output).
+  const fs::path moved = tmp / "list-aside";
+  fs::rename(list, moved);
+  fs::create_directory(list);
+  fs::remove(tmp / "photos" / "clean" / "a.png");
+  r = remove({"photos", "photos/clean", "-q"});
+  EXPECT_EQ(r.code, 1) << r.describe();
+  EXPECT_NE(r.err.find("is not a plain file"), std::string::npos) << r.describe();
+  EXPECT_FALSE(fs::exists(tmp / "photos" / "clean" / "a.png"));
+  fs::remove(list);
+  fs::rename(moved, list);
+  r = remove({"photos", "photos/clean", "-q"});
+  ASSERT_EQ(r.code, 0) << r.describe();
   std::ofstream(list, std::ios::app) << "31 17";  // a record cut short
   fs::remove(tmp / "photos" / "clean" / "b.png");
   r = remove({"photos", "photos/clean", "-q"});

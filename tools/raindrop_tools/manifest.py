@@ -31,9 +31,17 @@ def _read_text(f: Path) -> str:
 
 
 def _whole_lines(text: str) -> list[str]:
-    """The lines that end with a line break: a last one without it is a record cut short (an
-    interrupted run's append), which the renderer ignores too and renders again on resuming."""
-    return text.split("\n")[:-1]
+    """The file's lines, less a last one without a line break that is not whole JSON: a record
+    cut short (an interrupted run's append), which the renderer ignores as well and renders
+    again on resuming. (A last record that is whole but lacks its line break, written by hand,
+    is read.)"""
+    lines = text.split("\n")
+    if lines and lines[-1].strip():
+        try:
+            json.loads(lines[-1])
+        except json.JSONDecodeError:
+            lines.pop()
+    return lines
 
 
 def manifest_files(root: str | os.PathLike) -> list[Path]:

@@ -38,10 +38,11 @@ import yaml
 
 from .config import ConfigError, _from_dict
 from .imageio import ImageError, read_rgb
+from .manifest import manifest_lines
 from .metrics import luma_float
 from .networks import AlternativeHead, rdn_taps
-from .read_only import refuse_read_only
 from .onnx_weights import OnnxWeightsError
+from .read_only import refuse_read_only
 from .shared_detector import SharedDetectorError, load_head, load_rdn, rdn_config
 from .text_negatives import draw_text
 
@@ -124,7 +125,7 @@ def _image_files(source: Source) -> list[Path]:
     root = Path(source.path)
     manifest = root / "manifest.jsonl"
     if source.split is not None:
-        rows = [json.loads(line) for line in manifest.read_text().splitlines() if line.strip()]
+        rows = [json.loads(text) for _, _, text in manifest_lines(root)]
         return sorted(root / r[source.images] for r in rows if r.get("split") == source.split)
     return sorted((root / source.images).glob("*.png"))
 
@@ -132,7 +133,7 @@ def _image_files(source: Source) -> list[Path]:
 def _mask_files(source: Source) -> dict[Path, tuple[Path, Path]]:
     """Each rainy image's mask and clean image, as the data set's manifest pairs them."""
     root = Path(source.path)
-    rows = [json.loads(line) for line in (root / "manifest.jsonl").read_text().splitlines() if line.strip()]
+    rows = [json.loads(text) for _, _, text in manifest_lines(root)]
     return {root / r["rainy"]: (root / r["mask"], root / r.get("clean", "")) for r in rows}
 
 
@@ -238,9 +239,13 @@ def train(cfg: HeadConfig, out: Path) -> Path:
     if cfg.init and Path(cfg.init).is_dir():
         # A committed model folder: the head its detector carries (main's own folder, typically).
         try:
-            head.load_state_dict(load_head(Path(cfg.init)).state_dict())
-        except (SharedDetectorError, OnnxWeightsError, OSError, KeyError, ValueError) as e:
+            committed = load_head(Path(cfg.init))
+        except (SharedDetectorError, OnnxWeightsError) as e:
             raise SystemExit(f"error: init {cfg.init}: {e}") from None
+        except Exception as e:  # a damaged graph: protobuf's, ONNX Runtime's or a file's error
+            raise SystemExit(f"error: init {cfg.init}: cannot read its head ({str(e).splitlines()[0] if str(e) else type(e).__name__})") from None
+        try:
+            head.load_state_dict(committed.state_dict())
         except RuntimeError as e:  # another head's shape
             raise SystemExit(f"error: init {cfg.init}: not a head of this configuration ({str(e).splitlines()[0]})") from None
     elif cfg.init:

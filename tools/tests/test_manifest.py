@@ -84,6 +84,9 @@ def test_a_record_cut_short_at_the_end_is_not_read(tiny_dataset, tmp_path):
     (root / "manifest.jsonl").write_text("".join(x + "\n" for x in lines[:-1]) + lines[-1][: len(lines[-1]) // 2])
     assert [text for _, _, text in manifest_lines(root)] == lines[:-1]
     assert len(read_manifest(root)) == len(lines) - 1
+    # A whole last record without its line break (written by hand) is read, as the renderer reads it.
+    (root / "manifest.jsonl").write_text("".join(x + "\n" for x in lines[:-1]) + lines[-1])
+    assert [text for _, _, text in manifest_lines(root)] == lines
     # A middle line cut short is no interrupted append: still an error.
     (root / "manifest.jsonl").write_text(lines[0][:20] + "\n" + "".join(x + "\n" for x in lines[1:]))
     with pytest.raises(DatasetError):
