@@ -476,6 +476,13 @@ int run(int argc, char** argv) {
                                         "; int8 models: " + int8_kernels_description() + "; " + onnxruntime_telemetry_state() + ")");
   try {
     app.parse(argc, argv);
+    // An option given an empty value would read as not given (--mask "" wrote no mask, --models ""
+    // took the default models, --shard "" ran every image): refused, as --wet-gate "" is.
+    for (const char* name : {"--mask", "--mask-dir", "--contact-sheet", "--shard", "--models", "--model-config",
+                             "--large-drop-models"}) {
+      if (app.count(name) > 0 && app.get_option(name)->as<std::string>().empty())
+        throw Error(std::string(name) + " needs a value, got ''");
+    }
     // NaN passes CLI::Range (every comparison with it is false).
     if (threshold && std::isnan(*threshold)) throw Error("--threshold: nan is not a number between 0 and 1");
     if (large_drop_growth && std::isnan(*large_drop_growth))

@@ -117,6 +117,19 @@ TEST_F(RemoveCli, EmptyInput) {
   expect_clean_failure(remove({"empty.png", "out.png", "--mask", "mask.png"}), "empty");
 }
 
+// An option given an empty value read as not given: --mask "" wrote no mask, --models "" took
+// the default models, --shard "" ran every image. A usage error, as --wet-gate "" is.
+TEST_F(RemoveCli, AnOptionGivenAnEmptyValueIsAUsageError) {
+  for (const char* name : {"--mask", "--mask-dir", "--contact-sheet", "--shard", "--models", "--model-config",
+                           "--large-drop-models"}) {
+    SCOPED_TRACE(name);
+    const RunResult r = remove({"in.png", "out.png", name, ""});
+    EXPECT_EQ(r.code, 2) << r.describe();
+    EXPECT_NE(r.err.find(std::string(name) + " needs a value"), std::string::npos) << r.describe();
+    EXPECT_FALSE(fs::exists(tmp / "out.png"));
+  }
+}
+
 TEST_F(RemoveCli, TruncatedInput) {
   const std::string bytes = read_file(tmp / "in.png");
   write_file(tmp / "cut.png", bytes.substr(0, bytes.size() / 2));
