@@ -340,8 +340,8 @@ def validate_config(cfg: RunConfig) -> None:
         problems.append("loss.ssim_window must not exceed data.crop")
     if not 0.0 <= cfg.pipeline.threshold < 1.0:
         problems.append("pipeline.threshold must be in [0, 1)")
-    if cfg.pipeline.dilation < 1:
-        problems.append("pipeline.dilation must be >= 1")
+    if not 1 <= cfg.pipeline.dilation <= 1023:  # as raindrop-remove --dilation (100001 asked for 31 GiB)
+        problems.append("pipeline.dilation must be 1 to 1023")
     if problems:
         raise ConfigError("invalid configuration:\n  " + "\n  ".join(problems))
 
@@ -363,7 +363,11 @@ def parse_overrides(items: list[str] | None) -> list[tuple[str, Any]]:
         if "=" not in item:
             raise ConfigError(f"override {item!r}: expected key=value")
         key, raw = item.split("=", 1)
-        out.append((key.strip(), yaml.safe_load(raw)))
+        try:
+            value = yaml.safe_load(raw)
+        except yaml.YAMLError as e:  # '[1' gave a parser traceback
+            raise ConfigError(f"override {item!r}: the value is not YAML ({str(e).splitlines()[0]})") from None
+        out.append((key.strip(), value))
     return out
 
 

@@ -30,6 +30,8 @@ def summarize(data_dir: Path) -> dict:
     for r in records:
         scene, cam = r["scene"], r["camera"]
         psi = math.radians(scene["tilt_deg"])
+        if not (isinstance(r["width"], (int, float)) and r["width"] > 0):
+            raise ValueError(f"{data_dir}: sample {r.get('id', '?')}: width {r['width']!r} is not a positive number")
         to_2048 = 2048.0 / r["width"]
         # The caps of trails (the scene effect "trails") are not drops: they name theirs.
         own = [d for d in r["drops"] if "trail_of" not in d]

@@ -144,7 +144,7 @@ def fit(X: np.ndarray, y: np.ndarray, w: np.ndarray, alternative: str, l2: float
 def write_router(path: str | os.PathLike, router: Router, comment: str = "") -> None:
     """Writes the ROUTER file (format above) beside itself and renames it over `path`."""
     write_fields(path, [("format", FORMAT), ("alternative", router.alternative), ("mean", router.mean), ("std", router.std),
-                        ("weight", router.weight), ("bias", repr(float(router.bias)))], comment)
+                        ("weight", router.weight), ("bias", repr(float(router.bias)))], RouterError, comment)
 
 
 def read_router(path: str | os.PathLike) -> Router:

@@ -451,6 +451,8 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--no-progress", action="store_true")
     RP.add_mask_arguments(ap)
     args = ap.parse_args(argv)
+    if args.dilation is not None and not 1 <= args.dilation <= 1023:
+        ap.error(f"--dilation must be 1 to 1023, got {args.dilation}")
     if Path(args.out).exists() and not Path(args.out).is_dir():  # found before the work, not after it
         print(f"error: --out {args.out} is a file, not a folder", file=sys.stderr)
         return 2
@@ -469,7 +471,7 @@ def main(argv: list[str] | None = None) -> int:
                 Path(args.out),
                 split=args.split[0] if args.split else "test",
                 holdout=RP.parse_holdout(args.holdout) if args.holdout else None,
-                mask_params=RP.mask_params_from_args(args),
+                mask_params=RP.mask_params_from_args(args, ap),
                 limit=args.limit,
                 threshold=args.threshold,
                 dilation=args.dilation,

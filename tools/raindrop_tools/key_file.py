@@ -11,11 +11,25 @@ from pathlib import Path
 import numpy as np
 
 
+# The largest key file read, as raindrop-remove's kMaxKeyFileBytes (a few hundred bytes in use).
+MAX_KEY_FILE_BYTES = 64 * 1024
+
+
 def read_fields(path: str | os.PathLike, error: type[Exception]) -> dict[str, list[str]]:
-    """Each key's words; `error` naming the file where it cannot be read or gives a key twice."""
+    """Each key's words; `error` naming the file where it is not a regular file (a FIFO blocked
+    the read, /dev/zero grew it without end), is larger than MAX_KEY_FILE_BYTES, cannot be read,
+    or gives a key twice."""
     path = Path(path)
+    if not path.exists():
+        raise error(f"'{path}': cannot read it (no such file)")
+    if not path.is_file():
+        raise error(f"'{path}': not a file")
     try:
-        text = path.read_text()
+        with open(path, "rb") as f:
+            data = f.read(MAX_KEY_FILE_BYTES + 1)
+        if len(data) > MAX_KEY_FILE_BYTES:
+            raise error(f"'{path}': larger than {MAX_KEY_FILE_BYTES // 1024} KiB: not a key file")
+        text = data.decode("utf-8")
     except (OSError, UnicodeDecodeError) as e:
         raise error(f"'{path}': cannot read it ({e})") from None
     fields: dict[str, list[str]] = {}
@@ -56,17 +70,49 @@ def single_name(fields: dict[str, list[str]], key: str, path, error: type[Except
     return words[0]
 
 
-def write_fields(path: str | os.PathLike, fields: list[tuple[str, object]], comment: str = "") -> None:
+def key_file_path_problem(path: str | os.PathLike, error: type[Exception]) -> str | None:
+    """Why a key file may not be written at `path`, in one line; None when it may. It takes a new
+    file or an earlier key file (one with a 'format' line): a gate once replaced a wet frame it
+    was fitted on. Check it before the work."""
+    from .read_only import read_only_problem
+
+    path = Path(path)
+    if path.is_symlink() or (path.exists() and not path.is_file()):
+        return f"'{path}': not a plain file"
+    problem = read_only_problem(path, follow_links=False)
+    if problem:
+        return problem
+    if path.exists():
+        try:
+            if "format" not in read_fields(path, error):
+                raise error("no format line")
+        except error:
+            return f"'{path}': exists and is not a key file (no 'format' line); choose another name"
+    parent = path.parent if str(path.parent) else Path(".")
+    if not parent.is_dir():
+        return f"'{path}': folder '{parent}' does not exist"
+    return None
+
+
+def write_fields(path: str | os.PathLike, fields: list[tuple[str, object]], error: type[Exception],
+                 comment: str = "") -> None:
     """Writes `comment` as '#' lines, then one line per key (a sequence as its numbers' reprs),
-    beside `path` and renames it over it; a read-only `path` is refused (read_only.py)."""
+    to a hidden temporary beside `path` and renames it over it (never a half-written file); what
+    key_file_path_problem refuses is refused, with `error`."""
     from .read_only import refuse_read_only
 
     path = Path(path)
-    refuse_read_only(path, follow_links=False)
+    refuse_read_only(path, follow_links=False)  # its own error (a PermissionError), as before
+    problem = key_file_path_problem(path, error)
+    if problem:
+        raise error(problem)
     lines = [f"# {line}" for line in comment.splitlines()]
     for key, value in fields:
         words = " ".join(repr(float(v)) for v in value) if isinstance(value, (list, tuple, np.ndarray)) else str(value)
         lines.append(f"{key} {words}")
-    tmp = path.with_name(path.name + ".tmp")
-    tmp.write_text("\n".join(lines) + "\n")
-    os.replace(tmp, path)
+    tmp = path.with_name(f".{path.name}.tmp-{os.getpid()}")
+    try:
+        tmp.write_text("\n".join(lines) + "\n")
+        os.replace(tmp, path)
+    finally:
+        tmp.unlink(missing_ok=True)

@@ -494,7 +494,7 @@ def main(argv: list[str] | None = None) -> int:
         print(f"realism: error: --real-photos {args.real_photos}: not a folder", file=sys.stderr)
         return 2
     try:
-        params = RP.mask_params_from_args(args)
+        params = RP.mask_params_from_args(args, ap)
         real = None
         if args.real_pairs:
             real = collect_real(args.real_pairs, args.split, params,

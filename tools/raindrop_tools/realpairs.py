@@ -339,7 +339,17 @@ def add_mask_arguments(ap: argparse.ArgumentParser) -> None:
                     help=f"drop components smaller than this, px (default {d.min_area})")
 
 
-def mask_params_from_args(args) -> MaskParams:
+def mask_params_from_args(args, ap: argparse.ArgumentParser) -> MaskParams:
+    """The rough mask's parameters from the command line; a usage error (``ap.error``) for values
+    it cannot use: a size of 100000 px ended in OpenCV's allocation error, a NaN threshold gave
+    an empty mask without a word."""
+    for name, value in (("--blur", args.blur), ("--open", args.open_size), ("--close", args.close_size)):
+        if not 1 <= value <= 1023:
+            ap.error(f"{name} must be 1 to 1023 px (1: none), got {value}")
+    if not (math.isfinite(args.mask_threshold) and args.mask_threshold >= 0):
+        ap.error(f"--mask-threshold must be a number >= 0, got {args.mask_threshold}")
+    if args.min_area < 0:
+        ap.error(f"--min-area must be >= 0, got {args.min_area}")
     return MaskParams(args.blur, args.mask_threshold, args.open_size, args.close_size, args.min_area)
 
 
@@ -366,7 +376,7 @@ def main(argv: list[str] | None = None) -> int:
                 sel = select(pairs, s)
                 print(f"# {s}: {len(sel)} pairs, groups {', '.join(sorted({p.group for p in sel}))}", file=sys.stderr)
         else:
-            records = prepare(args.folder, args.out, args.holdout, mask_params_from_args(args),
+            records = prepare(args.folder, args.out, args.holdout, mask_params_from_args(args, ap),
                               argv=sys.argv if argv is None else ["python -m raindrop_tools.realpairs", *argv])
             n = {s: sum(r["split"] == s for r in records) for s in SPLITS}
             cov = float(np.mean([r["coverage"] for r in records]))

@@ -268,6 +268,18 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("-v", "--verbose", action="store_true", help="print timings and mask coverage")
     args = ap.parse_args(argv)
     try:
+        # As raindrop-remove: the output may not be the input (it was replaced), nor the mask the
+        # output (the mask replaced it), by any name.
+        def same(a: str, b: str) -> bool:
+            return os.path.realpath(a) == os.path.realpath(b) or (
+                os.path.exists(a) and os.path.exists(b) and os.path.samefile(a, b))
+
+        if same(args.input, args.output) or (args.mask and same(args.input, args.mask)):
+            raise ValueError(f"'{args.input}' is the input and an output; choose another name")
+        if args.mask and same(args.output, args.mask):
+            raise ValueError(f"'{args.output}' is given as both the output and the mask; choose another name")
+        if args.dilation is not None and not 1 <= args.dilation <= 1023:
+            raise ValueError(f"--dilation must be 1 to 1023, got {args.dilation}")
         for dest in [args.output] + ([args.mask] if args.mask else []):
             check_writable(dest)
         remover = RaindropRemover(args.models, threads=args.threads)

@@ -90,12 +90,23 @@ def make_set(images: list, out, seed: int = 0, size: tuple[int, int] | None = (5
     ``lettering``, the resized images alone (the baseline). Returns the count."""
     out = Path(out)
     targets = [out / (Path(p).stem + ".png") for p in images]
-    # A read-only file is kept (read_only.py): refused before anything is written.
+    # Refused before anything is written: an output folder that is or holds the images' own
+    # (their originals were replaced by lettered copies), two images of one name (a.png and
+    # a.jpg: one replaced the other, and both were counted), a read-only file (read_only.py).
+    sources = {Path(p).resolve().parent for p in images}
+    if out.exists() and any(src == out.resolve() or out.resolve() in src.parents for src in sources):
+        raise OSError(f"{out}: the images' own folder (or one above it): choose another output folder")
+    seen: dict[Path, Path] = {}
+    for path, target in zip(images, targets):
+        if target in seen:
+            raise OSError(f"{seen[target]} and {path} would both be written as {target}")
+        seen[target] = Path(path)
     refuse_read_only(*targets)  # written through the name
+    # Every image read first: a damaged one stops the run before any file is written.
+    pictures = [read_rgb(path) for path in images]
     out.mkdir(parents=True, exist_ok=True)
     rng = random.Random(seed)
-    for path, target in zip(images, targets):
-        im = read_rgb(path)
+    for im, target in zip(pictures, targets):
         if size:
             im = cv2.resize(im, size, interpolation=cv2.INTER_AREA)
         lettered = draw_text(np.ascontiguousarray(im), rng, blocks=(2, 4)) if lettering else im
@@ -126,6 +137,8 @@ def damage(inputs, outputs, masks=None) -> dict:
             m = cv2.imread(str(Path(masks) / name), cv2.IMREAD_GRAYSCALE)
             if m is None:
                 raise SystemExit(f"error: no mask for {name} in {masks}")
+            if m.shape != a.shape[:2]:
+                raise SystemExit(f"error: {name}: the mask is {m.shape[1]}x{m.shape[0]}, the image {a.shape[1]}x{a.shape[0]}")
             marked.append(float((m > 0).mean()))
     out = {"images": len(names), "psnr_y": float(np.mean(psnrs)), "changed": changed / len(names)}
     if marked:
@@ -148,6 +161,8 @@ def main(argv: list[str] | None = None) -> int:
     dm.add_argument("--masks", type=Path, help="the remover's mask folder (--mask-dir)")
     dm.add_argument("--label", default="")
     args = ap.parse_args(argv)
+    if args.command == "make" and args.count < 1:
+        raise SystemExit(f"error: --count must be at least 1, got {args.count}")
     if args.command == "make":
         if not args.images.is_dir():
             raise SystemExit(f"error: {args.images}: not a folder")

@@ -796,7 +796,12 @@ def _exit_status(result: str, trainer: Trainer) -> int:
 
 
 def main(argv: list[str] | None = None) -> int:
-    args = build_arg_parser().parse_args(argv)
+    ap = build_arg_parser()
+    args = ap.parse_args(argv)
+    if args.threads is not None and args.threads < 1:
+        ap.error(f"--threads must be at least 1, got {args.threads}")
+    if args.max_steps is not None and args.max_steps < 1:
+        ap.error(f"--max-steps must be at least 1, got {args.max_steps}")
     if args.threads:
         torch.set_num_threads(args.threads)
     try:

@@ -42,7 +42,7 @@ from .manifest import manifest_lines
 from .metrics import luma_float
 from .networks import AlternativeHead, rdn_taps
 from .onnx_weights import OnnxWeightsError
-from .read_only import refuse_read_only
+from .read_only import ReadOnlyFileError, refuse_read_only
 from .shared_detector import SharedDetectorError, load_head, load_rdn, rdn_config
 from .text_negatives import draw_text
 
@@ -98,6 +98,19 @@ def read_config(path: Path) -> HeadConfig:
         cfg = _from_dict(HeadConfig, raw if isinstance(raw, dict) else {})
     except (ConfigError, TypeError) as e:  # TypeError: a required key missing
         raise SystemExit(f"error: {path}: {e}") from None
+    # Numbers the run cannot use: each ended in a traceback mid-run (batch_size 0, crop 0, mid 0,
+    # images_per_source 0, lr NaN) or ran without training (steps 0).
+    for key, low, high in (("batch_size", 1, 4096), ("crop", 16, 4096), ("mid", 1, 1024), ("up", 1, 1024),
+                           ("images_per_source", 1, 10**7), ("steps", 1, 10**8), ("log_every", 1, 10**8)):
+        value = getattr(cfg, key)
+        if not low <= value <= high:
+            raise SystemExit(f"error: {path}: {key} must be {low} to {high}, got {value}")
+    for key in ("lr", "lr_end"):
+        value = getattr(cfg, key)
+        if not (math.isfinite(value) and value > 0):
+            raise SystemExit(f"error: {path}: {key} must be a number > 0, got {value}")
+    if not 0 <= cfg.coarse_share < 1:
+        raise SystemExit(f"error: {path}: coarse_share must be in [0, 1)")
     sources = cfg.sources
     if not sources or any(s.weight <= 0 for s in sources):
         raise SystemExit(f"error: {path}: every source needs a weight > 0")
@@ -301,9 +314,16 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--out", type=Path, required=True, help="run folder (head.pt, log.jsonl, config.json)")
     ap.add_argument("--threads", type=int, default=0, help="torch threads (0: torch's default)")
     args = ap.parse_args(argv)
+    if args.threads < 0:
+        raise SystemExit(f"error: --threads must be 0 or more, got {args.threads}")
+    if args.out.exists() and not args.out.is_dir():
+        raise SystemExit(f"error: --out {args.out}: not a folder")
     if args.threads > 0:
         torch.set_num_threads(args.threads)
-    path = train(read_config(args.config), args.out)
+    try:
+        path = train(read_config(args.config), args.out)
+    except ReadOnlyFileError as e:
+        raise SystemExit(f"error: {e}") from None
     print(f"wrote {path}")
     return 0
 

@@ -45,7 +45,7 @@ import numpy as np
 from . import int8_precision
 from .detector_router import FEATURES, features, fit as fit_logistic, working_copy, working_size_of
 from .imageio import ImageError, native_to_float, read_rgb_native
-from .key_file import check_format, finite_vector, read_fields, single_name, write_fields
+from .key_file import check_format, finite_vector, key_file_path_problem, read_fields, single_name, write_fields
 from .read_only import ReadOnlyFileError
 
 FORMAT = 1
@@ -157,7 +157,7 @@ def fit(wet: np.ndarray, dry: np.ndarray, models: str, keep_wet: float = 0.99) -
 def write_gate(path: str | os.PathLike, gate: WetGate, comment: str = "") -> None:
     """Writes the gate file (format above) beside itself and renames it over `path`."""
     write_fields(path, [("format", FORMAT), ("models", gate.models), ("maps", gate.maps), ("mean", gate.mean),
-                        ("std", gate.std), ("weight", gate.weight), ("bias", repr(float(gate.bias)))], comment)
+                        ("std", gate.std), ("weight", gate.weight), ("bias", repr(float(gate.bias)))], GateError, comment)
 
 
 def read_gate(path: str | os.PathLike) -> WetGate:
@@ -184,6 +184,9 @@ def _features_of(feats: MapFeatures, folders: list[str]) -> tuple[np.ndarray, li
 
 
 def _fit_command(args) -> int:
+    problem = key_file_path_problem(args.out, GateError)  # before the work
+    if problem:
+        raise GateError(problem)
     models = Path(args.models) if args.models else default_models()
     feats = MapFeatures(models, args.threads)
     if not feats.name.split() or feats.name.split() != [feats.name]:

@@ -6,7 +6,7 @@ import shutil
 
 import pytest
 
-from helpers import FIXTURE_MODELS
+from helpers import FIXTURE_MODELS, REPO
 from raindrop_tools import dataset_stats, evaluate, reference, score_outputs
 from raindrop_tools.data import read_manifest
 
@@ -60,3 +60,60 @@ def test_evaluate_threshold_outside_the_unit_interval(tiny_dataset, tmp_path, va
                        "--threshold", value])
     assert e.value.code == 2 and "--threshold" in capsys.readouterr().err
     assert not (tmp_path / "o").exists()
+
+
+def test_sizes_and_numbers_the_tools_cannot_use_are_usage_errors(tiny_dataset, tmp_path, capsys):
+    """A second adversarial pass: a dilation or closing of 100000 px ended in OpenCV's allocation
+    error (evaluate, realpairs, reference), --mask-threshold nan gave empty masks without a word,
+    --threads -2 and a --set value that is no YAML ended in tracebacks, --max-steps -1 did
+    nothing and said nothing."""
+    from raindrop_tools import realpairs, train
+
+    cases = [
+        (evaluate.main, ["--data", str(tiny_dataset), "--models", str(FIXTURE_MODELS), "--out", str(tmp_path / "e"),
+                         "--dilation", "100000"], "--dilation must be 1 to 1023"),
+        (realpairs.main, ["prepare", str(tmp_path), "--out", str(tmp_path / "rp"), "--close", "100000"],
+         "--close must be 1 to 1023"),
+        (realpairs.main, ["prepare", str(tmp_path), "--out", str(tmp_path / "rp"), "--mask-threshold", "nan"],
+         "--mask-threshold must be a number >= 0"),
+        (train.main, ["--config", str(REPO / "tools" / "configs" / "compact.yaml"), "--out", str(tmp_path / "t"), "--threads", "-2"],
+         "--threads must be at least 1"),
+        (train.main, ["--config", str(REPO / "tools" / "configs" / "compact.yaml"), "--out", str(tmp_path / "t"), "--max-steps", "-1"],
+         "--max-steps must be at least 1"),
+    ]
+    for command, argv, why in cases:
+        with pytest.raises(SystemExit) as e:
+            command(argv)
+        assert e.value.code == 2 and why in capsys.readouterr().err, why
+    assert not [p for p in tmp_path.iterdir()], "nothing written"
+
+
+def test_a_train_override_that_is_no_yaml_is_a_config_error():
+    from raindrop_tools.config import ConfigError, parse_overrides
+
+    with pytest.raises(ConfigError, match="not YAML"):
+        parse_overrides(["train.batch_size=[1"])
+
+
+def test_a_head_config_with_numbers_the_run_cannot_use_is_refused(tmp_path):
+    from raindrop_tools import train_head
+
+    base = (REPO / "tools" / "configs" / "compact-windshield-head.yaml").read_text()
+    for change, why in (("batch_size: 0", "batch_size must be"), ("crop: 100000", "crop must be"),
+                        ("lr: .nan", "lr must be a number > 0"), ("steps: 0", "steps must be"),
+                        ("mid: 0", "mid must be")):
+        key = change.split(":")[0]
+        text = "\n".join(change if line.startswith(key + ":") else line for line in base.splitlines()) + "\n"
+        (tmp_path / "h.yaml").write_text(text)
+        with pytest.raises(SystemExit, match=why):
+            train_head.read_config(tmp_path / "h.yaml")
+
+
+def test_dataset_stats_refuses_a_record_of_width_zero(tiny_dataset, tmp_path, capsys):
+    copy = tmp_path / "copy"
+    shutil.copytree(tiny_dataset, copy)
+    lines = [json.loads(x) for x in (copy / "manifest.jsonl").read_text().splitlines()]
+    lines[0]["width"] = 0
+    (copy / "manifest.jsonl").write_text("".join(json.dumps(r) + "\n" for r in lines))
+    assert dataset_stats.main([str(copy)]) == 2
+    assert "is not a positive number" in capsys.readouterr().err

@@ -184,6 +184,19 @@ def test_errors_are_reported(tmp_path, capsys):
     assert "cannot read image" in capsys.readouterr().err
     assert main([str(tmp_path / "x.png"), str(tmp_path / "o.png"), "--models", str(tmp_path)]) == 2
     assert "rdn.onnx: missing" in capsys.readouterr().err
+    # The input as the output (replaced), the output as the mask (the mask replaced it), by any
+    # name; a dilation the program refuses too.
+    src = tmp_path / "in.png"
+    cv2.imwrite(str(src), procedural_image(48, 64, 1)[..., ::-1])
+    before = src.read_bytes()
+    (tmp_path / "link.png").symlink_to(src)
+    for args, why in (([str(src), str(src)], "is the input and an output"),
+                      ([str(src), str(tmp_path / "link.png")], "is the input and an output"),
+                      ([str(src), str(tmp_path / "o.png"), "--mask", str(tmp_path / "o.png")], "both the output and the mask"),
+                      ([str(src), str(tmp_path / "o.png"), "--dilation", "100000"], "--dilation must be 1 to 1023")):
+        assert main([*args, "--models", str(FIXTURE_MODELS)]) == 2
+        assert why in capsys.readouterr().err
+    assert src.read_bytes() == before and not (tmp_path / "o.png").exists()
 
 
 def test_refuses_mixed_configurations(tmp_path):

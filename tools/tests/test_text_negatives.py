@@ -57,3 +57,42 @@ def test_make_keeps_a_read_only_file_and_writes_nothing(tmp_path):
     with pytest.raises(ReadOnlyFileError):
         T.make_set(sorted(src.iterdir()), out, size=None)
     assert sorted(p.name for p in out.iterdir()) == ["b.png"] and (out / "b.png").read_bytes() == b"keep me"
+
+
+def test_make_refuses_its_images_own_folder_a_name_twice_and_a_damaged_image_before_writing(tmp_path):
+    import pytest
+
+    src = tmp_path / "src"
+    (src / "sub").mkdir(parents=True)
+    for name in ("a", "b"):
+        cv2.imwrite(str(src / f"{name}.png"), np.full((64, 96, 3), 120, np.uint8))
+    before = {p.name: p.read_bytes() for p in src.glob("*.png")}
+    files = sorted(src.glob("*.png"))
+    # Into the images' own folder, or one above it: the originals were replaced.
+    for out in (src, tmp_path):
+        with pytest.raises(OSError, match="the images' own folder"):
+            T.make_set(files, out, size=None)
+    assert {p.name: p.read_bytes() for p in src.glob("*.png")} == before
+    # a.png and a.jpg: one output overwrote the other, and both were counted.
+    cv2.imwrite(str(src / "sub" / "a.jpg"), np.full((64, 96, 3), 60, np.uint8))
+    with pytest.raises(OSError, match="would both be written"):
+        T.make_set([src / "a.png", src / "sub" / "a.jpg"], tmp_path / "out1", size=None)
+    assert not (tmp_path / "out1").exists()
+    # A damaged image: nothing written (8 of 20 were, before).
+    (src / "c.png").write_bytes(b"\x89PNG\r\n\x1a\n broken")
+    with pytest.raises(Exception):
+        T.make_set([src / "a.png", src / "b.png", src / "c.png"], tmp_path / "out2", size=None)
+    assert not (tmp_path / "out2").exists()
+
+
+def test_damage_refuses_a_mask_of_another_size(tmp_path):
+    import pytest
+
+    for d in ("in", "out", "masks"):
+        (tmp_path / d).mkdir()
+    im = np.full((32, 48, 3), 90, np.uint8)
+    cv2.imwrite(str(tmp_path / "in" / "0.png"), im)
+    cv2.imwrite(str(tmp_path / "out" / "0.png"), im)
+    cv2.imwrite(str(tmp_path / "masks" / "0.png"), np.full((2, 2), 255, np.uint8))
+    with pytest.raises(SystemExit, match="the mask is 2x2, the image 48x32"):
+        T.damage(tmp_path / "in", tmp_path / "out", tmp_path / "masks")

@@ -5,6 +5,7 @@ WetGate.TheProgramScoresAsTheFittingTool."""
 
 from __future__ import annotations
 
+import os
 from pathlib import Path
 
 import cv2
@@ -123,6 +124,39 @@ def test_the_command_line_refuses_in_one_line(tmp_path, capsys):
     (tmp_path / "other.gate").write_text(gate_text(models="compact-multiscale"))
     assert G.main(["judge", "--gate", str(tmp_path / "other.gate"), "--models", str(SMOKE), "x.png"]) == 1
     assert "not of 'models-smoke'" in capsys.readouterr().err
+
+
+def test_a_gate_is_read_only_from_a_small_plain_file_and_written_only_over_a_key_file(tmp_path, capsys):
+    # Reading: a FIFO blocked, /dev/zero grew without end (as raindrop-remove, which refuses both).
+    os.mkfifo(tmp_path / "fifo.gate")
+    for bad, why in ((tmp_path / "fifo.gate", "not a file"), (Path("/dev/zero"), "not a file"), (tmp_path, "not a file")):
+        with pytest.raises(G.GateError, match=why):
+            G.read_gate(bad)
+    (tmp_path / "huge.gate").write_text(gate_text() + "#" + "x" * 70000 + "\n")
+    with pytest.raises(G.GateError, match="not a key file"):
+        G.read_gate(tmp_path / "huge.gate")
+    # Writing, refused before the work: a gate once replaced a wet frame it was fitted on; a
+    # folder left a half-written temporary; a fixed temporary name replaced a user's file.
+    write_frames(tmp_path / "wet", 3, 1, drops=3)
+    write_frames(tmp_path / "dry", 3, 2, drops=0)
+    frame = sorted((tmp_path / "wet").iterdir())[0]
+    before = frame.read_bytes()
+    (tmp_path / "out-folder").mkdir()
+    for out, why in ((frame, "not a key file"), (tmp_path / "out-folder", "not a plain file")):
+        assert G.main(["fit", "--models", str(SMOKE), "--wet", str(tmp_path / "wet"), "--dry", str(tmp_path / "dry"),
+                       "--out", str(out), "--threads", "1"]) == 1
+        err = capsys.readouterr().err
+        assert err.count("\n") == 1 and why in err, err
+    assert frame.read_bytes() == before
+    assert list((tmp_path / "out-folder").iterdir()) == []
+    (tmp_path / "g.gate.tmp").write_text("the user's notes\n")
+    out = tmp_path / "g.gate"
+    assert G.main(["fit", "--models", str(SMOKE), "--wet", str(tmp_path / "wet"), "--dry", str(tmp_path / "dry"),
+                   "--out", str(out), "--threads", "1"]) == 0
+    assert (tmp_path / "g.gate.tmp").read_text() == "the user's notes\n"
+    assert not [p for p in tmp_path.iterdir() if p.name.startswith(".g.gate")]
+    assert G.main(["fit", "--models", str(SMOKE), "--wet", str(tmp_path / "wet"), "--dry", str(tmp_path / "dry"),
+                   "--out", str(out), "--threads", "1"]) == 0  # an earlier gate is replaced
 
 
 def test_folder_names_are_those_raindrop_remove_gives(tmp_path, monkeypatch):
