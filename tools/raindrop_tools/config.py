@@ -380,12 +380,36 @@ def config_from_dict(data: dict, overrides: list[tuple[str, Any]] | None = None)
     return cfg
 
 
+class _UniqueKeyLoader(yaml.SafeLoader):
+    """YAML's safe loader, refusing a key given twice in one mapping: YAML keeps the last, so a
+    second top-level 'train:' replaced the first section's settings without a word."""
+
+
+def _mapping_without_repeats(loader: yaml.SafeLoader, node: yaml.MappingNode, deep: bool = False) -> dict:
+    seen = set()
+    for key_node, _ in node.value:
+        key = loader.construct_object(key_node, deep=deep)
+        if key in seen:
+            raise yaml.constructor.ConstructorError(None, None, f"the key {key!r} is given twice",
+                                                    key_node.start_mark)
+        seen.add(key)
+    return loader.construct_mapping(node, deep)
+
+
+_UniqueKeyLoader.add_constructor(yaml.resolver.BaseResolver.DEFAULT_MAPPING_TAG, _mapping_without_repeats)
+
+
+def load_yaml(text: str):
+    """``text`` as YAML (safe types), a key given twice in one mapping refused (yaml.YAMLError)."""
+    return yaml.load(text, Loader=_UniqueKeyLoader)
+
+
 def load_config(
     path: str | os.PathLike, overrides: list[tuple[str, Any]] | None = None, resolve_paths: bool = True
 ) -> RunConfig:
     path = Path(path)
     try:
-        data = yaml.safe_load(path.read_text()) or {}
+        data = load_yaml(path.read_text()) or {}
     except OSError as e:
         raise ConfigError(f"cannot read configuration {path}: {e}") from None
     except yaml.YAMLError as e:

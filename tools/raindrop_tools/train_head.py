@@ -36,7 +36,7 @@ import torch
 import torch.nn.functional as F
 import yaml
 
-from .config import ConfigError, _from_dict
+from .config import ConfigError, _from_dict, load_yaml
 from .imageio import ImageError, read_rgb
 from .manifest import manifest_lines
 from .metrics import luma_float
@@ -92,7 +92,12 @@ class HeadConfig:
 
 
 def read_config(path: Path) -> HeadConfig:
-    raw = yaml.safe_load(Path(path).read_text())
+    try:
+        raw = load_yaml(Path(path).read_text())
+    except OSError as e:
+        raise SystemExit(f"error: cannot read {path}: {e}") from None
+    except yaml.YAMLError as e:
+        raise SystemExit(f"error: {path}: not valid YAML: {str(e).splitlines()[0]}") from None
     # The training configs' reader (config.py): unknown keys named, values coerced to their types.
     try:
         cfg = _from_dict(HeadConfig, raw if isinstance(raw, dict) else {})

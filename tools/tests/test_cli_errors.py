@@ -117,3 +117,18 @@ def test_dataset_stats_refuses_a_record_of_width_zero(tiny_dataset, tmp_path, ca
     (copy / "manifest.jsonl").write_text("".join(json.dumps(r) + "\n" for r in lines))
     assert dataset_stats.main([str(copy)]) == 2
     assert "is not a positive number" in capsys.readouterr().err
+
+
+def test_a_key_given_twice_in_a_config_is_refused(tmp_path):
+    """YAML keeps the last: a second top-level 'train:' replaced the first's settings silently."""
+    from raindrop_tools import train_head
+    from raindrop_tools.config import ConfigError, load_config
+
+    text = (REPO / "tools" / "configs" / "compact.yaml").read_text()
+    (tmp_path / "twice.yaml").write_text(text + "\ntrain:\n  batch_size: 2\n")
+    with pytest.raises(ConfigError, match="given twice"):
+        load_config(tmp_path / "twice.yaml")
+    head = (REPO / "tools" / "configs" / "compact-windshield-head.yaml").read_text()
+    (tmp_path / "h.yaml").write_text(head + "steps: 5\n")
+    with pytest.raises(SystemExit, match="given twice"):
+        train_head.read_config(tmp_path / "h.yaml")
