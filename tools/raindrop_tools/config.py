@@ -334,6 +334,8 @@ def validate_config(cfg: RunConfig) -> None:
         problems.append("train.checkpoint_every, keep_checkpoints and log_every must be >= 1")
     if not 0.0 <= cfg.loss.rfn_ssim_weight <= 1.0:
         problems.append("loss.rfn_ssim_weight must be in [0, 1]")
+    if not (math.isfinite(cfg.loss.rrn_mask_weight) and cfg.loss.rrn_mask_weight >= 0):  # -20 trained away from the truth
+        problems.append("loss.rrn_mask_weight must be a number >= 0")
     if cfg.loss.ssim_window < 1 or cfg.loss.ssim_window % 2 == 0:
         problems.append("loss.ssim_window must be odd")
     if cfg.loss.ssim_window > cfg.data.crop:

@@ -93,6 +93,11 @@ def test_a_train_override_that_is_no_yaml_is_a_config_error():
 
     with pytest.raises(ConfigError, match="not YAML"):
         parse_overrides(["train.batch_size=[1"])
+    from raindrop_tools.config import config_from_dict
+
+    for value in ("-20", ".nan"):  # a negative weight trained away from the truth inside the drops
+        with pytest.raises(ConfigError, match="rrn_mask_weight must be a number >= 0"):
+            config_from_dict({}, parse_overrides([f"loss.rrn_mask_weight={value}"]))
 
 
 def test_a_head_config_with_numbers_the_run_cannot_use_is_refused(tmp_path):
