@@ -542,10 +542,11 @@ int run(int argc, char** argv) {
     Job j{in_path, out, std::nullopt, in_path.filename().string(), false, {}};
     if (!mask.empty()) {
       // A mask is 0 and 255 in one channel: JPEG wrote it with other levels (9 on a photograph),
-      // WebP holds no single channel (refused only after the removal). Folder masks are PNG.
+      // WebP holds no single channel (refused only after the removal), GIF, HDR and others
+      // change it. Only formats that keep it exactly are taken. Folder masks are PNG.
       std::string ext = fs::path(mask).extension().string();
       std::transform(ext.begin(), ext.end(), ext.begin(), [](unsigned char c) { return std::tolower(c); });
-      if (ext == ".jpg" || ext == ".jpeg" || ext == ".webp" || ext == ".exr")
+      if (ext != ".png" && ext != ".tif" && ext != ".tiff" && ext != ".bmp")
         throw Error("--mask '" + mask + "': a mask holds 0 and 255 in one channel; name a .png, .tif or .bmp file");
       j.mask = fs::path(mask);
     }

@@ -113,10 +113,11 @@ std::string encode(const cv::Mat& image, const fs::path& file, const fs::path& n
   };
   OIIO::ImageSpec spec = spec_of(data);
   bool ok = out->open(file.string(), spec);
-  // A format that holds no grey image (WebP: RGB and RGBA only) refused it after the removal
-  // had run: grey is written as RGB (its three channels equal), grey+alpha as RGBA, and said.
+  // WebP holds no grey image (RGB and RGBA only) and refused it after the removal had run:
+  // grey is written as RGB (its three channels equal), grey+alpha as RGBA, and said. Other
+  // formats' refusals stand (their grey or alpha limits differ).
   std::string grey_lost;
-  if (!ok && (data.channels() == 1 || data.channels() == 2)) {
+  if (!ok && (data.channels() == 1 || data.channels() == 2) && std::string(out->format_name()) == "webp") {
     std::vector<cv::Mat> planes;
     cv::split(data, planes);
     std::vector<cv::Mat> colour = {planes[0], planes[0], planes[0]};

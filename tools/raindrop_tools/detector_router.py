@@ -53,7 +53,7 @@ import numpy as np
 
 from . import metrics
 from .imageio import ImageError, read_rgb, read_rgb_strict
-from .key_file import check_format, finite_vector, read_fields, single_name, write_fields
+from .key_file import check_format, finite_vector, key_file_path_problem, read_fields, single_name, write_fields
 from .read_only import ReadOnlyFileError
 
 FEATURES = 10
@@ -170,6 +170,9 @@ def _rainy_files(data: Path) -> dict[str, Path]:
 
 
 def _fit_command(args) -> int:
+    problem = key_file_path_problem(args.out, RouterError, "alternative")  # before the work
+    if problem:
+        raise RouterError(problem)
     from .reference import RaindropRemover
 
     remover = RaindropRemover(args.models, threads=args.threads)

@@ -70,24 +70,30 @@ def single_name(fields: dict[str, list[str]], key: str, path, error: type[Except
     return words[0]
 
 
-def key_file_path_problem(path: str | os.PathLike, error: type[Exception]) -> str | None:
+def key_file_path_problem(path: str | os.PathLike, error: type[Exception], kind_key: str) -> str | None:
     """Why a key file may not be written at `path`, in one line; None when it may. It takes a new
-    file or an earlier key file (one with a 'format' line): a gate once replaced a wet frame it
-    was fitted on. Check it before the work."""
+    or empty file, a link (renamed over: the link is replaced, its target kept), or an earlier key
+    file of the same kind (its 'format' line and `kind_key`: a gate's 'models', a ROUTER's
+    'alternative'): a gate once replaced a wet frame it was fitted on, and could replace a
+    model folder's ROUTER. Check it before the work."""
     from .read_only import read_only_problem
 
+    raw = os.fspath(path)
     path = Path(path)
-    if path.is_symlink() or (path.exists() and not path.is_file()):
+    if raw.endswith("/"):
+        return f"'{raw}': names a folder; give a file name"
+    if not path.is_symlink() and path.exists() and not path.is_file():
         return f"'{path}': not a plain file"
     problem = read_only_problem(path, follow_links=False)
     if problem:
         return problem
-    if path.exists():
+    if path.is_file() and not path.is_symlink() and path.stat().st_size > 0:
         try:
-            if "format" not in read_fields(path, error):
-                raise error("no format line")
-        except error:
-            return f"'{path}': exists and is not a key file (no 'format' line); choose another name"
+            fields = read_fields(path, error)
+        except error as e:
+            return f"exists and is not a key file ({e}); choose another name"
+        if "format" not in fields or kind_key not in fields:
+            return f"'{path}': exists and is not a key file of this kind (no 'format' and '{kind_key}' lines); choose another name"
     parent = path.parent if str(path.parent) else Path(".")
     if not parent.is_dir():
         return f"'{path}': folder '{parent}' does not exist"
@@ -98,12 +104,13 @@ def write_fields(path: str | os.PathLike, fields: list[tuple[str, object]], erro
                  comment: str = "") -> None:
     """Writes `comment` as '#' lines, then one line per key (a sequence as its numbers' reprs),
     to a hidden temporary beside `path` and renames it over it (never a half-written file); what
-    key_file_path_problem refuses is refused, with `error`."""
+    key_file_path_problem refuses is refused, with `error` (the file's kind is its second key: a
+    gate's 'models', a ROUTER's 'alternative')."""
     from .read_only import refuse_read_only
 
     path = Path(path)
     refuse_read_only(path, follow_links=False)  # its own error (a PermissionError), as before
-    problem = key_file_path_problem(path, error)
+    problem = key_file_path_problem(path, error, fields[1][0])
     if problem:
         raise error(problem)
     lines = [f"# {line}" for line in comment.splitlines()]

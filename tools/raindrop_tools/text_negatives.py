@@ -90,12 +90,12 @@ def make_set(images: list, out, seed: int = 0, size: tuple[int, int] | None = (5
     ``lettering``, the resized images alone (the baseline). Returns the count."""
     out = Path(out)
     targets = [out / (Path(p).stem + ".png") for p in images]
-    # Refused before anything is written: an output folder that is or holds the images' own
+    # Refused before anything is written: an output folder that is the images' own
     # (their originals were replaced by lettered copies), two images of one name (a.png and
     # a.jpg: one replaced the other, and both were counted), a read-only file (read_only.py).
     sources = {Path(p).resolve().parent for p in images}
-    if out.exists() and any(src == out.resolve() or out.resolve() in src.parents for src in sources):
-        raise OSError(f"{out}: the images' own folder (or one above it): choose another output folder")
+    if out.exists() and out.resolve() in sources:
+        raise OSError(f"{out}: the images' own folder: choose another output folder")
     seen: dict[Path, Path] = {}
     for path, target in zip(images, targets):
         if target in seen:

@@ -110,10 +110,10 @@ def read_config(path: Path) -> HeadConfig:
         value = getattr(cfg, key)
         if not low <= value <= high:
             raise SystemExit(f"error: {path}: {key} must be {low} to {high}, got {value}")
-    for key in ("lr", "lr_end"):
-        value = getattr(cfg, key)
-        if not (math.isfinite(value) and value > 0):
-            raise SystemExit(f"error: {path}: {key} must be a number > 0, got {value}")
+    if not (math.isfinite(cfg.lr) and cfg.lr > 0):
+        raise SystemExit(f"error: {path}: lr must be a number > 0, got {cfg.lr}")
+    if not (math.isfinite(cfg.lr_end) and 0 <= cfg.lr_end <= cfg.lr):
+        raise SystemExit(f"error: {path}: lr_end must be a number from 0 to lr, got {cfg.lr_end}")
     if not 0 <= cfg.coarse_share < 1:
         raise SystemExit(f"error: {path}: coarse_share must be in [0, 1)")
     sources = cfg.sources

@@ -184,7 +184,7 @@ def _features_of(feats: MapFeatures, folders: list[str]) -> tuple[np.ndarray, li
 
 
 def _fit_command(args) -> int:
-    problem = key_file_path_problem(args.out, GateError)  # before the work
+    problem = key_file_path_problem(args.out, GateError, "models")  # before the work
     if problem:
         raise GateError(problem)
     models = Path(args.models) if args.models else default_models()

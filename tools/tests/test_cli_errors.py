@@ -137,3 +137,19 @@ def test_a_key_given_twice_in_a_config_is_refused(tmp_path):
     (tmp_path / "h.yaml").write_text(head + "steps: 5\n")
     with pytest.raises(SystemExit, match="given twice"):
         train_head.read_config(tmp_path / "h.yaml")
+
+
+def test_a_config_may_still_merge_an_anchor_and_override_its_keys(tmp_path):
+    from raindrop_tools.config import load_yaml
+
+    data = load_yaml("base: &b {width: 8, blocks: 2}\nrrn: {<<: *b, blocks: 4}\n")
+    assert data["rrn"] == {"width": 8, "blocks": 4}
+
+
+def test_a_head_config_may_end_its_schedule_at_zero(tmp_path):
+    from raindrop_tools import train_head
+
+    base = (REPO / "tools" / "configs" / "compact-windshield-head.yaml").read_text()
+    text = "\n".join("lr_end: 0.0" if line.startswith("lr_end:") else line for line in base.splitlines()) + "\n"
+    (tmp_path / "h.yaml").write_text(text)
+    assert train_head.read_config(tmp_path / "h.yaml").lr_end == 0.0

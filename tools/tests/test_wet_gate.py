@@ -157,6 +157,17 @@ def test_a_gate_is_read_only_from_a_small_plain_file_and_written_only_over_a_key
     assert not [p for p in tmp_path.iterdir() if p.name.startswith(".g.gate")]
     assert G.main(["fit", "--models", str(SMOKE), "--wet", str(tmp_path / "wet"), "--dry", str(tmp_path / "dry"),
                    "--out", str(out), "--threads", "1"]) == 0  # an earlier gate is replaced
+    # Not over a model folder's ROUTER (a key file of another kind), nor a name ending in '/';
+    # an empty file and a link (the link is replaced, its target kept) are fine.
+    from raindrop_tools.key_file import key_file_path_problem
+
+    (tmp_path / "ROUTER").write_text("format 1\nalternative x\nmean 0\n")
+    assert "not a key file of this kind" in key_file_path_problem(tmp_path / "ROUTER", G.GateError, "models")
+    assert "names a folder" in key_file_path_problem(str(tmp_path / "new") + "/", G.GateError, "models")
+    (tmp_path / "empty.gate").write_text("")
+    (tmp_path / "link.gate").symlink_to(frame)
+    assert key_file_path_problem(tmp_path / "empty.gate", G.GateError, "models") is None
+    assert key_file_path_problem(tmp_path / "link.gate", G.GateError, "models") is None
 
 
 def test_folder_names_are_those_raindrop_remove_gives(tmp_path, monkeypatch):
