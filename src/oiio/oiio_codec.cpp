@@ -156,6 +156,11 @@ std::string encode(const cv::Mat& image, const fs::path& file, const fs::path& n
   }
   ok = out->close() && ok;
   if (!ok) throw Error(quoted(name) + ": cannot write (" + first_line(out->geterror()) + ")");
+  // OpenImageIO's JPEG 2000 writer here reports success and writes nothing: a 0-byte output
+  // and exit 0 before this check.
+  std::error_code ec;
+  if (fs::file_size(file, ec) == 0 || ec)
+    throw Error(quoted(name) + ": cannot write (the " + out->format_name() + " writer wrote no bytes)");
   return lost;
 }
 

@@ -110,6 +110,23 @@ TEST(ImageIo, AFormatWithoutGreyTakesGreyAsRgb) {
   std::filesystem::remove_all(dir);
 }
 
+// Debian's OpenImageIO JPEG 2000 writer reports success and writes nothing: the output was a
+// 0-byte file and the run said it had succeeded. Either a file with bytes in it, or an error
+// and no file.
+TEST(ImageIo, AWriterThatWritesNothingIsAnError) {
+  const auto dir = std::filesystem::temp_directory_path() / ("raindrop_jp2_" + std::to_string(::getpid()));
+  std::filesystem::create_directories(dir);
+  const cv::Mat rgb(24, 32, CV_8UC3, cv::Scalar(10, 120, 200));
+  try {
+    write_image_atomic(rgb, dir / "x.jp2");
+    EXPECT_GT(std::filesystem::file_size(dir / "x.jp2"), 0u);
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("wrote no bytes"), std::string::npos) << e.what();
+    EXPECT_FALSE(std::filesystem::exists(dir / "x.jp2"));
+  }
+  std::filesystem::remove_all(dir);
+}
+
 // A name near the file system's 255-byte limit: its hidden temporary (16-27 bytes longer)
 // used to fail with "File name too long" after the work was done. The temporary now cuts the
 // name; a final name past the limit is refused by the destination check.
