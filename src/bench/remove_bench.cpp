@@ -139,7 +139,16 @@ std::function<int()> add_remove_bench(CLI::App& parent) {
                   "the models' detector router and without it (--no-router) in alternate runs, naming the detector the "
                   "router chose (repeatable)")
       ->check(CLI::ExistingFile);
-  return [o] { return run_remove_bench(*o); };
+  return [o, app] {
+    // An empty value read as 0 ("--tile ''": never tile) instead of an error.
+    for (const char* name : {"--tile", "--tile-overlap"}) {
+      if (app->count(name) > 0 && app->get_option(name)->as<std::string>().empty()) {
+        std::cerr << "raindrop-bench remove: " << name << " needs a value, got ''\n";
+        return 2;
+      }
+    }
+    return run_remove_bench(*o);
+  };
 }
 
 namespace {
@@ -218,8 +227,10 @@ std::string router_choice(const fs::path& program, const fs::path& model_dir, co
 
 // Process start to file written on the user's photographs, with the router and without it
 // (--no-router), the two alternated run by run so that load changes hit both alike.
-void print_photograph_times(const std::vector<std::string>& model_dirs, const std::vector<std::string>& images,
+// Returns false when a run failed (its row says so).
+bool print_photograph_times(const std::vector<std::string>& model_dirs, const std::vector<std::string>& images,
                             int threads, int runs) {
+  bool all_ran = true;
   std::error_code ec;
   const fs::path program = fs::read_symlink("/proc/self/exe", ec).parent_path() / "raindrop-remove";
   const fs::path tmp = bench::make_scratch_dir();
@@ -241,15 +252,17 @@ void print_photograph_times(const std::vector<std::string>& model_dirs, const st
       const fs::path out = tmp / "out.png";
       const std::string choice = router_choice(program, dir, image, out, threads);
       std::vector<double> on, off;
-      for (int i = 0; i <= runs; ++i) {
+      for (int i = 0; i <= runs && choice != "failed"; ++i) {
         on.push_back(time_process(program, dir, image, out, threads));
         off.push_back(time_process(program, dir, image, out, threads, "--no-router"));
+        if (on.back() < 0 || off.back() < 0) break;  // one failure says it: no more runs of it
       }
       const auto failed = [](const std::vector<double>& v) { return std::any_of(v.begin(), v.end(), [](double t) { return t < 0; }); };
       std::cout << "| " << fs::path(dir).filename().string() << " | " << fs::path(image).filename().string() << " | " << size
                 << " | " << choice << " | ";
       if (choice == "failed" || failed(on) || failed(off)) {
         std::cout << "failed (" << program.string() << ") | | | | |\n";
+        all_ran = false;
         continue;
       }
       const double on_warm = bench::median(std::vector<double>(on.begin() + 1, on.end()));
@@ -259,6 +272,7 @@ void print_photograph_times(const std::vector<std::string>& model_dirs, const st
     }
   }
   fs::remove_all(tmp, ec);
+  return all_ran;
 }
 
 int run_remove_bench(RemoveBenchOptions o) {
@@ -267,6 +281,16 @@ int run_remove_bench(RemoveBenchOptions o) {
   } catch (const Error& e) {
     std::cerr << "raindrop-bench remove: " << one_line(e.what()) << "\n";
     return 2;
+  }
+  // Each photograph read now, before minutes of measuring: a damaged one was found only by its
+  // table's runs, which said "failed" and exited 0.
+  for (const auto& image : o.process_images) {
+    try {
+      read_image_native(image);
+    } catch (const Error& e) {
+      std::cerr << "raindrop-bench remove: error: --process-image " << one_line(e.what()) << "\n";
+      return 1;
+    }
   }
   auto& model_dirs = o.model_dirs;
   const auto& thread_counts = o.thread_counts;
@@ -399,7 +423,10 @@ int run_remove_bench(RemoveBenchOptions o) {
     }
     fs::remove_all(tmp, ec);
   }
-  if (!o.process_images.empty()) print_photograph_times(model_dirs, o.process_images, thread_counts.back(), runs);
+  if (!o.process_images.empty() && !print_photograph_times(model_dirs, o.process_images, thread_counts.back(), runs)) {
+    std::cerr << "raindrop-bench remove: error: a photograph's run failed (its row says so)\n";
+    return 1;
+  }
   if (process) {  // the first --process-size image, the last --threads value, the same graph optimisation
     session.threads = thread_counts.back();
     // The coarse pass for large drops (large_drops.h): off is --no-large-drops.
