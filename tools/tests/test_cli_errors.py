@@ -67,7 +67,7 @@ def test_sizes_and_numbers_the_tools_cannot_use_are_usage_errors(tiny_dataset, t
     error (evaluate, realpairs, reference), --mask-threshold nan gave empty masks without a word,
     --threads -2 and a --set value that is no YAML ended in tracebacks, --max-steps -1 did
     nothing and said nothing."""
-    from raindrop_tools import realpairs, train
+    from raindrop_tools import realpairs
 
     cases = [
         (evaluate.main, ["--data", str(tiny_dataset), "--models", str(FIXTURE_MODELS), "--out", str(tmp_path / "e"),
@@ -76,16 +76,26 @@ def test_sizes_and_numbers_the_tools_cannot_use_are_usage_errors(tiny_dataset, t
          "--close must be 1 to 1023"),
         (realpairs.main, ["prepare", str(tmp_path), "--out", str(tmp_path / "rp"), "--mask-threshold", "nan"],
          "--mask-threshold must be a number >= 0"),
-        (train.main, ["--config", str(REPO / "tools" / "configs" / "compact.yaml"), "--out", str(tmp_path / "t"), "--threads", "-2"],
-         "--threads must be at least 1"),
-        (train.main, ["--config", str(REPO / "tools" / "configs" / "compact.yaml"), "--out", str(tmp_path / "t"), "--max-steps", "-1"],
-         "--max-steps must be at least 1"),
     ]
     for command, argv, why in cases:
         with pytest.raises(SystemExit) as e:
             command(argv)
         assert e.value.code == 2 and why in capsys.readouterr().err, why
     assert not [p for p in tmp_path.iterdir()], "nothing written"
+
+
+@pytest.mark.torch
+def test_train_threads_and_steps_it_cannot_use_are_usage_errors(tmp_path, capsys):
+    pytest.importorskip("torch")
+    from raindrop_tools import train
+
+    config = str(REPO / "tools" / "configs" / "compact.yaml")
+    for flag, value, why in (("--threads", "-2", "--threads must be at least 1"),
+                             ("--max-steps", "-1", "--max-steps must be at least 1")):
+        with pytest.raises(SystemExit) as e:
+            train.main(["--config", config, "--out", str(tmp_path / "t"), flag, value])
+        assert e.value.code == 2 and why in capsys.readouterr().err, why
+    assert not (tmp_path / "t").exists()
 
 
 def test_a_train_override_that_is_no_yaml_is_a_config_error():
@@ -100,8 +110,9 @@ def test_a_train_override_that_is_no_yaml_is_a_config_error():
             config_from_dict({}, parse_overrides([f"loss.rrn_mask_weight={value}"]))
 
 
+@pytest.mark.torch
 def test_a_head_config_with_numbers_the_run_cannot_use_is_refused(tmp_path):
-    from raindrop_tools import train_head
+    train_head = pytest.importorskip("raindrop_tools.train_head", exc_type=ImportError)
 
     base = (REPO / "tools" / "configs" / "compact-windshield-head.yaml").read_text()
     for change, why in (("batch_size: 0", "batch_size must be"), ("crop: 100000", "crop must be"),
@@ -126,13 +137,17 @@ def test_dataset_stats_refuses_a_record_of_width_zero(tiny_dataset, tmp_path, ca
 
 def test_a_key_given_twice_in_a_config_is_refused(tmp_path):
     """YAML keeps the last: a second top-level 'train:' replaced the first's settings silently."""
-    from raindrop_tools import train_head
     from raindrop_tools.config import ConfigError, load_config
 
     text = (REPO / "tools" / "configs" / "compact.yaml").read_text()
     (tmp_path / "twice.yaml").write_text(text + "\ntrain:\n  batch_size: 2\n")
     with pytest.raises(ConfigError, match="given twice"):
         load_config(tmp_path / "twice.yaml")
+
+
+@pytest.mark.torch
+def test_a_key_given_twice_in_a_head_config_is_refused(tmp_path):
+    train_head = pytest.importorskip("raindrop_tools.train_head", exc_type=ImportError)
     head = (REPO / "tools" / "configs" / "compact-windshield-head.yaml").read_text()
     (tmp_path / "h.yaml").write_text(head + "steps: 5\n")
     with pytest.raises(SystemExit, match="given twice"):
@@ -146,8 +161,9 @@ def test_a_config_may_still_merge_an_anchor_and_override_its_keys(tmp_path):
     assert data["rrn"] == {"width": 8, "blocks": 4}
 
 
+@pytest.mark.torch
 def test_a_head_config_may_end_its_schedule_at_zero(tmp_path):
-    from raindrop_tools import train_head
+    train_head = pytest.importorskip("raindrop_tools.train_head", exc_type=ImportError)
 
     base = (REPO / "tools" / "configs" / "compact-windshield-head.yaml").read_text()
     text = "\n".join("lr_end: 0.0" if line.startswith("lr_end:") else line for line in base.splitlines()) + "\n"
