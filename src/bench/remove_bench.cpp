@@ -141,11 +141,9 @@ std::function<int()> add_remove_bench(CLI::App& parent) {
       ->check(CLI::ExistingFile);
   return [o, app] {
     // An empty value read as 0 ("--tile ''": never tile) instead of an error.
-    for (const char* name : {"--tile", "--tile-overlap"}) {
-      if (app->count(name) > 0 && app->get_option(name)->as<std::string>().empty()) {
-        std::cerr << "raindrop-bench remove: " << name << " needs a value, got ''\n";
-        return 2;
-      }
+    if (const auto name = cli::option_given_empty(*app, {"--tile", "--tile-overlap"})) {
+      std::cerr << "raindrop-bench remove: " << *name << " needs a value, got ''\n";
+      return 2;
     }
     return run_remove_bench(*o);
   };

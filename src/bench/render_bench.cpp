@@ -833,7 +833,7 @@ std::function<int()> add_render_bench(CLI::App& parent) {
       ->check(CLI::Range(1, 1024));
   return [o, app] {
     o->shared_given = app->count("--shared-data") > 0;
-    if (app->count("--input") > 0 && o->input_path.empty()) {
+    if (cli::option_given_empty(*app, {"--input"})) {
       std::cerr << "raindrop-bench render: --input needs a value, got ''\n";
       return 2;
     }

@@ -6,6 +6,7 @@
 #include <charconv>
 #include <cstdint>
 #include <cstdio>
+#include <initializer_list>
 #include <map>
 #include <optional>
 #include <string>
@@ -24,6 +25,15 @@ inline std::optional<cv::Size> parse_width_height(const std::string& text, int m
       h > max_side)
     return std::nullopt;
   return cv::Size(w, h);
+}
+
+// The first of `names` given with an empty value ("--mask ''"), which CLI11 stores as if the
+// option had not been given (no mask, the default models, every shard); nullopt if none was.
+inline std::optional<std::string> option_given_empty(CLI::App& app, std::initializer_list<const char*> names) {
+  for (const char* name : names) {
+    if (app.count(name) > 0 && app.get_option(name)->as<std::string>().empty()) return std::string(name);
+  }
+  return std::nullopt;
 }
 
 // A validator for string options that hold a WIDTHxHEIGHT size; with `allow_empty`, an empty

@@ -16,7 +16,6 @@
 // stderr, no partial output file); 2 bad command line; 3 batch run with --keep-going
 // finished but some inputs failed.
 #include <algorithm>
-#include <cctype>
 #include <atomic>
 #include <cerrno>
 #include <cmath>
@@ -478,11 +477,9 @@ int run(int argc, char** argv) {
     app.parse(argc, argv);
     // An option given an empty value would read as not given (--mask "" wrote no mask, --models ""
     // took the default models, --shard "" ran every image): refused, as --wet-gate "" is.
-    for (const char* name : {"--mask", "--mask-dir", "--contact-sheet", "--shard", "--models", "--model-config",
-                             "--large-drop-models"}) {
-      if (app.count(name) > 0 && app.get_option(name)->as<std::string>().empty())
-        throw Error(std::string(name) + " needs a value, got ''");
-    }
+    if (const auto name = cli::option_given_empty(app, {"--mask", "--mask-dir", "--contact-sheet", "--shard", "--models",
+                                                         "--model-config", "--large-drop-models"}))
+      throw Error(*name + " needs a value, got ''");
     // NaN passes CLI::Range (every comparison with it is false).
     if (threshold && std::isnan(*threshold)) throw Error("--threshold: nan is not a number between 0 and 1");
     if (large_drop_growth && std::isnan(*large_drop_growth))
@@ -544,8 +541,7 @@ int run(int argc, char** argv) {
       // A mask is 0 and 255 in one channel: JPEG wrote it with other levels (9 on a photograph),
       // WebP holds no single channel (refused only after the removal), GIF, HDR and others
       // change it. Only formats that keep it exactly are taken. Folder masks are PNG.
-      std::string ext = fs::path(mask).extension().string();
-      std::transform(ext.begin(), ext.end(), ext.begin(), [](unsigned char c) { return std::tolower(c); });
+      const std::string ext = lowercase_extension(mask);
       if (ext != ".png" && ext != ".tif" && ext != ".tiff" && ext != ".bmp")
         throw Error("--mask '" + mask + "': a mask holds 0 and 255 in one channel; name a .png, .tif or .bmp file");
       j.mask = fs::path(mask);

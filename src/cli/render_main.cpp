@@ -138,10 +138,8 @@ int run(int argc, char** argv) {
   try {
     // An option given an empty value would read as not given: the demo rendered into ./out for
     // --merge-shards "", a whole run for --shard "".
-    for (const char* name : {"--shard", "--merge-shards", "--contact-sheet", "--cityscapes", "--scene"}) {
-      if (app.count(name) > 0 && app.get_option(name)->as<std::string>().empty())
-        throw Error(std::string(name) + " needs a value, got ''");
-    }
+    if (const auto name = cli::option_given_empty(app, {"--shard", "--merge-shards", "--contact-sheet", "--cityscapes", "--scene"}))
+      throw Error(*name + " needs a value, got ''");
     size = parse_size(size_text);
     if (!shard_text.empty()) shard = parse_shard(shard_text);
     if (!merge_dir.empty() && (!cityscapes.empty() || !input_paths.empty() || demo || !shard_text.empty()))

@@ -105,35 +105,23 @@ std::string encode(const cv::Mat& image, const fs::path& file, const fs::path& n
   auto out = OIIO::ImageOutput::create(name.string());
   if (!out) throw Error(quoted(name) + ": cannot write this format (" + first_line(OIIO::geterror()) + ")");
   cv::Mat data = image.isContinuous() ? image : image.clone();
-  const auto spec_of = [](const cv::Mat& m) {
-    OIIO::ImageSpec s(m.cols, m.rows, m.channels(), m.depth() == CV_8U ? OIIO::TypeDesc::UINT8 : OIIO::TypeDesc::UINT16);
-    if (m.channels() == 4) s.alpha_channel = 3;
-    if (m.channels() == 4 || m.channels() == 2) s.attribute("oiio:UnassociatedAlpha", 1);
-    return s;
-  };
-  OIIO::ImageSpec spec = spec_of(data);
-  bool ok = out->open(file.string(), spec);
   // WebP holds no grey image (RGB and RGBA only) and refused it after the removal had run:
   // grey is written as RGB (its three channels equal), grey+alpha as RGBA, and said. Other
   // formats' refusals stand (their grey or alpha limits differ).
   std::string grey_lost;
-  if (!ok && (data.channels() == 1 || data.channels() == 2) && std::string(out->format_name()) == "webp") {
+  if ((data.channels() == 1 || data.channels() == 2) && std::string(out->format_name()) == "webp") {
     std::vector<cv::Mat> planes;
     cv::split(data, planes);
     std::vector<cv::Mat> colour = {planes[0], planes[0], planes[0]};
     if (planes.size() == 2) colour.push_back(planes[1]);
-    cv::Mat expanded;
-    cv::merge(colour, expanded);
-    auto again = OIIO::ImageOutput::create(name.string());
-    const OIIO::ImageSpec wider = spec_of(expanded);
-    if (again && again->open(file.string(), wider)) {
-      out = std::move(again);
-      spec = wider;
-      grey_lost = std::string(out->format_name()) + " holds no grey image: written as " + (planes.size() == 2 ? "RGBA" : "RGB");
-      data = expanded;
-      ok = true;
-    }
+    cv::merge(colour, data);
+    grey_lost = std::string("webp holds no grey image: written as ") + (planes.size() == 2 ? "RGBA" : "RGB");
   }
+  OIIO::ImageSpec spec(data.cols, data.rows, data.channels(),
+                       data.depth() == CV_8U ? OIIO::TypeDesc::UINT8 : OIIO::TypeDesc::UINT16);
+  if (data.channels() == 4) spec.alpha_channel = 3;
+  if (data.channels() == 4 || data.channels() == 2) spec.attribute("oiio:UnassociatedAlpha", 1);
+  bool ok = out->open(file.string(), spec);
   // What the format cannot hold, known once its writer has opened: it lowers its own spec's
   // depth (BMP, WebP store 8 bits; OpenEXR 16-bit half floats hold about 11 bits), says whether
   // it stores alpha, and GIF keeps a palette of 256 colours.
