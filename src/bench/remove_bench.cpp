@@ -7,6 +7,7 @@
 #include "remove_bench.h"
 
 #include <algorithm>
+#include <cmath>
 #include <cstdio>
 #include <functional>
 #include <limits>
@@ -50,7 +51,13 @@ std::optional<Gflops> read_gflops(const fs::path& dir) {
   try {
     const auto j = nlohmann::json::parse(in);
     const auto& g = j.at("gflops_256x512");
-    return Gflops{g.at("rdn").get<double>(), g.at("rrn").get<double>(), g.at("rfn").get<double>()};
+    const Gflops f{g.at("rdn").get<double>(), g.at("rrn").get<double>(), g.at("rfn").get<double>()};
+    // A damaged or hand-edited file's numbers would print as GFLOP/s rows that mean nothing: each
+    // network costs something, and far less than a teraflop per 256x512 image (the paper's whole
+    // pipeline is 146 GFLOPs there).
+    for (const double v : {f.rdn, f.rrn, f.rfn})
+      if (!std::isfinite(v) || v <= 0 || v > 1000) return std::nullopt;
+    return f;
   } catch (const std::exception&) {
     return std::nullopt;
   }
@@ -448,7 +455,7 @@ int run_remove_bench(RemoveBenchOptions o) {
   for (const auto& r : rows) {
     std::cout << "| " << r.models << " | " << r.size << " | " << r.threads << " | ";
     if (!r.gflop) {
-      std::cout << "n/a (no export.json) | | | | |\n";
+      std::cout << "n/a (no usable export.json) | | | | |\n";
       continue;
     }
     const auto& g = *r.gflop;

@@ -476,9 +476,9 @@ int run(int argc, char** argv) {
   try {
     app.parse(argc, argv);
     // An option given an empty value would read as not given (--mask "" wrote no mask, --models ""
-    // took the default models, --shard "" ran every image): refused, as --wet-gate "" is.
+    // took the default models, --shard "" ran every image, --wet-gate "" ran without a gate): refused.
     if (const auto name = cli::option_given_empty(app, {"--mask", "--mask-dir", "--contact-sheet", "--shard", "--models",
-                                                         "--model-config", "--large-drop-models"}))
+                                                         "--model-config", "--large-drop-models", "--wet-gate"}))
       throw Error(*name + " needs a value, got ''");
     // NaN passes CLI::Range (every comparison with it is false).
     if (threshold && std::isnan(*threshold)) throw Error("--threshold: nan is not a number between 0 and 1");
@@ -688,7 +688,6 @@ int run(int argc, char** argv) {
   const fs::path model_dir = find_models(search, &model_choice);
   // A damaged gate is refused before the models load; whether it suits them, once they have.
   std::shared_ptr<const WetGate> wet_gate;
-  if (app.count("--wet-gate") > 0 && wet_gate_file.empty()) throw Error("--wet-gate needs a gate file, got ''");
   if (!wet_gate_file.empty()) wet_gate = std::make_shared<const WetGate>(read_wet_gate(wet_gate_file));
   std::optional<fs::path> large_dir;
   if (no_large_drops) large_dir = model_dir;

@@ -349,8 +349,8 @@ TEST(WetGateCli, ADryImageIsWrittenAsItWasAndBadGatesAreRefused) {
     EXPECT_FALSE(fs::exists(tmp / "refused.png"));
   }
   const RunResult empty = run_remove({"in/a.png", "refused.png", "--models", models, "--wet-gate", ""}, tmp.path());
-  EXPECT_EQ(empty.code, 1) << empty.describe();
-  EXPECT_NE(empty.err.find("--wet-gate needs a gate file"), std::string::npos) << empty.describe();
+  EXPECT_EQ(empty.code, 2) << empty.describe();  // a usage error, as every other option given ''
+  EXPECT_NE(empty.err.find("--wet-gate needs a value, got ''"), std::string::npos) << empty.describe();
   EXPECT_FALSE(fs::exists(tmp / "refused.png"));
   const RunResult scaled = run_remove({"in/a.png", "refused.png", "--models", models, "--wet-gate", "dry.gate", "--scale", "0.5"}, tmp.path());
   EXPECT_EQ(scaled.code, 2) << scaled.describe();
