@@ -543,7 +543,7 @@ int run(int argc, char** argv) {
       // change it. Only formats that keep it exactly are taken. Folder masks are PNG.
       const std::string ext = lowercase_extension(mask);
       if (ext != ".png" && ext != ".tif" && ext != ".tiff" && ext != ".bmp")
-        throw Error("--mask '" + mask + "': a mask holds 0 and 255 in one channel; name a .png, .tif or .bmp file");
+        throw UsageError("--mask '" + mask + "': a mask holds 0 and 255 in one channel; name a .png, .tif or .bmp file");
       j.mask = fs::path(mask);
     }
     if (!mask_dir.empty()) j.mask = (fs::path(mask_dir) / in_path.filename()).replace_extension(".png");

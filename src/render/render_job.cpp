@@ -390,6 +390,15 @@ RenderSummary render_dataset(const std::vector<InputImage>& inputs, const Render
   std::vector<fs::path> also;
   if (sharded) {
     also.push_back(o.out_dir / manifest_name(Shard{}));
+    // The merge refuses parts of runs split different ways: say so before this shard renders
+    // its share, not after every shard has.
+    for (const auto& [file, shard] : find_manifest_parts(o.out_dir)) {
+      if (shard.count != o.shard.count)
+        throw Error("'" + o.out_dir.string() + "' holds " + file.filename().string() + ", a part of a run split " +
+                    std::to_string(shard.count) + " ways, and --shard " + o.shard.text() + " splits it " +
+                    std::to_string(o.shard.count) + " ways; use --shard K/" + std::to_string(shard.count) +
+                    ", or --merge-shards that run first");
+    }
   } else {
     parts = find_manifest_parts(o.out_dir);
     for (const auto& part : parts) also.push_back(part.first);

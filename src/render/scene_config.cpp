@@ -206,7 +206,7 @@ glm::dvec3 SceneConfig::channel_indices() const {
   return n;
 }
 
-SceneConfig parse_scene_json(const std::string& text, const std::string& origin) {
+SceneConfig parse_scene_json(const std::string& text, const std::string& origin, const std::string& default_name) {
   json j;
   // A key given twice in one object: JSON keeps the last, which would drop the first's
   // settings without a word ("effects" twice ran without the first one's blur). Refused.
@@ -232,7 +232,7 @@ SceneConfig parse_scene_json(const std::string& text, const std::string& origin)
   if (!twice.empty()) throw Error("scene " + origin + ": '" + twice + "' is given twice in one object");
   Reader r(j, "", origin);
   SceneConfig c;
-  c.name = r.string("name", std::filesystem::path(origin).stem().string());
+  c.name = r.string("name", default_name.empty() ? std::filesystem::path(origin).stem().string() : default_name);
   r.range("glass_distance_cm", &c.glass_distance_cm, 1, 1000);
   r.range("background_distance_cm", &c.background_distance_cm, 10, 1e6);
   r.range("tilt_deg", &c.tilt_deg, 15, 90);
@@ -567,7 +567,8 @@ SceneConfig load_scene(const std::string& name_or_path) {
                        }() + ")");
   std::stringstream s;
   s << in.rdbuf();
-  return parse_scene_json(s.str(), "'" + name_or_path + "'");
+  // Named after the file, not after the quoted origin of the messages: "'all.json'" gave "'all".
+  return parse_scene_json(s.str(), "'" + name_or_path + "'", std::filesystem::path(name_or_path).stem().string());
 }
 
 }  // namespace raindrop

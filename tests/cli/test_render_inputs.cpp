@@ -321,6 +321,24 @@ TEST(RenderInfo, PresetsInHelpAndListAgreeAndLoad) {
       << "--help's --scene text offers presets that --list-scenes does not have (or misses some)";
 }
 
+// A scene file without a "name" is named after its file, however the path is written: a bare
+// file name ("all.json") was named "'all", from the quoted path of the error messages. Its blur,
+// given no method, is the antialiased disk that docs/SCENES.md names as the default (it was the
+// binary disk).
+TEST(RenderInfo, ASceneFileIsNamedAfterItsFileAndItsBlurDefaultsToTheAntialiasedDisk) {
+  TempDir tmp;
+  write_file(tmp / "sc" / "all.json", R"({"drop_count": 5, "effects": {"blur": {}}})");
+  for (const auto& [dir, path] : {std::pair<std::string, std::string>{"sc", "all.json"}, {"sc", "./all.json"}, {"", "sc/all.json"}}) {
+    SCOPED_TRACE(path);
+    const auto r = run_render({"--scene", path, "--print-scene"}, tmp / dir);
+    ASSERT_EQ(r.code, 0) << r.describe();
+    json parsed;
+    ASSERT_NO_THROW(parsed = json::parse(r.out)) << r.describe();
+    EXPECT_EQ(parsed.at("name"), "all");
+    EXPECT_EQ(parsed.at("effects").at("blur").at("method"), "disk-aa");
+  }
+}
+
 // An output folder inside the input folder: a second run must not take the first run's
 // rainy/clean/mask images as inputs (it rendered them, and failed on the grey masks).
 TEST(RenderFolder, OutputFolderInsideTheInputIsNotAnInput) {

@@ -200,7 +200,15 @@ TEST_F(RenderShards, MergeRefusesAnIncompleteOrMixedFolder) {
   const RunResult missing = render({"--merge-shards", "part"});
   EXPECT_EQ(missing.code, 1) << missing.describe();
   EXPECT_NE(missing.err.find("shard 1/3 has not run"), std::string::npos) << missing.describe();
-  ASSERT_EQ(render(args("part", "0/2")).code, 0);
+  // A shard split another way is refused before it renders anything (the merge would refuse it
+  // after every shard had run).
+  const RunResult other_n = render(args("part", "0/2"));
+  EXPECT_EQ(other_n.code, 1) << other_n.describe();
+  EXPECT_EQ(split_lines(other_n.err).size(), 1u) << other_n.describe();
+  EXPECT_NE(other_n.err.find("split 3 ways, and --shard 0/2 splits it 2 ways"), std::string::npos) << other_n.describe();
+  EXPECT_FALSE(fs::exists(tmp / "part" / "manifest.part-0-of-2.jsonl"));
+  // The merge's own check, for parts that came together some other way (copied in).
+  fs::copy_file(tmp / "part" / "manifest.part-0-of-3.jsonl", tmp / "part" / "manifest.part-0-of-2.jsonl");
   const RunResult mixed = render({"--merge-shards", "part"});
   EXPECT_EQ(mixed.code, 1) << mixed.describe();
   EXPECT_NE(mixed.err.find("split 2 and 3 ways"), std::string::npos) << mixed.describe();

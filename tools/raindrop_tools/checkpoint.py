@@ -85,7 +85,7 @@ def load_checkpoint(path: Path, map_location: str | torch.device = "cpu") -> dic
         raise CheckpointError(f"{path}: no such checkpoint") from e
     except Exception as e:  # torch raises whatever the bytes provoke: RuntimeError, UnpicklingError, EOFError...
         first = (str(e).strip().splitlines() or [type(e).__name__])[0]
-        raise CheckpointError(f"{path}: not a readable checkpoint ({first})") from e
+        raise CheckpointError(f"{path}: not a readable checkpoint: a .pt file that train wrote ({first})") from e
     if not isinstance(state, dict) or "models" not in state:
         raise CheckpointError(f"{path}: not a raindrop training checkpoint (no networks in it)")
     return state

@@ -38,6 +38,8 @@ REQUIRED_KEYS: dict[str, type] = {
     "height": int,
 }
 MAX_LISTED_PROBLEMS = 20
+# The manifest "source" of the folders realpairs.py prepare writes (realpairs.SOURCE).
+REAL_PAIRS_SOURCE = "real-pairs"
 
 
 class DatasetError(ValueError):
@@ -65,11 +67,17 @@ def _raise(problems: list[str], what: str) -> None:
 
 
 def read_manifest(
-    root: str | os.PathLike, splits: list[str] | None = None, left_out: Counter | None = None
+    root: str | os.PathLike,
+    splits: list[str] | None = None,
+    left_out: Counter | None = None,
+    for_training: bool = False,
 ) -> list[Sample]:
     """Parse ``root/manifest.jsonl``; keep the samples whose ``split`` is in ``splits`` (all
     when None). Refuses unparsable lines, missing or mistyped keys, unsafe paths and
-    duplicate ids. ``left_out``, if given, counts the split values of the samples not kept."""
+    duplicate ids. ``left_out``, if given, counts the split values of the samples not kept.
+    ``for_training``: with no split named, refuse a folder of real pairs (``realpairs
+    prepare``'s ``source``) that holds pairs of the ``test`` split, which ``evaluate --split
+    test`` scores: training on them silently would make that score meaningless."""
     root = Path(root)
     manifest = root / MANIFEST
     try:
@@ -81,6 +89,7 @@ def read_manifest(
     problems: list[str] = []
     samples: list[Sample] = []
     seen: dict[str, str] = {}
+    real_pair_ids: set[str] = set()  # samples that realpairs prepare wrote (for_training)
     for file, lineno, text in lines:
         where = f"{root / file}:{lineno}"
         try:
@@ -126,6 +135,8 @@ def read_manifest(
             continue
         seen[sid] = str(lineno) if file == MANIFEST else f"{lineno} of {file}"
         split = obj.get("split")
+        if obj.get("source") == REAL_PAIRS_SOURCE:
+            real_pair_ids.add(sid)
         if splits is not None and split is None:
             problems.append(f"{where}: sample {sid!r} has no 'split' key, but splits {splits} were requested")
             continue
@@ -137,6 +148,14 @@ def read_manifest(
             left_out[split] += 1
     if problems:
         _raise(problems, f"{manifest}")
+    if for_training and splits is None:
+        held_out = sum(1 for s in samples if s.split == "test" and s.id in real_pair_ids)
+        if held_out:
+            raise DatasetError(
+                f"{root}: {held_out} of its real pairs are in the 'test' split, which 'evaluate --split test' "
+                "scores; name the splits to train on (split: train for this source, or data.splits: [train]), "
+                "or split: [train, test] to train on every pair knowingly"
+            )
     if not samples:
         which = f" with split in {splits}" if splits is not None else ""
         raise DatasetError(f"{manifest}: no samples{which}")
@@ -320,7 +339,7 @@ class RaindropDataset:
         self.photometric = float(photometric)
         self.flip = bool(flip)
         left_out: Counter = Counter()
-        self.samples = read_manifest(self.root, splits, left_out)
+        self.samples = read_manifest(self.root, splits, left_out, for_training=True)
         if left_out:
             # A split filter that silently drops most of a folder trains on a sliver of it
             # (CamVid frames carry split "none": [train] kept 36 of this project's 2844).

@@ -107,9 +107,20 @@ def pack(srcs: list[Path], out: Path, splits: list[str] | None, frames: int | No
          variants: list[int | None], threads: int) -> dict:
     sets = []
     for src in srcs:
-        entries = [json.loads(t) for _, _, t in manifest_lines(src)]
+        if not (src / "manifest.jsonl").is_file() and not src.is_dir():
+            raise PackError(f"{src}: no such folder")
+        entries = []
+        for file, lineno, text in manifest_lines(src):
+            try:
+                entries.append(json.loads(text))
+            except json.JSONDecodeError as e:
+                raise PackError(f"{src / file}:{lineno}: not valid JSON ({e.msg} at column {e.colno})") from None
+        if not entries:
+            raise PackError(f"{src}: no samples (not a rendered data set: no manifest.jsonl records)")
         if splits is not None:
             entries = [e for e in entries if e.get("split") in splits]
+            if not entries:
+                raise PackError(f"{src}: no samples of split {', '.join(splits)}")
         sets.append(entries)
     sets = _choose(sets, frames, variants)
     names = [src.name for src in srcs]

@@ -23,7 +23,14 @@ from .manifest import manifest_lines
 
 
 def summarize(data_dir: Path) -> dict:
-    records = [json.loads(text) for _, _, text in manifest_lines(data_dir)]
+    if not data_dir.is_dir():
+        raise ValueError(f"{data_dir}: no such folder")
+    records = []
+    for file, lineno, text in manifest_lines(data_dir):
+        try:
+            records.append(json.loads(text))
+        except json.JSONDecodeError as e:
+            raise ValueError(f"{data_dir / file}:{lineno}: not valid JSON ({e.msg} at column {e.colno})") from None
     if not records:
         raise ValueError(f"{data_dir}: empty manifest")
     drops, coverage, dark, off, diameters = [], [], [], [], []

@@ -65,8 +65,10 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--every", type=int, default=1, help="use every N-th sample of the manifest")
     ap.add_argument("--threads", type=int, help="ONNX Runtime intra-op threads")
     args = ap.parse_args(argv)
+    if args.every < 1:
+        ap.error(f"--every must be 1 or more, got {args.every}")
     try:
-        samples = read_manifest(args.data)[:: max(1, args.every)]
+        samples = read_manifest(args.data)[:: args.every]
         remover = RaindropRemover(Path(args.models), threads=args.threads)
         split = ErrorSplit()
         for s in samples:

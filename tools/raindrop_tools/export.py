@@ -203,7 +203,7 @@ def load_run(run_dir: Path, checkpoint: Path | None = None, allow_incomplete: bo
         needed = "stage 1 complete" if detector_only else "stage 2 complete"
         raise ExportError(
             f"{checkpoint}: stage {state['stage']} step {state['step']} of {state['total_steps']}: "
-            f"training is not finished ({needed}); pass --allow-incomplete to export anyway"
+            f"training is not finished (an export needs {needed}); pass --allow-incomplete to export anyway"
         )
     cfg = config_from_dict(state["config"])
     nets = build_networks(cfg.network)
@@ -320,6 +320,8 @@ def main(argv: list[str] | None = None) -> int:
         if args.threshold is not None:
             cfg = dataclasses.replace(cfg, pipeline=dataclasses.replace(cfg.pipeline, threshold=args.threshold))
         out = Path(args.out) if args.out else Path("models") / cfg.name
+        if out.exists() and not out.is_dir():
+            raise ExportError(f"--out {out}: a file, not a folder; a model is a folder of graphs")
         if not args.out:
             _refuse_another_runs_folder(out, source)
         info = export_networks(cfg, nets, out, source)

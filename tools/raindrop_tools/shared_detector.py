@@ -306,9 +306,20 @@ def write(main_dir: Path, like_dir: Path, out_dir: Path, head_path: Path, replac
                      *(out_dir / C.FILES[n] for n in C.NETWORKS), follow_links=False)
     cfg = rdn_config(main_dir)
     rdn = load_rdn(main_dir)
-    state = torch.load(head_path, map_location="cpu", weights_only=True)
+    try:
+        state = torch.load(head_path, map_location="cpu", weights_only=True)
+    except Exception as e:  # pickle, zip and torch's own errors: not a head file either way
+        raise SharedDetectorError(f"--head {head_path}: not a readable head file "
+                                  f"({str(e).splitlines()[0] if str(e) else type(e).__name__})") from None
+    if not isinstance(state, dict) or "mix.weight" not in state or "up.weight" not in state:
+        raise SharedDetectorError(f"--head {head_path}: not a head (train_head's head.pt): no mix.weight and up.weight; "
+                                  "a train run's checkpoint is not one")
     head = AlternativeHead(cfg.width, cfg.expanded, mid=state["mix.weight"].shape[0], up=state["up.weight"].shape[1])
-    head.load_state_dict(state)
+    try:
+        head.load_state_dict(state)
+    except RuntimeError as e:  # a head trained on another configuration's detector (its widths)
+        raise SharedDetectorError(f"--head {head_path}: not a head for {main_dir}'s detector (width {cfg.width}, "
+                                  f"expanded {cfg.expanded}): {str(e).splitlines()[-1].strip()}") from None
     head.eval()
     main_file = main_dir / C.FILES["rdn"]
     main = onnx.load(str(main_file))

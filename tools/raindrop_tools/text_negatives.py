@@ -101,6 +101,13 @@ def make_set(images: list, out, seed: int = 0, size: tuple[int, int] | None = (5
         if target in seen:
             raise OSError(f"{seen[target]} and {path} would both be written as {target}")
         seen[target] = Path(path)
+    # `damage` scores every PNG in the folder: images an earlier, larger set left there would be
+    # scored with this one (lettered ones in a baseline, say).
+    if out.is_dir():
+        others = sorted(p.name for p in out.glob("*.png") if p not in seen)
+        if others:
+            raise OSError(f"{out}: holds {len(others)} PNG image(s) this set does not write ({others[0]}, ...), "
+                          "which 'damage' would score with it: choose a new or empty folder")
     refuse_read_only(*targets)  # written through the name
     # Every image read first: a damaged one stops the run before any file is written.
     pictures = [read_rgb(path) for path in images]
@@ -177,7 +184,7 @@ def main(argv: list[str] | None = None) -> int:
     else:
         r = damage(args.inputs, args.outputs, args.masks)
         marked = f", {100 * r['marked']:.2f}% of the pixels marked" if "marked" in r else ""
-        print(f"{args.label}: {r['images']} drop-free images, output against input PSNR-Y "
+        print(f"{args.label + ': ' if args.label else ''}{r['images']} drop-free images, output against input PSNR-Y "
               f"{r['psnr_y']:.2f} dB, {100 * r['changed']:.0f}% of them changed{marked}")
     return 0
 

@@ -444,14 +444,29 @@ class Trainer:
     def _init_from_model_folder(self, folder: Path) -> Path:
         """Fine-tuning from an exported model folder (models/<config>): the weights come back
         from the ONNX graphs (onnx_weights.py), BatchNorms folded into identities."""
+        export_info = folder / "export.json"
+        info: dict = {}
+        if export_info.is_file():
+            try:
+                info = json.loads(export_info.read_text())
+            except (OSError, UnicodeDecodeError, json.JSONDecodeError) as e:
+                raise TrainingError(f"--init-from {folder}: its export.json cannot be read ({e})") from None
+            if not isinstance(info, dict):
+                raise TrainingError(f"--init-from {folder}: its export.json is not a JSON object")
+        quantized_from = info.get("quantized_from")
+        if quantized_from:
+            # Its int8 convolutions' weights are computed from stored integers, not stored.
+            raise TrainingError(
+                f"--init-from {folder}: an int8 folder (quantized from {quantized_from}) cannot be fine-tuned; "
+                "start from the float folder it was quantized from"
+            )
         if not self.cfg.train.freeze_batchnorm:
             raise TrainingError(
                 f"--init-from {folder}: an exported model folder has its BatchNorms folded into the convolutions; "
                 "fine-tune it with train.freeze_batchnorm: true (in the config, or --set train.freeze_batchnorm=true)"
             )
-        export_info = folder / "export.json"
-        if export_info.is_file():
-            theirs = json.loads(export_info.read_text()).get("network", {})
+        if info:
+            theirs = info.get("network", {})
             ours = to_dict(self.cfg)["network"]
             for net_name, fields in theirs.items():
                 for key, value in fields.items():

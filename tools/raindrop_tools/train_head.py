@@ -37,6 +37,7 @@ import torch.nn.functional as F
 import yaml
 
 from .config import ConfigError, _from_dict, load_yaml
+from .data import REAL_PAIRS_SOURCE
 from .imageio import ImageError, read_rgb
 from .manifest import manifest_lines
 from .metrics import luma_float
@@ -145,6 +146,13 @@ def _image_files(source: Source) -> list[Path]:
     if source.split is not None:
         rows = [json.loads(text) for _, _, text in manifest_lines(root)]
         return sorted(root / r[source.images] for r in rows if r.get("split") == source.split)
+    if manifest.is_file():
+        # As train's data sources (data.read_manifest): the held-out real pairs only when named.
+        rows = [json.loads(text) for _, _, text in manifest_lines(root)]
+        held_out = sum(1 for r in rows if r.get("source") == REAL_PAIRS_SOURCE and r.get("split") == "test")
+        if held_out:
+            raise SystemExit(f"error: {root}: {held_out} of its real pairs are in the 'test' split, which "
+                             "'evaluate --split test' scores; give this source split: train")
     return sorted((root / source.images).glob("*.png"))
 
 
@@ -323,6 +331,10 @@ def main(argv: list[str] | None = None) -> int:
         raise SystemExit(f"error: --threads must be 0 or more, got {args.threads}")
     if args.out.exists() and not args.out.is_dir():
         raise SystemExit(f"error: --out {args.out}: not a folder")
+    # As train refuses a run folder with checkpoints: a second run replaced the first's head.
+    if (args.out / "head.pt").exists():
+        raise SystemExit(f"error: --out {args.out} holds a trained head (head.pt) already: train into a new folder "
+                         "(a fine-tune of that head names it as its config's init)")
     if args.threads > 0:
         torch.set_num_threads(args.threads)
     try:

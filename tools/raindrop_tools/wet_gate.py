@@ -191,8 +191,14 @@ def _fit_command(args) -> int:
     feats = MapFeatures(models, args.threads)
     if not feats.name.split() or feats.name.split() != [feats.name]:
         raise GateError(f"'{models}': a model folder whose name holds spaces cannot be named in a gate file")
-    wet, _ = _features_of(feats, args.wet)
-    dry, _ = _features_of(feats, args.dry)
+    wet, wet_files = _features_of(feats, args.wet)
+    dry, dry_files = _features_of(feats, args.dry)
+    # A frame labelled both wet and dry (the same folder given twice, say) teaches nothing, and
+    # a gate fitted on such labels is no gate.
+    both = {f.resolve() for f in wet_files} & {f.resolve() for f in dry_files}
+    if both:
+        raise GateError(f"{len(both)} frame(s) are given as both wet and dry (e.g. '{sorted(both)[0]}'): "
+                        "--wet and --dry must name different frames")
     gate = fit(wet, dry, feats.name, args.keep_wet)
     kept, passed = np.mean(gate.score(wet) > 0), np.mean(gate.score(dry) <= 0)
     comment = (f"raindrop wet gate: an image is processed where z > 0, else written as it was.\n"

@@ -125,6 +125,32 @@ def test_a_head_config_with_numbers_the_run_cannot_use_is_refused(tmp_path):
             train_head.read_config(tmp_path / "h.yaml")
 
 
+@pytest.mark.torch
+def test_a_head_source_of_real_pairs_with_held_out_pairs_needs_its_split(tmp_path):
+    # train_head read every image of a source without a split, held-out real pairs included
+    train_head = pytest.importorskip("raindrop_tools.train_head", exc_type=ImportError)
+    from helpers import write_dataset
+
+    root = write_dataset(tmp_path / "d", n=4, h=20, w=20, splits=("train", "test"))
+    rows = [json.loads(t) for t in (root / "manifest.jsonl").read_text().splitlines()]
+    (root / "manifest.jsonl").write_text("".join(json.dumps({**r, "source": "real-pairs"}) + "\n" for r in rows))
+    with pytest.raises(SystemExit, match="2 of its real pairs are in the 'test' split"):
+        train_head._image_files(train_head.Source(path=str(root), weight=1.0))
+    assert len(train_head._image_files(train_head.Source(path=str(root), weight=1.0, split="train"))) == 2
+
+
+@pytest.mark.torch
+def test_a_head_run_folder_with_a_head_is_not_trained_over(tmp_path):
+    train_head = pytest.importorskip("raindrop_tools.train_head", exc_type=ImportError)
+
+    (tmp_path / "run").mkdir()
+    (tmp_path / "run" / "head.pt").write_bytes(b"the first run's head")
+    cfg = REPO / "tools" / "configs" / "compact-windshield-head.yaml"
+    with pytest.raises(SystemExit, match="holds a trained head"):
+        train_head.main(["--config", str(cfg), "--out", str(tmp_path / "run")])
+    assert (tmp_path / "run" / "head.pt").read_bytes() == b"the first run's head"
+
+
 def test_dataset_stats_refuses_a_record_of_width_zero(tiny_dataset, tmp_path, capsys):
     copy = tmp_path / "copy"
     shutil.copytree(tiny_dataset, copy)
@@ -133,6 +159,27 @@ def test_dataset_stats_refuses_a_record_of_width_zero(tiny_dataset, tmp_path, ca
     (copy / "manifest.jsonl").write_text("".join(json.dumps(r) + "\n" for r in lines))
     assert dataset_stats.main([str(copy)]) == 2
     assert "is not a positive number" in capsys.readouterr().err
+
+
+def test_stats_and_packs_of_a_missing_folder_or_a_broken_manifest_say_which(tiny_dataset, tmp_path, capsys):
+    # "nosuch: empty manifest", "no samples to pack", and JSON errors naming no file or line
+    from raindrop_tools import datapack
+
+    broken = tmp_path / "broken"
+    shutil.copytree(tiny_dataset, broken)
+    lines = (broken / "manifest.jsonl").read_text().splitlines()
+    lines[1] = "{not json"
+    (broken / "manifest.jsonl").write_text("\n".join(lines) + "\n")
+    assert dataset_stats.main([str(tmp_path / "nosuch")]) == 2
+    assert "nosuch: no such folder" in capsys.readouterr().err
+    assert dataset_stats.main([str(broken)]) == 2
+    assert "manifest.jsonl:2: not valid JSON" in capsys.readouterr().err
+    assert datapack.main(["pack", str(tmp_path / "p"), str(tmp_path / "nosuch") + ":4"]) != 0
+    assert "nosuch: no such folder" in capsys.readouterr().err
+    assert datapack.main(["pack", str(tmp_path / "p"), str(broken) + ":4"]) != 0
+    err = capsys.readouterr().err
+    assert "manifest.jsonl:2: not valid JSON" in err and "Traceback" not in err
+    assert not (tmp_path / "p").exists()
 
 
 def test_a_key_given_twice_in_a_config_is_refused(tmp_path):

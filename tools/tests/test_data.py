@@ -65,6 +65,28 @@ def test_a_split_filter_says_what_it_leaves_out(tmp_path):
     assert said == []  # nothing left out, nothing said
 
 
+def test_training_refuses_held_out_real_pairs_unless_their_split_is_named(tmp_path):
+    # A user's own pairs, prepared by realpairs with a test split, trained on with no split named:
+    # 'evaluate --split test' then scored pairs the model had trained on, without a word.
+    root = write_dataset(tmp_path / "d", n=4, h=20, w=20, splits=("train", "test"))
+    lines = [json.loads(t) for t in (root / "manifest.jsonl").read_text().splitlines()]
+    (root / "manifest.jsonl").write_text("".join(json.dumps({**r, "source": "real-pairs"}) + "\n" for r in lines))
+    with pytest.raises(DatasetError, match="2 of its real pairs are in the 'test' split"):
+        RaindropDataset(root, crop=16, validate="header")
+    assert len(RaindropDataset(root, crop=16, splits=["train"], validate="header")) == 2
+    assert len(RaindropDataset(root, crop=16, splits=["train", "test"], validate="header")) == 4
+    assert len(read_manifest(root, None)) == 4  # reading (evaluate, stats) is not training
+    # rendered sets' splits are their backgrounds' (Cityscapes' test frames): not refused
+    rendered = write_dataset(tmp_path / "r", n=4, h=20, w=20, splits=("train", "test"))
+    assert len(RaindropDataset(rendered, crop=16, validate="header")) == 4
+
+
+def test_real_pairs_source_name_is_realpairs_own():
+    from raindrop_tools import data, realpairs
+
+    assert data.REAL_PAIRS_SOURCE == realpairs.SOURCE
+
+
 def test_step_sampler_is_a_pure_function_of_the_step():
     sizes = [(48, 64)] * 5 + [(40, 50)] * 2
     a = StepBatchSampler(sizes, 32, 3, seed=1, stage=1, total_steps=10)

@@ -241,7 +241,11 @@ def test_reconstruction_from_ships_the_runs_detector_with_another_folders_3rn_an
 
     run = stage1_checkpoint(tmp_path / "run", 5)
     assert E.main(["--run", str(run), "--out", str(tmp_path / "refused")]) == 2
-    assert "training is not finished" in capsys.readouterr().err
+    assert "training is not finished (an export needs stage 2 complete)" in capsys.readouterr().err
+    (tmp_path / "afile").write_text("a user's file")
+    assert E.main(["--run", str(run), "--out", str(tmp_path / "afile"), "--reconstruction-from", str(tmp_path / "base")]) == 2
+    assert "a file, not a folder" in capsys.readouterr().err  # was "[Errno 17] File exists"
+    assert (tmp_path / "afile").read_text() == "a user's file"
     assert E.main(["--run", str(run), "--out", str(tmp_path / "m"), "--name", "tuned", "--threshold", "0.75",
                    "--reconstruction-from", str(tmp_path / "base")]) == 0
     out = tmp_path / "m"
@@ -270,7 +274,7 @@ def test_reconstruction_from_ships_the_runs_detector_with_another_folders_3rn_an
     # an unfinished stage 1 is refused with the flag too
     early = stage1_checkpoint(tmp_path / "early", 3)
     assert E.main(["--run", str(early), "--out", str(tmp_path / "e"), "--reconstruction-from", str(tmp_path / "base")]) == 2
-    assert "not finished (stage 1 complete)" in capsys.readouterr().err and not (tmp_path / "e").exists()
+    assert "not finished (an export needs stage 1 complete)" in capsys.readouterr().err and not (tmp_path / "e").exists()
     # a folder without the graphs is a one-line error, and writes nothing
     assert E.main(["--run", str(run), "--out", str(tmp_path / "n"), "--reconstruction-from", str(tmp_path)]) == 2
     assert f"--reconstruction-from {tmp_path}: no rrn.onnx" in capsys.readouterr().err and not (tmp_path / "n").exists()

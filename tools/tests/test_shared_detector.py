@@ -277,6 +277,22 @@ def test_a_read_only_graph_is_kept(tmp_path, capsys):
     assert "read-only" in capsys.readouterr().err
 
 
+def test_a_head_that_is_not_one_for_the_main_detector_is_a_one_line_error(tmp_path, capsys):
+    # a head of other widths gave a traceback; a train checkpoint gave "error: 'mix.weight'"
+    main, like = _current_folder(tmp_path, "main"), _current_folder(tmp_path, "like")
+    cfg = SD.rdn_config(main)
+    torch.save(AlternativeHead(cfg.width + 2, cfg.expanded, mid=6, up=4).state_dict(), tmp_path / "wide.pt")
+    torch.save({"model": {"w": torch.zeros(1)}, "step": 3}, tmp_path / "ckpt.pt")
+    (tmp_path / "text.pt").write_text("not a file torch reads")
+    before = (main / "rdn.onnx").read_bytes()
+    for name, why in (("wide.pt", "not a head for"), ("ckpt.pt", "not a head"), ("text.pt", "not a readable head file")):
+        assert SD.main(["--main", str(main), "--head", str(tmp_path / name), "--like", str(like), "--out",
+                        str(tmp_path / "h")]) == 1
+        err = capsys.readouterr().err
+        assert why in err and len(err.strip().splitlines()) == 1, err
+    assert (main / "rdn.onnx").read_bytes() == before and not (tmp_path / "h").exists()
+
+
 def test_quantized_with_its_head_the_main_map_is_the_plain_int8_one_and_the_head_map_its_folders(tmp_path, tiny_dataset,
                                                                                                   capsys):
     """The int8 default's head: quantizing the merged graph gives the same first map as

@@ -98,9 +98,11 @@ def test_the_outside_mask_check_is_per_source(tmp_path):
     real = tmp_path / "real"
     RP.prepare(write_pairs(tmp_path / "pairs", groups=2, per_group=2), real)
     with pytest.raises(DatasetError, match="outside the mask"):
-        RaindropDataset(real, crop=32, check_outside_mask=True)
+        RaindropDataset(real, crop=32, splits=["train", "test"], check_outside_mask=True)
+    # both splits named: held-out real pairs are trained on only where a config says so (data.py)
     cfg = config_from_dict(
-        {"data": {"crop": 32, "sources": [{"path": str(rendered)}, {"path": str(real), "check_outside_mask": False}]}}
+        {"data": {"crop": 32, "sources": [{"path": str(rendered)},
+                                           {"path": str(real), "check_outside_mask": False, "split": ["train", "test"]}]}}
     )
     parts = [RaindropDataset(s.path, crop=32, splits=s.split, check_outside_mask=s.check_outside_mask)
              for s in data_sources(cfg)]

@@ -85,6 +85,24 @@ def test_make_refuses_its_images_own_folder_a_name_twice_and_a_damaged_image_bef
     assert not (tmp_path / "out2").exists()
 
 
+def test_make_into_a_folder_of_an_earlier_larger_set_is_refused(tmp_path):
+    # Four lettered images, then a baseline of two into the same folder: it said "2 images" and
+    # left two lettered ones for 'damage' to score as baseline.
+    import pytest
+
+    src = tmp_path / "src"
+    src.mkdir()
+    for i in range(4):
+        cv2.imwrite(str(src / f"f{i}.png"), np.full((64, 96, 3), 40 * i + 20, np.uint8))
+    files = sorted(src.glob("*.png"))
+    assert T.make_set(files, tmp_path / "neg", size=None) == 4
+    before = {p.name: p.read_bytes() for p in (tmp_path / "neg").glob("*.png")}
+    with pytest.raises(OSError, match="holds 2 PNG image"):
+        T.make_set(files[:2], tmp_path / "neg", size=None, lettering=False)
+    assert {p.name: p.read_bytes() for p in (tmp_path / "neg").glob("*.png")} == before
+    assert T.make_set(files, tmp_path / "neg", size=None, lettering=False) == 4  # the same set again: fine
+
+
 def test_damage_refuses_a_mask_of_another_size(tmp_path):
     import pytest
 

@@ -311,6 +311,17 @@ def test_init_from_an_exported_model_folder_fine_tunes_its_function(smoke_run, t
     assert train.main(_args(data, tmp_path / "ft5", "--init-from", str(models), *frozen,
                             "--set", "network.rrn.global_residual=true")) == 2
     assert "network.rrn.global_residual" in capsys.readouterr().err
+    # an int8 copy of a folder: its weights are computed from integers, so no fine-tune starts there
+    int8 = tmp_path / "int8"
+    shutil.copytree(models, int8)
+    info = json.loads((int8 / "export.json").read_text())
+    (int8 / "export.json").write_text(json.dumps({**info, "quantized_from": str(models)}))
+    assert train.main(_args(data, tmp_path / "ft8", "--init-from", str(int8), *frozen)) == 2
+    err = capsys.readouterr().err
+    assert "an int8 folder" in err and "start from the float folder" in err
+    (int8 / "export.json").write_text("{ cut")
+    assert train.main(_args(data, tmp_path / "ft9", "--init-from", str(int8), *frozen)) == 2
+    assert "its export.json cannot be read" in capsys.readouterr().err
 
 
 def test_a_run_that_saved_nothing_may_be_started_again_with_a_corrected_command(smoke_run, tmp_path, capsys):

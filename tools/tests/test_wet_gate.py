@@ -119,6 +119,12 @@ def test_the_command_line_refuses_in_one_line(tmp_path, capsys):
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and "no images" in err
     assert not (tmp_path / "g").exists()
+    # the same frames as both wet and dry: a gate fitted on them is no gate
+    assert G.main(["fit", "--models", str(SMOKE), "--wet", str(tmp_path / "wet"), "--dry", str(tmp_path / "wet"),
+                   "--out", str(tmp_path / "g")]) == 1
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "given as both wet and dry" in err
+    assert not (tmp_path / "g").exists()
     assert G.main(["judge", "--gate", str(tmp_path / "missing"), "--models", str(SMOKE), "x.png"]) == 1
     assert "cannot read it" in capsys.readouterr().err
     (tmp_path / "other.gate").write_text(gate_text(models="compact-multiscale"))

@@ -90,7 +90,7 @@ struct SceneConfig {
   struct Blur {
     bool enabled = true;
     Range diameter_px_2048{7, 20};  // disk diameter at 2048 px wide, scaled with the width
-    BlurMethod method = BlurMethod::DiskSpan;
+    BlurMethod method = BlurMethod::DiskAntialiased;  // as docs/SCENES.md says, and the presets name
   } blur;
   struct Fresnel {
     bool enabled = false;
@@ -217,7 +217,9 @@ std::vector<std::string> scene_preset_names();
 // A preset name or a path to a JSON scene file. Throws raindrop::Error with a one-line
 // message naming the file and the offending key.
 SceneConfig load_scene(const std::string& name_or_path);
-SceneConfig parse_scene_json(const std::string& text, const std::string& origin);
+// `origin` names the text in messages; `default_name` is the scene's name where the text gives
+// none (empty: the stem of `origin`).
+SceneConfig parse_scene_json(const std::string& text, const std::string& origin, const std::string& default_name = "");
 
 // The config as a JSON scene file (canonical: keys sorted, every field present); parsing it
 // back gives the same config. Used for --print-scene and for the job fingerprint.
