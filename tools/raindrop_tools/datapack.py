@@ -33,7 +33,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from .manifest import MANIFEST, manifest_lines
+from .manifest import MANIFEST, ManifestError, manifest_records
 from .read_only import ReadOnlyFileError, refuse_read_only
 
 INDEX = "datapack.json"
@@ -109,12 +109,10 @@ def pack(srcs: list[Path], out: Path, splits: list[str] | None, frames: int | No
     for src in srcs:
         if not (src / "manifest.jsonl").is_file() and not src.is_dir():
             raise PackError(f"{src}: no such folder")
-        entries = []
-        for file, lineno, text in manifest_lines(src):
-            try:
-                entries.append(json.loads(text))
-            except json.JSONDecodeError as e:
-                raise PackError(f"{src / file}:{lineno}: not valid JSON ({e.msg} at column {e.colno})") from None
+        try:
+            entries = manifest_records(src)
+        except ManifestError as e:
+            raise PackError(str(e)) from None
         if not entries:
             raise PackError(f"{src}: no samples (not a rendered data set: no manifest.jsonl records)")
         if splits is not None:

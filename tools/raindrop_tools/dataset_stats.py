@@ -19,18 +19,13 @@ from pathlib import Path
 
 import numpy as np
 
-from .manifest import manifest_lines
+from .manifest import manifest_records
 
 
 def summarize(data_dir: Path) -> dict:
     if not data_dir.is_dir():
         raise ValueError(f"{data_dir}: no such folder")
-    records = []
-    for file, lineno, text in manifest_lines(data_dir):
-        try:
-            records.append(json.loads(text))
-        except json.JSONDecodeError as e:
-            raise ValueError(f"{data_dir / file}:{lineno}: not valid JSON ({e.msg} at column {e.colno})") from None
+    records = manifest_records(data_dir)  # a ManifestError is a ValueError
     if not records:
         raise ValueError(f"{data_dir}: empty manifest")
     drops, coverage, dark, off, diameters = [], [], [], [], []

@@ -83,3 +83,16 @@ def manifest_lines(root: str | os.PathLike) -> list[tuple[str, int, str]]:
             seen.add(line[2])
             unique.append(line)
     return sorted(unique, key=lambda line: sort_id(line[2]))  # stable: unsortable lines keep their order
+
+
+def manifest_records(root: str | os.PathLike) -> list:
+    """The parsed records of ``manifest_lines``; a line that is not JSON is a ``ManifestError``
+    naming its file and line (json's own message names neither)."""
+    root = Path(root)
+    records = []
+    for file, lineno, text in manifest_lines(root):
+        try:
+            records.append(json.loads(text))
+        except json.JSONDecodeError as e:
+            raise ManifestError(f"{root / file}:{lineno}: not valid JSON ({e.msg} at column {e.colno})") from None
+    return records
