@@ -397,7 +397,7 @@ RenderSummary render_dataset(const std::vector<InputImage>& inputs, const Render
         throw Error("'" + o.out_dir.string() + "' holds " + file.filename().string() + ", a part of a run split " +
                     std::to_string(shard.count) + " ways, and --shard " + o.shard.text() + " splits it " +
                     std::to_string(o.shard.count) + " ways; use --shard K/" + std::to_string(shard.count) +
-                    ", or --merge-shards that run first");
+                    ", or first finish that run (a run without --shard renders what its shards left and merges them)");
     }
   } else {
     parts = find_manifest_parts(o.out_dir);

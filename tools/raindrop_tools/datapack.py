@@ -115,6 +115,10 @@ def pack(srcs: list[Path], out: Path, splits: list[str] | None, frames: int | No
             raise PackError(str(e)) from None
         if not entries:
             raise PackError(f"{src}: no samples (not a rendered data set: no manifest.jsonl records)")
+        for e in entries:
+            if not isinstance(e, dict) or not all(isinstance(e.get(k), str) for k in ("id", "rainy", "clean", "mask")):
+                raise PackError(f"{src}: a manifest record without the id, rainy, clean and mask of a sample: "
+                                f"{json.dumps(e)[:80]}")
         if splits is not None:
             entries = [e for e in entries if e.get("split") in splits]
             if not entries:

@@ -311,8 +311,9 @@ def write(main_dir: Path, like_dir: Path, out_dir: Path, head_path: Path, replac
     except Exception as e:  # pickle, zip and torch's own errors: not a head file either way
         raise SharedDetectorError(f"--head {head_path}: not a readable head file "
                                   f"({str(e).splitlines()[0] if str(e) else type(e).__name__})") from None
-    if not isinstance(state, dict) or "mix.weight" not in state or "up.weight" not in state:
-        raise SharedDetectorError(f"--head {head_path}: not a head (train_head's head.pt): no mix.weight and up.weight; "
+    if not isinstance(state, dict) or any(not (isinstance(state.get(k), torch.Tensor) and state[k].ndim == 4)
+                                          for k in ("mix.weight", "up.weight")):
+        raise SharedDetectorError(f"--head {head_path}: not a head (train_head's head.pt): no 4-D mix.weight and up.weight; "
                                   "a train run's checkpoint is not one")
     head = AlternativeHead(cfg.width, cfg.expanded, mid=state["mix.weight"].shape[0], up=state["up.weight"].shape[1])
     try:

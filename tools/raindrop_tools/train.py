@@ -467,6 +467,8 @@ class Trainer:
             )
         if info:
             theirs = info.get("network", {})
+            if not isinstance(theirs, dict) or not all(isinstance(f, dict) for f in theirs.values()):
+                raise TrainingError(f"--init-from {folder}: its export.json's network is not a table of networks' settings")
             ours = to_dict(self.cfg)["network"]
             for net_name, fields in theirs.items():
                 for key, value in fields.items():

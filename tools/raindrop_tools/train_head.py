@@ -39,7 +39,7 @@ import yaml
 from .config import ConfigError, _from_dict, load_yaml
 from .data import REAL_PAIRS_SOURCE
 from .imageio import ImageError, read_rgb
-from .manifest import manifest_lines
+from .manifest import ManifestError, manifest_lines, manifest_records
 from .metrics import luma_float
 from .networks import AlternativeHead, rdn_taps
 from .onnx_weights import OnnxWeightsError
@@ -148,7 +148,10 @@ def _image_files(source: Source) -> list[Path]:
         return sorted(root / r[source.images] for r in rows if r.get("split") == source.split)
     if manifest.is_file():
         # As train's data sources (data.read_manifest): the held-out real pairs only when named.
-        rows = [json.loads(text) for _, _, text in manifest_lines(root)]
+        try:
+            rows = [r for r in manifest_records(root) if isinstance(r, dict)]
+        except ManifestError as e:
+            raise SystemExit(f"error: {e}") from None
         held_out = sum(1 for r in rows if r.get("source") == REAL_PAIRS_SOURCE and r.get("split") == "test")
         if held_out:
             raise SystemExit(f"error: {root}: {held_out} of its real pairs are in the 'test' split, which "
@@ -321,6 +324,16 @@ def train(cfg: HeadConfig, out: Path) -> Path:
     return out / "head.pt"
 
 
+def _steps_logged(out: Path) -> float:
+    """The last step a run in ``out`` logged; infinite where there is a head but no readable log
+    (a head put there by hand is not a run cut short)."""
+    try:
+        steps = [json.loads(line).get("step", 0) for line in (out / "log.jsonl").read_text().splitlines() if line.strip()]
+        return max(s for s in steps if isinstance(s, (int, float))) if steps else 0
+    except (OSError, UnicodeDecodeError, ValueError, AttributeError):  # no log, a damaged one, a line no record
+        return math.inf
+
+
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(prog="python -m raindrop_tools.train_head", description=__doc__.split("\n\n")[0])
     ap.add_argument("--config", type=Path, required=True)
@@ -331,14 +344,16 @@ def main(argv: list[str] | None = None) -> int:
         raise SystemExit(f"error: --threads must be 0 or more, got {args.threads}")
     if args.out.exists() and not args.out.is_dir():
         raise SystemExit(f"error: --out {args.out}: not a folder")
-    # As train refuses a run folder with checkpoints: a second run replaced the first's head.
-    if (args.out / "head.pt").exists():
+    cfg = read_config(args.config)
+    # As train refuses a run folder with a finished run: a second run replaced the first's head.
+    # A run cut short (head.pt is written every 500 steps) is trained again from the start.
+    if (args.out / "head.pt").exists() and _steps_logged(args.out) >= cfg.steps:
         raise SystemExit(f"error: --out {args.out} holds a trained head (head.pt) already: train into a new folder "
                          "(a fine-tune of that head names it as its config's init)")
     if args.threads > 0:
         torch.set_num_threads(args.threads)
     try:
-        path = train(read_config(args.config), args.out)
+        path = train(cfg, args.out)
     except ReadOnlyFileError as e:
         raise SystemExit(f"error: {e}") from None
     print(f"wrote {path}")

@@ -137,6 +137,10 @@ def test_a_head_source_of_real_pairs_with_held_out_pairs_needs_its_split(tmp_pat
     with pytest.raises(SystemExit, match="2 of its real pairs are in the 'test' split"):
         train_head._image_files(train_head.Source(path=str(root), weight=1.0))
     assert len(train_head._image_files(train_head.Source(path=str(root), weight=1.0, split="train"))) == 2
+    with open(root / "manifest.jsonl", "a") as f:
+        f.write("not json\n[1]\n")
+    with pytest.raises(SystemExit, match="manifest.jsonl:5: not valid JSON"):
+        train_head._image_files(train_head.Source(path=str(root), weight=1.0))
 
 
 @pytest.mark.torch
@@ -149,6 +153,11 @@ def test_a_head_run_folder_with_a_head_is_not_trained_over(tmp_path):
     with pytest.raises(SystemExit, match="holds a trained head"):
         train_head.main(["--config", str(cfg), "--out", str(tmp_path / "run")])
     assert (tmp_path / "run" / "head.pt").read_bytes() == b"the first run's head"
+    # a run's log says how far it got: cut short (head.pt every 500 steps) it is trained again
+    (tmp_path / "run" / "log.jsonl").write_text('{"step": 50, "loss": 1}\n{"step": 500, "loss": 0.5}\n')
+    assert train_head._steps_logged(tmp_path / "run") == 500
+    (tmp_path / "run" / "log.jsonl").write_text('{"step": 50\n')
+    assert train_head._steps_logged(tmp_path / "run") == float("inf")  # damaged: not known to be cut short
 
 
 def test_dataset_stats_refuses_a_record_of_width_zero(tiny_dataset, tmp_path, capsys):
@@ -180,6 +189,10 @@ def test_stats_and_packs_of_a_missing_folder_or_a_broken_manifest_say_which(tiny
     err = capsys.readouterr().err
     assert "manifest.jsonl:2: not valid JSON" in err and "Traceback" not in err
     assert not (tmp_path / "p").exists()
+    (broken / "manifest.jsonl").write_text("\n".join(lines[:1] + ["[1]"] + lines[2:]) + "\n")
+    assert datapack.main(["pack", str(tmp_path / "p"), str(broken) + ":4"]) != 0
+    err = capsys.readouterr().err
+    assert "a manifest record without the id" in err and "Traceback" not in err
 
 
 def test_a_key_given_twice_in_a_config_is_refused(tmp_path):

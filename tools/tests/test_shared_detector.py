@@ -284,8 +284,9 @@ def test_a_head_that_is_not_one_for_the_main_detector_is_a_one_line_error(tmp_pa
     torch.save(AlternativeHead(cfg.width + 2, cfg.expanded, mid=6, up=4).state_dict(), tmp_path / "wide.pt")
     torch.save({"model": {"w": torch.zeros(1)}, "step": 3}, tmp_path / "ckpt.pt")
     (tmp_path / "text.pt").write_text("not a file torch reads")
+    torch.save({"mix.weight": torch.zeros(3), "up.weight": torch.zeros(3)}, tmp_path / "flat.pt")
     before = (main / "rdn.onnx").read_bytes()
-    for name, why in (("wide.pt", "not a head for"), ("ckpt.pt", "not a head"), ("text.pt", "not a readable head file")):
+    for name, why in (("wide.pt", "not a head for"), ("ckpt.pt", "not a head"), ("text.pt", "not a readable head file"), ("flat.pt", "not a head")):
         assert SD.main(["--main", str(main), "--head", str(tmp_path / name), "--like", str(like), "--out",
                         str(tmp_path / "h")]) == 1
         err = capsys.readouterr().err

@@ -322,6 +322,9 @@ def test_init_from_an_exported_model_folder_fine_tunes_its_function(smoke_run, t
     (int8 / "export.json").write_text("{ cut")
     assert train.main(_args(data, tmp_path / "ft9", "--init-from", str(int8), *frozen)) == 2
     assert "its export.json cannot be read" in capsys.readouterr().err
+    (int8 / "export.json").write_text('{"network": {"rdn": 5}}')
+    assert train.main(_args(data, tmp_path / "ft10", "--init-from", str(int8), *frozen)) == 2
+    assert "not a table of networks' settings" in capsys.readouterr().err
 
 
 def test_a_run_that_saved_nothing_may_be_started_again_with_a_corrected_command(smoke_run, tmp_path, capsys):
