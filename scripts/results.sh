@@ -7,7 +7,7 @@
 # windshield-followup longer growth sharpness coalesce surround largewidth largedrops-all windshield2
 # errorsplit withoutvnni graphrewrites jitter windshieldscale router routed int8router droplets realismcontrol
 # droplets2 infocus realismbar windshieldday fillarea finedrops lanes glassplate platerecon aperturelanes headrouter int8head headthreshold dilation coarsescales mainthreshold
-# rim headtext headnight headdiscs workers int8default sampledlayers dry wetgate
+# rim headtext headnight headdiscs workers int8default sampledlayers dry wetgate evalprogram
 #
 # Sections measured before docs/RESULTS.md 4.44 run compact-windshield's detector (and the routed
 # default) with --surround-fill-area 150, the area they had then, so that they reproduce.
@@ -36,7 +36,7 @@ sections=("$@")
                                   surround largewidth largedrops-all windshield2 errorsplit withoutvnni graphrewrites
                                   jitter windshieldscale router routed int8router droplets realismcontrol droplets2 infocus realismbar
                                   windshieldday fillarea finedrops lanes glassplate platerecon aperturelanes headrouter int8head headthreshold dilation coarsescales mainthreshold
-                                  rim headtext headnight headdiscs workers int8default sampledlayers dry wetgate)
+                                  rim headtext headnight headdiscs workers int8default sampledlayers dry wetgate evalprogram)
 want() { [[ " ${sections[*]} " == *" $1 "* ]]; }
 # link_set SRC DST SPLIT [LIMIT]: the first LIMIT (default 100; 0: all) samples of data set SRC
 # (of manifest split SPLIT; "-" = all) linked into DST/rainy and DST/clean (and DST/mask, where
@@ -3480,4 +3480,18 @@ for label, n, kind, other in rows:
     sheet.append(r)
 cv2.imwrite(f"{wg}/sheet.png", np.vstack(sheet))
 PY
+fi
+
+if want evalprogram; then
+  # docs/RESULTS.md 4.75: the held-out real pairs scored by evaluate through raindrop-remove as a
+  # user runs it (--program), beside the networks' single pass, with the report's contact sheets
+  # (input | mask | output | clean) in $out/evalprogram/<run>/sheets.
+  ep="$out/evalprogram"
+  mkdir -p "$ep"
+  $py -m raindrop_tools.evaluate --real-pairs "$shared/real-pairs" --program build/raindrop-remove \
+    --out "$ep/program-default" --no-progress | tee "$ep/program-default.txt"
+  $py -m raindrop_tools.evaluate --real-pairs "$shared/real-pairs" --program build/raindrop-remove \
+    --models models/compact-multiscale --out "$ep/program-float" --no-progress | tee "$ep/program-float.txt"
+  $py -m raindrop_tools.evaluate --real-pairs "$shared/real-pairs" --models models/compact-multiscale \
+    --out "$ep/single-pass-float" --no-progress | tee "$ep/single-pass-float.txt"
 fi

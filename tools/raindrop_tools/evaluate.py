@@ -31,7 +31,9 @@ import csv
 import json
 import os
 import platform
+import subprocess
 import sys
+import tempfile
 import time
 from pathlib import Path
 
@@ -43,7 +45,7 @@ from . import metrics as MT
 from . import realpairs as RP
 from .cli_args import at_least, unit_interval
 from .data import DatasetError, check_files, read_manifest
-from .imageio import ImageError, read_mask_strict, read_rgb_strict, to_uint8, write_rgb
+from .imageio import ImageError, read_mask, read_mask_strict, read_rgb, read_rgb_strict, to_uint8, write_rgb
 from .read_only import first_read_only_problem, refuse_read_only
 from .reference import ModelError, RaindropRemover
 
@@ -268,6 +270,40 @@ def contact_sheet(rainy, detected, rough, output, clean, title: str = "") -> np.
     return _label(row, title) if title else row
 
 
+class ProgramError(RuntimeError):
+    """``--program`` failed on the pairs (its own one-line message)."""
+
+
+def run_program(program: Path, pairs: list, models: Path | None, threshold: float | None, dilation: int | None,
+                threads: int | None, work: Path) -> dict[str, tuple[Path, Path]]:
+    """Runs ``raindrop-remove`` (``program``) as a user would, on the pairs' rainy images (linked
+    into ``work/in`` as ``<id><ext>``), in one folder run. Returns id -> (output file, mask file)."""
+    src = work / "in"
+    src.mkdir(parents=True)
+    names = {}
+    for p in pairs:
+        name = p.id + p.rainy.suffix
+        os.symlink(p.rainy.resolve(), src / name)
+        names[p.id] = name
+    cmd = [str(program), str(src), str(work / "out"), "--mask-dir", str(work / "masks"), "-q"]
+    if models is not None:
+        cmd += ["--models", str(models)]
+    if threshold is not None:
+        cmd += ["--threshold", repr(float(threshold))]
+    if dilation is not None:
+        cmd += ["--dilation", str(int(dilation))]
+    if threads:
+        cmd += ["-j", str(int(threads))]
+    try:
+        done = subprocess.run(cmd, capture_output=True, text=True)
+    except OSError as e:
+        raise ProgramError(f"--program {program}: cannot run it ({e.strerror or e})") from None
+    if done.returncode != 0:
+        said = (done.stderr.strip().splitlines() or [f"exit code {done.returncode}"])[-1]
+        raise ProgramError(f"--program {program} failed on the pairs: {said}")
+    return {pid: (work / "out" / name, work / "masks" / (Path(name).stem + ".png")) for pid, name in names.items()}
+
+
 def evaluate_real_pairs(
     folder: Path,
     models: Path,
@@ -281,11 +317,16 @@ def evaluate_real_pairs(
     threads: int | None = None,
     sheets: bool = True,
     progress: bool = True,
+    program: Path | None = None,
 ) -> dict:
     """Removal on real rainy/clean pairs (``realpairs``): PSNR/SSIM of the input and of the
     pipeline's output against the clean photograph, the gain, and detection against the rough
     masks (``realpairs.rough_mask``, which stand in for a ground truth real pairs lack).
-    Writes results.json, results.md, per_image.csv and sheets/<id>.png to ``out``."""
+    Writes results.json, results.md, per_image.csv and sheets/<id>.png to ``out``.
+
+    ``program``: score what ``raindrop-remove`` (this path) makes of the pairs, as a user runs it
+    (working scale, coarse pass, router, fills; ``models`` None: its default), instead of the
+    reference pipeline's single pass. Its masks are binary: no AP, precision and recall only."""
     mask_params = mask_params or RP.MaskParams()
     pairs = RP.select(RP.assign_splits(RP.find_pairs(folder), holdout), split)
     if limit:
@@ -296,9 +337,16 @@ def evaluate_real_pairs(
     # before the writes).
     refuse_read_only(*(Path(out) / "sheets" / f"{sid}.png"
                        for sid in sorted(_earlier_sheet_ids(Path(out)) | ({p.id for p in pairs} if sheets else set()))))
-    remover = RaindropRemover(models, threads=threads)
-    thr = remover.threshold if threshold is None else float(threshold)
-    k = remover.dilation if dilation is None else int(dilation)
+    work = tempfile.TemporaryDirectory(prefix="raindrop-evaluate-") if program is not None else None
+    if program is not None:
+        remover = None
+        made = run_program(Path(program), pairs, models, threshold, dilation, threads, Path(work.name))
+        thr = "the models' own" if threshold is None else float(threshold)
+        k = "the models' own" if dilation is None else int(dilation)
+    else:
+        remover = RaindropRemover(models, threads=threads)
+        thr = remover.threshold if threshold is None else float(threshold)
+        k = remover.dilation if dilation is None else int(dilation)
     pr = MT.PRAccumulator()
     counts = MT.MaskCounts()
     per_image = []
@@ -306,12 +354,18 @@ def evaluate_real_pairs(
     for p in tqdm(pairs, desc="evaluate", disable=not progress, dynamic_ncols=True):
         rainy, clean, rough = RP.pair_mask(p, mask_params)
         gt = rough > 0
-        res = remover.remove(rainy, thr, k, keep_intermediates=True)
-        pr.add(res.prob, gt)
-        counts.add(res.mask, gt)
-        m_in, m_out = MT.image_metrics(rainy, clean), MT.image_metrics(res.output, clean)
+        if remover is not None:
+            res = remover.remove(rainy, thr, k, keep_intermediates=True)
+            pr.add(res.prob, gt)
+            output, detected = res.output, res.mask
+        else:
+            output, detected = read_rgb(made[p.id][0]), read_mask(made[p.id][1]) > 0
+            if output.shape != rainy.shape or detected.shape != gt.shape:
+                raise ProgramError(f"--program {program}: its output for {p.id} is not the pair's size")
+        counts.add(detected, gt)
+        m_in, m_out = MT.image_metrics(rainy, clean), MT.image_metrics(output, clean)
         rec = {"id": p.id, "group": p.group, "split": p.split, "rough_coverage": float(gt.mean()),
-               "detected_coverage": float(res.mask.mean())}
+               "detected_coverage": float(detected.mean())}
         for key in QUALITY:
             rec[f"input_{key}"] = m_in[key]
             rec[f"output_{key}"] = m_out[key]
@@ -320,14 +374,17 @@ def evaluate_real_pairs(
         if sheets:
             title = (f"{p.id} ({p.split})  PSNR-Y {m_in['psnr_y']:.2f} -> {m_out['psnr_y']:.2f} dB, "
                      f"SSIM-Y {m_in['ssim_y']:.3f} -> {m_out['ssim_y']:.3f}")
-            sheet = contact_sheet(rainy, res.mask, gt, res.output, clean, title)
+            sheet = contact_sheet(rainy, detected, gt, output, clean, title)
             made_sheets[p.id] = cv2.imencode(".png", cv2.cvtColor(sheet, cv2.COLOR_RGB2BGR))[1].tobytes()
     mean = {key: float(np.mean([r[key] for r in per_image])) for key in per_image[0] if key.startswith(
         ("input_", "output_", "gain_", "rough_", "detected_"))}
+    if work is not None:
+        work.cleanup()
     result = {
         "real_pairs": str(folder),
-        "models": str(models),
-        "config": remover.config,
+        "models": str(models) if models is not None else "the program's default",
+        "config": remover.config if remover is not None else f"{Path(program).name}",
+        "program": str(program) if program is not None else None,
         "split": split,
         "holdout": holdout if holdout is not None else RP.DEFAULT_HOLDOUT,
         "groups": sorted({p.group for p in pairs}),
@@ -336,7 +393,7 @@ def evaluate_real_pairs(
         "dilation": k,
         "mask_params": dataclasses.asdict(mask_params),
         "mean": mean,
-        "ap_rough": pr.average_precision(),
+        "ap_rough": pr.average_precision() if remover is not None else None,  # a program's masks are binary
         "mask_vs_rough": counts.summary(),
         "ap_bins": pr.bins,
         "psnr_cap_db": MT.PSNR_CAP_DB,
@@ -387,12 +444,15 @@ def real_pairs_markdown(result: dict) -> str:
         f"# Real pairs: {result['config']} on {result['images']} pairs (split {result['split']})",
         "",
         f"Pairs: `{result['real_pairs']}`, groups {', '.join(result['groups'])}; models: `{result['models']}`; "
-        f"threshold {result['threshold']}, dilation k={result['dilation']}.",
+        + (f"run by `{result['program']}` as a user runs it, threshold {result['threshold']}, dilation "
+           f"{result['dilation']}." if result.get("program") else
+           f"threshold {result['threshold']}, dilation k={result['dilation']}."),
         "",
         "| | PSNR (Y) | SSIM (Y) | PSNR (RGB) | SSIM (RGB) |",
         "| --- | ---: | ---: | ---: | ---: |",
     ]
-    for row, label in (("input", "Input (no removal)"), ("output", "Output (3RN + RDN + RFN)"), ("gain", "Gain")):
+    output_label = f"Output ({result['config']})" if result.get("program") else "Output (3RN + RDN + RFN)"
+    for row, label in (("input", "Input (no removal)"), ("output", output_label), ("gain", "Gain")):
         sign = "+" if row == "gain" else ""
         cells = [f"{m[f'{row}_{key}']:{sign}.{2 if key.startswith('psnr') else 4}f}" for key in QUALITY]
         lines.append(f"| {label} | " + " | ".join(cells) + " |")
@@ -400,7 +460,7 @@ def real_pairs_markdown(result: dict) -> str:
     mp = result["mask_params"]
     lines += [
         "",
-        f"Detection against the rough masks: AP {_fmt(result['ap_rough'], 4)}; final mask precision "
+        f"Detection against the rough masks: AP {_fmt(result['ap_rough'], 4) if result['ap_rough'] is not None else 'n/a (the program writes binary masks)'}; final mask precision "
         f"{_fmt(mk['precision'], 4)}, recall {_fmt(mk['recall'], 4)}, IoU {_fmt(mk['iou'], 4)}, coverage "
         f"{_fmt(mk['coverage'], 4)} (rough masks: {_fmt(m['rough_coverage'], 4)}).",
         "",
@@ -434,7 +494,12 @@ def main(argv: list[str] | None = None) -> int:
     src.add_argument(
         "--real-pairs", metavar="DIR", help="folder of real X_rain.* / X_clean.* pairs (raindrop_tools.realpairs)"
     )
-    ap.add_argument("--models", required=True, help="folder with rdn.onnx, rrn.onnx, rfn.onnx")
+    ap.add_argument("--models", help="folder with rdn.onnx, rrn.onnx, rfn.onnx (required, but with --program: "
+                    "the program's default)")
+    ap.add_argument("--program", metavar="RAINDROP_REMOVE",
+                    help="--real-pairs: score what this raindrop-remove makes of the pairs as a user runs it "
+                    "(working scale, coarse pass, router, fills), instead of the networks' single pass; e.g. "
+                    "build/raindrop-remove")
     ap.add_argument("--out", required=True, help="output folder")
     ap.add_argument(
         "--split",
@@ -451,6 +516,12 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--no-progress", action="store_true")
     RP.add_mask_arguments(ap)
     args = ap.parse_args(argv)
+    if args.program and not args.real_pairs:
+        ap.error("--program scores real pairs (--real-pairs); for a rendered set, run it and score_outputs")
+    if not args.models and not args.program:
+        ap.error("--models is required (but with --program)")
+    if args.program and not (Path(args.program).is_file() and os.access(args.program, os.X_OK)):
+        ap.error(f"--program {args.program}: not an executable file")
     if args.dilation is not None and not 1 <= args.dilation <= 1023:
         ap.error(f"--dilation must be 1 to 1023, got {args.dilation}")
     if Path(args.out).exists() and not Path(args.out).is_dir():  # found before the work, not after it
@@ -467,7 +538,7 @@ def main(argv: list[str] | None = None) -> int:
         try:
             result = evaluate_real_pairs(
                 Path(args.real_pairs),
-                Path(args.models),
+                Path(args.models) if args.models else None,
                 Path(args.out),
                 split=args.split[0] if args.split else "test",
                 holdout=RP.parse_holdout(args.holdout) if args.holdout else None,
@@ -478,8 +549,9 @@ def main(argv: list[str] | None = None) -> int:
                 threads=args.threads,
                 sheets=not args.no_sheets,
                 progress=not args.no_progress,
+                program=Path(args.program) if args.program else None,
             )
-        except (RP.PairsError, ModelError, ImageError, ValueError, OSError) as e:
+        except (RP.PairsError, ModelError, ImageError, ValueError, OSError, ProgramError) as e:
             print(f"error: {e}", file=sys.stderr)
             return 2
         print(real_pairs_markdown(result).split("\n\n| pair |")[0])
