@@ -31,6 +31,7 @@ import csv
 import json
 import os
 import platform
+import signal
 import subprocess
 import sys
 import tempfile
@@ -281,11 +282,13 @@ def run_program(program: Path, pairs: list, models: Path | None, threshold: floa
     src = work / "in"
     src.mkdir(parents=True)
     names = {}
-    for p in pairs:
-        name = p.id + p.rainy.suffix
+    for i, p in enumerate(pairs):
+        # Neutral names: the program skips hidden files (an id starting with '.') in folders.
+        name = f"pair{i:06d}{p.rainy.suffix}"
         os.symlink(p.rainy.resolve(), src / name)
         names[p.id] = name
-    cmd = [str(program), str(src), str(work / "out"), "--mask-dir", str(work / "masks"), "-q"]
+    # Absolute: a bare name would be looked up on PATH, which may hold another raindrop-remove.
+    cmd = [str(Path(program).absolute()), str(src), str(work / "out"), "--mask-dir", str(work / "masks"), "-q"]
     if models is not None:
         cmd += ["--models", str(models)]
     if threshold is not None:
@@ -301,7 +304,12 @@ def run_program(program: Path, pairs: list, models: Path | None, threshold: floa
     if done.returncode != 0:
         said = (done.stderr.strip().splitlines() or [f"exit code {done.returncode}"])[-1]
         raise ProgramError(f"--program {program} failed on the pairs: {said}")
-    return {pid: (work / "out" / name, work / "masks" / (Path(name).stem + ".png")) for pid, name in names.items()}
+    made = {pid: (work / "out" / name, work / "masks" / (Path(name).stem + ".png")) for pid, name in names.items()}
+    for pid, (output, mask) in made.items():
+        if not (output.is_file() and mask.is_file()):
+            raise ProgramError(f"--program {program} exited 0 but wrote no {'output' if not output.is_file() else 'mask'} "
+                               f"for pair {pid}")
+    return made
 
 
 def evaluate_real_pairs(
@@ -338,6 +346,16 @@ def evaluate_real_pairs(
     refuse_read_only(*(Path(out) / "sheets" / f"{sid}.png"
                        for sid in sorted(_earlier_sheet_ids(Path(out)) | ({p.id for p in pairs} if sheets else set()))))
     work = tempfile.TemporaryDirectory(prefix="raindrop-evaluate-") if program is not None else None
+    try:
+        return _score_real_pairs(folder, models, out, split, holdout, mask_params, pairs, threshold, dilation, threads,
+                                 sheets, progress, program, work)
+    finally:
+        if work is not None:
+            work.cleanup()
+
+
+def _score_real_pairs(folder, models, out, split, holdout, mask_params, pairs, threshold, dilation, threads, sheets,
+                      progress, program, work) -> dict:
     if program is not None:
         remover = None
         made = run_program(Path(program), pairs, models, threshold, dilation, threads, Path(work.name))
@@ -378,11 +396,9 @@ def evaluate_real_pairs(
             made_sheets[p.id] = cv2.imencode(".png", cv2.cvtColor(sheet, cv2.COLOR_RGB2BGR))[1].tobytes()
     mean = {key: float(np.mean([r[key] for r in per_image])) for key in per_image[0] if key.startswith(
         ("input_", "output_", "gain_", "rough_", "detected_"))}
-    if work is not None:
-        work.cleanup()
     result = {
         "real_pairs": str(folder),
-        "models": str(models) if models is not None else "the program's default",
+        "models": str(models) if models is not None else "the program's default ($RAINDROP_MODELS, else models/DEFAULT)",
         "config": remover.config if remover is not None else f"{Path(program).name}",
         "program": str(program) if program is not None else None,
         "split": split,
@@ -533,6 +549,10 @@ def main(argv: list[str] | None = None) -> int:
         print(f"error: {problem}", file=sys.stderr)
         return 2
     if args.real_pairs:
+        if args.program:
+            # A kill (SIGTERM) ends the run through SystemExit, so that the program's scratch
+            # folder goes with it (and subprocess.run kills the program it waits for).
+            signal.signal(signal.SIGTERM, lambda *_: sys.exit(143))
         if args.split and len(args.split) > 1:
             ap.error("--real-pairs takes one --split (train, test or all)")
         try:

@@ -141,6 +141,8 @@ src, dst, masks = a[0], a[1], a[a.index("--mask-dir") + 1]
 open(os.path.join(os.path.dirname(os.path.abspath(sys.argv[0])), "args.txt"), "w").write(" ".join(a))
 if "--threshold" in a and a[a.index("--threshold") + 1] == "0.99":
     sys.stderr.write("raindrop-remove: error: a one-line failure\\n"); sys.exit(1)
+if "--threshold" in a and a[a.index("--threshold") + 1] == "0.98":
+    sys.exit(0)  # says nothing, writes nothing
 os.makedirs(dst); os.makedirs(masks)
 for n in sorted(os.listdir(src)):
     rainy_path = os.path.realpath(os.path.join(src, n))
@@ -152,7 +154,7 @@ for n in sorted(os.listdir(src)):
 """
 
 
-def test_real_pairs_scored_through_the_program(tmp_path, capsys):
+def test_real_pairs_scored_through_the_program(tmp_path, capsys, monkeypatch):
     # --program: what raindrop-remove makes of the pairs, scored as the networks' pass is (the
     # networks' single pass gained +0.22 dB on the held-out real pairs where the program gains +4.02)
     import os
@@ -187,6 +189,12 @@ def test_real_pairs_scored_through_the_program(tmp_path, capsys):
     assert main([*args, "--threshold", "0.99", "--out", str(tmp_path / "o3")]) == 2
     err = capsys.readouterr().err
     assert "failed on the pairs: raindrop-remove: error: a one-line failure" in err and len(err.strip().splitlines()) == 1
+    assert main([*args, "--threshold", "0.98", "--out", str(tmp_path / "o6")]) == 2
+    assert "exited 0 but wrote no output for pair" in capsys.readouterr().err
+    # a bare name is the file in the working folder, not one PATH finds
+    monkeypatch.chdir(tmp_path)
+    monkeypatch.setenv("PATH", "/nonexistent")
+    assert main([*args[:2], "--program", "fake-remove", "--out", str(tmp_path / "o7"), "--no-progress"]) == 0
     with pytest.raises(SystemExit):
         main([*args[:2], "--program", str(tmp_path / "nowhere"), "--out", str(tmp_path / "o4")])
     with pytest.raises(SystemExit):  # --program is for real pairs
