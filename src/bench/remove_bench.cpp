@@ -277,6 +277,7 @@ bool print_photograph_times(const std::vector<std::string>& model_dirs, const st
     }
   }
   fs::remove_all(tmp, ec);
+  bench::forget_scratch_dir(tmp);
   return all_ran;
 }
 
@@ -427,6 +428,7 @@ int run_remove_bench(RemoveBenchOptions o) {
       }
     }
     fs::remove_all(tmp, ec);
+    bench::forget_scratch_dir(tmp);
   }
   if (!o.process_images.empty() && !print_photograph_times(model_dirs, o.process_images, thread_counts.back(), runs)) {
     std::cerr << "raindrop-bench remove: error: a photograph's run failed (its row says so)\n";

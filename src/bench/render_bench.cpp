@@ -977,6 +977,7 @@ int run_render_bench(RenderBenchOptions o) {
     ~RemoveOnExit() {
       std::error_code ec;
       fs::remove_all(dir, ec);
+      bench::forget_scratch_dir(dir);
     }
   } remove_tmp{tmp};
   Input input;
