@@ -533,7 +533,8 @@ def main(argv: list[str] | None = None) -> int:
     RP.add_mask_arguments(ap)
     args = ap.parse_args(argv)
     if args.program and not args.real_pairs:
-        ap.error("--program scores real pairs (--real-pairs); for a rendered set, run it and score_outputs")
+        ap.error("--program scores real pairs (--real-pairs); for a rendered set, run the program on DATA/rainy into "
+                 "OUT, then: python -m raindrop_tools.score_outputs --data DATA --outputs OUT")
     if not args.models and not args.program:
         ap.error("--models is required (but with --program)")
     if args.program and not (Path(args.program).is_file() and os.access(args.program, os.X_OK)):
