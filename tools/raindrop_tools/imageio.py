@@ -19,6 +19,12 @@ from .read_only import read_only_problem
 
 _PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
 
+# OpenCV's own log lines ("[ WARN:0@0.1] global loadsave.cpp ... findDecoder ...") came before
+# the tools' one-line errors, which say the same in the tools' words. $OPENCV_LOG_LEVEL, where a
+# user sets it, still decides.
+if "OPENCV_LOG_LEVEL" not in os.environ:
+    cv2.utils.logging.setLogLevel(cv2.utils.logging.LOG_LEVEL_SILENT)
+
 
 class ImageError(ValueError):
     """An image that cannot be read or does not have the expected format."""

@@ -195,6 +195,24 @@ def test_stats_and_packs_of_a_missing_folder_or_a_broken_manifest_say_which(tiny
     assert "a manifest record without the id" in err and "Traceback" not in err
 
 
+def test_an_unreadable_image_is_one_line_without_opencvs_own_log(tmp_path):
+    # OpenCV printed "[ WARN:0@0.1] global loadsave.cpp ... findDecoder ..." on the process's
+    # stderr (not Python's: capsys cannot see it) before the tool's own line
+    import os
+    import subprocess
+    import sys
+
+    env = {k: v for k, v in os.environ.items() if k != "OPENCV_LOG_LEVEL"}
+    env["PYTHONPATH"] = str(REPO / "tools")
+    cmd = [sys.executable, "-m", "raindrop_tools.reference", str(tmp_path / "missing.png"), str(tmp_path / "o.png"),
+           "--models", str(FIXTURE_MODELS)]
+    done = subprocess.run(cmd, capture_output=True, text=True, env=env)
+    assert done.returncode == 2 and done.stderr.strip().splitlines() == [
+        f"error: {tmp_path / 'missing.png'}: cannot read image (missing or not an image)"], done.stderr
+    done = subprocess.run(cmd, capture_output=True, text=True, env={**env, "OPENCV_LOG_LEVEL": "WARNING"})
+    assert "findDecoder" in done.stderr  # a user who asks for OpenCV's log still gets it
+
+
 def test_a_key_given_twice_in_a_config_is_refused(tmp_path):
     """YAML keeps the last: a second top-level 'train:' replaced the first's settings silently."""
     from raindrop_tools.config import ConfigError, load_config
