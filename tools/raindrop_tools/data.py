@@ -42,6 +42,21 @@ MAX_LISTED_PROBLEMS = 20
 REAL_PAIRS_SOURCE = "real-pairs"
 
 
+def is_held_out_real_pair(record: dict) -> bool:
+    """A manifest record of a pair realpairs.py prepare put in the 'test' split: the pairs
+    'evaluate --split test' scores, which training must not see unless told to."""
+    return record.get("source") == REAL_PAIRS_SOURCE and record.get("split") == "test"
+
+
+def held_out_real_pairs_problem(root: str | os.PathLike, count: int, how: str) -> str | None:
+    """The one-line refusal of training on `count` held-out real pairs of `root` (None for
+    none); `how` says how the caller's config names a source's splits."""
+    if not count:
+        return None
+    return (f"{root}: {count} of its real pairs are in the 'test' split, which 'evaluate --split test' scores; "
+            f"{how}")
+
+
 class DatasetError(ValueError):
     """A data set that does not follow CONTRACTS.md section 1."""
 
@@ -89,7 +104,7 @@ def read_manifest(
     problems: list[str] = []
     samples: list[Sample] = []
     seen: dict[str, str] = {}
-    real_pair_ids: set[str] = set()  # samples that realpairs prepare wrote (for_training)
+    held_out = 0  # samples kept that is_held_out_real_pair (for_training)
     for file, lineno, text in lines:
         where = f"{root / file}:{lineno}"
         try:
@@ -135,8 +150,6 @@ def read_manifest(
             continue
         seen[sid] = str(lineno) if file == MANIFEST else f"{lineno} of {file}"
         split = obj.get("split")
-        if obj.get("source") == REAL_PAIRS_SOURCE:
-            real_pair_ids.add(sid)
         if splits is not None and split is None:
             problems.append(f"{where}: sample {sid!r} has no 'split' key, but splits {splits} were requested")
             continue
@@ -144,18 +157,17 @@ def read_manifest(
             samples.append(
                 Sample(sid, paths["rainy"], paths["clean"], paths["mask"], obj["width"], obj["height"], split, lineno, file)
             )
+            held_out += is_held_out_real_pair(obj)
         elif left_out is not None:
             left_out[split] += 1
     if problems:
         _raise(problems, f"{manifest}")
     if for_training and splits is None:
-        held_out = sum(1 for s in samples if s.split == "test" and s.id in real_pair_ids)
-        if held_out:
-            raise DatasetError(
-                f"{root}: {held_out} of its real pairs are in the 'test' split, which 'evaluate --split test' "
-                "scores; name the splits to train on (split: train for this source, or data.splits: [train]), "
-                "or split: [train, test] to train on every pair knowingly"
-            )
+        problem = held_out_real_pairs_problem(
+            root, held_out, "name the splits to train on (split: train for this source, or data.splits: [train]), "
+            "or split: [train, test] to train on every pair knowingly")
+        if problem:
+            raise DatasetError(problem)
     if not samples:
         which = f" with split in {splits}" if splits is not None else ""
         raise DatasetError(f"{manifest}: no samples{which}")

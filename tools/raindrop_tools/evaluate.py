@@ -26,6 +26,7 @@ coarse pass for large drops, the fill of small drops, the detector router of a f
 from __future__ import annotations
 
 import argparse
+import contextlib
 import dataclasses
 import csv
 import json
@@ -345,55 +346,47 @@ def evaluate_real_pairs(
     # before the writes).
     refuse_read_only(*(Path(out) / "sheets" / f"{sid}.png"
                        for sid in sorted(_earlier_sheet_ids(Path(out)) | ({p.id for p in pairs} if sheets else set()))))
-    work = tempfile.TemporaryDirectory(prefix="raindrop-evaluate-") if program is not None else None
-    try:
-        return _score_real_pairs(folder, models, out, split, holdout, mask_params, pairs, threshold, dilation, threads,
-                                 sheets, progress, program, work)
-    finally:
-        if work is not None:
-            work.cleanup()
-
-
-def _score_real_pairs(folder, models, out, split, holdout, mask_params, pairs, threshold, dilation, threads, sheets,
-                      progress, program, work) -> dict:
-    if program is not None:
-        remover = None
-        made = run_program(Path(program), pairs, models, threshold, dilation, threads, Path(work.name))
-        thr = "the models' own" if threshold is None else float(threshold)
-        k = "the models' own" if dilation is None else int(dilation)
-    else:
-        remover = RaindropRemover(models, threads=threads)
-        thr = remover.threshold if threshold is None else float(threshold)
-        k = remover.dilation if dilation is None else int(dilation)
-    pr = MT.PRAccumulator()
-    counts = MT.MaskCounts()
-    per_image = []
-    made_sheets = {}  # id -> PNG bytes, written once every pair has been scored
-    for p in tqdm(pairs, desc="evaluate", disable=not progress, dynamic_ncols=True):
-        rainy, clean, rough = RP.pair_mask(p, mask_params)
-        gt = rough > 0
-        if remover is not None:
-            res = remover.remove(rainy, thr, k, keep_intermediates=True)
-            pr.add(res.prob, gt)
-            output, detected = res.output, res.mask
+    # The program's scratch folder, read in the loop, goes however it ends (an error, a SIGTERM through main).
+    with contextlib.ExitStack() as scratch:
+        if program is not None:
+            remover = None
+            work = Path(scratch.enter_context(tempfile.TemporaryDirectory(prefix="raindrop-evaluate-")))
+            made = run_program(Path(program), pairs, models, threshold, dilation, threads, work)
+            thr = "the models' own" if threshold is None else float(threshold)
+            k = "the models' own" if dilation is None else int(dilation)
         else:
-            output, detected = read_rgb(made[p.id][0]), read_mask(made[p.id][1]) > 0
-            if output.shape != rainy.shape or detected.shape != gt.shape:
-                raise ProgramError(f"--program {program}: its output for {p.id} is not the pair's size")
-        counts.add(detected, gt)
-        m_in, m_out = MT.image_metrics(rainy, clean), MT.image_metrics(output, clean)
-        rec = {"id": p.id, "group": p.group, "split": p.split, "rough_coverage": float(gt.mean()),
-               "detected_coverage": float(detected.mean())}
-        for key in QUALITY:
-            rec[f"input_{key}"] = m_in[key]
-            rec[f"output_{key}"] = m_out[key]
-            rec[f"gain_{key}"] = m_out[key] - m_in[key]
-        per_image.append(rec)
-        if sheets:
-            title = (f"{p.id} ({p.split})  PSNR-Y {m_in['psnr_y']:.2f} -> {m_out['psnr_y']:.2f} dB, "
-                     f"SSIM-Y {m_in['ssim_y']:.3f} -> {m_out['ssim_y']:.3f}")
-            sheet = contact_sheet(rainy, detected, gt, output, clean, title)
-            made_sheets[p.id] = cv2.imencode(".png", cv2.cvtColor(sheet, cv2.COLOR_RGB2BGR))[1].tobytes()
+            remover = RaindropRemover(models, threads=threads)
+            thr = remover.threshold if threshold is None else float(threshold)
+            k = remover.dilation if dilation is None else int(dilation)
+        pr = MT.PRAccumulator()
+        counts = MT.MaskCounts()
+        per_image = []
+        made_sheets = {}  # id -> PNG bytes, written once every pair has been scored
+        for p in tqdm(pairs, desc="evaluate", disable=not progress, dynamic_ncols=True):
+            rainy, clean, rough = RP.pair_mask(p, mask_params)
+            gt = rough > 0
+            if remover is not None:
+                res = remover.remove(rainy, thr, k, keep_intermediates=True)
+                pr.add(res.prob, gt)
+                output, detected = res.output, res.mask
+            else:
+                output, detected = read_rgb(made[p.id][0]), read_mask(made[p.id][1]) > 0
+                if output.shape != rainy.shape or detected.shape != gt.shape:
+                    raise ProgramError(f"--program {program}: its output for {p.id} is not the pair's size")
+            counts.add(detected, gt)
+            m_in, m_out = MT.image_metrics(rainy, clean), MT.image_metrics(output, clean)
+            rec = {"id": p.id, "group": p.group, "split": p.split, "rough_coverage": float(gt.mean()),
+                   "detected_coverage": float(detected.mean())}
+            for key in QUALITY:
+                rec[f"input_{key}"] = m_in[key]
+                rec[f"output_{key}"] = m_out[key]
+                rec[f"gain_{key}"] = m_out[key] - m_in[key]
+            per_image.append(rec)
+            if sheets:
+                title = (f"{p.id} ({p.split})  PSNR-Y {m_in['psnr_y']:.2f} -> {m_out['psnr_y']:.2f} dB, "
+                         f"SSIM-Y {m_in['ssim_y']:.3f} -> {m_out['ssim_y']:.3f}")
+                sheet = contact_sheet(rainy, detected, gt, output, clean, title)
+                made_sheets[p.id] = cv2.imencode(".png", cv2.cvtColor(sheet, cv2.COLOR_RGB2BGR))[1].tobytes()
     mean = {key: float(np.mean([r[key] for r in per_image])) for key in per_image[0] if key.startswith(
         ("input_", "output_", "gain_", "rough_", "detected_"))}
     result = {

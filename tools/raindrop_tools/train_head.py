@@ -37,7 +37,7 @@ import torch.nn.functional as F
 import yaml
 
 from .config import ConfigError, _from_dict, load_yaml
-from .data import REAL_PAIRS_SOURCE
+from .data import held_out_real_pairs_problem, is_held_out_real_pair
 from .imageio import ImageError, read_rgb
 from .manifest import ManifestError, manifest_lines, manifest_records
 from .metrics import luma_float
@@ -152,10 +152,9 @@ def _image_files(source: Source) -> list[Path]:
             rows = [r for r in manifest_records(root) if isinstance(r, dict)]
         except ManifestError as e:
             raise SystemExit(f"error: {e}") from None
-        held_out = sum(1 for r in rows if r.get("source") == REAL_PAIRS_SOURCE and r.get("split") == "test")
-        if held_out:
-            raise SystemExit(f"error: {root}: {held_out} of its real pairs are in the 'test' split, which "
-                             "'evaluate --split test' scores; give this source split: train")
+        problem = held_out_real_pairs_problem(root, sum(map(is_held_out_real_pair, rows)), "give this source split: train")
+        if problem:
+            raise SystemExit(f"error: {problem}")
     return sorted((root / source.images).glob("*.png"))
 
 

@@ -178,27 +178,27 @@ def read_gate(path: str | os.PathLike) -> WetGate:
     return WetGate(models, maps, vector("mean", n), std, vector("weight", n), float(vector("bias", 1)[0]))
 
 
-def _features_of(feats: MapFeatures, folders: list[str]) -> tuple[np.ndarray, list[Path]]:
-    files = [f for d in folders for f in image_files(d)]
-    return np.array([feats(read_rgb_native(f)) for f in files]), files
+def _frames_of(folders: list[str]) -> list[Path]:
+    return [f for d in folders for f in image_files(d)]
 
 
 def _fit_command(args) -> int:
     problem = key_file_path_problem(args.out, GateError, "models")  # before the work
     if problem:
         raise GateError(problem)
-    models = Path(args.models) if args.models else default_models()
-    feats = MapFeatures(models, args.threads)
-    if not feats.name.split() or feats.name.split() != [feats.name]:
-        raise GateError(f"'{models}': a model folder whose name holds spaces cannot be named in a gate file")
-    wet, wet_files = _features_of(feats, args.wet)
-    dry, dry_files = _features_of(feats, args.dry)
     # A frame labelled both wet and dry (the same folder given twice, say) teaches nothing, and
-    # a gate fitted on such labels is no gate.
+    # a gate fitted on such labels is no gate: refused before the detector runs on every frame.
+    wet_files, dry_files = _frames_of(args.wet), _frames_of(args.dry)
     both = {f.resolve() for f in wet_files} & {f.resolve() for f in dry_files}
     if both:
         raise GateError(f"{len(both)} frame(s) are given as both wet and dry (e.g. '{sorted(both)[0]}'): "
                         "--wet and --dry must name different frames")
+    models = Path(args.models) if args.models else default_models()
+    feats = MapFeatures(models, args.threads)
+    if not feats.name.split() or feats.name.split() != [feats.name]:
+        raise GateError(f"'{models}': a model folder whose name holds spaces cannot be named in a gate file")
+    wet = np.array([feats(read_rgb_native(f)) for f in wet_files])
+    dry = np.array([feats(read_rgb_native(f)) for f in dry_files])
     gate = fit(wet, dry, feats.name, args.keep_wet)
     kept, passed = np.mean(gate.score(wet) > 0), np.mean(gate.score(dry) <= 0)
     comment = (f"raindrop wet gate: an image is processed where z > 0, else written as it was.\n"
