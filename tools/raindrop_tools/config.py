@@ -368,7 +368,7 @@ def parse_overrides(items: list[str] | None) -> list[tuple[str, Any]]:
         try:
             value = yaml.safe_load(raw)
         except yaml.YAMLError as e:  # '[1' gave a parser traceback
-            raise ConfigError(f"override {item!r}: the value is not YAML ({str(e).splitlines()[0]})") from None
+            raise ConfigError(f"override {item!r}: the value is not YAML ({yaml_error_text(e)})") from None
         out.append((key.strip(), value))
     return out
 
@@ -408,6 +408,16 @@ def load_yaml(text: str):
     return yaml.load(text, Loader=_UniqueKeyLoader)
 
 
+def yaml_error_text(e: yaml.YAMLError) -> str:
+    """One line for a YAML error: where (line and column, 1-based) and what, not PyYAML's several
+    lines that quote the text and point at it with a caret."""
+    mark = getattr(e, "problem_mark", None)
+    problem = getattr(e, "problem", None) or str(e).splitlines()[0]
+    if mark is None:
+        return problem
+    return f"line {mark.line + 1}, column {mark.column + 1}: {problem}"
+
+
 def load_config(
     path: str | os.PathLike, overrides: list[tuple[str, Any]] | None = None, resolve_paths: bool = True
 ) -> RunConfig:
@@ -417,7 +427,7 @@ def load_config(
     except OSError as e:
         raise ConfigError(f"cannot read configuration {path}: {e}") from None
     except yaml.YAMLError as e:
-        raise ConfigError(f"{path}: not valid YAML: {e}") from None
+        raise ConfigError(f"{path}: not valid YAML: {yaml_error_text(e)}") from None
     if not isinstance(data, dict):
         raise ConfigError(f"{path}: expected a mapping at the top level")
     try:

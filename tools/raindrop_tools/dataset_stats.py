@@ -48,6 +48,8 @@ def summarize(data_dir: Path) -> dict:
 
     def stats(values) -> dict:
         a = np.asarray(values, dtype=float)
+        if np.all(np.isnan(a)):  # none recorded (e.g. a set of trails only): NaN, no warnings
+            return {"mean": float("nan"), "p5": float("nan"), "p95": float("nan")}
         return {"mean": float(np.nanmean(a)), "p5": float(np.nanpercentile(a, 5)), "p95": float(np.nanpercentile(a, 95))}
 
     return {

@@ -49,12 +49,30 @@ def to_uint8(img: np.ndarray) -> np.ndarray:
     return np.floor(x * np.float32(255.0) + np.float32(0.5)).astype(np.uint8)
 
 
+def _imread(path: str | os.PathLike, flags: int) -> np.ndarray | None:
+    """cv2.imread, and where it fails on a file that exists, cv2.imdecode of the file's bytes.
+    The pinned OpenCV (5.0) fails inside imread on a TIFF whose EXIF orientation turns it (5-8:
+    its decoder turns the image, and imread refuses a result of other sides than the header's);
+    imdecode returns the same pixels turned upright, as raindrop-remove reads them."""
+    img = cv2.imread(str(path), flags)
+    if img is not None:
+        return img
+    try:
+        with open(path, "rb") as f:
+            if f.read(4) not in (b"II*\0", b"MM\0*"):  # only TIFFs: no other file read whole
+                return None
+        data = np.fromfile(str(path), dtype=np.uint8)
+    except (OSError, ValueError):  # missing, a folder, unreadable
+        return None
+    return cv2.imdecode(data, flags)
+
+
 def _read_upright(path: str | os.PathLike, flags: int) -> np.ndarray:
     """cv2.imread with `flags`, RGB. PNG is read as stored, eXIf chunk or not, as raindrop-remove
     reads it (JPEG and TIFF are turned upright by both)."""
     if str(path).lower().endswith(".png"):
         flags |= cv2.IMREAD_IGNORE_ORIENTATION
-    img = cv2.imread(str(path), flags)
+    img = _imread(path, flags)
     if img is None:
         raise ImageError(f"{path}: cannot read image (missing or not an image)")
     return cv2.cvtColor(img, cv2.COLOR_BGR2RGB)
@@ -85,7 +103,7 @@ def native_to_float(img: np.ndarray) -> np.ndarray:
 
 def read_rgb_strict(path: str | os.PathLike) -> np.ndarray:
     """Data-set image: must be 8-bit, 3 channels (RGB). -> HxWx3 uint8 RGB."""
-    img = cv2.imread(str(path), cv2.IMREAD_UNCHANGED)
+    img = _imread(path, cv2.IMREAD_UNCHANGED)
     if img is None:
         raise ImageError(f"{path}: cannot read image (missing or not an image)")
     if img.dtype != np.uint8 or img.ndim != 3 or img.shape[2] != 3:
@@ -93,13 +111,13 @@ def read_rgb_strict(path: str | os.PathLike) -> np.ndarray:
     if str(path).lower().endswith((".jpg", ".jpeg")):
         # IMREAD_UNCHANGED ignores a JPEG's EXIF orientation; IMREAD_COLOR applies it, as
         # raindrop-remove and raindrop-render do (the same pixels, upright).
-        img = cv2.imread(str(path), cv2.IMREAD_COLOR)
+        img = _imread(path, cv2.IMREAD_COLOR)
     return cv2.cvtColor(img, cv2.COLOR_BGR2RGB)
 
 
 def read_mask_strict(path: str | os.PathLike) -> np.ndarray:
     """Data-set mask: must be 8-bit single channel. -> HxW uint8 (values not checked here)."""
-    img = cv2.imread(str(path), cv2.IMREAD_UNCHANGED)
+    img = _imread(path, cv2.IMREAD_UNCHANGED)
     if img is None:
         raise ImageError(f"{path}: cannot read image (missing or not an image)")
     if img.dtype != np.uint8 or img.ndim != 2:
@@ -109,7 +127,7 @@ def read_mask_strict(path: str | os.PathLike) -> np.ndarray:
 
 def read_mask(path: str | os.PathLike) -> np.ndarray:
     """Lenient mask reader (e.g. a mask a user passes): any image -> HxW uint8 grey."""
-    img = cv2.imread(str(path), cv2.IMREAD_GRAYSCALE)
+    img = _imread(path, cv2.IMREAD_GRAYSCALE)
     if img is None:
         raise ImageError(f"{path}: cannot read image (missing or not an image)")
     return img

@@ -51,6 +51,7 @@ from .config import (
     load_config,
     parse_overrides,
     to_dict,
+    yaml_error_text,
 )
 from .data import DatasetError, MultiSourceDataset, RaindropDataset, StepBatchSampler, WeightedStepBatchSampler, epochs
 from .morphology import Dilation
@@ -145,7 +146,8 @@ def prepare_run_dir(run_dir: Path, cfg: RunConfig | None) -> RunConfig:
                 raise yaml.YAMLError("empty, or not a mapping")
             recorded = config_from_dict(loaded)
         except (yaml.YAMLError, ValueError) as e:  # ValueError: config.ConfigError (unknown keys, bad values)
-            raise TrainingError(f"{cfg_file}: not a readable configuration ({str(e).splitlines()[0]})") from e
+            why = yaml_error_text(e) if isinstance(e, yaml.YAMLError) else str(e).splitlines()[0]
+            raise TrainingError(f"{cfg_file}: not a readable configuration ({why})") from e
         if cfg is None or to_dict(cfg) == to_dict(recorded):
             return recorded
         # Only a run folder (run.json marks one) holds a run's configuration: a config.yaml of the

@@ -36,7 +36,7 @@ import torch
 import torch.nn.functional as F
 import yaml
 
-from .config import ConfigError, _from_dict, load_yaml
+from .config import ConfigError, _from_dict, load_yaml, yaml_error_text
 from .data import held_out_real_pairs_problem, is_held_out_real_pair
 from .imageio import ImageError, read_rgb
 from .manifest import ManifestError, manifest_lines, manifest_records
@@ -98,7 +98,7 @@ def read_config(path: Path) -> HeadConfig:
     except OSError as e:
         raise SystemExit(f"error: cannot read {path}: {e}") from None
     except yaml.YAMLError as e:
-        raise SystemExit(f"error: {path}: not valid YAML: {str(e).splitlines()[0]}") from None
+        raise SystemExit(f"error: {path}: not valid YAML: {yaml_error_text(e)}") from None
     # The training configs' reader (config.py): unknown keys named, values coerced to their types.
     try:
         cfg = _from_dict(HeadConfig, raw if isinstance(raw, dict) else {})

@@ -88,3 +88,23 @@ def test_optimizer_and_seed_values_are_range_checked(override, match):
     as the latest checkpoint)."""
     with pytest.raises(ConfigError, match=match):
         config_from_dict({}, parse_overrides([override]))
+
+
+@pytest.mark.parametrize(
+    "text, where",
+    [
+        ("a: [1, 2\nb: 3\n", "line 2, column 2: expected ',' or ']'"),
+        ("train:\n  lr: 1\n  lr: 2\n", "line 3, column 3: the key 'lr' is given twice"),
+        ('a: "x\n', "found unexpected end of stream"),
+    ],
+)
+def test_a_yaml_syntax_error_is_one_line_that_says_where(tmp_path, text, where):
+    # PyYAML's own message quotes the text over several lines, with a caret under it.
+    path = tmp_path / "bad.yaml"
+    path.write_text(text)
+    with pytest.raises(ConfigError) as e:
+        load_config(path)
+    assert "\n" not in str(e.value) and where in str(e.value), str(e.value)
+    with pytest.raises(ConfigError) as e:
+        parse_overrides(["train.lr=[1"])
+    assert "\n" not in str(e.value) and "line 1" in str(e.value), str(e.value)
