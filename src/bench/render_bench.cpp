@@ -984,6 +984,9 @@ int run_render_bench(RenderBenchOptions o) {
   if (!input_path.empty()) {
     input.png = input_path;
     input.description = input_path;
+    // Read once before the report starts: an unreadable input is refused in one line, not after
+    // the header and half a table on stdout.
+    (void)read_rgb8(input.png, false);
   } else {
     try {
       const auto found = find_cityscapes(fs::path(shared) / "cityscapes-mini", "train");
