@@ -36,7 +36,7 @@ sections=("$@")
                                   surround largewidth largedrops-all windshield2 errorsplit withoutvnni graphrewrites
                                   jitter windshieldscale router routed int8router droplets realismcontrol droplets2 infocus realismbar
                                   windshieldday fillarea finedrops lanes glassplate platerecon aperturelanes headrouter int8head headthreshold dilation coarsescales mainthreshold
-                                  rim headtext headnight headdiscs workers int8default sampledlayers dry wetgate evalprogram)
+                                  rim headtext headnight headdiscs workers int8default sampledlayers dry wetgate evalprogram photostally)
 want() { [[ " ${sections[*]} " == *" $1 "* ]]; }
 # link_set SRC DST SPLIT [LIMIT]: the first LIMIT (default 100; 0: all) samples of data set SRC
 # (of manifest split SPLIT; "-" = all) linked into DST/rainy and DST/clean (and DST/mask, where
@@ -3494,4 +3494,29 @@ if want evalprogram; then
     --models models/compact-multiscale --out "$ep/program-float" --no-progress | tee "$ep/program-float.txt"
   $py -m raindrop_tools.evaluate --real-pairs "$shared/real-pairs" --models models/compact-multiscale \
     --out "$ep/single-pass-float" --no-progress | tee "$ep/single-pass-float.txt"
+fi
+
+if want photostally; then
+  # docs/RESULTS.md 4.76: the 44 photographs through the default and through `--dilation 7
+  # --fine-drops`, each with a sheet per photograph (input | mask tinted red | output, full
+  # resolution) to judge by eye, drop kind by drop kind, as that section's table does.
+  pt="$out/photostally"
+  rm -rf "$pt" && mkdir -p "$pt"
+  build/raindrop-remove "$shared/real-raindrop" "$pt/default" --mask-dir "$pt/default-masks" -q
+  build/raindrop-remove "$shared/real-raindrop" "$pt/dilation7-finedrops" --mask-dir "$pt/dilation7-finedrops-masks" \
+    -q --dilation 7 --fine-drops
+  $py - "$shared/real-raindrop" "$pt" <<'PY'
+import sys, cv2, numpy as np
+from pathlib import Path
+photos, pt = Path(sys.argv[1]), Path(sys.argv[2])
+for run in ("default", "dilation7-finedrops"):
+    (pt / f"{run}-sheets").mkdir()
+    for src in sorted(p for p in photos.iterdir() if not p.name.startswith(".")):
+        rgb, out = cv2.imread(str(src)), cv2.imread(str(pt / run / src.name))
+        mask = cv2.imread(str(pt / f"{run}-masks" / src.with_suffix(".png").name), cv2.IMREAD_GRAYSCALE)
+        tinted = rgb.copy()
+        tinted[mask > 0] = (0.5 * tinted[mask > 0] + (0, 0, 127)).astype(np.uint8)
+        cv2.imwrite(str(pt / f"{run}-sheets" / src.with_suffix(".png").name), np.hstack([rgb, tinted, out]))
+print("sheets:", pt)
+PY
 fi
