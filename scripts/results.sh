@@ -7,7 +7,7 @@
 # windshield-followup longer growth sharpness coalesce surround largewidth largedrops-all windshield2
 # errorsplit withoutvnni graphrewrites jitter windshieldscale router routed int8router droplets realismcontrol
 # droplets2 infocus realismbar windshieldday fillarea finedrops lanes glassplate platerecon aperturelanes headrouter int8head headthreshold dilation coarsescales mainthreshold
-# rim headtext headnight headdiscs workers int8default sampledlayers dry wetgate evalprogram
+# rim headtext headnight headdiscs workers int8default sampledlayers dry wetgate evalprogram photostally
 #
 # Sections measured before docs/RESULTS.md 4.44 run compact-windshield's detector (and the routed
 # default) with --surround-fill-area 150, the area they had then, so that they reproduce.
@@ -3510,13 +3510,20 @@ import sys, cv2, numpy as np
 from pathlib import Path
 photos, pt = Path(sys.argv[1]), Path(sys.argv[2])
 for run in ("default", "dilation7-finedrops"):
-    (pt / f"{run}-sheets").mkdir()
-    for src in sorted(p for p in photos.iterdir() if not p.name.startswith(".")):
-        rgb, out = cv2.imread(str(src)), cv2.imread(str(pt / run / src.name))
-        mask = cv2.imread(str(pt / f"{run}-masks" / src.with_suffix(".png").name), cv2.IMREAD_GRAYSCALE)
+    # What raindrop-remove wrote: every image under the folder, subfolders included, by its
+    # relative name (it skips hidden files and what it cannot read, and so does this).
+    for out_path in sorted(p for p in (pt / run).rglob("*") if p.is_file()):
+        rel = out_path.relative_to(pt / run)
+        rgb, out = cv2.imread(str(photos / rel)), cv2.imread(str(out_path))
+        mask = cv2.imread(str(pt / f"{run}-masks" / rel.with_suffix(".png")), cv2.IMREAD_GRAYSCALE)
+        if rgb is None or out is None or mask is None or rgb.shape != out.shape:
+            print("no sheet for", rel)
+            continue
         tinted = rgb.copy()
         tinted[mask > 0] = (0.5 * tinted[mask > 0] + (0, 0, 127)).astype(np.uint8)
-        cv2.imwrite(str(pt / f"{run}-sheets" / src.with_suffix(".png").name), np.hstack([rgb, tinted, out]))
+        sheet = pt / f"{run}-sheets" / rel.with_suffix(".png")
+        sheet.parent.mkdir(parents=True, exist_ok=True)
+        cv2.imwrite(str(sheet), np.hstack([rgb, tinted, out]))
 print("sheets:", pt)
 PY
 fi

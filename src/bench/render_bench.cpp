@@ -985,8 +985,22 @@ int run_render_bench(RenderBenchOptions o) {
     input.png = input_path;
     input.description = input_path;
     // Read once before the report starts: an unreadable input is refused in one line, not after
-    // the header and half a table on stdout.
-    (void)read_rgb8(input.png, false);
+    // the header and half a table on stdout. The png section reads any image as stored (and
+    // skips what is not 8-bit RGB); the others render it, as raindrop-render does without
+    // --convert, whose advice is not this program's.
+    if (wanted == std::set<std::string>{"png"}) {
+      (void)read_image_native(input.png);
+    } else {
+      try {
+        (void)read_rgb8(input.png, false);
+      } catch (const Error& e) {
+        std::string why = one_line(e.what());
+        const auto advice = why.find(" (pass --convert");
+        if (advice != std::string::npos)
+          why = why.substr(0, advice) + " (the render sections take 8-bit RGB; --sections png takes any image)";
+        throw Error("--input " + why);
+      }
+    }
   } else {
     try {
       const auto found = find_cityscapes(fs::path(shared) / "cityscapes-mini", "train");

@@ -366,7 +366,7 @@ def parse_overrides(items: list[str] | None) -> list[tuple[str, Any]]:
             raise ConfigError(f"override {item!r}: expected key=value")
         key, raw = item.split("=", 1)
         try:
-            value = yaml.safe_load(raw)
+            value = load_yaml(raw)
         except yaml.YAMLError as e:  # '[1' gave a parser traceback
             raise ConfigError(f"override {item!r}: the value is not YAML ({yaml_error_text(e)})") from None
         out.append((key.strip(), value))
@@ -404,18 +404,37 @@ _UniqueKeyLoader.add_constructor(yaml.resolver.BaseResolver.DEFAULT_MAPPING_TAG,
 
 
 def load_yaml(text: str):
-    """``text`` as YAML (safe types), a key given twice in one mapping refused (yaml.YAMLError)."""
-    return yaml.load(text, Loader=_UniqueKeyLoader)
+    """``text`` as YAML (safe types), a key given twice in one mapping refused (yaml.YAMLError).
+    A value its tag cannot take ('!!int x', a list as a key) is a yaml.YAMLError too: PyYAML's
+    constructors raise ValueError, TypeError or AttributeError there."""
+    try:
+        return yaml.load(text, Loader=_UniqueKeyLoader)
+    except yaml.YAMLError:
+        raise
+    except (ValueError, TypeError, AttributeError, IndexError, KeyError, OverflowError) as e:
+        raise yaml.YAMLError(f"a value YAML cannot construct ({type(e).__name__}: {e})") from None
+
+
+def _where(mark) -> str:
+    return f"line {mark.line + 1}, column {mark.column + 1}"
 
 
 def yaml_error_text(e: yaml.YAMLError) -> str:
-    """One line for a YAML error: where (line and column, 1-based) and what, not PyYAML's several
-    lines that quote the text and point at it with a caret."""
+    """One line for a YAML error, not PyYAML's several lines that quote the text and point at it
+    with a caret: what went wrong and where (line and column, 1-based), after what it was parsing
+    and where that began (an unclosed '[' is found a line later)."""
+    lines = str(e).splitlines()
+    problem = getattr(e, "problem", None) or (lines[0] if lines else type(e).__name__)
     mark = getattr(e, "problem_mark", None)
-    problem = getattr(e, "problem", None) or str(e).splitlines()[0]
-    if mark is None:
-        return problem
-    return f"line {mark.line + 1}, column {mark.column + 1}: {problem}"
+    text = problem if mark is None else f"{problem} ({_where(mark)})"
+    if isinstance(e, yaml.reader.ReaderError):  # a character YAML refuses: no line, a position
+        text = f"{problem} (character {e.position + 1})"
+    context = getattr(e, "context", None)
+    if context:
+        cmark = getattr(e, "context_mark", None)
+        same = cmark is None or (mark is not None and (cmark.line, cmark.column) == (mark.line, mark.column))
+        text = f"{context}{'' if same else f' ({_where(cmark)})'}: {text}"
+    return text
 
 
 def load_config(

@@ -48,8 +48,8 @@ def summarize(data_dir: Path) -> dict:
 
     def stats(values) -> dict:
         a = np.asarray(values, dtype=float)
-        if np.all(np.isnan(a)):  # none recorded (e.g. a set of trails only): NaN, no warnings
-            return {"mean": float("nan"), "p5": float("nan"), "p95": float("nan")}
+        if np.all(np.isnan(a)):  # none recorded (e.g. a set of trails only): null in JSON, '-' in the table
+            return {"mean": None, "p5": None, "p95": None}
         return {"mean": float(np.nanmean(a)), "p5": float(np.nanpercentile(a, 5)), "p95": float(np.nanpercentile(a, 95))}
 
     return {
@@ -70,13 +70,16 @@ def markdown(rows: list[dict]) -> str:
         "| data set | preset | samples | size | drops/frame | coverage % (p5-p95) | drop diameter px @2048 (p5-p95) | dark band % | off-frame % |",
         "|---|---|---|---|---|---|---|---|---|",
     ]
+    def f(v, digits: int, scale: float = 1.0) -> str:  # None: nothing recorded
+        return "-" if v is None else f"{scale * v:.{digits}f}"
+
     for s in rows:
         c, d = s["coverage"], s["drop_diameter_px_at_2048"]
         out.append(
             f'| {s["data"]} | {", ".join(s["presets"])} | {s["samples"]} | {", ".join(s["size"])} | '
-            f'{s["drops_per_frame"]["mean"]:.1f} | {100 * c["mean"]:.1f} ({100 * c["p5"]:.1f}-{100 * c["p95"]:.1f}) | '
-            f'{d["mean"]:.0f} ({d["p5"]:.0f}-{d["p95"]:.0f}) | {100 * s["dark_band_fraction"]["mean"]:.1f} | '
-            f'{100 * s["off_frame_fraction"]["mean"]:.1f} |'
+            f'{f(s["drops_per_frame"]["mean"], 1)} | {f(c["mean"], 1, 100)} ({f(c["p5"], 1, 100)}-{f(c["p95"], 1, 100)}) | '
+            f'{f(d["mean"], 0)} ({f(d["p5"], 0)}-{f(d["p95"], 0)}) | {f(s["dark_band_fraction"]["mean"], 1, 100)} | '
+            f'{f(s["off_frame_fraction"]["mean"], 1, 100)} |'
         )
     return "\n".join(out)
 
@@ -92,7 +95,7 @@ def main(argv: list[str] | None = None) -> int:
         what = f"a record has no {e}" if isinstance(e, KeyError) else str(e)
         print(f"dataset_stats: error: {what} (rendered data sets only)", file=sys.stderr)
         return 2
-    print(json.dumps(rows, indent=2) if args.json else markdown(rows))
+    print(json.dumps(rows, indent=2, allow_nan=False) if args.json else markdown(rows))
     return 0
 
 

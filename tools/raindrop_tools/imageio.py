@@ -18,6 +18,8 @@ import numpy as np
 from .read_only import read_only_problem
 
 _PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
+# TIFF and BigTIFF, little- and big-endian.
+_TIFF_SIGNATURES = (b"II*\0", b"MM\0*", b"II+\0", b"MM\0+")
 
 # OpenCV's own log lines ("[ WARN:0@0.1] global loadsave.cpp ... findDecoder ...") came before
 # the tools' one-line errors, which say the same in the tools' words. $OPENCV_LOG_LEVEL, where a
@@ -59,7 +61,7 @@ def _imread(path: str | os.PathLike, flags: int) -> np.ndarray | None:
         return img
     try:
         with open(path, "rb") as f:
-            if f.read(4) not in (b"II*\0", b"MM\0*"):  # only TIFFs: no other file read whole
+            if f.read(4) not in _TIFF_SIGNATURES:  # only TIFFs: no other file read whole
                 return None
         data = np.fromfile(str(path), dtype=np.uint8)
     except (OSError, ValueError):  # missing, a folder, unreadable

@@ -49,6 +49,7 @@ from .config import (
     data_sources,
     dump_config,
     load_config,
+    load_yaml,
     parse_overrides,
     to_dict,
     yaml_error_text,
@@ -141,7 +142,7 @@ def prepare_run_dir(run_dir: Path, cfg: RunConfig | None) -> RunConfig:
     lock_run_dir(run_dir)
     if cfg_file.is_file():
         try:
-            loaded = yaml.safe_load(cfg_file.read_text())
+            loaded = load_yaml(cfg_file.read_text())
             if not isinstance(loaded, dict):
                 raise yaml.YAMLError("empty, or not a mapping")
             recorded = config_from_dict(loaded)

@@ -93,18 +93,37 @@ def test_optimizer_and_seed_values_are_range_checked(override, match):
 @pytest.mark.parametrize(
     "text, where",
     [
-        ("a: [1, 2\nb: 3\n", "line 2, column 2: expected ',' or ']'"),
-        ("train:\n  lr: 1\n  lr: 2\n", "line 3, column 3: the key 'lr' is given twice"),
-        ('a: "x\n', "found unexpected end of stream"),
+        ("a: [1, 2\nb: 3\n",
+         "while parsing a flow sequence (line 1, column 4): expected ',' or ']', but got ':' (line 2, column 2)"),
+        ("train:\n  lr: 1\n  lr: 2\n", "the key 'lr' is given twice (line 3, column 3)"),
+        ('a: "x\n', "found unexpected end of stream (line 2, column 1)"),
+        ("a: 1\n---\nb: 2\n", "expected a single document in the stream (line 1, column 1): but found another document"),
+        ("a: &x 1\nb: &x 2\n", "found duplicate anchor 'x'; first occurrence (line 1, column 4): second occurrence"),
+        ("lr: !!int x\n", "a value YAML cannot construct (ValueError"),
+        ("? [1, 2]\n: 3\n", "a value YAML cannot construct (TypeError"),
+        ("a: \x07\n", "special characters are not allowed (character 4)"),
     ],
 )
-def test_a_yaml_syntax_error_is_one_line_that_says_where(tmp_path, text, where):
-    # PyYAML's own message quotes the text over several lines, with a caret under it.
+def test_a_yaml_mistake_is_one_line_that_says_where(tmp_path, text, where):
+    # PyYAML's own message quotes the text over several lines, with a caret under it; its
+    # constructors raised ValueError or TypeError (a traceback) for a value its tag cannot take.
     path = tmp_path / "bad.yaml"
     path.write_text(text)
     with pytest.raises(ConfigError) as e:
         load_config(path)
     assert "\n" not in str(e.value) and where in str(e.value), str(e.value)
+
+
+@pytest.mark.parametrize("item", ["train.lr=[1", "train.lr=!!int x"])
+def test_an_override_that_is_not_yaml_is_one_line(item):
     with pytest.raises(ConfigError) as e:
-        parse_overrides(["train.lr=[1"])
-    assert "\n" not in str(e.value) and "line 1" in str(e.value), str(e.value)
+        parse_overrides([item])
+    assert "\n" not in str(e.value) and "the value is not YAML" in str(e.value), str(e.value)
+
+
+def test_a_yaml_error_without_a_message_still_says_something():
+    import yaml
+
+    from raindrop_tools.config import yaml_error_text
+
+    assert yaml_error_text(yaml.YAMLError()) == "YAMLError"

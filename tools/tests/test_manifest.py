@@ -74,6 +74,26 @@ def test_trail_caps_are_not_counted_as_drops(tiny_dataset, tmp_path):
     assert s["drops_per_frame"]["p95"] == 1
 
 
+def test_statistics_nothing_recorded_are_null_in_json_and_a_dash_in_the_table(tiny_dataset, capsys):
+    """A set whose records hold no dark band or off-frame fraction (older renders, the tiny
+    fixture): those statistics are JSON's null, not NaN (not JSON), and '-' in the table, with no
+    numpy warning about empty slices."""
+    import warnings
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        s = dataset_stats.summarize(tiny_dataset)
+        assert dataset_stats.main([str(tiny_dataset), "--json"]) == 0
+    missing = [k for k, v in s.items() if isinstance(v, dict) and v.get("mean") is None]
+    assert missing, "the fixture was meant to lack some statistic"
+    def refuse(constant):
+        raise ValueError(f"{constant} is not JSON")
+    rows = json.loads(capsys.readouterr().out, parse_constant=refuse)
+    assert rows[0][missing[0]] == {"mean": None, "p5": None, "p95": None}
+    assert dataset_stats.main([str(tiny_dataset)]) == 0
+    assert "| - |" in capsys.readouterr().out
+
+
 def test_a_record_cut_short_at_the_end_is_not_read(tiny_dataset, tmp_path):
     """A run interrupted mid-append (a full disk) leaves its last record without its line break:
     the renderer ignores it and renders that sample again, and so do the readers here, instead
