@@ -56,7 +56,10 @@ def _imread(path: str | os.PathLike, flags: int) -> np.ndarray | None:
     The pinned OpenCV (5.0) fails inside imread on a TIFF whose EXIF orientation turns it (5-8:
     its decoder turns the image, and imread refuses a result of other sides than the header's);
     imdecode returns the same pixels turned upright, as raindrop-remove reads them."""
-    img = cv2.imread(str(path), flags)
+    try:  # cv2.error: a header OpenCV's decoder refuses by raising (a TIFF of absurd sides)
+        img = cv2.imread(str(path), flags)
+    except cv2.error:
+        img = None
     if img is not None:
         return img
     try:
@@ -64,9 +67,9 @@ def _imread(path: str | os.PathLike, flags: int) -> np.ndarray | None:
             if f.read(4) not in _TIFF_SIGNATURES:  # only TIFFs: no other file read whole
                 return None
         data = np.fromfile(str(path), dtype=np.uint8)
-    except (OSError, ValueError):  # missing, a folder, unreadable
+        return cv2.imdecode(data, flags)
+    except (OSError, ValueError, cv2.error):  # missing, a folder, unreadable, refused
         return None
-    return cv2.imdecode(data, flags)
 
 
 def _read_upright(path: str | os.PathLike, flags: int) -> np.ndarray:

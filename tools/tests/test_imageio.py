@@ -2,6 +2,8 @@
 exif_transpose is the yardstick here), which is what raindrop-remove does (docs/CONTRACTS.md
 section 1; the two were compared by hand, the program with --threshold 1 --keep-outside-mask)."""
 
+import struct
+
 import numpy as np
 import pytest
 
@@ -57,3 +59,14 @@ def test_files_that_are_not_images_are_still_refused_in_one_line(tmp_path):
         read_rgb(tmp_path / "missing.tif")
     with pytest.raises(ImageError, match="cannot read image"):
         read_rgb(tmp_path)  # a folder
+
+
+def test_a_tiff_of_absurd_sides_is_refused_in_one_line(tmp_path):
+    # OpenCV raises cv2.error from imread for a header claiming 2^30 x 2^30 pixels.
+    entries = [(256, 4, 1, 1 << 30), (257, 4, 1, 1 << 30), (258, 3, 1, 8), (259, 3, 1, 1), (262, 3, 1, 1),
+               (273, 4, 1, 8 + 2 + 12 * 8 + 4), (278, 4, 1, 1 << 30), (279, 4, 1, 16)]
+    data = b"II*\0" + struct.pack("<IH", 8, len(entries))
+    data += b"".join(struct.pack("<HHII", *e) for e in entries) + struct.pack("<I", 0) + b"\0" * 16
+    (tmp_path / "huge.tif").write_bytes(data)
+    with pytest.raises(ImageError, match="cannot read image"):
+        read_rgb(tmp_path / "huge.tif")
