@@ -7,7 +7,7 @@
 # windshield-followup longer growth sharpness coalesce surround largewidth largedrops-all windshield2
 # errorsplit withoutvnni graphrewrites jitter windshieldscale router routed int8router droplets realismcontrol
 # droplets2 infocus realismbar windshieldday fillarea finedrops lanes glassplate platerecon aperturelanes headrouter int8head headthreshold dilation coarsescales mainthreshold
-# rim headtext headnight headdiscs workers int8default sampledlayers dry wetgate evalprogram photostally
+# rim headtext headnight headdiscs workers int8default sampledlayers dry wetgate evalprogram photostally largedetail
 #
 # Sections measured before docs/RESULTS.md 4.44 run compact-windshield's detector (and the routed
 # default) with --surround-fill-area 150, the area they had then, so that they reproduce.
@@ -36,7 +36,7 @@ sections=("$@")
                                   surround largewidth largedrops-all windshield2 errorsplit withoutvnni graphrewrites
                                   jitter windshieldscale router routed int8router droplets realismcontrol droplets2 infocus realismbar
                                   windshieldday fillarea finedrops lanes glassplate platerecon aperturelanes headrouter int8head headthreshold dilation coarsescales mainthreshold
-                                  rim headtext headnight headdiscs workers int8default sampledlayers dry wetgate evalprogram photostally)
+                                  rim headtext headnight headdiscs workers int8default sampledlayers dry wetgate evalprogram photostally largedetail)
 want() { [[ " ${sections[*]} " == *" $1 "* ]]; }
 # link_set SRC DST SPLIT [LIMIT]: the first LIMIT (default 100; 0: all) samples of data set SRC
 # (of manifest split SPLIT; "-" = all) linked into DST/rainy and DST/clean (and DST/mask, where
@@ -3526,4 +3526,27 @@ for run in ("default", "dilation7-finedrops"):
         cv2.imwrite(str(sheet), np.hstack([rgb, tinted, out]))
 print("sheets:", pt)
 PY
+fi
+
+if want largedetail; then
+  # docs/RESULTS.md 4.77: the input's fine detail given back under the coarse pass's fill
+  # (--large-drop-detail, 0.5 since). The validation sets of the default (default_sets, with
+  # the lens-cover discs at 720x480 where rendered) with 0 (before) and 0.5; the test sets once;
+  # the 44 photographs with both, and the photographs whose outputs change.
+  default_sets
+  ld="$out/largedetail"
+  mkdir -p "$ld"
+  vals=("${router_vals[@]}" val-ws-1280x720:-:0 val-wsday-1280x720:-:0 val-size-1280x720:-:0 val-size-512x288:-:0
+        val-glass-plate:-:0)
+  [[ -f data/val-lens-discs-720x480/manifest.jsonl ]] && vals+=(val-lens-discs-720x480:-:0)
+  for g in 0 0.5; do
+    score_sets "$ld" "detail$g" "-j 2 --large-drop-detail $g" "${vals[@]}"
+  done | tee "$ld/scores.txt"
+  for g in 0 0.5; do
+    score_sets "$ld" "test-detail$g" "-j 2 --large-drop-detail $g" "${router_tests[@]}" test-ws-1280x720:-:0 \
+      test-wsday-1280x720:-:0
+  done | tee "$ld/test.txt"
+  router_photos "$ld" detail0 --large-drop-detail 0
+  router_photos "$ld" detail0.5 --large-drop-detail 0.5
+  photos_changed "$ld/photos-detail0.5/removed" "$ld/photos-detail0/removed" | tee "$ld/photos-changed.txt"
 fi

@@ -349,6 +349,7 @@ int run(int argc, char** argv) {
   std::optional<int> dilation;
   std::optional<double> large_drop_growth;
   double large_drop_sharpness = kLargeDropMaxSharpness;
+  double large_drop_detail = kLargeDropDetail;
   std::optional<int> surround_fill_area;
   double surround_fill_mad = kSurroundFillMad;
   int surround_fill_rim = kSurroundFillRim;
@@ -391,13 +392,23 @@ int run(int argc, char** argv) {
                      "them); inf: every large region")
           ->capture_default_str()
           ->check(CLI::Range(0.0, std::numeric_limits<double>::infinity()));
+  auto* detail_opt =
+      app.add_option("--large-drop-detail", large_drop_detail,
+                     "Where the coarse pass's fill replaces the image, add back this fraction of the input's fine detail "
+                     "(the input minus its Gaussian blur of 3 px at the working scale), in proportion to the fill's weight: "
+                     "a defocused drop is semi-transparent, so the scene's detail shows through it, and the fill, made at a "
+                     "third of the working scale, has none (it smeared buildings and lettering on photographs); 0: the fill "
+                     "alone (docs/RESULTS.md 4.77)")
+          ->capture_default_str()
+          ->check(CLI::Range(0.0, 1.0));
   app.add_flag("--no-large-drops", no_large_drops,
                "Skip the coarse pass at a third of that scale that takes over drops too large for the networks there "
                "(mask regions with the area of a disk 60 px across at the working scale, clusters included, e.g. on a "
                "lens cover)")
       ->excludes(large_opt)
       ->excludes(growth_opt)
-      ->excludes(sharpness_opt);
+      ->excludes(sharpness_opt)
+      ->excludes(detail_opt);
   app.add_flag("--no-router", no_router,
                "Always use the models' own detector: ignore the ROUTER file in their folder, which sends each image "
                "(at the automatic working scale) to the detector it suits, e.g. sharp windshield drops to "
@@ -486,6 +497,7 @@ int run(int argc, char** argv) {
       throw Error("--large-drop-growth: nan is not a number between 0 and " +
                   std::to_string(static_cast<int>(kMaxLargeDropGrowth)));
     if (std::isnan(large_drop_sharpness)) throw Error("--large-drop-sharpness: nan is not a number >= 0");
+    if (std::isnan(large_drop_detail)) throw Error("--large-drop-detail: nan is not a number between 0 and 1");
     if (std::isnan(surround_fill_mad)) throw Error("--surround-fill-mad: nan is not a number >= 0");
     if (scale && !(*scale > 0.0)) throw Error("--scale must be a number in (0, 1]");
     check_tile_options(tile, overlap);
@@ -727,6 +739,7 @@ int run(int argc, char** argv) {
   s.options.dilation = dilation;
   s.options.large_drop_growth = large_drop_growth;
   s.options.large_drop_max_sharpness = large_drop_sharpness;
+  s.options.large_drop_detail = large_drop_detail;
   s.options.tile = tile;
   s.options.overlap = overlap;
   s.options.scale = scale;

@@ -253,6 +253,8 @@ RemoveResult Remover::run(const cv::Mat& image, const RemoveOptions& opt) {
     throw Error("--large-drop-growth must be between 0 and " + std::to_string(static_cast<int>(kMaxLargeDropGrowth)));
   if (std::isnan(opt.large_drop_max_sharpness) || opt.large_drop_max_sharpness < 0)
     throw Error("--large-drop-sharpness must be a number >= 0 (inf: no limit)");
+  if (!(opt.large_drop_detail >= 0 && opt.large_drop_detail <= 1))
+    throw Error("--large-drop-detail must be a number between 0 and 1");
   if (opt.surround_fill_area && *opt.surround_fill_area < 0)
     throw Error("--surround-fill-area must be a whole number >= 0 (0: off)");
   if (!(opt.surround_fill_mad >= 0)) throw Error("--surround-fill-mad must be a number >= 0");
@@ -345,7 +347,7 @@ RemoveResult Remover::run(const cv::Mat& image, const RemoveOptions& opt) {
     res.rgb = opt.keep_float ? to_rgb_float(image, cv::Rect(0, 0, image.cols, image.rows)) : cv::Mat();
     return res;
   }
-  if (opt.large_drops) composite_large_drops(coarse, opt, res);
+  if (opt.large_drops) composite_large_drops(image, coarse, opt, scale, res);
   if (opt.fine_drops) fine_pass(image, opt, scale, res);
   return res;
 }
@@ -548,7 +550,8 @@ Remover::CoarsePass Remover::coarse_pass(const cv::Mat& image, const cv::Mat& wo
   return cp;
 }
 
-void Remover::composite_large_drops(const CoarsePass& cp, const RemoveOptions& opt, RemoveResult& res) {
+void Remover::composite_large_drops(const cv::Mat& image, const CoarsePass& cp, const RemoveOptions& opt, double scale,
+                                    RemoveResult& res) {
   if (cp.coarse_scale == 0) return;  // it did not run
   StageTimes& t = res.times;
   t.convert += cp.convert_ms;
@@ -572,6 +575,9 @@ void Remover::composite_large_drops(const CoarsePass& cp, const RemoveOptions& o
   res.image = up.image;
   res.mask = res.mask | up.mask;
   if (opt.keep_float) res.rgb = up.rgb;
+  // The input's fine detail back under the fill, sigma given at the working scale.
+  add_input_detail(image, weight, kLargeDropDetailSigma / scale, opt.large_drop_detail, res.image,
+                   opt.keep_float ? &res.rgb : nullptr);
   t.output += lap_ms(clock);
 }
 

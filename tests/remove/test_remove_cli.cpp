@@ -101,6 +101,8 @@ TEST_F(RemoveCli, HelpVersionAndUsageErrors) {
         {"in.png", "out.png", "--no-large-drops", "--large-drop-growth", "0.3"},
         {"in.png", "out.png", "--large-drop-sharpness", "-1"},
         {"in.png", "out.png", "--no-large-drops", "--large-drop-sharpness", "5"},
+        {"in.png", "out.png", "--large-drop-detail", "-0.1"}, {"in.png", "out.png", "--large-drop-detail", "1.5"},
+        {"in.png", "out.png", "--no-large-drops", "--large-drop-detail", "0.5"},
         {"in.png", "out.png", "--surround-fill-area", "-1"}, {"in.png", "out.png", "--surround-fill-area", "1.5"},
         {"in.png", "out.png", "--surround-fill-mad", "-2"},
         {"in.png", "out.png", "--no-large-drops", "--large-drop-models", "."}}) {
@@ -376,6 +378,13 @@ TEST_F(RemoveCli, LargeDropSharpnessReachesTheCoarsePass) {
   r = remove({"sharp.png", "c.png", "--threshold", "0", "--time", "--no-large-drops"});
   ASSERT_EQ(r.code, 0) << r.describe();
   EXPECT_EQ(r.err.find("large-drop sharpness"), std::string::npos) << "no coarse pass, no limit to name\n" << r.describe();
+  // --large-drop-detail reaches it too: 0 gives the fill alone, which differs from the default's
+  // fill with the input's detail; outside the large drop's reach both are the same pixels.
+  r = remove({"sharp.png", "d.png", "--threshold", "0", "--large-drop-sharpness", "inf", "--large-drop-detail", "0"});
+  ASSERT_EQ(r.code, 0) << r.describe();
+  const auto d = read_image(tmp / "d.png");
+  ASSERT_TRUE(d);
+  EXPECT_GT(max_abs_diff(b->pixels, d->pixels), 10) << "the default gives back no detail";
 }
 
 // --surround-fill-area reaches the pipeline and --time counts the parts filled: small dark dots
@@ -1192,7 +1201,8 @@ TEST_F(RemoveCli, WorkersStopAtAFailureOrGoOn) {
 // NaN passes CLI11's range check (every comparison with it is false); it is a bad command
 // line like any other out-of-range threshold, found before the models are loaded.
 TEST_F(RemoveCli, NanThresholdIsAUsageError) {
-  for (const char* option : {"--threshold", "--large-drop-growth", "--large-drop-sharpness", "--surround-fill-mad"}) {
+  for (const char* option :
+       {"--threshold", "--large-drop-growth", "--large-drop-sharpness", "--large-drop-detail", "--surround-fill-mad"}) {
     for (const char* value : {"nan", "NaN", "-nan"}) {
       const RunResult r = remove({"in.png", "out.png", option, value, "--models", "no-such-models"});
       EXPECT_EQ(r.code, 2) << r.describe();

@@ -88,6 +88,35 @@ inline constexpr double kLargeDropSmoothing = 1.0;
 // to bottom (gravity, the sky above), and the networks learned them upright.
 inline constexpr bool kLargeDropMirrorAverage = true;
 
+// The input's own fine detail, given back where the coarse fill replaced the image
+// (RemoveOptions::large_drop_detail, raindrop-remove --large-drop-detail). A drop a few
+// centimetres from the lens is defocused and semi-transparent: the lens sees around it, so the
+// scene's fine detail shows through it, attenuated, under the drop's own smooth veil
+// (I = (1 - a) B + V, with a and V smooth). The coarse fill, reconstructed at a third of the
+// working scale and upsampled, holds none of that detail: where the coarse pass takes over, a
+// lens-cover drop's street, or a building the detector took for a large drop, comes out as a
+// smooth patch. So the fill gets back `gain` times the input's high frequencies there (the input
+// minus its Gaussian blur of kLargeDropDetailSigma pixels at the working scale), in proportion to
+// the fill's blend weight. Chosen on the real pairs' train split (docs/RESULTS.md 4.77): gain 0.5
+// at sigma 3 gave +0.11 dB and SSIM-Y +0.014 there; stronger gains bring back the drops' own
+// edges. 0: the fill alone, as before.
+inline constexpr double kLargeDropDetail = 0.5;
+inline constexpr double kLargeDropDetailSigma = 3.0;
+
+// The factor by which add_input_detail shrinks a copy of the input before blurring it:
+// floor(sigma / 4), at least 1. Up to sigma 8 (images up to about 1365 px on their long side at
+// the default working size) the blur is exact; wider, it is computed on the copy area-averaged by
+// that factor, blurred by sigma / factor (4 to 8 pixels there) and upsampled bilinearly.
+int detail_blur_reduction(double sigma);
+
+// Adds `gain` x (input - GaussianBlur(input, sigma)) x the upsampled `weight_small` (CV_32F,
+// the coarse composite's weight; upsampled as working_scale.h does) to `result` (the input's
+// size and type), in float RGB; where that weight is 0 `result` stays bit for bit, and its
+// alpha channel always does. `result_rgb` (CV_32FC3, optional) is the float copy to update
+// alike. `sigma` is in full-size pixels. gain 0: nothing.
+void add_input_detail(const cv::Mat& input, const cv::Mat& weight_small, double sigma, double gain, cv::Mat& result,
+                      cv::Mat* result_rgb = nullptr);
+
 // `net` run on `inputs` (planar float images of `channels[i]` channels, h x w) and on their
 // mirror image, the second output mirrored back, the two averaged into `output`
 // (`out_channels` planes). Exactly mirror-equivariant: mirroring the inputs mirrors the output.

@@ -60,6 +60,9 @@ struct RemoveOptions {
   // The coarse pass replaces a large region only where the working-scale image is at most this
   // sharp (large_drops.h); infinity: every large region, as before the rule.
   double large_drop_max_sharpness = kLargeDropMaxSharpness;
+  // Where the coarse pass's fill replaces the image, this times the input's fine detail is added
+  // back (large_drops.h: add_input_detail); 0: the fill alone.
+  double large_drop_detail = kLargeDropDetail;
   // Runs the 3RN and RFN on the image and on its mirror image and averages the two
   // (large_drops.h: run_mirror_averaged): twice their time for a better guess at what drops
   // hide. The coarse pass always does (kLargeDropMirrorAverage); this turns it on for the
@@ -229,7 +232,8 @@ class Remover {
   };
   CoarsePass coarse_pass(const cv::Mat& image, const cv::Mat& working, const RemoveOptions& options, double scale,
                          const RouteDecision* route, const WetVerdict* verdict);
-  void composite_large_drops(const CoarsePass& coarse, const RemoveOptions& options, RemoveResult& res);
+  void composite_large_drops(const cv::Mat& image, const CoarsePass& coarse, const RemoveOptions& options, double scale,
+                             RemoveResult& res);
   // The fine pass (fine_drops.h) over `res`, the result of both passes at `scale`.
   void fine_pass(const cv::Mat& image, const RemoveOptions& options, double scale, RemoveResult& res);
 
